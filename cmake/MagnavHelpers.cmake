@@ -1,0 +1,39 @@
+# Shared build settings and one helper per kind of target, so every module is
+# built the same way (warnings, sanitizers, namespaced alias).
+
+add_library(magnav_warnings INTERFACE)
+target_compile_options(magnav_warnings INTERFACE -Wall -Wextra -Wpedantic
+  $<$<BOOL:${MAGNAV_WERROR}>:-Werror>)
+if(MAGNAV_SANITIZE)
+  target_compile_options(magnav_warnings INTERFACE -fsanitize=address,undefined -fno-omit-frame-pointer
+    -fno-sanitize-recover=undefined)
+  target_link_options(magnav_warnings INTERFACE -fsanitize=address,undefined)
+endif()
+
+# magnav_library(<name> SOURCES ... DEPS ...) -> target magnav_<name>, alias magnav::<name>.
+# Public headers live in <module>/include/magnav/<name>/.
+function(magnav_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
+  add_library(magnav_${name} ${ARG_SOURCES})
+  add_library(magnav::${name} ALIAS magnav_${name})
+  target_include_directories(magnav_${name} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>)
+  target_link_libraries(magnav_${name} PUBLIC ${ARG_DEPS} PRIVATE magnav_warnings ${ARG_PRIVATE_DEPS})
+  set_target_properties(magnav_${name} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+endfunction()
+
+# magnav_test(<name> SOURCES ... DEPS ... [LABELS ...]) -> a GoogleTest executable
+# registered with CTest (one CTest entry per TEST()).
+function(magnav_test name)
+  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;DEPS;LABELS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS} magnav_test_support GTest::gtest GTest::gtest_main
+    magnav_warnings)
+  if(NOT ARG_TIMEOUT)
+    set(ARG_TIMEOUT 120)
+  endif()
+  gtest_discover_tests(${name}
+    DISCOVERY_TIMEOUT 60
+    PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT}
+               ENVIRONMENT "MAGNAV_TEST_DATA=${PROJECT_SOURCE_DIR}/tests/data;MAGNAV_CONFIG_DIR=${PROJECT_SOURCE_DIR}/config")
+endfunction()

@@ -1,0 +1,96 @@
+// CSV input/output shared by every offline command.
+//
+// Format: optional '#' comment lines (anywhere before or between rows), exactly
+// one header row, then comma-separated data rows. A comment of the form
+// "# key: value" with key made of [A-Za-z0-9_] is a parameter (the reference
+// files carry "# B0_T: 2e-05, 1e-06, 4.5e-05" and the like). Columns are found
+// by header name, never by position. Every error names the file and, where it
+// applies, the line (1-based, as an editor shows it) and the column.
+#pragma once
+
+#include <cstddef>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace magnav {
+
+class CsvTable {
+ public:
+  // Reads a file; throws InputError (missing file, empty file, no header,
+  // duplicate column names, a row with the wrong number of fields).
+  static CsvTable Read(const std::string& path);
+  // Parses text already in memory; `source` names it in errors.
+  static CsvTable Parse(std::string_view text, const std::string& source);
+
+  const std::string& source() const { return source_; }
+  const std::vector<std::string>& header() const { return header_; }
+  std::size_t num_rows() const { return rows_.size(); }
+  // 1-based line number of a data row in the source.
+  int line_of(std::size_t row) const { return lines_[row]; }
+
+  bool has_column(std::string_view name) const;
+  // Index of a column; throws "FILE: missing column 'NAME' (header has: ...)".
+  std::size_t column(std::string_view name) const;
+  // Index of the first present column among names, or nullopt.
+  std::optional<std::size_t> find_column(std::string_view name) const;
+
+  const std::string& text(std::size_t row, std::size_t col) const { return rows_[row][col]; }
+  // The field as a finite double; throws "FILE:LINE: column 'NAME': 'abc' is not a number".
+  double number(std::size_t row, std::size_t col) const;
+  // The field as a non-negative integer.
+  long long integer(std::size_t row, std::size_t col) const;
+
+  // "# key: value" parameters.
+  const std::map<std::string, std::string>& params() const { return params_; }
+  bool has_param(const std::string& key) const { return params_.count(key) != 0; }
+  // A parameter as comma-separated numbers; throws naming the key if a value
+  // is not a number or the count differs from `expected_count` (when > 0).
+  std::vector<double> param_numbers(const std::string& key, std::size_t expected_count = 0) const;
+  std::optional<Eigen::Vector3d> param_vec3(const std::string& key) const;
+  std::optional<double> param_number(const std::string& key) const;
+
+ private:
+  std::string source_;
+  std::vector<std::string> header_;
+  std::vector<std::vector<std::string>> rows_;
+  std::vector<int> lines_;
+  std::map<std::string, std::string> params_;
+};
+
+// Parses a finite double from the whole of `text` (surrounding spaces allowed).
+std::optional<double> ParseNumber(std::string_view text);
+// Parses "a,b,c" into numbers; nullopt if any is not a number.
+std::optional<std::vector<double>> ParseNumberList(std::string_view text);
+
+// Formats a double as the shortest string that reads back to the same value.
+std::string FormatNumber(double value);
+
+// Writes a CSV file: parameter comments, header, rows. Fields are written as
+// given (numbers through FormatNumber). Throws InputError if the file cannot
+// be opened or a row has the wrong number of fields.
+class CsvWriter {
+ public:
+  CsvWriter(const std::string& path, std::vector<std::string> header,
+            const std::vector<std::pair<std::string, std::string>>& params = {});
+  ~CsvWriter();
+  CsvWriter(const CsvWriter&) = delete;
+  CsvWriter& operator=(const CsvWriter&) = delete;
+
+  void AddComment(const std::string& text);
+  void WriteRow(const std::vector<std::string>& fields);
+  // Flushes and closes; throws if the write failed (disk full, ...).
+  void Close();
+
+ private:
+  std::string path_;
+  std::size_t num_columns_;
+  struct Impl;
+  Impl* impl_;
+};
+
+}  // namespace magnav

@@ -1,0 +1,50 @@
+// One gradiometer sample as the libraries see it (the DDS adapter converts its
+// IDL type to this), and the reader of gradiometer files.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace magnav {
+
+struct GradiometerSample {
+  std::uint32_t sensor_id = 0;
+  double t_s = 0.0;                            // time, s (scenario time)
+  Eigen::Vector3d p_SinW = Eigen::Vector3d::Zero();  // sensor position, world NED, m
+  Eigen::Vector3d B = Eigen::Vector3d::Zero();       // field incl. background, sensor axes = NED, T
+  Eigen::Matrix3d T = Eigen::Matrix3d::Zero();       // gradient tensor, T/m
+  double sigma_B = 0.0;                        // 1-σ noise per axis, T (0 = unknown)
+  double sigma_T = 0.0;                        // 1-σ noise per element, T/m (0 = unknown)
+};
+
+// Everything a gradiometer file holds: the samples plus its parameters.
+struct GradiometerFile {
+  std::string path;
+  std::vector<GradiometerSample> samples;
+  std::vector<long long> case_ids;        // from a `case_id` column, else empty
+  std::vector<int> lines;                 // source line of each sample
+  std::optional<Eigen::Vector3d> B0;           // "# B0_T:" (T)
+  std::optional<Eigen::Vector3d> moment_body;  // "# moment_body_Am2:" (A·m²)
+  std::optional<double> sigma_B;               // "# sigma_B_T:"
+  std::optional<double> sigma_T;               // "# sigma_T_Tpm:"
+};
+
+// Column names of the field and tensor in files: B_x,B_y,B_z and T00..T22.
+// `prefix_B`/`prefix_T` select other sets (the reference dipole cases carry
+// noisy copies as Bn_*, Tn*).
+struct GradiometerColumns {
+  std::string B = "B_";
+  std::string T = "T";
+};
+
+// Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22 and, if
+// present, t, sensor_id and case_id. Sample sigmas come from the file's
+// sigma parameters (0 when absent). Throws InputError naming file, line and
+// column on any problem.
+GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerColumns& cols = {});
+
+}  // namespace magnav

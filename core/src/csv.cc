@@ -1,0 +1,244 @@
+#include "magnav/core/csv.h"
+
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "magnav/core/error.h"
+
+namespace magnav {
+namespace {
+
+std::string_view Trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  return s;
+}
+
+std::vector<std::string> SplitFields(std::string_view line) {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = line.find(',', start);
+    const std::string_view f = line.substr(start, comma == std::string_view::npos ? line.npos : comma - start);
+    out.emplace_back(Trim(f));
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+bool IsParamKey(std::string_view k) {
+  if (k.empty()) return false;
+  for (char c : k) {
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
+  }
+  return true;
+}
+
+std::string Quote(std::string_view s) {
+  constexpr std::size_t kMax = 40;
+  std::string q = "'";
+  q += s.size() > kMax ? std::string(s.substr(0, kMax)) + "..." : std::string(s);
+  q += "'";
+  return q;
+}
+
+}  // namespace
+
+std::optional<double> ParseNumber(std::string_view text) {
+  text = Trim(text);
+  if (text.empty()) return std::nullopt;
+  if (text.front() == '+') text.remove_prefix(1);
+  double v = 0.0;
+  const auto [ptr, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || ptr != text.data() + text.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+std::optional<std::vector<double>> ParseNumberList(std::string_view text) {
+  std::vector<double> out;
+  for (const std::string& f : SplitFields(text)) {
+    const auto v = ParseNumber(f);
+    if (!v) return std::nullopt;
+    out.push_back(*v);
+  }
+  return out;
+}
+
+std::string FormatNumber(double value) {
+  char buf[64];
+  const auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), value);
+  if (ec != std::errc()) return "nan";
+  return std::string(buf, ptr);
+}
+
+CsvTable CsvTable::Read(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open file for reading");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw InputError(path + ": read error");
+  return Parse(ss.str(), path);
+}
+
+CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
+  CsvTable t;
+  t.source_ = source;
+  int line_no = 0;
+  std::size_t pos = 0;
+  bool have_header = false;
+  bool ends_with_newline = text.empty() || text.back() == '\n';
+  while (pos < text.size()) {
+    std::size_t nl = text.find('\n', pos);
+    const bool last = nl == std::string_view::npos;
+    std::string_view line = text.substr(pos, last ? text.npos : nl - pos);
+    pos = last ? text.size() : nl + 1;
+    ++line_no;
+    const std::string_view trimmed = Trim(line);
+    if (trimmed.empty()) continue;
+    if (trimmed.front() == '#') {
+      std::string_view body = Trim(trimmed.substr(1));
+      const std::size_t colon = body.find(':');
+      if (colon != std::string_view::npos) {
+        const std::string_view key = Trim(body.substr(0, colon));
+        if (IsParamKey(key)) t.params_[std::string(key)] = std::string(Trim(body.substr(colon + 1)));
+      }
+      continue;
+    }
+    if (trimmed.find('\0') != std::string_view::npos) {
+      throw InputError(source + ":" + std::to_string(line_no) + ": binary data (NUL byte) in a CSV file");
+    }
+    std::vector<std::string> fields = SplitFields(trimmed);
+    if (!have_header) {
+      for (std::size_t i = 0; i < fields.size(); ++i) {
+        if (fields[i].empty()) {
+          throw InputError(source + ":" + std::to_string(line_no) + ": header column " +
+                           std::to_string(i + 1) + " has no name");
+        }
+        for (std::size_t j = 0; j < i; ++j) {
+          if (fields[j] == fields[i]) {
+            throw InputError(source + ":" + std::to_string(line_no) + ": duplicate column " +
+                             Quote(fields[i]) + " in header");
+          }
+        }
+      }
+      t.header_ = std::move(fields);
+      have_header = true;
+      continue;
+    }
+    if (fields.size() != t.header_.size()) {
+      std::string what = fields.size() < t.header_.size() ? "short row" : "long row";
+      std::string msg = source + ":" + std::to_string(line_no) + ": " + what + ": " +
+                        std::to_string(fields.size()) + " fields, header has " +
+                        std::to_string(t.header_.size());
+      if (fields.size() < t.header_.size()) msg += " (first missing column " + Quote(t.header_[fields.size()]) + ")";
+      if (last && !ends_with_newline) msg += "; the file looks truncated (no newline at end)";
+      throw InputError(msg);
+    }
+    t.rows_.push_back(std::move(fields));
+    t.lines_.push_back(line_no);
+  }
+  if (!have_header) {
+    throw InputError(source + ": empty file: no header row" +
+                     std::string(line_no > 0 ? " (only comments or blank lines)" : ""));
+  }
+  return t;
+}
+
+bool CsvTable::has_column(std::string_view name) const { return find_column(name).has_value(); }
+
+std::optional<std::size_t> CsvTable::find_column(std::string_view name) const {
+  for (std::size_t i = 0; i < header_.size(); ++i) {
+    if (header_[i] == name) return i;
+  }
+  return std::nullopt;
+}
+
+std::size_t CsvTable::column(std::string_view name) const {
+  if (auto c = find_column(name)) return *c;
+  std::string cols;
+  for (std::size_t i = 0; i < header_.size(); ++i) cols += (i ? "," : "") + header_[i];
+  throw InputError(source_ + ": missing column " + Quote(name) + " (header has: " + cols + ")");
+}
+
+double CsvTable::number(std::size_t row, std::size_t col) const {
+  const std::string& f = rows_[row][col];
+  if (auto v = ParseNumber(f)) return *v;
+  throw InputError(source_ + ":" + std::to_string(lines_[row]) + ": column " + Quote(header_[col]) + ": " +
+                   (f.empty() ? std::string("empty field") : Quote(f) + " is not a finite number"));
+}
+
+long long CsvTable::integer(std::size_t row, std::size_t col) const {
+  const std::string& f = rows_[row][col];
+  long long v = 0;
+  const auto [ptr, ec] = std::from_chars(f.data(), f.data() + f.size(), v);
+  if (ec == std::errc() && ptr == f.data() + f.size() && v >= 0) return v;
+  // Accept integral floats such as "3.0".
+  if (auto d = ParseNumber(f); d && *d >= 0 && *d == std::floor(*d) && *d < 9e15) return static_cast<long long>(*d);
+  throw InputError(source_ + ":" + std::to_string(lines_[row]) + ": column " + Quote(header_[col]) + ": " +
+                   (f.empty() ? std::string("empty field") : Quote(f) + " is not a non-negative integer"));
+}
+
+std::vector<double> CsvTable::param_numbers(const std::string& key, std::size_t expected_count) const {
+  const auto it = params_.find(key);
+  if (it == params_.end()) throw InputError(source_ + ": missing parameter line '# " + key + ": ...'");
+  auto v = ParseNumberList(it->second);
+  if (!v) throw InputError(source_ + ": parameter '" + key + "': " + Quote(it->second) + " is not a list of numbers");
+  if (expected_count > 0 && v->size() != expected_count) {
+    throw InputError(source_ + ": parameter '" + key + "': expected " + std::to_string(expected_count) +
+                     " numbers, found " + std::to_string(v->size()));
+  }
+  return *v;
+}
+
+std::optional<Eigen::Vector3d> CsvTable::param_vec3(const std::string& key) const {
+  if (!has_param(key)) return std::nullopt;
+  const auto v = param_numbers(key, 3);
+  return Eigen::Vector3d(v[0], v[1], v[2]);
+}
+
+std::optional<double> CsvTable::param_number(const std::string& key) const {
+  if (!has_param(key)) return std::nullopt;
+  return param_numbers(key, 1)[0];
+}
+
+struct CsvWriter::Impl {
+  std::ofstream out;
+};
+
+CsvWriter::CsvWriter(const std::string& path, std::vector<std::string> header,
+                     const std::vector<std::pair<std::string, std::string>>& params)
+    : path_(path), num_columns_(header.size()), impl_(new Impl) {
+  impl_->out.open(path, std::ios::binary | std::ios::trunc);
+  if (!impl_->out) {
+    delete impl_;
+    throw InputError(path + ": cannot open file for writing");
+  }
+  for (const auto& [k, v] : params) impl_->out << "# " << k << ": " << v << '\n';
+  for (std::size_t i = 0; i < header.size(); ++i) impl_->out << (i ? "," : "") << header[i];
+  impl_->out << '\n';
+}
+
+CsvWriter::~CsvWriter() { delete impl_; }
+
+void CsvWriter::AddComment(const std::string& text) { impl_->out << "# " << text << '\n'; }
+
+void CsvWriter::WriteRow(const std::vector<std::string>& fields) {
+  if (fields.size() != num_columns_) {
+    throw InputError(path_ + ": internal: row with " + std::to_string(fields.size()) + " fields for " +
+                     std::to_string(num_columns_) + " columns");
+  }
+  for (std::size_t i = 0; i < fields.size(); ++i) impl_->out << (i ? "," : "") << fields[i];
+  impl_->out << '\n';
+}
+
+void CsvWriter::Close() {
+  impl_->out.flush();
+  if (!impl_->out) throw InputError(path_ + ": write failed");
+  impl_->out.close();
+}
+
+}  // namespace magnav

@@ -1,0 +1,54 @@
+#include "magnav/core/gradiometer.h"
+
+#include "magnav/core/csv.h"
+#include "magnav/core/error.h"
+
+namespace magnav {
+
+GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerColumns& cols) {
+  const CsvTable t = CsvTable::Read(path);
+  GradiometerFile f;
+  f.path = path;
+  f.B0 = t.param_vec3("B0_T");
+  f.moment_body = t.param_vec3("moment_body_Am2");
+  f.sigma_B = t.param_number("sigma_B_T");
+  f.sigma_T = t.param_number("sigma_T_Tpm");
+  if (f.sigma_B && *f.sigma_B < 0) throw InputError(path + ": parameter 'sigma_B_T' must be >= 0");
+  if (f.sigma_T && *f.sigma_T < 0) throw InputError(path + ": parameter 'sigma_T_Tpm' must be >= 0");
+
+  const std::size_t sx = t.column("sensor_x"), sy = t.column("sensor_y"), sz = t.column("sensor_z");
+  std::size_t b[3], tt[9];
+  const char* axes = "xyz";
+  for (int i = 0; i < 3; ++i) b[i] = t.column(cols.B + axes[i]);
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) tt[3 * i + j] = t.column(cols.T + std::to_string(i) + std::to_string(j));
+  }
+  const auto c_t = t.find_column("t");
+  const auto c_id = t.find_column("sensor_id");
+  const auto c_case = t.find_column("case_id");
+
+  f.samples.reserve(t.num_rows());
+  f.lines.reserve(t.num_rows());
+  for (std::size_t r = 0; r < t.num_rows(); ++r) {
+    GradiometerSample s;
+    if (c_id) {
+      const long long id = t.integer(r, *c_id);
+      if (id > 0xFFFFFFFFLL) {
+        throw InputError(path + ":" + std::to_string(t.line_of(r)) + ": column 'sensor_id': out of range");
+      }
+      s.sensor_id = static_cast<std::uint32_t>(id);
+    }
+    s.t_s = c_t ? t.number(r, *c_t) : 0.0;
+    s.p_SinW = {t.number(r, sx), t.number(r, sy), t.number(r, sz)};
+    for (int i = 0; i < 3; ++i) s.B[i] = t.number(r, b[i]);
+    for (int k = 0; k < 9; ++k) s.T(k / 3, k % 3) = t.number(r, tt[k]);
+    s.sigma_B = f.sigma_B.value_or(0.0);
+    s.sigma_T = f.sigma_T.value_or(0.0);
+    if (c_case) f.case_ids.push_back(t.integer(r, *c_case));
+    f.samples.push_back(s);
+    f.lines.push_back(t.line_of(r));
+  }
+  return f;
+}
+
+}  // namespace magnav

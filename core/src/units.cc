@@ -1,0 +1,24 @@
+#include "magnav/core/units.h"
+
+#include <cmath>
+#include <limits>
+
+namespace magnav {
+
+std::uint64_t SecondsToNanos(double seconds) {
+  if (!std::isfinite(seconds) || seconds <= 0.0) return 0;
+  const double ns = std::round(seconds * 1e9);
+  if (ns >= static_cast<double>(std::numeric_limits<std::uint64_t>::max())) {
+    return std::numeric_limits<std::uint64_t>::max();
+  }
+  return static_cast<std::uint64_t>(ns);
+}
+
+double WrapAngle(double a) {
+  if (!std::isfinite(a)) return a;
+  a = std::remainder(a, 2.0 * std::numbers::pi);  // [−π, π]
+  if (a <= -std::numbers::pi) a += 2.0 * std::numbers::pi;
+  return a;
+}
+
+}  // namespace magnav

@@ -1,0 +1,17 @@
+// One path helper for test data (as Ceres' test_util): the reference files
+// copied from ../shared/reference live in tests/data/reference/ with their README.
+#pragma once
+
+#include <string>
+
+namespace magnav::testing {
+
+// Directory of tests/data (from $MAGNAV_TEST_DATA, set by CTest, else the
+// source tree path compiled in).
+std::string TestDataDir();
+// Path of a reference file, e.g. ReferencePath("dipole_cases.csv").
+std::string ReferencePath(const std::string& name);
+// A fresh temporary directory for one test (removed by the OS on reboot).
+std::string TempDir();
+
+}  // namespace magnav::testing
