@@ -1,0 +1,57 @@
+// Coordinated-turn vessel kinematics (constant speed, constant turn rate,
+// constant depth), shared by the simulator, the tracker and the localizer.
+//
+// State, world NED: position p = (x, y, z) in m, speed v ≥ 0 in m/s, heading h
+// in rad (from north, clockwise seen from above), turn rate ω in rad/s
+// (positive = turning right). Velocity = v (cos h, sin h, 0).
+//
+// Exact propagation over dt:
+//   h(t) = h + ω t
+//   x(t) = x + v t cos(h + ω t/2) sinc(ω t/2)
+//   y(t) = y + v t sin(h + ω t/2) sinc(ω t/2)
+// using sin(a+b) − sin a = 2 cos(a + b/2) sin(b/2); sinc(u) = sin(u)/u is
+// evaluated by its series near 0, so the ω → 0 limit (straight line) is exact
+// and smooth (derivatives included). Templated so Ceres can differentiate it.
+#pragma once
+
+#include <cmath>
+
+namespace magnav {
+
+// sin(u)/u, smooth at 0 (Taylor series to u⁶ for |u| < 1e-3; error < 1e-22).
+template <typename T>
+T Sinc(const T& u) {
+  using std::abs;
+  using std::sin;
+  if (abs(u) < T(1e-3)) {
+    const T u2 = u * u;
+    return T(1.0) - u2 / T(6.0) + u2 * u2 / T(120.0) - u2 * u2 * u2 / T(5040.0);
+  }
+  return sin(u) / u;
+}
+
+template <typename T>
+struct CtState {
+  T x, y, z;   // m, NED
+  T v;         // m/s
+  T heading;   // rad
+  T turn_rate; // rad/s
+};
+
+// Propagates a coordinated-turn state by dt seconds (dt may be negative).
+// The heading is not wrapped (wrap with WrapAngle where it is shown).
+template <typename T>
+CtState<T> PropagateCoordinatedTurn(const CtState<T>& s, double dt) {
+  using std::cos;
+  using std::sin;
+  const T half = s.turn_rate * T(0.5 * dt);
+  const T mid = s.heading + half;
+  const T d = s.v * T(dt) * Sinc(half);
+  CtState<T> o = s;
+  o.x = s.x + d * cos(mid);
+  o.y = s.y + d * sin(mid);
+  o.heading = s.heading + s.turn_rate * T(dt);
+  return o;
+}
+
+}  // namespace magnav
