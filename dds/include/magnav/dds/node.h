@@ -1,0 +1,281 @@
+// The one thin DDS adapter of magnav: a Node owns a DomainParticipant with
+// one Publisher and one Subscriber, registers types and topics once, and hands
+// out typed writers and readers whose QoS comes from XML profiles
+// (config/magnav_profiles.xml, compiled in). Incompatible QoS and lost samples
+// are logged and counted. Destroying the Node (after its writers/readers)
+// deletes every entity, so nothing is left in /dev/shm.
+//
+// Domain id: NodeOptions::domain_id if set, else $MAGNAV_DOMAIN_ID, else
+// $ROS_DOMAIN_ID, else 0. Participant profile: NodeOptions, else
+// $MAGNAV_DDS_PARTICIPANT, else "magnav_loopback" (UDP on 127.0.0.1 + shared
+// memory only). Extra XML profiles: NodeOptions::profiles_file, else
+// $MAGNAV_DDS_PROFILES.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include <fastdds/dds/core/status/StatusMask.hpp>
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/DataWriterListener.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include "magnav/dds/topics.h"
+
+namespace magnav::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+
+class DdsError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct NodeOptions {
+  std::string name = "magnav";           // participant name (shows in discovery tools)
+  std::optional<int> domain_id;          // 0..232; unset = from the environment
+  std::string participant_profile;       // "" = $MAGNAV_DDS_PARTICIPANT or "magnav_loopback"
+  std::string profiles_file;             // extra XML profiles; "" = $MAGNAV_DDS_PROFILES or none
+
+  bool IsValid(std::string* error) const;
+};
+
+// Domain id from the environment: $MAGNAV_DOMAIN_ID, else $ROS_DOMAIN_ID,
+// else 0. Throws DdsError naming the variable if it is not an integer in 0..232.
+int DomainIdFromEnvironment();
+
+// Loads the built-in profiles (once per process) and then `extra_file` if
+// non-empty. Throws DdsError naming the file if Fast DDS rejects it.
+void LoadProfiles(const std::string& extra_file);
+
+// Counters shared by writers and readers.
+struct EndpointStats {
+  std::atomic<std::uint64_t> samples{0};        // written / received
+  std::atomic<std::uint64_t> lost{0};           // reported lost by the middleware
+  std::atomic<std::uint64_t> incompatible_qos{0};
+  std::atomic<std::uint64_t> callback_errors{0};  // reader callbacks that threw
+  std::atomic<int> matched{0};                  // currently matched peers
+};
+
+namespace internal {
+// Non-template parts, in node.cc.
+fdds::DataWriterQos WriterQos(fdds::Publisher* pub, const std::string& profile);
+fdds::DataReaderQos ReaderQos(fdds::Subscriber* sub, const std::string& profile);
+void LogIncompatible(const std::string& topic, const char* side, int policy_id);
+void LogLost(const std::string& topic, int total, int change);
+void LogCallbackError(const std::string& topic, const char* what);
+bool WaitUntil(std::mutex& mu, std::condition_variable& cv, const std::function<bool()>& pred,
+               std::chrono::milliseconds timeout);
+}  // namespace internal
+
+class Node;
+
+// A typed writer on one topic.
+template <class M>
+class Writer {
+ public:
+  ~Writer() {
+    if (writer_) node_publisher_->delete_datawriter(writer_);
+  }
+  Writer(const Writer&) = delete;
+  Writer& operator=(const Writer&) = delete;
+
+  // Publishes a sample; false if the middleware refused it (e.g. blocked too long).
+  bool Write(const M& sample) {
+    M copy = sample;  // Fast DDS takes a non-const pointer
+    const bool ok = writer_->write(&copy);
+    if (ok) ++stats_.samples;
+    return ok;
+  }
+  // Waits until at least n readers are matched.
+  bool WaitForMatched(int n, std::chrono::milliseconds timeout) {
+    return internal::WaitUntil(listener_.mu, listener_.cv, [&] { return stats_.matched.load() >= n; }, timeout);
+  }
+  // Waits until every matched reliable reader acknowledged every sample.
+  bool WaitForAcknowledgments(std::chrono::milliseconds timeout) {
+    const auto ms = timeout.count();
+    return writer_->wait_for_acknowledgments(
+               eprosima::fastrtps::Duration_t(static_cast<int32_t>(ms / 1000),
+                                              static_cast<uint32_t>((ms % 1000) * 1000000))) ==
+           eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK;
+  }
+  const EndpointStats& stats() const { return stats_; }
+  const std::string& topic() const { return topic_; }
+
+ private:
+  friend class Node;
+  struct Listener : fdds::DataWriterListener {
+    Writer* self = nullptr;
+    std::mutex mu;
+    std::condition_variable cv;
+    void on_publication_matched(fdds::DataWriter*, const fdds::PublicationMatchedStatus& s) override {
+      {
+        std::lock_guard<std::mutex> lk(mu);
+        self->stats_.matched = s.current_count;
+      }
+      cv.notify_all();
+    }
+    void on_offered_incompatible_qos(fdds::DataWriter*, const fdds::OfferedIncompatibleQosStatus& s) override {
+      ++self->stats_.incompatible_qos;
+      internal::LogIncompatible(self->topic_, "writer", s.last_policy_id);
+    }
+  };
+  Writer(fdds::Publisher* pub, fdds::Topic* topic, const std::string& profile) : node_publisher_(pub) {
+    topic_ = topic->get_name();
+    listener_.self = this;
+    writer_ = pub->create_datawriter(topic, internal::WriterQos(pub, profile), &listener_);
+    if (!writer_) throw DdsError("cannot create a writer on '" + topic_ + "' with profile '" + profile + "'");
+  }
+  fdds::Publisher* node_publisher_;
+  fdds::DataWriter* writer_ = nullptr;
+  std::string topic_;
+  EndpointStats stats_;
+  Listener listener_;
+};
+
+// A typed reader on one topic; the callback runs on a middleware thread for
+// every sample received. An exception thrown by the callback is caught,
+// logged and counted: one bad sample never stops the reader.
+template <class M>
+class Reader {
+ public:
+  using Callback = std::function<void(const M&, const fdds::SampleInfo&)>;
+  ~Reader() {
+    if (reader_) {
+      reader_->set_listener(nullptr);
+      node_subscriber_->delete_datareader(reader_);
+    }
+  }
+  Reader(const Reader&) = delete;
+  Reader& operator=(const Reader&) = delete;
+
+  bool WaitForMatched(int n, std::chrono::milliseconds timeout) {
+    return internal::WaitUntil(listener_.mu, listener_.cv, [&] { return stats_.matched.load() >= n; }, timeout);
+  }
+  // Waits until at least n samples have been received in total.
+  bool WaitForSamples(std::uint64_t n, std::chrono::milliseconds timeout) {
+    return internal::WaitUntil(listener_.mu, listener_.cv, [&] { return stats_.samples.load() >= n; }, timeout);
+  }
+  const EndpointStats& stats() const { return stats_; }
+  const std::string& topic() const { return topic_; }
+
+ private:
+  friend class Node;
+  struct Listener : fdds::DataReaderListener {
+    Reader* self = nullptr;
+    std::mutex mu;
+    std::condition_variable cv;
+    M sample;
+    void on_data_available(fdds::DataReader* r) override {
+      fdds::SampleInfo info;
+      while (r->take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+        if (!info.valid_data) continue;
+        try {
+          if (self->callback_) self->callback_(sample, info);
+        } catch (const std::exception& e) {
+          ++self->stats_.callback_errors;
+          internal::LogCallbackError(self->topic_, e.what());
+        } catch (...) {
+          ++self->stats_.callback_errors;
+          internal::LogCallbackError(self->topic_, "unknown exception");
+        }
+        {
+          std::lock_guard<std::mutex> lk(mu);
+          ++self->stats_.samples;
+        }
+        cv.notify_all();
+      }
+    }
+    void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& s) override {
+      {
+        std::lock_guard<std::mutex> lk(mu);
+        self->stats_.matched = s.current_count;
+      }
+      cv.notify_all();
+    }
+    void on_sample_lost(fdds::DataReader*, const fdds::SampleLostStatus& s) override {
+      self->stats_.lost = static_cast<std::uint64_t>(s.total_count);
+      internal::LogLost(self->topic_, s.total_count, s.total_count_change);
+    }
+    void on_requested_incompatible_qos(fdds::DataReader*, const fdds::RequestedIncompatibleQosStatus& s) override {
+      ++self->stats_.incompatible_qos;
+      internal::LogIncompatible(self->topic_, "reader", s.last_policy_id);
+    }
+  };
+  Reader(fdds::Subscriber* sub, fdds::Topic* topic, const std::string& profile, Callback cb)
+      : node_subscriber_(sub), callback_(std::move(cb)) {
+    topic_ = topic->get_name();
+    listener_.self = this;
+    reader_ = sub->create_datareader(topic, internal::ReaderQos(sub, profile), &listener_);
+    if (!reader_) throw DdsError("cannot create a reader on '" + topic_ + "' with profile '" + profile + "'");
+  }
+  fdds::Subscriber* node_subscriber_;
+  fdds::DataReader* reader_ = nullptr;
+  std::string topic_;
+  Callback callback_;
+  EndpointStats stats_;
+  Listener listener_;
+};
+
+class Node {
+ public:
+  // Throws DdsError (bad options, profile not found, participant refused).
+  explicit Node(const NodeOptions& options = {});
+  ~Node();
+  Node(const Node&) = delete;
+  Node& operator=(const Node&) = delete;
+
+  int domain_id() const { return domain_id_; }
+
+  template <class M>
+  std::unique_ptr<Writer<M>> CreateWriter(const std::string& topic_name = TopicTraits<M>::kTopic,
+                                          const std::string& profile = TopicTraits<M>::kWriterProfile) {
+    fdds::Topic* t = GetTopic(topic_name, RegisterType<M>());
+    return std::unique_ptr<Writer<M>>(new Writer<M>(publisher_, t, profile));
+  }
+
+  template <class M>
+  std::unique_ptr<Reader<M>> CreateReader(typename Reader<M>::Callback cb,
+                                          const std::string& topic_name = TopicTraits<M>::kTopic,
+                                          const std::string& profile = TopicTraits<M>::kReaderProfile) {
+    fdds::Topic* t = GetTopic(topic_name, RegisterType<M>());
+    return std::unique_ptr<Reader<M>>(new Reader<M>(subscriber_, t, profile, std::move(cb)));
+  }
+
+ private:
+  template <class M>
+  std::string RegisterType() {
+    fdds::TypeSupport ts(new typename TopicTraits<M>::PubSubType());
+    const std::string name = ts.get_type_name();
+    if (!participant_->find_type(name).empty()) return name;
+    if (ts.register_type(participant_) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      throw DdsError("cannot register type " + name);
+    }
+    return name;
+  }
+  fdds::Topic* GetTopic(const std::string& name, const std::string& type);
+
+  int domain_id_ = 0;
+  fdds::DomainParticipant* participant_ = nullptr;
+  fdds::Publisher* publisher_ = nullptr;
+  fdds::Subscriber* subscriber_ = nullptr;
+  std::mutex topics_mu_;
+};
+
+}  // namespace magnav::dds

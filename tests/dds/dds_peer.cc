@@ -1,0 +1,48 @@
+// Peer process for the DDS tests: publishes deterministic samples on the
+// domain given by $MAGNAV_DOMAIN_ID, then optionally stays alive until SIGTERM.
+//   dds_peer stream N      publish N GradiometerSamples to one matched reader, wait for acks, exit
+//   dds_peer estimates N   publish N DipoleFix (transient-local), print "ready", wait for SIGTERM
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "magnav/dds/node.h"
+#include "magnav/dds/shutdown.h"
+#include "sample_pattern.h"
+
+using namespace std::chrono_literals;
+
+int main(int argc, char** argv) {
+  if (argc != 3) {
+    std::fprintf(stderr, "usage: dds_peer stream|estimates N\n");
+    return 2;
+  }
+  magnav::dds::InstallShutdownHandlers();
+  const std::string mode = argv[1];
+  const std::uint64_t n = std::strtoull(argv[2], nullptr, 10);
+  try {
+    magnav::dds::Node node({.name = "dds_peer"});
+    if (mode == "stream") {
+      auto w = node.CreateWriter<magnav::dds::msg::GradiometerSample>();
+      if (!w->WaitForMatched(1, 20s)) return 3;
+      for (std::uint64_t i = 0; i < n; ++i) {
+        if (!w->Write(magnav::testing::PatternSample(static_cast<std::uint32_t>(i % 4), i))) return 4;
+      }
+      if (!w->WaitForAcknowledgments(30s)) return 5;
+      std::printf("sent %llu\n", static_cast<unsigned long long>(n));
+    } else if (mode == "estimates") {
+      auto w = node.CreateWriter<magnav::dds::msg::DipoleFix>();
+      for (std::uint64_t i = 0; i < n; ++i) w->Write(magnav::testing::PatternFix(i));
+      std::printf("ready\n");
+      std::fflush(stdout);
+      while (!magnav::dds::WaitForShutdown(100ms)) {
+      }
+    } else {
+      return 2;
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dds_peer: %s\n", e.what());
+    return 6;
+  }
+  return 0;  // entities deleted by the destructors above
+}

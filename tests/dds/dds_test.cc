@@ -1,0 +1,230 @@
+// DDS adapter tests in the manner of Fast DDS's blackbox suite: a domain id
+// derived from the process id, discovery awaited before sending, a peer in a
+// separate process so samples really cross the loopback transports.
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <bit>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "magnav/dds/convert.h"
+#include "magnav/dds/node.h"
+#include "sample_pattern.h"
+
+extern char** environ;
+
+namespace magnav::dds {
+namespace {
+
+using namespace std::chrono_literals;
+
+int TestDomain() { return 10 + static_cast<int>(::getpid() % 200); }
+
+class PeerProcess {
+ public:
+  PeerProcess(const std::string& mode, std::uint64_t n, int domain) {
+    int out[2];
+    if (pipe(out) != 0) throw std::runtime_error("pipe");
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, out[1], STDOUT_FILENO);
+    posix_spawn_file_actions_addclose(&fa, out[0]);
+    std::vector<std::string> env_store;
+    for (char** e = environ; *e; ++e) {
+      if (std::strncmp(*e, "MAGNAV_DOMAIN_ID=", 17) != 0) env_store.emplace_back(*e);
+    }
+    env_store.push_back("MAGNAV_DOMAIN_ID=" + std::to_string(domain));
+    std::vector<char*> envp;
+    for (auto& s : env_store) envp.push_back(s.data());
+    envp.push_back(nullptr);
+    std::string count = std::to_string(n);
+    std::string path = MAGNAV_DDS_PEER;
+    char* argv[] = {path.data(), const_cast<char*>(mode.c_str()), count.data(), nullptr};
+    if (posix_spawn(&pid_, path.c_str(), &fa, nullptr, argv, envp.data()) != 0) {
+      throw std::runtime_error("cannot spawn " + path);
+    }
+    posix_spawn_file_actions_destroy(&fa);
+    close(out[1]);
+    out_fd_ = out[0];
+  }
+  ~PeerProcess() {
+    if (pid_ > 0 && !waited_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+    close(out_fd_);
+  }
+  // Reads one line of the peer's stdout.
+  std::string ReadLine() {
+    std::string line;
+    char c;
+    while (read(out_fd_, &c, 1) == 1 && c != '\n') line += c;
+    return line;
+  }
+  void Signal(int sig) { kill(pid_, sig); }
+  // Exit code, or -1 on timeout/abnormal end.
+  int Wait(std::chrono::milliseconds timeout) {
+    const auto end = std::chrono::steady_clock::now() + timeout;
+    int status = 0;
+    while (std::chrono::steady_clock::now() < end) {
+      const pid_t r = waitpid(pid_, &status, WNOHANG);
+      if (r == pid_) {
+        waited_ = true;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+      }
+      std::this_thread::sleep_for(20ms);
+    }
+    return -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int out_fd_ = -1;
+  bool waited_ = false;
+};
+
+bool BitEqual(const msg::GradiometerSample& a, const msg::GradiometerSample& b) {
+  return a.sensor_id() == b.sensor_id() && a.stamp_ns() == b.stamp_ns() && a.seq() == b.seq() &&
+         std::memcmp(a.sensor_position().data(), b.sensor_position().data(), 3 * sizeof(double)) == 0 &&
+         std::memcmp(a.B().data(), b.B().data(), 3 * sizeof(double)) == 0 &&
+         std::memcmp(a.T().data(), b.T().data(), 9 * sizeof(double)) == 0 &&
+         std::bit_cast<std::uint64_t>(a.sigma_B()) == std::bit_cast<std::uint64_t>(b.sigma_B()) &&
+         std::bit_cast<std::uint64_t>(a.sigma_T()) == std::bit_cast<std::uint64_t>(b.sigma_T());
+}
+
+TEST(Dds, TenThousandReliableSamplesAcrossProcessesNoneLostBitIdentical) {
+  constexpr std::uint64_t kCount = 10000;
+  const int domain = TestDomain();
+  std::mutex mu;
+  std::vector<char> seen(kCount, 0);
+  std::uint64_t mismatches = 0, duplicates = 0, out_of_range = 0;
+  {
+    Node node({.name = "dds_test_reader", .domain_id = domain});
+    auto reader = node.CreateReader<msg::GradiometerSample>([&](const msg::GradiometerSample& s, const auto&) {
+      std::lock_guard<std::mutex> lk(mu);
+      if (s.seq() >= kCount) {
+        ++out_of_range;
+        return;
+      }
+      if (seen[s.seq()]) ++duplicates;
+      seen[s.seq()] = 1;
+      if (!BitEqual(s, testing::PatternSample(static_cast<std::uint32_t>(s.seq() % 4), s.seq()))) ++mismatches;
+    });
+    PeerProcess peer("stream", kCount, domain);
+    ASSERT_TRUE(reader->WaitForSamples(kCount, 60s)) << "received " << reader->stats().samples.load();
+    EXPECT_EQ(peer.Wait(30s), 0);
+    EXPECT_EQ(peer.ReadLine(), "sent 10000");
+    EXPECT_EQ(reader->stats().samples.load(), kCount);
+    EXPECT_EQ(reader->stats().lost.load(), 0u);
+    EXPECT_EQ(reader->stats().incompatible_qos.load(), 0u);
+  }
+  std::lock_guard<std::mutex> lk(mu);
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<long>(kCount));
+  EXPECT_EQ(mismatches, 0u);
+  EXPECT_EQ(duplicates, 0u);
+  EXPECT_EQ(out_of_range, 0u);
+}
+
+TEST(Dds, LateJoinerOfTransientLocalTopicGetsLastEstimate) {
+  const int domain = TestDomain();
+  PeerProcess peer("estimates", 5, domain);
+  ASSERT_EQ(peer.ReadLine(), "ready");  // all 5 written before any reader exists
+  std::mutex mu;
+  std::vector<msg::DipoleFix> got;
+  {
+    Node node({.name = "late_joiner", .domain_id = domain});
+    auto reader = node.CreateReader<msg::DipoleFix>([&](const msg::DipoleFix& f, const auto&) {
+      std::lock_guard<std::mutex> lk(mu);
+      got.push_back(f);
+    });
+    ASSERT_TRUE(reader->WaitForSamples(5, 20s)) << "received " << reader->stats().samples.load();
+  }
+  std::lock_guard<std::mutex> lk(mu);
+  ASSERT_EQ(got.size(), 5u);
+  const msg::DipoleFix expected = testing::PatternFix(4);
+  EXPECT_EQ(got.back().sample_seq(), 4u);
+  EXPECT_EQ(got.back().position(), expected.position());
+  EXPECT_EQ(got.back().condition_number(), expected.condition_number());
+  EXPECT_EQ(std::string(got[1].reason().c_str()), "weak_signal");
+  // SIGTERM: the peer deletes its entities and exits 0.
+  peer.Signal(SIGTERM);
+  EXPECT_EQ(peer.Wait(10s), 0);
+}
+
+// Every UDP socket the participant opens is bound to 127.0.0.1 (the loopback
+// profile); no socket listens on a wildcard or multicast address.
+TEST(Dds, LoopbackProfileBindsOnlyToLoopback) {
+  Node node({.name = "socket_probe", .domain_id = TestDomain()});
+  auto w = node.CreateWriter<msg::GradiometerSample>();
+  std::set<std::string> inodes;
+  for (const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) {
+    std::error_code ec;
+    const std::string target = std::filesystem::read_symlink(e.path(), ec).string();
+    if (!ec && target.rfind("socket:[", 0) == 0) inodes.insert(target.substr(8, target.size() - 9));
+  }
+  int udp = 0;
+  for (const char* table : {"/proc/net/udp", "/proc/net/udp6"}) {
+    std::ifstream in(table);
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      std::istringstream ls(line);
+      std::string sl, local, remote, st, queues, tr, retr, uid, timeout, inode;
+      ls >> sl >> local >> remote >> st >> queues >> tr >> retr >> uid >> timeout >> inode;
+      if (!inodes.count(inode)) continue;
+      ++udp;
+      const std::string addr = local.substr(0, local.find(':'));
+      EXPECT_EQ(addr, "0100007F") << table << " socket bound to " << local;
+    }
+  }
+  EXPECT_GT(udp, 0);
+}
+
+TEST(Dds, ConversionRoundTripsCoreSample) {
+  GradiometerSample s;
+  s.sensor_id = 3;
+  s.t_s = 12.3;
+  s.p_SinW = {1, 2, 3};
+  s.B = {4e-5, 5e-6, 6e-7};
+  s.T << 1e-9, 2e-9, 3e-9, 2e-9, 5e-9, 6e-9, 3e-9, 6e-9, -6e-9;
+  s.sigma_B = 1e-9;
+  s.sigma_T = 1.4e-9;
+  const GradiometerSample r = FromMsg(ToMsg(s, 99));
+  EXPECT_EQ(r.sensor_id, 3u);
+  EXPECT_NEAR(r.t_s, 12.3, 1e-9);
+  EXPECT_EQ(r.p_SinW, s.p_SinW);
+  EXPECT_EQ(r.B, s.B);
+  EXPECT_EQ(r.T, s.T);
+  EXPECT_EQ(ToMsg(s, 99).seq(), 99u);
+}
+
+TEST(Dds, BadOptionsAndEnvironmentAreReported) {
+  EXPECT_THROW(Node({.domain_id = 500}), DdsError);
+  EXPECT_THROW(Node({.participant_profile = "no_such_profile"}), DdsError);
+  setenv("MAGNAV_DOMAIN_ID", "abc", 1);
+  try {
+    DomainIdFromEnvironment();
+    ADD_FAILURE() << "no error";
+  } catch (const DdsError& e) {
+    EXPECT_NE(std::string(e.what()).find("MAGNAV_DOMAIN_ID='abc'"), std::string::npos);
+  }
+  setenv("MAGNAV_DOMAIN_ID", "17", 1);
+  EXPECT_EQ(DomainIdFromEnvironment(), 17);
+  unsetenv("MAGNAV_DOMAIN_ID");
+  setenv("ROS_DOMAIN_ID", "9", 1);
+  EXPECT_EQ(DomainIdFromEnvironment(), 9);
+  unsetenv("ROS_DOMAIN_ID");
+  EXPECT_EQ(DomainIdFromEnvironment(), 0);
+}
+
+}  // namespace
+}  // namespace magnav::dds
