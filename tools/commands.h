@@ -3,7 +3,13 @@
 // turned into a message and exit code 2 by main.
 #pragma once
 
+#include <string>
+
 #include <CLI/CLI.hpp>
+
+#ifdef MAGNAV_WITH_DDS
+#include "magnav/dds/node.h"
+#endif
 
 namespace magnav::tools {
 
@@ -15,5 +21,18 @@ struct Vec3Arg {
 void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const std::string& help);
 
 void AddSimulateCommand(CLI::App& app);
+
+#ifdef MAGNAV_WITH_DDS
+// DDS options shared by every command and service that joins the network.
+struct DdsArgs {
+  int domain_id = -1;              // -1 = $MAGNAV_DOMAIN_ID, else $ROS_DOMAIN_ID, else 0
+  std::string profiles_file;       // extra Fast DDS XML profiles
+  std::string participant_profile; // default magnav_loopback
+  dds::NodeOptions ToNodeOptions(const std::string& name) const;
+};
+void AddDdsOptions(CLI::App& app, DdsArgs* out);
+void AddReplayCommand(CLI::App& app);
+void AddRecordCommand(CLI::App& app);
+#endif
 
 }  // namespace magnav::tools

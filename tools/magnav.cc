@@ -24,12 +24,36 @@ void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const s
       ->type_name("X,Y,Z");
 }
 
+#ifdef MAGNAV_WITH_DDS
+dds::NodeOptions DdsArgs::ToNodeOptions(const std::string& name) const {
+  dds::NodeOptions o;
+  o.name = name;
+  if (domain_id >= 0) o.domain_id = domain_id;
+  o.profiles_file = profiles_file;
+  o.participant_profile = participant_profile;
+  return o;
+}
+
+void AddDdsOptions(CLI::App& app, DdsArgs* out) {
+  app.add_option("--domain", out->domain_id, "DDS domain id (default $MAGNAV_DOMAIN_ID, $ROS_DOMAIN_ID, 0)")
+      ->check(CLI::Range(0, 232));
+  app.add_option("--dds-profiles", out->profiles_file, "extra Fast DDS XML profiles file")
+      ->check(CLI::ExistingFile);
+  app.add_option("--dds-participant", out->participant_profile,
+                 "participant profile (default magnav_loopback: 127.0.0.1 + shared memory only)");
+}
+#endif
+
 }  // namespace magnav::tools
 
 int main(int argc, char** argv) {
   CLI::App app{"magnav: find and follow magnetic objects with gradiometer networks"};
   app.require_subcommand(1);
   magnav::tools::AddSimulateCommand(app);
+#ifdef MAGNAV_WITH_DDS
+  magnav::tools::AddReplayCommand(app);
+  magnav::tools::AddRecordCommand(app);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -37,6 +61,11 @@ int main(int argc, char** argv) {
   } catch (const magnav::InputError& e) {
     std::fprintf(stderr, "magnav: error: %s\n", e.what());
     return 2;
+#ifdef MAGNAV_WITH_DDS
+  } catch (const magnav::dds::DdsError& e) {
+    std::fprintf(stderr, "magnav: DDS error: %s\n", e.what());
+    return 4;
+#endif
   } catch (const std::exception& e) {
     std::fprintf(stderr, "magnav: internal error: %s\n", e.what());
     return 3;

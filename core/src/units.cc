@@ -1,6 +1,7 @@
 #include "magnav/core/units.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace magnav {
@@ -12,6 +13,17 @@ std::uint64_t SecondsToNanos(double seconds) {
     return std::numeric_limits<std::uint64_t>::max();
   }
   return static_cast<std::uint64_t>(ns);
+}
+
+std::string FormatNanosAsSeconds(std::uint64_t nanos) {
+  std::string s = std::to_string(nanos / 1000000000ull);
+  std::uint64_t frac = nanos % 1000000000ull;
+  if (frac == 0) return s;
+  char buf[16];
+  std::snprintf(buf, sizeof(buf), "%09llu", static_cast<unsigned long long>(frac));
+  std::string f(buf);
+  while (f.back() == '0') f.pop_back();
+  return s + "." + f;
 }
 
 double WrapAngle(double a) {

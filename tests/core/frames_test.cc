@@ -53,6 +53,9 @@ TEST(Units, WrapAndTime) {
   EXPECT_EQ(SecondsToNanos(std::nan("")), 0ull);
   EXPECT_DOUBLE_EQ(NanosToSeconds(2500000000ull), 2.5);
   EXPECT_DOUBLE_EQ(kMu0, 1.2566370614359173e-06);
+  EXPECT_EQ(FormatNanosAsSeconds(300000000ull), "0.3");
+  EXPECT_EQ(FormatNanosAsSeconds(12000000001ull), "12.000000001");
+  EXPECT_EQ(FormatNanosAsSeconds(5000000000ull), "5");
 }
 
 }  // namespace

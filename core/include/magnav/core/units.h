@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <numbers>
+#include <string>
 
 namespace magnav {
 
@@ -23,6 +24,9 @@ inline constexpr double kRadToDeg = 180.0 / std::numbers::pi;
 // Negative or non-finite seconds map to 0.
 std::uint64_t SecondsToNanos(double seconds);
 inline double NanosToSeconds(std::uint64_t nanos) { return static_cast<double>(nanos) * 1e-9; }
+
+// Nanoseconds as a decimal number of seconds, exact ("0.3", "12.000000001").
+std::string FormatNanosAsSeconds(std::uint64_t nanos);
 
 // Wraps an angle to (−π, π].
 double WrapAngle(double radians);

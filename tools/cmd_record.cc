@@ -1,0 +1,159 @@
+// magnav record: subscribe to a topic and write what arrives as CSV (to a
+// file, or '-' for standard output), until a count, a duration or SIGINT.
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <mutex>
+
+#include "commands.h"
+#include "magnav/core/csv.h"
+#include "magnav/core/units.h"
+#include "magnav/dds/node.h"
+#include "magnav/dds/shutdown.h"
+
+namespace magnav::tools {
+namespace {
+
+struct RecordArgs {
+  std::string topic = "gradiometer";
+  std::string output = "-";
+  std::uint64_t count = 0;   // 0 = unlimited
+  double duration_s = 0.0;   // 0 = until SIGINT/SIGTERM
+  DdsArgs dds;
+};
+
+std::string N(double v) { return FormatNumber(v); }
+
+template <std::size_t K>
+void Append(std::vector<std::string>& f, const std::array<double, K>& a) {
+  for (double v : a) f.push_back(N(v));
+}
+
+std::vector<std::string> Header(const std::string& topic) {
+  if (topic == "gradiometer") {
+    return {"t", "sensor_id", "seq", "sensor_x", "sensor_y", "sensor_z", "B_x", "B_y", "B_z",
+            "T00", "T01", "T02", "T10", "T11", "T12", "T20", "T21", "T22"};
+  }
+  if (topic == "dipole_fix") {
+    return {"t", "sensor_id", "seq", "method", "dipole_x", "dipole_y", "dipole_z", "valid", "reason", "cond"};
+  }
+  return {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "turn_rate", "sigma_x", "sigma_y", "sigma_z"};
+}
+
+std::vector<std::string> Row(const dds::msg::GradiometerSample& m) {
+  std::vector<std::string> f = {FormatNanosAsSeconds(m.stamp_ns()), std::to_string(m.sensor_id()), std::to_string(m.seq())};
+  Append(f, m.sensor_position());
+  Append(f, m.B());
+  Append(f, m.T());
+  return f;
+}
+
+std::vector<std::string> Row(const dds::msg::DipoleFix& m) {
+  std::vector<std::string> f = {FormatNanosAsSeconds(m.stamp_ns()), std::to_string(m.sensor_id()),
+                                std::to_string(m.sample_seq()), std::to_string(static_cast<int>(m.method()))};
+  Append(f, m.position());
+  f.push_back(m.valid() ? "1" : "0");
+  f.push_back(m.reason().c_str());
+  f.push_back(N(m.condition_number()));
+  return f;
+}
+
+std::vector<std::string> Row(const dds::msg::TrackEstimate& m) {
+  std::vector<std::string> f = {FormatNanosAsSeconds(m.stamp_ns()), std::to_string(m.track_id())};
+  Append(f, m.position());
+  f.push_back(N(m.velocity()[0]));
+  f.push_back(N(m.velocity()[1]));
+  f.push_back(N(m.heading()));
+  f.push_back(N(m.turn_rate()));
+  for (int i = 0; i < 3; ++i) f.push_back(N(std::sqrt(std::max(0.0, m.covariance()[4 * i]))));
+  return f;
+}
+
+class Sink {
+ public:
+  Sink(const std::string& path, const std::vector<std::string>& header) : path_(path), width_(header.size()) {
+    if (path == "-") {
+      Print(header);
+    } else {
+      writer_ = std::make_unique<CsvWriter>(path, header);
+    }
+  }
+  void Write(const std::vector<std::string>& f) {
+    std::lock_guard<std::mutex> lk(mu_);
+    if (writer_) {
+      writer_->WriteRow(f);
+    } else {
+      Print(f);
+    }
+    ++count_;
+  }
+  std::uint64_t count() const { return count_.load(); }
+  void Close() {
+    if (writer_) writer_->Close();
+  }
+
+ private:
+  void Print(const std::vector<std::string>& f) {
+    for (std::size_t i = 0; i < f.size(); ++i) std::fputs((i ? "," + f[i] : f[i]).c_str(), stdout);
+    std::fputc('\n', stdout);
+    std::fflush(stdout);
+  }
+  std::string path_;
+  std::size_t width_;
+  std::mutex mu_;
+  std::unique_ptr<CsvWriter> writer_;
+  std::atomic<std::uint64_t> count_{0};
+};
+
+template <class M>
+void Record(dds::Node& node, Sink& sink, const RecordArgs& a) {
+  auto reader = node.CreateReader<M>([&](const M& m, const auto&) {
+    if (a.count == 0 || sink.count() < a.count) sink.Write(Row(m));
+  });
+  const auto start = std::chrono::steady_clock::now();
+  while (!dds::ShutdownRequested()) {
+    if (a.count > 0 && sink.count() >= a.count) break;
+    if (a.duration_s > 0 &&
+        std::chrono::steady_clock::now() - start > std::chrono::duration<double>(a.duration_s)) {
+      break;
+    }
+    dds::WaitForShutdown(std::chrono::milliseconds(20));
+  }
+  if (reader->stats().lost > 0) {
+    std::fprintf(stderr, "record: %llu sample(s) lost on %s\n",
+                 static_cast<unsigned long long>(reader->stats().lost.load()), reader->topic().c_str());
+  }
+}
+
+void Run(const RecordArgs& a) {
+  dds::InstallShutdownHandlers();
+  dds::Node node(a.dds.ToNodeOptions("magnav_record"));
+  Sink sink(a.output, Header(a.topic));
+  if (a.topic == "gradiometer") {
+    Record<dds::msg::GradiometerSample>(node, sink, a);
+  } else if (a.topic == "dipole_fix") {
+    Record<dds::msg::DipoleFix>(node, sink, a);
+  } else {
+    Record<dds::msg::TrackEstimate>(node, sink, a);
+  }
+  sink.Close();
+  std::fprintf(stderr, "recorded %llu %s sample(s)\n", static_cast<unsigned long long>(sink.count()),
+               a.topic.c_str());
+}
+
+}  // namespace
+
+void AddRecordCommand(CLI::App& app) {
+  auto args = std::make_shared<RecordArgs>();
+  CLI::App* sub = app.add_subcommand("record", "Write what arrives on a magnav topic as CSV");
+  sub->add_option("--topic", args->topic, "gradiometer, dipole_fix or track")
+      ->check(CLI::IsMember({"gradiometer", "dipole_fix", "track"}));
+  sub->add_option("--output", args->output, "CSV file, or - for standard output");
+  sub->add_option("--count", args->count, "stop after this many samples (0 = no limit)");
+  sub->add_option("--duration", args->duration_s, "stop after this many seconds (0 = until SIGINT/SIGTERM)");
+  AddDdsOptions(*sub, &args->dds);
+  sub->callback([args] { Run(*args); });
+}
+
+}  // namespace magnav::tools
