@@ -21,7 +21,9 @@ int main(int argc, char** argv) {
   const std::string mode = argv[1];
   const std::uint64_t n = std::strtoull(argv[2], nullptr, 10);
   try {
-    magnav::dds::Node node({.name = "dds_peer"});
+    magnav::dds::NodeOptions options;
+    options.name = "dds_peer";
+    magnav::dds::Node node(options);
     if (mode == "stream") {
       auto w = node.CreateWriter<magnav::dds::msg::GradiometerSample>();
       if (!w->WaitForMatched(1, 20s)) return 3;

@@ -2,8 +2,6 @@
 // derived from the process id, discovery awaited before sending, a peer in a
 // separate process so samples really cross the loopback transports.
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <bit>
@@ -19,8 +17,7 @@
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
 #include "sample_pattern.h"
-
-extern char** environ;
+#include "subprocess.h"
 
 namespace magnav::dds {
 namespace {
@@ -29,67 +26,18 @@ using namespace std::chrono_literals;
 
 int TestDomain() { return 10 + static_cast<int>(::getpid() % 200); }
 
-class PeerProcess {
- public:
-  PeerProcess(const std::string& mode, std::uint64_t n, int domain) {
-    int out[2];
-    if (pipe(out) != 0) throw std::runtime_error("pipe");
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_adddup2(&fa, out[1], STDOUT_FILENO);
-    posix_spawn_file_actions_addclose(&fa, out[0]);
-    std::vector<std::string> env_store;
-    for (char** e = environ; *e; ++e) {
-      if (std::strncmp(*e, "MAGNAV_DOMAIN_ID=", 17) != 0) env_store.emplace_back(*e);
-    }
-    env_store.push_back("MAGNAV_DOMAIN_ID=" + std::to_string(domain));
-    std::vector<char*> envp;
-    for (auto& s : env_store) envp.push_back(s.data());
-    envp.push_back(nullptr);
-    std::string count = std::to_string(n);
-    std::string path = MAGNAV_DDS_PEER;
-    char* argv[] = {path.data(), const_cast<char*>(mode.c_str()), count.data(), nullptr};
-    if (posix_spawn(&pid_, path.c_str(), &fa, nullptr, argv, envp.data()) != 0) {
-      throw std::runtime_error("cannot spawn " + path);
-    }
-    posix_spawn_file_actions_destroy(&fa);
-    close(out[1]);
-    out_fd_ = out[0];
-  }
-  ~PeerProcess() {
-    if (pid_ > 0 && !waited_) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-    close(out_fd_);
-  }
-  // Reads one line of the peer's stdout.
-  std::string ReadLine() {
-    std::string line;
-    char c;
-    while (read(out_fd_, &c, 1) == 1 && c != '\n') line += c;
-    return line;
-  }
-  void Signal(int sig) { kill(pid_, sig); }
-  // Exit code, or -1 on timeout/abnormal end.
-  int Wait(std::chrono::milliseconds timeout) {
-    const auto end = std::chrono::steady_clock::now() + timeout;
-    int status = 0;
-    while (std::chrono::steady_clock::now() < end) {
-      const pid_t r = waitpid(pid_, &status, WNOHANG);
-      if (r == pid_) {
-        waited_ = true;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      }
-      std::this_thread::sleep_for(20ms);
-    }
-    return -1;
-  }
+NodeOptions TestNode(const std::string& name) {
+  NodeOptions o;
+  o.name = name;
+  o.domain_id = TestDomain();
+  return o;
+}
 
- private:
-  pid_t pid_ = -1;
-  int out_fd_ = -1;
-  bool waited_ = false;
+// The peer program in another process, on the test's domain.
+class PeerProcess : public testing::Subprocess {
+ public:
+  PeerProcess(const std::string& mode, std::uint64_t n, int domain)
+      : Subprocess({MAGNAV_DDS_PEER, mode, std::to_string(n)}, {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}}) {}
 };
 
 bool BitEqual(const msg::GradiometerSample& a, const msg::GradiometerSample& b) {
@@ -108,7 +56,7 @@ TEST(Dds, TenThousandReliableSamplesAcrossProcessesNoneLostBitIdentical) {
   std::vector<char> seen(kCount, 0);
   std::uint64_t mismatches = 0, duplicates = 0, out_of_range = 0;
   {
-    Node node({.name = "dds_test_reader", .domain_id = domain});
+    Node node(TestNode("dds_test_reader"));
     auto reader = node.CreateReader<msg::GradiometerSample>([&](const msg::GradiometerSample& s, const auto&) {
       std::lock_guard<std::mutex> lk(mu);
       if (s.seq() >= kCount) {
@@ -141,7 +89,7 @@ TEST(Dds, LateJoinerOfTransientLocalTopicGetsLastEstimate) {
   std::mutex mu;
   std::vector<msg::DipoleFix> got;
   {
-    Node node({.name = "late_joiner", .domain_id = domain});
+    Node node(TestNode("late_joiner"));
     auto reader = node.CreateReader<msg::DipoleFix>([&](const msg::DipoleFix& f, const auto&) {
       std::lock_guard<std::mutex> lk(mu);
       got.push_back(f);
@@ -163,7 +111,7 @@ TEST(Dds, LateJoinerOfTransientLocalTopicGetsLastEstimate) {
 // Every UDP socket the participant opens is bound to 127.0.0.1 (the loopback
 // profile); no socket listens on a wildcard or multicast address.
 TEST(Dds, LoopbackProfileBindsOnlyToLoopback) {
-  Node node({.name = "socket_probe", .domain_id = TestDomain()});
+  Node node(TestNode("socket_probe"));
   auto w = node.CreateWriter<msg::GradiometerSample>();
   std::set<std::string> inodes;
   for (const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) {
@@ -208,8 +156,12 @@ TEST(Dds, ConversionRoundTripsCoreSample) {
 }
 
 TEST(Dds, BadOptionsAndEnvironmentAreReported) {
-  EXPECT_THROW(Node({.domain_id = 500}), DdsError);
-  EXPECT_THROW(Node({.participant_profile = "no_such_profile"}), DdsError);
+  NodeOptions bad_domain = TestNode("bad");
+  bad_domain.domain_id = 500;
+  EXPECT_THROW(Node{bad_domain}, DdsError);
+  NodeOptions bad_profile = TestNode("bad");
+  bad_profile.participant_profile = "no_such_profile";
+  EXPECT_THROW(Node{bad_profile}, DdsError);
   setenv("MAGNAV_DOMAIN_ID", "abc", 1);
   try {
     DomainIdFromEnvironment();
