@@ -8,7 +8,7 @@
 #include <CLI/CLI.hpp>
 
 #ifdef MAGNAV_WITH_DDS
-#include "magnav/dds/node.h"
+#include "magnav/dds/cli.h"
 #endif
 
 namespace magnav::tools {
@@ -23,14 +23,8 @@ void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const s
 void AddSimulateCommand(CLI::App& app);
 
 #ifdef MAGNAV_WITH_DDS
-// DDS options shared by every command and service that joins the network.
-struct DdsArgs {
-  int domain_id = -1;              // -1 = $MAGNAV_DOMAIN_ID, else $ROS_DOMAIN_ID, else 0
-  std::string profiles_file;       // extra Fast DDS XML profiles
-  std::string participant_profile; // default magnav_loopback
-  dds::NodeOptions ToNodeOptions(const std::string& name) const;
-};
-void AddDdsOptions(CLI::App& app, DdsArgs* out);
+using dds::AddDdsOptions;
+using dds::DdsArgs;
 void AddReplayCommand(CLI::App& app);
 void AddRecordCommand(CLI::App& app);
 #endif

@@ -24,25 +24,6 @@ void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const s
       ->type_name("X,Y,Z");
 }
 
-#ifdef MAGNAV_WITH_DDS
-dds::NodeOptions DdsArgs::ToNodeOptions(const std::string& name) const {
-  dds::NodeOptions o;
-  o.name = name;
-  if (domain_id >= 0) o.domain_id = domain_id;
-  o.profiles_file = profiles_file;
-  o.participant_profile = participant_profile;
-  return o;
-}
-
-void AddDdsOptions(CLI::App& app, DdsArgs* out) {
-  app.add_option("--domain", out->domain_id, "DDS domain id (default $MAGNAV_DOMAIN_ID, $ROS_DOMAIN_ID, 0)")
-      ->check(CLI::Range(0, 232));
-  app.add_option("--dds-profiles", out->profiles_file, "extra Fast DDS XML profiles file")
-      ->check(CLI::ExistingFile);
-  app.add_option("--dds-participant", out->participant_profile,
-                 "participant profile (default magnav_loopback: 127.0.0.1 + shared memory only)");
-}
-#endif
 
 }  // namespace magnav::tools
 

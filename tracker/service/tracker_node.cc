@@ -1,0 +1,102 @@
+#include "tracker_node.h"
+
+#include <cmath>
+
+#include <spdlog/spdlog.h>
+
+#include "magnav/core/error.h"
+#include "magnav/core/frames.h"
+#include "magnav/core/units.h"
+#include "magnav/dds/convert.h"
+
+namespace magnav::tracker {
+
+bool TrackerNodeOptions::IsValid(std::string* error) const {
+  if (!B0_W.allFinite()) {
+    if (error) *error = "B0 must be finite";
+    return false;
+  }
+  if (!(reorder_delay_s >= 0.0) || !std::isfinite(reorder_delay_s)) {
+    if (error) *error = "reorder_delay_s must be finite and >= 0";
+    return false;
+  }
+  return tracker.IsValid(error);
+}
+
+dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B, const Eigen::Matrix3d& cov_m_B,
+                              std::uint32_t track_id) {
+  dds::msg::TrackEstimate m;
+  m.track_id(track_id);
+  m.stamp_ns(SecondsToNanos(e.t_s));
+  m.position({e.p_VinW.x(), e.p_VinW.y(), e.p_VinW.z()});
+  const Eigen::Vector3d v = e.v_VinW();
+  m.velocity({v.x(), v.y(), v.z()});
+  m.heading(e.heading_rad);
+  m.turn_rate(e.turn_rate_radps);
+  std::array<double, 9> cov{}, cov_m{};
+  if (e.has_covariance) {
+    for (int k = 0; k < 9; ++k) cov[k] = e.cov_state(k / 3, k % 3);
+  }
+  for (int k = 0; k < 9; ++k) cov_m[k] = cov_m_B(k / 3, k % 3);
+  m.covariance(cov);
+  m.moment_body({m_B.x(), m_B.y(), m_B.z()});
+  m.moment_covariance(cov_m);
+  m.num_sensors(static_cast<std::uint32_t>(e.num_samples));
+  return m;
+}
+
+namespace {
+const TrackerNodeOptions& Checked(const TrackerNodeOptions& o) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("tracker options: " + err);
+  return o;
+}
+}  // namespace
+
+TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options)
+    : options_(Checked(options)), tracker_(options.B0_W, options.tracker) {
+  writer_ = node.CreateWriter<dds::msg::TrackEstimate>();
+  reader_ = node.CreateReader<dds::msg::GradiometerSample>(
+      [this](const dds::msg::GradiometerSample& m, const auto&) { OnSample(m); });
+}
+
+void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
+  const GradiometerSample s = dds::FromMsg(m);
+  std::lock_guard<std::mutex> lk(mu_);
+  if (s.t_s < fed_until_s_) {
+    ++dropped_late_;
+    return;
+  }
+  pending_.emplace(s.t_s, s);
+  const double newest = pending_.rbegin()->first;
+  while (!pending_.empty() && newest - pending_.begin()->first >= options_.reorder_delay_s) {
+    Feed(pending_.begin()->second);
+    pending_.erase(pending_.begin());
+  }
+}
+
+void TrackerNode::Feed(const GradiometerSample& s) {
+  fed_until_s_ = s.t_s;
+  try {
+    Publish(tracker_.AddSample(s));
+  } catch (const InputError& e) {
+    ++rejected_;
+    spdlog::warn("magnav-tracker: sample of sensor {} at t = {} s rejected: {}", s.sensor_id, s.t_s, e.what());
+  }
+}
+
+void TrackerNode::Flush() {
+  std::lock_guard<std::mutex> lk(mu_);
+  for (const auto& [t, s] : pending_) Feed(s);
+  pending_.clear();
+  Publish(tracker_.Flush());
+}
+
+void TrackerNode::Publish(const std::vector<EpochEstimate>& estimates) {
+  if (estimates.empty()) return;
+  const Eigen::Vector3d m_B = tracker_.m_B_Am2();
+  const Eigen::Matrix3d cov_m = tracker_.cov_m_B();
+  for (const auto& e : estimates) writer_->Write(ToMsg(e, m_B, cov_m, options_.track_id));
+}
+
+}  // namespace magnav::tracker

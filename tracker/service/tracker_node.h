@@ -1,0 +1,56 @@
+// The tracker's DDS node: GradiometerSample in, TrackEstimate out (one per
+// epoch, from the fixed-lag sliding-window tracker of magnav::tracker). Samples
+// of several gradiometers arrive on independent streams, so they pass a short
+// reorder buffer first: a sample is handed to the tracker once a sample at
+// least `reorder_delay_s` newer has arrived (or at shutdown); a sample older
+// than what the tracker has already consumed is counted and dropped.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <mutex>
+
+#include "magnav/dds/node.h"
+#include "magnav/tracker/tracker.h"
+
+namespace magnav::tracker {
+
+struct TrackerNodeOptions {
+  TrackerOptions tracker;
+  Eigen::Vector3d B0_W = Eigen::Vector3d::Zero();  // background field, T
+  double reorder_delay_s = 0.25;                    // s of sample time
+  std::uint32_t track_id = 0;
+
+  bool IsValid(std::string* error) const;
+};
+
+dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B, const Eigen::Matrix3d& cov_m_B,
+                              std::uint32_t track_id);
+
+class TrackerNode {
+ public:
+  TrackerNode(dds::Node& node, const TrackerNodeOptions& options);
+  // Feeds what is still buffered to the tracker and publishes the result.
+  void Flush();
+
+  std::uint64_t received() const { return reader_->stats().samples.load(); }
+  std::uint64_t published() const { return writer_->stats().samples.load(); }
+  std::uint64_t dropped_late() const { return dropped_late_; }
+  std::uint64_t rejected() const { return rejected_; }
+
+ private:
+  void OnSample(const dds::msg::GradiometerSample& m);
+  void Feed(const GradiometerSample& s);  // mu_ held
+  void Publish(const std::vector<EpochEstimate>& estimates);
+
+  TrackerNodeOptions options_;
+  std::mutex mu_;
+  WindowTracker tracker_;
+  std::multimap<double, GradiometerSample> pending_;  // by time
+  double fed_until_s_ = -1e300;
+  std::uint64_t dropped_late_ = 0, rejected_ = 0;
+  std::unique_ptr<dds::Writer<dds::msg::TrackEstimate>> writer_;
+  std::unique_ptr<dds::Reader<dds::msg::GradiometerSample>> reader_;
+};
+
+}  // namespace magnav::tracker
