@@ -31,6 +31,7 @@ bool SolveInEigenbasis(const Mat3& T, const Vec3& dB, double row_weight, const N
   const int k = eig.SmallestMagnitudeIndex();
   const Vec3 lam = eig.values / s;  // scaled eigenvalues, Σλ² = 1 for symmetric T
   const Vec3 c = eig.vectors.transpose() * (dB / s);
+
   Vec3 y, gain;  // gain in unscaled units: m per (T) of Euler-row error
   double sv_min = std::numeric_limits<double>::infinity(), sv_max = 0.0;
   for (int i = 0; i < 3; ++i) {
