@@ -31,7 +31,6 @@ bool SolveInEigenbasis(const Mat3& T, const Vec3& dB, double row_weight, const N
   const int k = eig.SmallestMagnitudeIndex();
   const Vec3 lam = eig.values / s;  // scaled eigenvalues, Σλ² = 1 for symmetric T
   const Vec3 c = eig.vectors.transpose() * (dB / s);
-
   Vec3 y, gain;  // gain in unscaled units: m per (T) of Euler-row error
   double sv_min = std::numeric_limits<double>::infinity(), sv_max = 0.0;
   for (int i = 0; i < 3; ++i) {
@@ -48,7 +47,10 @@ bool SolveInEigenbasis(const Mat3& T, const Vec3& dB, double row_weight, const N
       gain[i] = 0.0;
     }
   }
-  if (!(sv_min > 0.0)) return false;  // singular: no unique solution
+  if (!(sv_min > 0.0)) {  // singular: no unique solution
+    out->cond = std::numeric_limits<double>::infinity();
+    return false;
+  }
   out->r_DtoS = eig.vectors * y;
   out->has_moment = false;
   out->cond = sv_max / sv_min;

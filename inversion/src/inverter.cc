@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "magnav/core/dipole.h"
 #include "magnav/core/error.h"
@@ -135,6 +136,7 @@ DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& o
   const Vec3 dB = sample.B - options.B0_W;
   const NoiseSigmas noise{sigma_B, sigma_T};
   AnalyticSolution sol;
+  sol.cond = std::numeric_limits<double>::quiet_NaN();
   bool ok = false;
   double max_cond = 0.0;
   switch (options.method) {
@@ -152,7 +154,10 @@ DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& o
       break;
   }
   fix.cond = sol.cond;
-  if (!ok) return reject(RejectReason::kSolverFailed);
+  if (!ok) {
+    // A singular system (cond = ∞) is the condition gate's business.
+    return reject(sol.cond > max_cond ? RejectReason::kIllConditioned : RejectReason::kSolverFailed);
+  }
   fix.r_DtoS = sol.r_DtoS;
   fix.p_DinW = sample.p_SinW - sol.r_DtoS;
   fix.position_sigma_m = sol.position_sigma_m;
