@@ -77,6 +77,9 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
     return Fail(error, "filter.model_error_relative must be finite and >= 0");
   }
   if (!FiniteNonNegative(accel_sigma_mps2)) return Fail(error, "filter.accel_sigma_mps2 must be finite and >= 0");
+  if (!FiniteNonNegative(position_sigma_m_per_sqrt_s)) {
+    return Fail(error, "filter.position_sigma_m_per_sqrt_s must be finite and >= 0");
+  }
   if (!FiniteNonNegative(depth_sigma_m_per_sqrt_s)) {
     return Fail(error, "filter.depth_sigma_m_per_sqrt_s must be finite and >= 0");
   }
@@ -133,6 +136,16 @@ void DipoleParticleFilter::InitializeAround(const Vec3& p_DinW, double position_
   initialized_ = true;
 }
 
+void DipoleParticleFilter::InitializeAround(const Vec3& p_DinW, double position_sigma_m,
+                                            const Eigen::Vector2d& v_W, double velocity_sigma_mps,
+                                            double t_s) {
+  InitializeAround(p_DinW, position_sigma_m, t_s);
+  for (std::size_t i = 0; i < px_.size(); ++i) {
+    vx_[i] = v_W.x() + velocity_sigma_mps * Normal();
+    vy_[i] = v_W.y() + velocity_sigma_mps * Normal();
+  }
+}
+
 void DipoleParticleFilter::InitializeBox(const Vec3& lo_W, const Vec3& hi_W, double t_s) {
   const std::size_t n = px_.size();
   for (std::size_t i = 0; i < n; ++i) {
@@ -156,12 +169,13 @@ void DipoleParticleFilter::Predict(double t_s) {
   if (!(dt > 0.0)) return;
   const double sa = options_.accel_sigma_mps2 * dt;
   const double sz = options_.depth_sigma_m_per_sqrt_s * std::sqrt(dt);
+  const double sp = options_.position_sigma_m_per_sqrt_s * std::sqrt(dt);
   const std::size_t n = px_.size();
   for (std::size_t i = 0; i < n; ++i) {
     const double dvx = sa * Normal(), dvy = sa * Normal();
     // Position integrates the mean velocity over the step.
-    px_[i] += (vx_[i] + 0.5 * dvx) * dt;
-    py_[i] += (vy_[i] + 0.5 * dvy) * dt;
+    px_[i] += (vx_[i] + 0.5 * dvx) * dt + sp * Normal();
+    py_[i] += (vy_[i] + 0.5 * dvy) * dt + sp * Normal();
     vx_[i] += dvx;
     vy_[i] += dvy;
     pz_[i] += sz * Normal();
@@ -279,6 +293,13 @@ ParticleEstimate DipoleParticleFilter::Estimate() const {
 bool MonteCarloTrackerOptions::IsValid(std::string* error) const {
   if (!filter.IsValid(error)) return false;
   if (!init_inverter.IsValid(error)) return false;
+  if (!(init_window_s > 0.0) || !std::isfinite(init_window_s)) {
+    return Fail(error, "init_window_s must be finite and > 0");
+  }
+  if (init_min_fixes < 2) return Fail(error, "init_min_fixes must be >= 2");
+  if (!FiniteNonNegative(init_velocity_sigma_mps)) {
+    return Fail(error, "init_velocity_sigma_mps must be finite and >= 0");
+  }
   if (!(init_position_sigma_m > 0.0) || !std::isfinite(init_position_sigma_m)) {
     return Fail(error, "init_position_sigma_m must be finite and > 0");
   }
@@ -291,6 +312,35 @@ MonteCarloTracker::MonteCarloTracker(const MonteCarloTrackerOptions& options) : 
   if (!options_.IsValid(&error)) throw InputError("Monte-Carlo tracker options: " + error);
 }
 
+bool MonteCarloTracker::TryInitialize(Track* track, double t_s) const {
+  const auto& f = track->recent;
+  if (static_cast<int>(f.size()) < options_.init_min_fixes) return false;
+  if (f.back().t_s - f.front().t_s < 0.5 * options_.init_window_s) return false;
+  // Least-squares line p(t) = p̄ + v (t − t̄) through the fixes.
+  double t_mean = 0.0;
+  for (const auto& x : f) t_mean += x.t_s;
+  t_mean /= static_cast<double>(f.size());
+  Vec3 p_mean = Vec3::Zero();
+  for (const auto& x : f) p_mean += x.p_DinW;
+  p_mean /= static_cast<double>(f.size());
+  double stt = 0.0;
+  Vec3 stp = Vec3::Zero();
+  for (const auto& x : f) {
+    stt += (x.t_s - t_mean) * (x.t_s - t_mean);
+    stp += (x.t_s - t_mean) * (x.p_DinW - p_mean);
+  }
+  if (!(stt > 0.0)) return false;
+  const Vec3 v = stp / stt;
+  const Vec3 p_now = p_mean + v * (t_s - t_mean);
+  // Prior σ: the option, or the newest fix's own predicted σ if larger.
+  const double sigma_fix = f.back().position_sigma_m;
+  const double sigma_p =
+      std::isfinite(sigma_fix) ? std::max(options_.init_position_sigma_m, sigma_fix) : options_.init_position_sigma_m;
+  track->filter.InitializeAround(p_now, sigma_p, v.head<2>(),
+                                 options_.init_velocity_sigma_mps, t_s);
+  return true;
+}
+
 DipoleFix MonteCarloTracker::Process(const GradiometerSample& sample) {
   auto it = tracks_.find(sample.sensor_id);
   if (it == tracks_.end()) {
@@ -298,7 +348,7 @@ DipoleFix MonteCarloTracker::Process(const GradiometerSample& sample) {
     filter_options.seed += sample.sensor_id;  // independent streams per sensor
     it = tracks_
              .emplace(sample.sensor_id,
-                      Track{DipoleParticleFilter(filter_options), Inverter(options_.init_inverter)})
+                      Track{DipoleParticleFilter(filter_options), Inverter(options_.init_inverter), {}})
              .first;
   }
   Track& track = it->second;
@@ -311,9 +361,14 @@ DipoleFix MonteCarloTracker::Process(const GradiometerSample& sample) {
   const DipoleFix analytic = track.inverter.Process(sample);
   DipoleParticleFilter& pf = track.filter;
   if (analytic.valid) {
-    const bool far = pf.initialized() &&
-                     (analytic.p_DinW - pf.Estimate().p_DinW).norm() > options_.reinit_distance_m;
-    if (!pf.initialized() || far) pf.InitializeAround(analytic.p_DinW, options_.init_position_sigma_m, sample.t_s);
+    track.recent.push_back(analytic);
+    const double t_min = sample.t_s - options_.init_window_s;
+    track.recent.erase(std::remove_if(track.recent.begin(), track.recent.end(),
+                                      [t_min](const DipoleFix& f) { return f.t_s < t_min; }),
+                       track.recent.end());
+    const bool lost = pf.initialized() &&
+                      (analytic.p_DinW - pf.Estimate().p_DinW).norm() > options_.reinit_distance_m;
+    if (!pf.initialized() || lost) TryInitialize(&track, sample.t_s);
   }
   if (!pf.initialized()) {
     fix.reason = RejectReason::kNotInitialized;

@@ -5,9 +5,10 @@
 // Frames and units: world NED, metres, seconds, T/m, A·m².
 // State per particle: x = [p_x, p_y, p_z, v_x, v_y] — dipole position p_DinW
 // (m) and horizontal velocity (m/s); constant velocity, constant depth.
-// Process model over Δt: v += a Δt, p_xy += v Δt, p_z += w_z, with white
-// horizontal acceleration a ~ N(0, accel_sigma_mps2²) and a depth random walk
-// w_z ~ N(0, depth_sigma_m_per_sqrt_s² Δt).
+// Process model over Δt: v += a Δt, p_xy += v Δt + w_xy, p_z += w_z, with
+// white horizontal acceleration a ~ N(0, accel_sigma_mps2²), a horizontal
+// position random walk w_xy ~ N(0, position_sigma_m_per_sqrt_s² Δt) and a
+// depth random walk w_z ~ N(0, depth_sigma_m_per_sqrt_s² Δt).
 // Measurement: the five independent tensor components z = [Txx, Txy, Txz,
 // Tyy, Tyz] (core PackTensor5) of the dipole with world moment
 // m_W = Rz(ψ) m_B, ψ = atan2(v_y, v_x) (core WorldMoment), at r = p_S − p_D.
@@ -36,10 +37,19 @@ struct ParticleFilterOptions {
   std::uint64_t seed = 42;  // std::mt19937_64 seed: runs are reproducible
   Vec3 moment_body_Am2 = Vec3::Zero();  // known body moment (body x fwd, y stbd, z down); must be set
   double sigma_T_fallback = 0.0;        // T/m, used when a sample's sigma_T is 0
-  // Relative model error added to σ_T in the likelihood (keeps a very sharp
-  // SQUID likelihood from collapsing the particle cloud onto one particle).
-  double model_error_relative = 0.0;
-  double accel_sigma_mps2 = 0.05;             // horizontal acceleration noise
+  // Relative model error added to σ_T in the likelihood: a real vessel is
+  // not a perfect dipole, and a likelihood sharper than the particle spacing
+  // (SQUID, close range) collapses the cloud onto a few particles that then
+  // cannot follow. 1 % caps the effective SNR at 100 (sweep in
+  // docs/ACCURACY.md).
+  double model_error_relative = 0.01;
+  // Horizontal acceleration noise. The passes turn at 0.02 rad/s × 1 m/s =
+  // 0.02 m/s²; 0.2 also lets a cloud with a wrong initial heading turn to
+  // the right one within a few seconds (sweep in docs/ACCURACY.md).
+  double accel_sigma_mps2 = 0.2;
+  // Horizontal position random walk on top of the constant-velocity motion;
+  // keeps the cloud wide enough to follow when the likelihood is sharp.
+  double position_sigma_m_per_sqrt_s = 0.1;
   double depth_sigma_m_per_sqrt_s = 0.02;     // depth random walk
   double resample_ess_fraction = 0.5;         // resample when ESS < fraction · N
   // Prior around a position (InitializeAround): isotropic Gaussian position,
@@ -62,8 +72,12 @@ class DipoleParticleFilter {
   // Throws InputError if the options are invalid.
   explicit DipoleParticleFilter(const ParticleFilterOptions& options);
 
-  // Prior: Gaussian around p_DinW (σ per axis, m) at time t_s.
+  // Prior: Gaussian around p_DinW (σ per axis, m) at time t_s, velocity
+  // uniform (speed in [0, init_speed_max_mps], any heading).
   void InitializeAround(const Vec3& p_DinW, double position_sigma_m, double t_s);
+  // Prior: Gaussian around p_DinW and around a horizontal velocity v_W (m/s).
+  void InitializeAround(const Vec3& p_DinW, double position_sigma_m, const Eigen::Vector2d& v_W,
+                        double velocity_sigma_mps, double t_s);
   // Prior: uniform position in the box [lo, hi] (m) at time t_s.
   void InitializeBox(const Vec3& lo_W, const Vec3& hi_W, double t_s);
   bool initialized() const { return initialized_; }
@@ -100,15 +114,21 @@ class DipoleParticleFilter {
 };
 
 // Per-sensor Monte-Carlo tracking for a service or the CLI: one particle
-// filter per sensor_id, initialised around the first TED+EGT fix that passes
-// the inverter's gates (which needs B0 for that fix only), and re-initialised
-// when a later accepted fix lies more than reinit_distance_m from the filter
-// estimate.
+// filter per sensor_id. The prior comes from the analytic fixes (TED+EGT with
+// the inverter's gates; they need B0, the filter itself does not): once the
+// accepted fixes of the last init_window_s seconds number at least
+// init_min_fixes and span at least half the window, the filter starts around
+// the newest fix with the velocity of a least-squares line through them. It
+// restarts the same way when an accepted fix lies more than
+// reinit_distance_m from the filter estimate (lost track).
 struct MonteCarloTrackerOptions {
   ParticleFilterOptions filter;
-  InverterOptions init_inverter;      // method and gates for the initialising fixes
-  double init_position_sigma_m = 2.0; // prior σ around the initialising fix
-  double reinit_distance_m = 10.0;    // infinity disables re-initialisation
+  InverterOptions init_inverter;            // method and gates for the initialising fixes
+  double init_window_s = 1.0;               // s
+  int init_min_fixes = 5;
+  double init_position_sigma_m = 0.5;       // prior σ around the newest fix, m
+  double init_velocity_sigma_mps = 0.3;     // prior σ around the fitted velocity, m/s
+  double reinit_distance_m = 3.0;           // infinity disables re-initialisation
 
   bool IsValid(std::string* error) const;
 };
@@ -125,7 +145,10 @@ class MonteCarloTracker {
   struct Track {
     DipoleParticleFilter filter;
     Inverter inverter;
+    std::vector<DipoleFix> recent;  // accepted analytic fixes within init_window_s
   };
+  // Starts the filter from the recent fixes; false if there are too few.
+  bool TryInitialize(Track* track, double t_s) const;
   MonteCarloTrackerOptions options_;
   std::unordered_map<std::uint32_t, Track> tracks_;
 };
