@@ -55,6 +55,23 @@ bool SolveInEigenbasis(const Mat3& T, const Vec3& dB, double row_weight, const N
   out->has_moment = false;
   out->cond = sv_max / sv_min;
   out->position_sigma_m = PropagatedSigma(gain, out->r_DtoS.norm(), noise);
+  if (row_weight > 0.0 && noise.sigma_T > 0.0 && std::isfinite(out->position_sigma_m)) {
+    // The eigenvector row is noisy too: to first order b3 tilts by
+    // Σ_j (v_jᵀ δT b3)/(λ_k − λ_j) v_j, so b3ᵀ r errs by ε with
+    // var ε = σ_T² Σ_{j≠k} y_j² / (λ_k − λ_j)², and y_k takes the share
+    // w² / (λ_k²/s² + w²) of it.
+    double var_eps = 0.0;
+    for (int j = 0; j < 3; ++j) {
+      if (j == k) continue;
+      const double gap = eig.values[k] - eig.values[j];
+      var_eps += y[j] * y[j] / (gap * gap);
+    }
+    var_eps *= noise.sigma_T * noise.sigma_T;
+    const double w2 = row_weight * row_weight;
+    const double share = w2 / (lam[k] * lam[k] + w2);
+    const double var = out->position_sigma_m * out->position_sigma_m + share * share * var_eps;
+    out->position_sigma_m = std::sqrt(var);
+  }
   return out->r_DtoS.allFinite();
 }
 

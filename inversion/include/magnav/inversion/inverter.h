@@ -85,9 +85,14 @@ struct GateOptions {
   double max_cond_ted = 50.0;
   double max_cond_ted_egt = 1e3;
   double max_cond_egt = 1e4;
-  // Reject when the first-order 1-σ position error exceeds this (m);
-  // infinity disables. Needs σ_B or σ_T.
-  double max_position_sigma_m = std::numeric_limits<double>::infinity();
+  // Reject when the first-order 1-σ position error (AnalyticSolution::
+  // position_sigma_m) exceeds this (m); infinity disables; skipped when σ_B
+  // and σ_T are unknown. The weak-signal gate bounds the *relative* error, so
+  // a SQUID still passes it at 75 m with ~0.5 m errors; this gate bounds the
+  // absolute error. 5 cm keeps fixes usable one by one (observed errors are
+  // ≈ 1.5 σ RMS, ≤ ~4 σ; sweep in docs/ACCURACY.md); coarser information is
+  // better used by the Monte-Carlo filter.
+  double max_position_sigma_m = 0.05;
   // Speed gate (difference operator): reject when
   // |p − p_last| > max_speed_mps · Δt + speed_slack_m against the sensor's
   // last accepted fix. The reference is ignored (and replaced by the next

@@ -123,7 +123,14 @@ class DipoleParticleFilter {
 // reinit_distance_m from the filter estimate (lost track).
 struct MonteCarloTrackerOptions {
   ParticleFilterOptions filter;
-  InverterOptions init_inverter;            // method and gates for the initialising fixes
+  // Method and gates for the initialising fixes. The prior σ follows each
+  // fix's predicted σ, so coarser fixes than the inverter's default (5 cm)
+  // are accepted here (1 m).
+  InverterOptions init_inverter = [] {
+    InverterOptions o;
+    o.gates.max_position_sigma_m = 1.0;
+    return o;
+  }();
   double init_window_s = 1.0;               // s
   int init_min_fixes = 5;
   double init_position_sigma_m = 0.5;       // prior σ around the newest fix, m
