@@ -76,12 +76,14 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!FiniteNonNegative(model_error_relative)) {
     return Fail(error, "filter.model_error_relative must be finite and >= 0");
   }
-  if (!FiniteNonNegative(accel_sigma_mps2)) return Fail(error, "filter.accel_sigma_mps2 must be finite and >= 0");
-  if (!FiniteNonNegative(position_sigma_m_per_sqrt_s)) {
-    return Fail(error, "filter.position_sigma_m_per_sqrt_s must be finite and >= 0");
+  if (!FiniteNonNegative(velocity_walk_mps_per_sqrt_s)) {
+    return Fail(error, "filter.velocity_walk_mps_per_sqrt_s must be finite and >= 0");
   }
-  if (!FiniteNonNegative(depth_sigma_m_per_sqrt_s)) {
-    return Fail(error, "filter.depth_sigma_m_per_sqrt_s must be finite and >= 0");
+  if (!FiniteNonNegative(position_walk_m_per_sqrt_s)) {
+    return Fail(error, "filter.position_walk_m_per_sqrt_s must be finite and >= 0");
+  }
+  if (!FiniteNonNegative(depth_walk_m_per_sqrt_s)) {
+    return Fail(error, "filter.depth_walk_m_per_sqrt_s must be finite and >= 0");
   }
   if (!(resample_ess_fraction > 0.0 && resample_ess_fraction <= 1.0)) {
     return Fail(error, "filter.resample_ess_fraction must be in (0, 1]");
@@ -167,9 +169,9 @@ void DipoleParticleFilter::InitializeBox(const Vec3& lo_W, const Vec3& hi_W, dou
 void DipoleParticleFilter::Predict(double t_s) {
   const double dt = t_s - t_s_;
   if (!(dt > 0.0)) return;
-  const double sa = options_.accel_sigma_mps2 * dt;
-  const double sz = options_.depth_sigma_m_per_sqrt_s * std::sqrt(dt);
-  const double sp = options_.position_sigma_m_per_sqrt_s * std::sqrt(dt);
+  const double sa = options_.velocity_walk_mps_per_sqrt_s * std::sqrt(dt);
+  const double sz = options_.depth_walk_m_per_sqrt_s * std::sqrt(dt);
+  const double sp = options_.position_walk_m_per_sqrt_s * std::sqrt(dt);
   const std::size_t n = px_.size();
   for (std::size_t i = 0; i < n; ++i) {
     const double dvx = sa * Normal(), dvy = sa * Normal();

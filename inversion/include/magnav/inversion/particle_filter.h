@@ -5,10 +5,10 @@
 // Frames and units: world NED, metres, seconds, T/m, A·m².
 // State per particle: x = [p_x, p_y, p_z, v_x, v_y] — dipole position p_DinW
 // (m) and horizontal velocity (m/s); constant velocity, constant depth.
-// Process model over Δt: v += a Δt, p_xy += v Δt + w_xy, p_z += w_z, with
-// white horizontal acceleration a ~ N(0, accel_sigma_mps2²), a horizontal
-// position random walk w_xy ~ N(0, position_sigma_m_per_sqrt_s² Δt) and a
-// depth random walk w_z ~ N(0, depth_sigma_m_per_sqrt_s² Δt).
+// Process model over Δt (continuous white noise, so independent of the
+// sample rate): v += δv, p_xy += (v + δv/2) Δt + w_xy, p_z += w_z with
+// δv ~ N(0, velocity_walk² Δt) (white acceleration of PSD velocity_walk²),
+// w_xy ~ N(0, position_walk² Δt) and w_z ~ N(0, depth_walk² Δt).
 // Measurement: the five independent tensor components z = [Txx, Txy, Txz,
 // Tyy, Tyz] (core PackTensor5) of the dipole with world moment
 // m_W = Rz(ψ) m_B, ψ = atan2(v_y, v_x) (core WorldMoment), at r = p_S − p_D.
@@ -43,14 +43,15 @@ struct ParticleFilterOptions {
   // cannot follow. 1 % caps the effective SNR at 100 (sweep in
   // docs/ACCURACY.md).
   double model_error_relative = 0.01;
-  // Horizontal acceleration noise. The passes turn at 0.02 rad/s × 1 m/s =
-  // 0.02 m/s²; 0.2 also lets a cloud with a wrong initial heading turn to
-  // the right one within a few seconds (sweep in docs/ACCURACY.md).
-  double accel_sigma_mps2 = 0.2;
+  // Velocity random walk (white horizontal acceleration), m/s per √s. The
+  // passes turn at 0.02 rad/s × 1 m/s = 0.02 m/s²; 0.1 also lets a cloud
+  // with a wrong initial heading turn to the right one within a few seconds
+  // (sweep in docs/ACCURACY.md).
+  double velocity_walk_mps_per_sqrt_s = 0.1;
   // Horizontal position random walk on top of the constant-velocity motion;
   // keeps the cloud wide enough to follow when the likelihood is sharp.
-  double position_sigma_m_per_sqrt_s = 0.1;
-  double depth_sigma_m_per_sqrt_s = 0.02;     // depth random walk
+  double position_walk_m_per_sqrt_s = 0.1;
+  double depth_walk_m_per_sqrt_s = 0.02;      // depth random walk
   double resample_ess_fraction = 0.5;         // resample when ESS < fraction · N
   // Prior around a position (InitializeAround): isotropic Gaussian position,
   // speed uniform in [0, init_speed_max_mps], heading uniform.
