@@ -8,6 +8,7 @@
 
 #include "magnav/core/dipole.h"
 #include "magnav/core/error.h"
+#include "magnav/core/frames.h"
 #include "magnav/core/tensor.h"
 
 namespace magnav::inversion {
@@ -381,6 +382,9 @@ DipoleFix MonteCarloTracker::Process(const GradiometerSample& sample) {
   fix.valid = true;
   fix.p_DinW = e.p_DinW;
   fix.r_DtoS = sample.p_SinW - e.p_DinW;
+  fix.position_sigma_m = e.position_std_m.norm();
+  fix.m_W = WorldMoment(options_.filter.moment_body_Am2, std::atan2(e.v_W.y(), e.v_W.x()));
+  fix.has_moment = true;
   fix.snr = analytic.snr;
   return fix;
 }

@@ -159,5 +159,40 @@ TEST(ParticleFilter, UnusableSamplesAreRefusedNotFatal) {
   EXPECT_TRUE(pf.Estimate().p_DinW.allFinite());
 }
 
+TEST(MonteCarloTracker, StartsFromFixesPerSensorAndReportsMoment) {
+  const Pass pass;
+  MonteCarloTrackerOptions o;
+  o.filter.moment_body_Am2 = kMomentBody;
+  MonteCarloTracker tracker(o);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> n01;
+  const Vec3 m_W = WorldMoment(kMomentBody, pass.heading);
+  int not_initialized = 0;
+  DipoleFix last;
+  for (double t = 5.0; t <= 12.0; t += 0.1) {
+    GradiometerSample s = pass.Sample(t, &rng);
+    s.sigma_B = 1e-9;
+    s.B = DipoleB(-pass.p(t), m_W) + 1e-9 * Vec3(n01(rng), n01(rng), n01(rng));
+    last = tracker.Process(s);
+    if (!last.valid) {
+      EXPECT_EQ(last.reason, RejectReason::kNotInitialized);
+      ++not_initialized;
+    }
+    // Sensor 7 has seen nothing useful (zero tensor): still waiting.
+    GradiometerSample other = s;
+    other.sensor_id = 7;
+    other.T.setZero();
+    EXPECT_EQ(tracker.Process(other).reason, RejectReason::kNotInitialized);
+  }
+  // The prior needs 5 accepted fixes spanning ≥ 0.5 s.
+  EXPECT_GE(not_initialized, 5);
+  EXPECT_LT(not_initialized, 20);
+  ASSERT_TRUE(last.valid);
+  EXPECT_LT((last.p_DinW - pass.p(12.0)).norm(), 0.3);
+  ASSERT_TRUE(last.has_moment);
+  EXPECT_LT((last.m_W - m_W).norm(), 0.1 * m_W.norm());
+  EXPECT_GT(last.position_sigma_m, 0.0);
+}
+
 }  // namespace
 }  // namespace magnav::inversion

@@ -146,7 +146,9 @@ class MonteCarloTracker {
   explicit MonteCarloTracker(const MonteCarloTrackerOptions& options);
   // Samples of one sensor must come in time order. The returned fix is valid
   // once the sensor's filter is initialised (reason kNotInitialized before);
-  // it carries the filter's mean position, the sample's cond(T) and no moment.
+  // it carries the filter's mean position, position_sigma_m = the 3-D spread
+  // of the particles, the world moment at the mean velocity's heading and
+  // the sample's cond(T).
   DipoleFix Process(const GradiometerSample& sample);
 
  private:
