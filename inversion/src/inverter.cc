@@ -161,6 +161,13 @@ DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& o
   fix.r_DtoS = sol.r_DtoS;
   fix.p_DinW = sample.p_SinW - sol.r_DtoS;
   fix.position_sigma_m = sol.position_sigma_m;
+  // 5. Condition number.
+  if (!(sol.cond <= max_cond)) return reject(RejectReason::kIllConditioned);
+  // 6. Predicted position error (skipped when no sigma is known).
+  if (std::isfinite(g.max_position_sigma_m) && sol.position_sigma_m > g.max_position_sigma_m) {
+    return reject(RejectReason::kUncertain);
+  }
+  // Moment of an accepted fix: closed form (EGT) or weighted least squares.
   if (sol.has_moment) {
     fix.m_W = sol.m_W;
     fix.has_moment = true;
@@ -170,12 +177,6 @@ DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& o
       fix.m_W = m;
       fix.has_moment = true;
     }
-  }
-  // 5. Condition number.
-  if (!(sol.cond <= max_cond)) return reject(RejectReason::kIllConditioned);
-  // 6. Predicted position error (skipped when no sigma is known).
-  if (std::isfinite(g.max_position_sigma_m) && sol.position_sigma_m > g.max_position_sigma_m) {
-    return reject(RejectReason::kUncertain);
   }
   fix.valid = true;
   fix.reason = RejectReason::kNone;

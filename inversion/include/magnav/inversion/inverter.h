@@ -58,8 +58,8 @@ struct DipoleFix {
   double t_s = 0.0;
   bool valid = false;
   RejectReason reason = RejectReason::kNone;
-  // Solution, when the solver ran (also on rejected fixes rejected by gates
-  // 5–7, for diagnostics); NaN otherwise.
+  // Solution, when the solver ran (also on fixes rejected by gates 5–7, for
+  // diagnostics); NaN otherwise. The moment only on accepted fixes.
   Vec3 p_DinW = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());   // m
   Vec3 r_DtoS = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());   // m
   Vec3 m_W = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());      // A·m²
