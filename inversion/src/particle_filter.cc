@@ -52,9 +52,9 @@ double NormalQuantile(double p) {
 }
 
 // Process noise needs thousands of normal draws per update; a table of
-// 4096 equiprobable quantiles (midpoints, |x| ≤ 3.5) indexed by 12 random
+// 4096 equiprobable quantiles (midpoints, |x| ≤ 3.67) indexed by 12 random
 // bits is a discretised normal that costs one table load per draw and fits
-// in L1 cache. Its variance is 0.9993 (the tails beyond 3.5σ are cut).
+// in L1 cache. Its variance is 0.99968 (the tails beyond 3.67σ are cut).
 constexpr int kNormalTableBits = 12;
 constexpr int kNormalTableSize = 1 << kNormalTableBits;
 const std::array<double, kNormalTableSize>& NormalTable() {

@@ -17,6 +17,8 @@
 // and correlation −1/2 — where σ² = σ_T² + (model_error_relative ‖T‖_F)².
 // Systematic resampling when the effective sample size drops below
 // resample_ess_fraction · N. The estimate is the weighted mean.
+// Cost: no allocation after construction; process-noise normals come from a
+// 4096-entry table of normal quantiles (|x| ≤ 3.67σ) indexed by random bits.
 #pragma once
 
 #include <cstdint>
