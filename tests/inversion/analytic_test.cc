@@ -116,6 +116,41 @@ TEST(AnalyticNoiseFree, MomentByLeastSquaresThroughInverter) {
   EXPECT_LE(worst_m, 1e-6);
 }
 
+TEST(AnalyticNoisy, FarNoiseDominatedCasesRejectedByDefault) {
+  // Kind 1: 80–150 m, |T| at or below the tensor noise. Every method with
+  // default gates must refuse them, and say why.
+  int n = 0;
+  for (const auto& c : Cases()) {
+    if (c.kind != 1) continue;
+    ++n;
+    for (const Method m : {Method::kTed, Method::kTedEgt, Method::kEgt}) {
+      InverterOptions o;
+      o.method = m;
+      const DipoleFix fix = InvertSample(c.noisy, o);
+      EXPECT_FALSE(fix.valid) << c.id << " " << MethodName(m);
+      EXPECT_EQ(fix.reason, RejectReason::kWeakSignal) << c.id << " " << MethodName(m);
+    }
+  }
+  EXPECT_EQ(n, 12);
+}
+
+TEST(AnalyticNoisy, AcceptedFixesHonourTheSigmaGate) {
+  // With default gates, accepted noisy fixes have predicted σ ≤ 5 cm; their
+  // errors must be consistent with that (none beyond 5σ = 25 cm).
+  int accepted = 0;
+  double worst = 0.0;
+  for (const auto& c : Cases()) {
+    const DipoleFix fix = InvertSample(c.noisy, InverterOptions{});
+    if (!fix.valid) continue;
+    ++accepted;
+    EXPECT_LE(fix.position_sigma_m, 0.05);
+    worst = std::max(worst, (fix.p_DinW - c.p_DinW).norm());
+  }
+  std::printf("default gates: %d of 500 noisy cases accepted, worst error %.3f m\n", accepted, worst);
+  EXPECT_GT(accepted, 50);
+  EXPECT_LE(worst, 0.25);
+}
+
 struct NoisyStats {
   int count = 0;
   double median = 0, p90 = 0, max = 0;
