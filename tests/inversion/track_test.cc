@@ -171,6 +171,39 @@ TEST(TrackPass, FourSensorsFluxgate) {
   EXPECT_LE(RunFourSensors("ship"), 1.7);
 }
 
+// The 20-seed spread of docs/ACCURACY.md (~4 s): the MC targets must hold
+// for every seed, not just the default one.
+TEST(TrackPass, McTwentySeeds) {
+  for (const char* vessel : {"auv", "ship"}) {
+    for (const char* sensor : {"squid", "fluxgate"}) {
+      const std::string name = std::string("track_pass_") + vessel + "_1sensor_" + sensor + ".csv";
+      const GradiometerFile file = ReadGradiometerFile(magnav::testing::ReferencePath(name));
+      const Truth truth = LoadTruth(vessel);
+      std::vector<double> rms;
+      for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+        MonteCarloTrackerOptions mc;
+        mc.filter.moment_body_Am2 = *file.moment_body;
+        mc.filter.seed = seed;
+        mc.init_inverter.B0_W = *file.B0;
+        MonteCarloTracker tracker(mc);
+        Stats st;
+        for (std::size_t i = 0; i < file.samples.size(); ++i) {
+          const DipoleFix f = tracker.Process(file.samples[i]);
+          const Vec3 d = truth.p[i] - file.samples[i].p_SinW;
+          if (std::hypot(d.x(), d.y()) <= kMcHorizontalRange && f.valid) st.Add((f.p_DinW - truth.p[i]).norm());
+        }
+        rms.push_back(st.rms());
+      }
+      std::sort(rms.begin(), rms.end());
+      double mean = 0.0;
+      for (double r : rms) mean += r / 20.0;
+      std::printf("| %s %s | MC RMS over seeds 1-20: mean %.3f median %.3f p90 %.3f max %.3f |\n", vessel, sensor,
+                  mean, 0.5 * (rms[9] + rms[10]), rms[17], rms[19]);
+      EXPECT_LE(rms[19], std::string(sensor) == "squid" ? 0.4 : 0.7);
+    }
+  }
+}
+
 TEST(TrackPass, AuvSquid) {
   const PassResult r = RunPass("auv", "squid");
   EXPECT_GT(r.ted_egt.count, 100);
