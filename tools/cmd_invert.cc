@@ -29,7 +29,12 @@ struct InvertArgs {
   unsigned long long seed = 42;
 };
 
-std::string Num(double v) { return std::isfinite(v) ? FormatNumber(v) : ""; }
+// Empty for "not computed" (NaN); "inf" for an infinite condition number.
+std::string Num(double v) {
+  if (std::isnan(v)) return "";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  return FormatNumber(v);
+}
 
 std::string Vec3Text(const Eigen::Vector3d& v) {
   return FormatNumber(v.x()) + ", " + FormatNumber(v.y()) + ", " + FormatNumber(v.z());
@@ -115,7 +120,7 @@ void RunInvert(const InvertArgs& args) {
   params.emplace_back("columns",
                       "dipole_* = dipole position, world NED, m (a rejected row keeps the rejected solution when "
                       "one was computed, else empty); valid 0/1; reason empty when valid; cond = condition number "
-                      "of the method's system (mc: of T)");
+                      "of the method's system (mc: of T; inf when singular, empty when not computed)");
   CsvWriter out(args.output, header, params);
   std::vector<std::string> row;
   for (std::size_t i = 0; i < fixes.size(); ++i) {
