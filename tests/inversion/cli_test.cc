@@ -133,5 +133,25 @@ TEST(InvertCli, MissingInputsAreErrorsNotCrashes) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }
 
+TEST(InvertCli, DegenerateRowsAreReportedNotFatal) {
+  const std::string dir = testing::TempDir();
+  const std::string in = dir + "/degenerate.csv";
+  std::ofstream(in) << "case_id,sensor_x,sensor_y,sensor_z,B_x,B_y,B_z,T00,T01,T02,T10,T11,T12,T20,T21,T22\n"
+                    << "0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0\n"               // all-zero tensor
+                    << "1,0,0,0,1e-9,0,0,1e-9,0,0,0,-1e-9,0,0,0,0\n"     // singular tensor
+                    << "2,0,0,0,1e-9,0,0,1e-9,5e-10,0,0,-1e-9,0,0,0,0\n";  // asymmetric
+  const RunResult r = RunMagnav("invert --input " + in + " --method ted --output " + dir + "/o.csv");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const CsvTable t = CsvTable::Read(dir + "/o.csv");
+  ASSERT_EQ(t.num_rows(), 3u);
+  const std::size_t valid = t.column("valid"), reason = t.column("reason"), cond = t.column("cond");
+  EXPECT_EQ(t.text(0, valid), "0");
+  EXPECT_EQ(t.text(0, reason), "zero_tensor");
+  EXPECT_EQ(t.text(0, cond), "");
+  EXPECT_EQ(t.text(1, reason), "ill_conditioned");
+  EXPECT_EQ(t.text(1, cond), "inf");
+  EXPECT_EQ(t.text(2, reason), "asymmetric");
+}
+
 }  // namespace
 }  // namespace magnav
