@@ -35,6 +35,7 @@ int main(int argc, char** argv) {
   magnav::tools::AddReplayCommand(app);
   magnav::tools::AddRecordCommand(app);
 #endif
+  magnav::tools::AddInvertCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

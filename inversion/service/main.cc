@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   inversion::MonteCarloTrackerOptions mc;
   std::string method = "ted-egt", b0, moment_body;
   double stats_period_s = 10.0;
-  dds::DdsArgs dds_args;
+  magnav::dds::DdsArgs dds_args;
   app.add_option("--method", method, "ted, ted-egt, egt or mc")->check(CLI::IsMember({"ted", "ted-egt", "egt", "mc"}));
   app.add_option("--b0", b0, "regional field BX,BY,BZ in T (NED), subtracted before TED");
   app.add_option("--moment-body", moment_body, "known body moment MX,MY,MZ in A*m^2 (mc only)");
@@ -43,13 +43,13 @@ int main(int argc, char** argv) {
   app.add_option("--particles", mc.filter.num_particles, "particles per sensor (mc)");
   app.add_option("--seed", mc.filter.seed, "random seed (mc)");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
-  dds::AddDdsOptions(app, &dds_args);
+  magnav::dds::AddDdsOptions(app, &dds_args);
   CLI11_PARSE(app, argc, argv);
 
   try {
     if (!b0.empty()) opt.B0_W = ParseVec3("--b0", b0);
-    dds::InstallShutdownHandlers();
-    dds::Node node(dds_args.ToNodeOptions("magnav-inverter"));
+    magnav::dds::InstallShutdownHandlers();
+    magnav::dds::Node node(dds_args.ToNodeOptions("magnav-inverter"));
     std::unique_ptr<inversion::InverterNode> inverter;
     if (method == "mc") {
       if (moment_body.empty()) throw InputError("--method mc needs --moment-body");
@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
     }
     spdlog::info("magnav-inverter: method {} on domain {}", method, node.domain_id());
     std::uint64_t last = 0;
-    while (!dds::WaitForShutdown(std::chrono::milliseconds(
+    while (!magnav::dds::WaitForShutdown(std::chrono::milliseconds(
         stats_period_s > 0 ? static_cast<long>(stats_period_s * 1000) : 1000))) {
       if (stats_period_s <= 0) continue;
       const std::uint64_t n = inverter->processed();
@@ -76,7 +76,7 @@ int main(int argc, char** argv) {
   } catch (const InputError& e) {
     std::fprintf(stderr, "magnav-inverter: error: %s\n", e.what());
     return 2;
-  } catch (const dds::DdsError& e) {
+  } catch (const magnav::dds::DdsError& e) {
     std::fprintf(stderr, "magnav-inverter: DDS error: %s\n", e.what());
     return 4;
   }

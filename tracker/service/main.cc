@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
   tracker::TrackerNodeOptions opt;
   std::string b0, loss = "huber";
   double stats_period_s = 10.0;
-  dds::DdsArgs dds_args;
+  magnav::dds::DdsArgs dds_args;
   app.add_option("--b0", b0, "background field BX,BY,BZ in T (NED)");
   app.add_option("--window", opt.tracker.window_s, "sliding window length, s");
   app.add_option("--loss", loss, "robust loss on measurements: trivial, huber, cauchy")
@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   app.add_option("--reorder-delay", opt.reorder_delay_s, "hold samples this long (sample time, s) to order streams");
   app.add_option("--track-id", opt.track_id, "track id published");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
-  dds::AddDdsOptions(app, &dds_args);
+  magnav::dds::AddDdsOptions(app, &dds_args);
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -40,11 +40,11 @@ int main(int argc, char** argv) {
       opt.B0_W = {(*v)[0], (*v)[1], (*v)[2]};
     }
     tracker::ParseLossType(loss, &opt.tracker.measurement_loss);
-    dds::InstallShutdownHandlers();
-    dds::Node node(dds_args.ToNodeOptions("magnav-tracker"));
+    magnav::dds::InstallShutdownHandlers();
+    magnav::dds::Node node(dds_args.ToNodeOptions("magnav-tracker"));
     tracker::TrackerNode tracker_node(node, opt);
     spdlog::info("magnav-tracker: window {} s on domain {}", opt.tracker.window_s, node.domain_id());
-    while (!dds::WaitForShutdown(std::chrono::milliseconds(
+    while (!magnav::dds::WaitForShutdown(std::chrono::milliseconds(
         stats_period_s > 0 ? static_cast<long>(stats_period_s * 1000) : 1000))) {
       if (stats_period_s > 0) {
         spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} late, {} rejected",
@@ -58,7 +58,7 @@ int main(int argc, char** argv) {
   } catch (const InputError& e) {
     std::fprintf(stderr, "magnav-tracker: error: %s\n", e.what());
     return 2;
-  } catch (const dds::DdsError& e) {
+  } catch (const magnav::dds::DdsError& e) {
     std::fprintf(stderr, "magnav-tracker: DDS error: %s\n", e.what());
     return 4;
   }

@@ -1,0 +1,156 @@
+// Gated single-sample dipole inversion with per-sensor state, the API a
+// service calls once per gradiometer sample.
+//
+// Frames and units: world NED, metres, seconds, tesla, tesla per metre, A·m².
+// A sample (core/gradiometer.h) carries the sensor position p_SinW, the field
+// B (including the regional field B0) and the tensor T with sensor axes
+// aligned to NED. A fix gives the dipole position p_DinW = p_SinW − r_DtoS.
+//
+// Gates (paper §3.3 plus input checks), applied in this order; the first that
+// fails names the fix's reason:
+//   1. non-finite input (B, T, position, time)            -> kNonFinite
+//   2. all-zero tensor                                     -> kZeroTensor
+//   3. weak signal: ‖T‖_F < min_snr · σ_T                  -> kWeakSignal
+//   4. asymmetric / not trace-free beyond tolerance        -> kAsymmetric / kNotTraceFree
+//   5. condition number of the method's system > limit     -> kIllConditioned
+//   6. predicted 1-σ position error > limit                -> kUncertain
+//   7. |Δp|/Δt against the sensor's last accepted fix      -> kInfeasibleSpeed
+// A solver failure (singular system) gives kSolverFailed.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <unordered_map>
+
+#include <Eigen/Core>
+
+#include "magnav/core/gradiometer.h"
+#include "magnav/inversion/analytic.h"
+
+namespace magnav::inversion {
+
+enum class Method { kTed, kTedEgt, kEgt };
+// "ted", "ted-egt", "egt".
+const char* MethodName(Method method);
+// Parses a method name; false if unknown (the CLI also accepts "mc", which is
+// not a single-sample method).
+bool ParseMethod(const std::string& name, Method* method);
+
+enum class RejectReason {
+  kNone = 0,
+  kNonFinite,
+  kZeroTensor,
+  kWeakSignal,
+  kAsymmetric,
+  kNotTraceFree,
+  kIllConditioned,
+  kUncertain,
+  kInfeasibleSpeed,
+  kSolverFailed,
+  kNotInitialized,  // used by the Monte-Carlo runner before its prior exists
+};
+// Stable snake_case names ("weak_signal", ...); "" for kNone.
+const char* RejectReasonName(RejectReason reason);
+
+struct DipoleFix {
+  std::uint32_t sensor_id = 0;
+  double t_s = 0.0;
+  bool valid = false;
+  RejectReason reason = RejectReason::kNone;
+  // Solution, when the solver ran (also on fixes rejected by gates 5–7, for
+  // diagnostics); NaN otherwise. The moment only on accepted fixes.
+  Vec3 p_DinW = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());   // m
+  Vec3 r_DtoS = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());   // m
+  Vec3 m_W = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());      // A·m²
+  bool has_moment = false;
+  double cond = std::numeric_limits<double>::quiet_NaN();  // see AnalyticSolution::cond
+  double snr = std::numeric_limits<double>::quiet_NaN();   // ‖T‖_F / σ_T (NaN if σ_T unknown)
+  double position_sigma_m = std::numeric_limits<double>::quiet_NaN();
+};
+
+struct GateOptions {
+  // Weak-signal gate: reject when ‖T‖_F < min_snr · σ_T. The relative position
+  // error of TED-type inversion is ≈ a few σ_T/‖T‖_F, so 100 means ≈ 1–3 %.
+  // Skipped when σ_T is unknown (0); an all-zero tensor is always rejected.
+  double min_snr = 100.0;
+  // Symmetry / trace: reject when ‖T − Tᵀ‖_F or |tr T| exceeds
+  // max(max_relative_defect · ‖T‖_F, noise_k · σ_T). The σ_T term allows for
+  // independent element noise (then ‖T − Tᵀ‖_F ≈ 3.5 σ_T, |tr T| ≈ 1.7 σ_T).
+  double max_relative_defect = 0.05;
+  double noise_k = 6.0;
+  // Condition gates per method (AnalyticSolution::cond). TED amplifies errors
+  // by cond(T) (near-equatorial geometry, far range); the TED+EGT matrix stays
+  // well conditioned there, so its limit only catches degenerate input.
+  double max_cond_ted = 50.0;
+  double max_cond_ted_egt = 1e3;
+  double max_cond_egt = 1e4;
+  // Reject when the first-order 1-σ position error (AnalyticSolution::
+  // position_sigma_m) exceeds this (m); infinity disables; skipped when σ_B
+  // and σ_T are unknown. The weak-signal gate bounds the *relative* error, so
+  // a SQUID still passes it at 75 m with ~0.5 m errors; this gate bounds the
+  // absolute error. 5 cm keeps fixes usable one by one (observed errors are
+  // ≈ 1.5 σ RMS, ≤ ~4 σ; sweep in docs/ACCURACY.md); coarser information is
+  // better used by the Monte-Carlo filter.
+  double max_position_sigma_m = 0.05;
+  // Speed gate (difference operator): reject when
+  // |p − p_last| > max_speed_mps · Δt + speed_slack_m against the sensor's
+  // last accepted fix. The reference is ignored (and replaced by the next
+  // accepted fix) once it is older than reference_timeout_s, so one wrong
+  // accepted fix cannot lock out later ones for longer than that. Δt ≤ 0
+  // (same instant or out of order) skips the gate.
+  bool enable_speed_gate = true;
+  double max_speed_mps = 5.0;
+  double speed_slack_m = 0.5;
+  double reference_timeout_s = 2.0;
+
+  bool IsValid(std::string* error) const;
+};
+
+struct InverterOptions {
+  Method method = Method::kTedEgt;
+  Vec3 B0_W = Vec3::Zero();  // regional (Earth) field, T, subtracted from B
+  // Weight of the eigenvector row against the ‖·‖_F-normalised tensor rows
+  // (TED+EGT). 0.5 had the smallest 90th-percentile error on the noisy
+  // reference cases (comparison in docs/ACCURACY.md); it matches the
+  // noise balance of the rows: b3's angular error is ≈ σ_T / eigen-gap and
+  // the gap is ≈ ‖T‖_F / 2 for a dipole.
+  double egt_row_weight = 0.5;
+  // Fit the moment by weighted linear least squares (core FitDipoleMoment)
+  // for TED and TED+EGT; EGT always has its closed-form moment.
+  bool estimate_moment = true;
+  // Used when a sample's sigma is 0 (unknown).
+  double sigma_B_fallback = 0.0;  // T
+  double sigma_T_fallback = 0.0;  // T/m
+  GateOptions gates;
+
+  bool IsValid(std::string* error) const;
+};
+
+// Stateless single-sample inversion with all gates except the speed gate.
+DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& options);
+
+// Stateful inverter: applies every gate, keeps the last accepted fix per
+// sensor_id for the speed gate. Not thread-safe; one instance per thread.
+class Inverter {
+ public:
+  // Throws InputError if the options are invalid.
+  explicit Inverter(const InverterOptions& options);
+
+  DipoleFix Process(const GradiometerSample& sample);
+  // Forgets the speed-gate reference of one sensor / all sensors.
+  void Reset(std::uint32_t sensor_id);
+  void ResetAll();
+
+  const InverterOptions& options() const { return options_; }
+
+ private:
+  struct Reference {
+    Vec3 p_DinW;
+    double t_s;
+  };
+  InverterOptions options_;
+  std::unordered_map<std::uint32_t, Reference> last_accepted_;
+};
+
+}  // namespace magnav::inversion
