@@ -42,10 +42,9 @@ std::string Vec3Text(const Eigen::Vector3d& v) {
 
 void RunInvert(const InvertArgs& args) {
   GradiometerFile file = ReadGradiometerFile(args.input);
-  const CsvTable header_only = CsvTable::Read(args.input);  // which id columns exist
-  const bool has_case = header_only.has_column("case_id");
-  const bool has_t = header_only.has_column("t");
-  const bool has_id = header_only.has_column("sensor_id");
+  const bool has_case = !file.case_ids.empty();
+  const bool has_t = file.has_time;
+  const bool has_id = file.has_sensor_id;
 
   for (auto& s : file.samples) {
     if (args.sigma_B >= 0.0) s.sigma_B = args.sigma_B;

@@ -21,6 +21,7 @@ struct Vec3Arg {
 void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const std::string& help);
 
 void AddSimulateCommand(CLI::App& app);
+void AddEvaluateCommand(CLI::App& app);
 // `magnav invert` (cmd_invert.cc).
 void AddInvertCommand(CLI::App& app);
 

@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   magnav::tools::AddRecordCommand(app);
 #endif
   magnav::tools::AddInvertCommand(app);
+  magnav::tools::AddEvaluateCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -5,6 +5,13 @@
 
 namespace magnav {
 
+std::string TensorColumnName(const std::string& prefix, int i, int j) {
+  std::string name = prefix;
+  name += static_cast<char>('0' + i);
+  name += static_cast<char>('0' + j);
+  return name;
+}
+
 GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerColumns& cols) {
   const CsvTable t = CsvTable::Read(path);
   GradiometerFile f;
@@ -21,11 +28,13 @@ GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerCo
   const char* axes = "xyz";
   for (int i = 0; i < 3; ++i) b[i] = t.column(cols.B + axes[i]);
   for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) tt[3 * i + j] = t.column(cols.T + std::to_string(i) + std::to_string(j));
+    for (int j = 0; j < 3; ++j) tt[3 * i + j] = t.column(TensorColumnName(cols.T, i, j));
   }
   const auto c_t = t.find_column("t");
   const auto c_id = t.find_column("sensor_id");
   const auto c_case = t.find_column("case_id");
+  f.has_time = c_t.has_value();
+  f.has_sensor_id = c_id.has_value();
 
   f.samples.reserve(t.num_rows());
   f.lines.reserve(t.num_rows());

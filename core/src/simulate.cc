@@ -130,7 +130,7 @@ std::string Vec3Param(const Eigen::Vector3d& v) {
 void WritePassCsv(const std::string& path, const PassScenario& sc, const SimulatedPass& pass) {
   std::vector<std::string> header = {"t", "sensor_id", "sensor_x", "sensor_y", "sensor_z", "B_x", "B_y", "B_z"};
   for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) header.push_back("T" + std::to_string(i) + std::to_string(j));
+    for (int j = 0; j < 3; ++j) header.push_back(TensorColumnName("T", i, j));
   }
   CsvWriter w(path, header,
               {{"B0_T", Vec3Param(sc.B0)},

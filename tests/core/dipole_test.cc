@@ -10,6 +10,7 @@
 
 #include "magnav/core/csv.h"
 #include "magnav/core/frames.h"
+#include "magnav/core/gradiometer.h"
 #include "magnav/core/tensor.h"
 #include "test_data.h"
 
@@ -34,7 +35,7 @@ std::vector<RefCase> LoadDipoleCases() {
     c.m = {t.number(i, col("m_x")), t.number(i, col("m_y")), t.number(i, col("m_z"))};
     c.B = {t.number(i, col("B_x")), t.number(i, col("B_y")), t.number(i, col("B_z"))};
     for (int k = 0; k < 9; ++k) {
-      c.T(k / 3, k % 3) = t.number(i, col("T" + std::to_string(k / 3) + std::to_string(k % 3)));
+      c.T(k / 3, k % 3) = t.number(i, col(TensorColumnName("T", k / 3, k % 3)));
     }
     c.kind = static_cast<int>(t.integer(i, col("case_kind")));
     out.push_back(c);

@@ -26,6 +26,8 @@ struct GradiometerFile {
   std::string path;
   std::vector<GradiometerSample> samples;
   std::vector<long long> case_ids;        // from a `case_id` column, else empty
+  bool has_time = false;                  // the file has a `t` column
+  bool has_sensor_id = false;             // the file has a `sensor_id` column
   std::vector<int> lines;                 // source line of each sample
   std::optional<Eigen::Vector3d> B0;           // "# B0_T:" (T)
   std::optional<Eigen::Vector3d> moment_body;  // "# moment_body_Am2:" (A·m²)
@@ -40,6 +42,9 @@ struct GradiometerColumns {
   std::string B = "B_";
   std::string T = "T";
 };
+
+// Name of the tensor column (i, j) in files: prefix + "ij", e.g. "T01".
+std::string TensorColumnName(const std::string& prefix, int i, int j);
 
 // Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22 and, if
 // present, t, sensor_id and case_id. Sample sigmas come from the file's
