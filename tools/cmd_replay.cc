@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "commands.h"
+#include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
 #include "magnav/dds/convert.h"
@@ -30,7 +31,7 @@ void Run(const ReplayArgs& a) {
   auto writer = node.CreateWriter<dds::msg::GradiometerSample>();
   const auto wait = std::chrono::milliseconds(static_cast<long>(a.wait_s * 1000));
   if (a.wait_readers > 0 && !writer->WaitForMatched(a.wait_readers, wait)) {
-    throw InputError("replay: no reader of magnav/gradiometer appeared within " + std::to_string(a.wait_s) +
+    throw InputError("replay: no reader of magnav/gradiometer appeared within " + FormatNumber(a.wait_s) +
                      " s (domain " + std::to_string(node.domain_id()) + ")");
   }
   std::unordered_map<std::uint32_t, std::uint64_t> seq;
