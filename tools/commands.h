@@ -15,5 +15,7 @@ struct Vec3Arg {
 void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const std::string& help);
 
 void AddSimulateCommand(CLI::App& app);
+// `magnav track`: batch or sliding-window tracking of one dipole (vessel).
+void AddTrackCommand(CLI::App& app);
 
 }  // namespace magnav::tools

@@ -29,7 +29,7 @@ void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const s
 int main(int argc, char** argv) {
   CLI::App app{"magnav: find and follow magnetic objects with gradiometer networks"};
   app.require_subcommand(1);
-  magnav::tools::AddSimulateCommand(app);
+  magnav::tools::AddTrackCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,116 @@
+// Options and solve summary of the dipole (vessel) tracker.
+//
+// Frames and units: world frame = local NED (x north, y east, z down), metres;
+// time in seconds; B in tesla, T in tesla per metre; moment in A·m²; heading in
+// radians from north, clockwise seen from above; turn rate in rad/s. Process
+// noise is given as random-walk intensities, i.e. the 1-σ change per √s.
+#pragma once
+
+#include <string>
+
+namespace magnav::tracker {
+
+// Robust loss applied to a whitened residual block (units of σ).
+enum class LossType { kTrivial, kHuber, kCauchy };
+
+// Parses "trivial" | "huber" | "cauchy"; false on anything else.
+bool ParseLossType(const std::string& name, LossType* type);
+const char* LossTypeName(LossType type);
+
+// Coordinated-turn process model x_{k+1} = f(x_k, dt) + w, w ~ N(0, Q dt).
+struct ProcessNoise {
+  // Position random walk added to the coordinated-turn prediction (x, y, z).
+  double position_m_per_sqrt_s = 0.01;
+  // Speed random walk.
+  double speed_mps_per_sqrt_s = 0.005;
+  // Heading random walk added to h + ω dt.
+  double heading_rad_per_sqrt_s = 0.002;
+  // Turn-rate random walk. Kept small so the turn rate is piecewise constant;
+  // manoeuvre onsets (jumps in ω) are let through by the robust loss below.
+  double turn_rate_radps_per_sqrt_s = 3e-4;
+  LossType turn_rate_loss = LossType::kCauchy;
+  double turn_rate_loss_scale_sigma = 2.0;
+  // Batch warm-up: a first solve with this larger Gaussian turn-rate noise
+  // (no robust loss) lets the track follow manoeuvres as smooth ramps; the
+  // final solve then sharpens them into jumps. 0 = no warm-up pass.
+  double turn_rate_warmup_radps_per_sqrt_s = 1e-3;
+
+  bool IsValid(std::string* error) const;
+};
+
+// Initialisation from single-sample TED+EGT fixes.
+struct InitOptions {
+  // A sample gives a fix only if ‖T‖_F ≥ min_tensor_snr · σ_T (strong signal).
+  double min_tensor_snr = 50.0;
+  // At least this many fixes, spanning at least min_span_s, are needed.
+  int min_fixes = 20;
+  double min_span_s = 5.0;
+  // Fixes farther than this many robust σ (1.4826·MAD) from the fitted line
+  // are rejected; the line is refitted a few times.
+  double outlier_threshold_mad = 4.0;
+
+  bool IsValid(std::string* error) const;
+};
+
+struct TrackerOptions {
+  // Sensor noise used when a sample carries sigma 0 (unknown).
+  double default_sigma_B_T = 1e-9;
+  double default_sigma_T_Tpm = 1.4e-9;
+  // Tensor noise model: symmetric trace-free (the diagonal elements share a
+  // −1/2 correlation because their noise sums to zero, as in the reference
+  // data) when true, independent elements when false.
+  bool tensor_noise_trace_free = true;
+
+  // Robust loss on the 8-vector measurement residual of one sample, in σ.
+  LossType measurement_loss = LossType::kHuber;
+  double measurement_loss_scale_sigma = 5.0;
+
+  ProcessNoise process;
+  InitOptions init;
+
+  // Samples whose times differ by at most this belong to one epoch (s).
+  double epoch_tolerance_s = 1e-6;
+
+  // Batch solver.
+  int max_num_iterations = 100;
+  double function_tolerance = 1e-10;
+  double gradient_tolerance = 1e-12;
+  double parameter_tolerance = 1e-10;
+  int num_threads = 1;
+
+  // Sliding window: fixed lag (s) and iterations per new epoch.
+  double window_s = 20.0;
+  int window_max_num_iterations = 10;
+
+  // Compute the covariance of the estimate (marginal covariance of every
+  // state and of the moment at the solution, robust weights applied).
+  bool compute_covariance = true;
+  // kChain: exact block-tridiagonal selected inversion exploiting the chain
+  // structure (O(N)); kCeres: ceres::Covariance (SPARSE_QR, slower for long
+  // passes; batch only, the window always uses kChain).
+  enum class CovarianceMethod { kChain, kCeres };
+  CovarianceMethod covariance_method = CovarianceMethod::kChain;
+
+  bool IsValid(std::string* error) const;
+};
+
+// What a solve did.
+struct Summary {
+  bool initialized = false;     // a track was started
+  bool usable = false;          // Ceres returned a usable solution
+  int num_epochs = 0;           // epochs in the problem
+  int num_samples = 0;          // gradiometer samples in the problem
+  int num_init_fixes = 0;       // fixes kept by the initialiser
+  int iterations = 0;
+  double initial_cost = 0.0;    // ½ Σ ρ(‖r‖²), r in σ
+  double final_cost = 0.0;
+  double solve_time_s = 0.0;
+  double covariance_time_s = 0.0;
+  double total_time_s = 0.0;
+  bool covariance_ok = false;
+  std::string message;          // Ceres termination message or failure reason
+
+  std::string BriefReport() const;
+};
+
+}  // namespace magnav::tracker
