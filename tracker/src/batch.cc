@@ -65,27 +65,57 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
       }
     }
   }
+  // Growing solve: the initialiser's span first, then spans grown by
+  // batch_growth_factor with the new epochs predicted from the span's ends
+  // by the coordinated-turn model, until the whole pass is included.
+  std::size_t i0 = 0, i1 = epochs.size() - 1;
+  while (i0 + 1 < epochs.size() && epochs[i0].t_s < init->t_first_s) ++i0;
+  while (i1 > i0 && epochs[i1].t_s > init->t_last_s) --i1;
   std::vector<internal::Factor*> measurements;
-  for (auto& group : factors) {
-    for (auto& f : group) {
-      if (f.kind == internal::Factor::Kind::kMeasurement) measurements.push_back(&f);
-    }
-  }
   const auto build = [&](ceres::Problem* problem, bool warm) {
-    for (auto& s : x) problem->AddParameterBlock(s.data(), 6);
+    for (std::size_t k = i0; k <= i1; ++k) problem->AddParameterBlock(x[k].data(), 6);
     problem->AddParameterBlock(moment.data(), 3);
-    for (const auto& group : factors) {
-      for (const auto& f : group) {
-        if (warm && f.kind == internal::Factor::Kind::kTurnRate) continue;
+    for (std::size_t k = i0; k <= i1; ++k) {
+      for (const auto& f : factors[k]) {
+        const bool process = f.kind != internal::Factor::Kind::kMeasurement;
+        if (process && (k == i1 || (warm && f.kind == internal::Factor::Kind::kTurnRate))) continue;
         internal::AddToProblem(f, problem);
       }
-    }
-    if (warm) {
-      for (const auto& f : warm_turn) internal::AddToProblem(f, problem);
+      if (warm && k < i1) internal::AddToProblem(warm_turn[k], problem);
     }
   };
-  const internal::PassResult pr = internal::SolveWithContinuation(options, options.max_num_iterations, measurements,
-                                                                  !warm_turn.empty(), build);
+  const auto state_of = [&](std::size_t k) {
+    return CtState<double>{x[k](0), x[k](1), x[k](2), x[k](3), x[k](4), x[k](5)};
+  };
+  internal::PassResult pr;
+  for (int stage = 0;; ++stage) {
+    measurements.clear();
+    for (std::size_t k = i0; k <= i1; ++k) {
+      for (auto& f : factors[k]) {
+        if (f.kind == internal::Factor::Kind::kMeasurement) measurements.push_back(&f);
+      }
+    }
+    internal::PassResult r = internal::SolveWithContinuation(options, options.max_num_iterations, measurements,
+                                                             !warm_turn.empty(), build);
+    if (stage == 0) pr.first_initial_cost = r.first_initial_cost;
+    pr.iterations += r.iterations;
+    pr.solve_time_s += r.solve_time_s;
+    pr.last = r.last;
+    pr.final_loss = std::move(r.final_loss);
+    if (i0 == 0 && i1 + 1 == epochs.size()) break;
+    const double grow = (epochs[i1].t_s - epochs[i0].t_s) * (options.batch_growth_factor - 1.0) * 0.5 + 1.0;
+    const std::size_t old0 = i0, old1 = i1;
+    while (i0 > 0 && epochs[i0 - 1].t_s >= epochs[old0].t_s - grow) --i0;
+    while (i1 + 1 < epochs.size() && epochs[i1 + 1].t_s <= epochs[old1].t_s + grow) ++i1;
+    for (std::size_t k = old1 + 1; k <= i1; ++k) {
+      const CtState<double> s = PropagateCoordinatedTurn(state_of(old1), epochs[k].t_s - epochs[old1].t_s);
+      x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+    }
+    for (std::size_t k = i0; k < old0; ++k) {
+      const CtState<double> s = PropagateCoordinatedTurn(state_of(old0), epochs[k].t_s - epochs[old0].t_s);
+      x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+    }
+  }
   const ceres::Solver::Summary& cs = pr.last;
   sum.usable = cs.IsSolutionUsable();
   sum.iterations = pr.iterations;

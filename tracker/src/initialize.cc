@@ -95,7 +95,25 @@ std::vector<DipoleFix> StrongFixes(const std::vector<Epoch>& epochs, const Eigen
 std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                             const TrackerOptions& options) {
   const InitOptions& io = options.init;
-  std::vector<DipoleFix> fixes = StrongFixes(epochs, B0_W, options);
+  std::vector<DipoleFix> all = StrongFixes(epochs, B0_W, options);
+  if (static_cast<int>(all.size()) < io.min_fixes) return std::nullopt;
+  // Strongest signal: largest running median SNR over ±1 s (fixes are in time order).
+  double t_peak = all.front().t_s, best = -1.0;
+  for (std::size_t i = 0, lo = 0, hi = 0; i < all.size(); ++i) {
+    while (all[lo].t_s < all[i].t_s - 1.0) ++lo;
+    while (hi < all.size() && all[hi].t_s <= all[i].t_s + 1.0) ++hi;
+    std::vector<double> snr;
+    for (std::size_t j = lo; j < hi; ++j) snr.push_back(all[j].tensor_snr);
+    const double med = Median(snr);
+    if (med > best) {
+      best = med;
+      t_peak = all[i].t_s;
+    }
+  }
+  std::vector<DipoleFix> fixes;
+  for (const DipoleFix& f : all) {
+    if (std::abs(f.t_s - t_peak) <= 0.5 * io.span_s) fixes.push_back(f);
+  }
   if (static_cast<int>(fixes.size()) < io.min_fixes) return std::nullopt;
 
   // Robust line fit: refit without fixes far from the line (bad samples, or
@@ -133,6 +151,8 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
   if (t_max - t_min < io.min_span_s) return std::nullopt;
 
   init.t_ref_s = line.t_ref;
+  init.t_first_s = t_min;
+  init.t_last_s = t_max;
   const double heading = std::atan2(line.v.y(), line.v.x());
   init.state = CtState<double>{line.p_ref.x(), line.p_ref.y(), line.p_ref.z(), line.v.norm(), heading, 0.0};
 

@@ -58,6 +58,7 @@ bool InitOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(min_tensor_snr)) return Fail(error, "init.min_tensor_snr must be > 0");
   if (min_fixes < 3) return Fail(error, "init.min_fixes must be >= 3");
   if (!std::isfinite(min_span_s) || min_span_s < 0.0) return Fail(error, "init.min_span_s must be >= 0");
+  if (!PositiveFinite(span_s) || span_s < min_span_s) return Fail(error, "init.span_s must be >= min_span_s");
   if (!PositiveFinite(outlier_threshold_mad)) return Fail(error, "init.outlier_threshold_mad must be > 0");
   return true;
 }
@@ -76,6 +77,9 @@ bool TrackerOptions::IsValid(std::string* error) const {
     return Fail(error, "solver tolerances must be >= 0");
   }
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
+  if (!(batch_growth_factor > 1.0) || !std::isfinite(batch_growth_factor)) {
+    return Fail(error, "batch_growth_factor must be > 1");
+  }
   if (!PositiveFinite(window_s)) return Fail(error, "window_s must be > 0");
   return true;
 }

@@ -4,7 +4,8 @@
 //
 // Each strong sample (‖T‖_F ≥ min_tensor_snr · σ_T) gives a dipole position
 // p_D = p_S − r by TED+EGT (see SingleSampleOffset). A robust straight-line
-// fit p(t) = p̄ + v (t − t̄) over those fixes gives position, speed and heading
+// fit p(t) = p̄ + v (t − t̄) over the fixes within ±span_s/2 of the strongest
+// signal gives position, speed and heading
 // (turn rate 0); the body moment is the component-wise median of
 // Rz(h)ᵀ m_W with m_W = FitDipoleMoment at each fix.
 #pragma once
@@ -37,6 +38,8 @@ struct DipoleFix {
 
 struct InitialTrack {
   double t_ref_s = 0.0;             // time of `state`
+  double t_first_s = 0.0;           // time span of the inlier fixes
+  double t_last_s = 0.0;
   CtState<double> state{};          // straight-line state at t_ref_s (ω = 0)
   Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
   std::vector<DipoleFix> fixes;     // inliers used

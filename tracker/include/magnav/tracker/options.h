@@ -45,6 +45,10 @@ struct InitOptions {
   // At least this many fixes, spanning at least min_span_s, are needed.
   int min_fixes = 20;
   double min_span_s = 5.0;
+  // Only fixes within ±span_s/2 of the strongest signal (largest running
+  // median of the SNR over ±1 s, so a single bad sample cannot pick it) are
+  // used, so that the straight-line fit stays valid on turning tracks.
+  double span_s = 20.0;
   // Fixes farther than this many robust σ (1.4826·MAD) from the fitted line
   // are rejected; the line is refitted a few times.
   double outlier_threshold_mad = 4.0;
@@ -77,6 +81,11 @@ struct TrackerOptions {
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
   int num_threads = 1;
+
+  // Batch: the pass is solved first over the initialiser's span, then over
+  // spans grown by this factor (new epochs predicted from the span's ends)
+  // until every epoch is included; > 1.
+  double batch_growth_factor = 3.0;
 
   // Sliding window: fixed lag (s) and iterations per new epoch.
   double window_s = 20.0;
