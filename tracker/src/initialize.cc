@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include <Eigen/SVD>
 
@@ -97,17 +98,28 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
   const InitOptions& io = options.init;
   std::vector<DipoleFix> all = StrongFixes(epochs, B0_W, options);
   if (static_cast<int>(all.size()) < io.min_fixes) return std::nullopt;
-  // Strongest signal: largest running median SNR over ±1 s (fixes are in time order).
+  // Strongest signal: largest running median over ±1 s of the SNR of all
+  // samples of one sensor (weak ones included, so an isolated bad sample
+  // cannot win).
+  // Per sensor, in time order: (t, SNR).
+  std::map<std::uint32_t, std::vector<std::pair<double, double>>> snr_by_sensor;
+  for (const Epoch& e : epochs) {
+    for (const GradiometerSample& s : e.samples) {
+      snr_by_sensor[s.sensor_id].emplace_back(e.t_s, s.T.norm() / SigmaT(s, options));
+    }
+  }
   double t_peak = all.front().t_s, best = -1.0;
-  for (std::size_t i = 0, lo = 0, hi = 0; i < all.size(); ++i) {
-    while (all[lo].t_s < all[i].t_s - 1.0) ++lo;
-    while (hi < all.size() && all[hi].t_s <= all[i].t_s + 1.0) ++hi;
-    std::vector<double> snr;
-    for (std::size_t j = lo; j < hi; ++j) snr.push_back(all[j].tensor_snr);
-    const double med = Median(snr);
-    if (med > best) {
-      best = med;
-      t_peak = all[i].t_s;
+  for (const auto& [id, snr_t] : snr_by_sensor) {
+    for (std::size_t i = 0, lo = 0, hi = 0; i < snr_t.size(); ++i) {
+      while (snr_t[lo].first < snr_t[i].first - 1.0) ++lo;
+      while (hi < snr_t.size() && snr_t[hi].first <= snr_t[i].first + 1.0) ++hi;
+      std::vector<double> snr;
+      for (std::size_t j = lo; j < hi; ++j) snr.push_back(snr_t[j].second);
+      const double med = Median(snr);
+      if (med > best) {
+        best = med;
+        t_peak = snr_t[i].first;
+      }
     }
   }
   std::vector<DipoleFix> fixes;

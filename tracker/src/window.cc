@@ -199,7 +199,7 @@ struct WindowTracker::Impl {
       ceres::Solver::Options so;
       so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
       so.max_num_iterations = options.window_max_num_iterations;
-      so.function_tolerance = options.function_tolerance;
+      so.function_tolerance = options.window_function_tolerance;
       so.gradient_tolerance = options.gradient_tolerance;
       so.parameter_tolerance = options.parameter_tolerance;
       so.num_threads = options.num_threads;

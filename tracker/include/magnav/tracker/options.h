@@ -65,9 +65,11 @@ struct TrackerOptions {
   // data) when true, independent elements when false.
   bool tensor_noise_trace_free = true;
 
-  // Robust loss on the 8-vector measurement residual of one sample, in σ.
-  LossType measurement_loss = LossType::kHuber;
-  double measurement_loss_scale_sigma = 5.0;
+  // Robust loss on the 8-vector measurement residual of one sample, in σ of
+  // its norm (a clean sample has ‖e‖ ≈ √8 ≈ 2.8). Cauchy: the influence of a
+  // gross outlier vanishes (∝ a²/‖e‖), clean samples keep weight ≥ ~0.9.
+  LossType measurement_loss = LossType::kCauchy;
+  double measurement_loss_scale_sigma = 10.0;
 
   ProcessNoise process;
   InitOptions init;
@@ -89,7 +91,10 @@ struct TrackerOptions {
 
   // Sliding window: fixed lag (s) and iterations per new epoch.
   double window_s = 20.0;
-  int window_max_num_iterations = 10;
+  int window_max_num_iterations = 4;
+  // Relative cost change that ends a window solve (the window starts from
+  // the previous solution, so a loose tolerance loses nothing).
+  double window_function_tolerance = 1e-6;
 
   // Compute the covariance of the estimate (marginal covariance of every
   // state and of the moment at the solution, robust weights applied).
