@@ -44,6 +44,7 @@ void BM_WindowUpdatePerEpoch(benchmark::State& state) {
   const std::size_t warm = 600;
   std::unique_ptr<magnav::tracker::WindowTracker> tr;
   std::size_t next = pass.epochs.size();
+  double iterations = 0.0;
   for (auto _ : state) {
     if (next >= pass.epochs.size()) {
       state.PauseTiming();
@@ -52,7 +53,9 @@ void BM_WindowUpdatePerEpoch(benchmark::State& state) {
       state.ResumeTiming();
     }
     benchmark::DoNotOptimize(tr->AddEpoch(pass.epochs[next++]));
+    iterations += tr->last_summary().iterations;
   }
+  state.counters["gn_iterations"] = benchmark::Counter(iterations, benchmark::Counter::kAvgIterations);
   state.counters["sensors"] = static_cast<double>(state.range(0));
   state.counters["window_epochs"] = tr->last_summary().num_epochs;
 }

@@ -43,10 +43,12 @@ void AddProcessFactors(double dt_s, const ProcessNoise& q, const ceres::LossFunc
 
 // Gauss-Newton contribution of one factor at the current parameter values,
 // robust loss applied by iteratively-reweighted scaling (√ρ'(‖e‖²)).
-// `offset(block)` gives the block's index in the local system (−1 = skip).
+// `offset(block)` gives the block's index in the local 15-dim system
+// (−1 = skip). Every tracker factor has two parameter blocks.
 // Returns false if the factor could not be evaluated.
-bool AccumulateFactor(const Factor& f, const std::function<int(const double*)>& offset, Eigen::MatrixXd* H,
-                      Eigen::VectorXd* g);
+using LocalH = Eigen::Matrix<double, 15, 15>;
+using LocalG = Eigen::Matrix<double, 15, 1>;
+bool AccumulateFactor(const Factor& f, const std::function<int(const double*)>& offset, LocalH* H, LocalG* g);
 
 // Robust-loss continuation. Far from the solution every whitened measurement
 // residual is huge (SQUID-level σ), and a loss of a few σ would then treat all
@@ -77,6 +79,27 @@ PassResult SolveWithContinuation(const TrackerOptions& options, int max_iteratio
 // (x_{k+1}, m)); backward pass: x_k | (x_{k+1}, m) ~ N(−D_k⁻¹ C_k y, D_k⁻¹)
 // gives P_kk = D_k⁻¹ + G Σ Gᵀ, G = −D_k⁻¹ C_k, Σ = Cov(x_{k+1}, m).
 // Covariances are in parameter units (m in moment-block units).
+using Mat69 = Eigen::Matrix<double, 6, 9>;
+
+// Forward elimination of the chain (Gauss-Newton normal equations H δ = −g):
+// per state D_k⁻¹, the coupling C_k to (x_{k+1}, m) and the reduced gradient
+// g_k; S, g_m the moment system after all states are eliminated.
+struct ChainFactorization {
+  std::vector<StateCovariance> D_inv;
+  std::vector<Mat69> C;
+  std::vector<StateVector> g;
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d g_m = Eigen::Vector3d::Zero();
+};
+bool FactorizeChain(const std::vector<double*>& x, const double* m,
+                    const std::vector<std::vector<const Factor*>>& groups, ChainFactorization* out);
+bool ChainCovariance(const ChainFactorization& f, std::vector<StateCovariance>* P_x, Eigen::Matrix3d* P_m);
+// Gauss-Newton step by back substitution: Δm = −S⁻¹ g_m,
+// Δx_k = −D_k⁻¹ (g_k + C_k [Δx_{k+1}; Δm]).
+void ChainStep(const ChainFactorization& f, std::vector<StateVector>* dx, Eigen::Vector3d* dm);
+// ½ Σ ρ(‖e‖²) over the factors.
+double TotalCost(const std::vector<std::vector<const Factor*>>& groups);
+
 bool ChainCovariance(const std::vector<double*>& x, const double* m,
                      const std::vector<std::vector<const Factor*>>& groups, std::vector<StateCovariance>* P_x,
                      Eigen::Matrix3d* P_m);

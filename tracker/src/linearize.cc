@@ -60,43 +60,55 @@ void AddProcessFactors(double dt_s, const ProcessNoise& q, const ceres::LossFunc
   out->push_back(std::move(turn));
 }
 
-bool AccumulateFactor(const Factor& f, const std::function<int(const double*)>& offset, Eigen::MatrixXd* H,
-                      Eigen::VectorXd* g) {
-  const int m = f.cost->num_residuals();
-  const auto& sizes = f.cost->parameter_block_sizes();
-  const std::size_t nb = sizes.size();
-  Eigen::VectorXd e(m);
-  std::vector<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> J(nb);
-  std::vector<double*> jac(nb);
-  for (std::size_t b = 0; b < nb; ++b) {
-    J[b].resize(m, sizes[b]);
-    jac[b] = J[b].data();
-  }
-  std::vector<const double*> params(f.blocks.begin(), f.blocks.end());
-  if (!f.cost->Evaluate(params.data(), e.data(), jac.data())) return false;
+namespace {
+
+// JᵀJ and Jᵀe of a two-block factor with fixed sizes (no heap, fixed-size
+// products): M residuals, blocks of N0 and N1 parameters.
+template <int M, int N0, int N1>
+bool AccumulateFixed(const Factor& f, const std::function<int(const double*)>& offset, LocalH* H, LocalG* g) {
+  Eigen::Matrix<double, M, 1> e;
+  Eigen::Matrix<double, M, N0, Eigen::RowMajor> J0;
+  Eigen::Matrix<double, M, N1, (N1 == 1 ? Eigen::ColMajor : Eigen::RowMajor)> J1;
+  double* jac[2] = {J0.data(), J1.data()};
+  const double* params[2] = {f.blocks[0], f.blocks[1]};
+  if (!f.cost->Evaluate(params, e.data(), jac)) return false;
   if (f.loss != nullptr) {
     double rho[3];
     f.loss->Evaluate(e.squaredNorm(), rho);
     const double w = std::sqrt(std::max(rho[1], 0.0));
     e *= w;
-    for (auto& Jb : J) Jb *= w;
+    J0 *= w;
+    J1 *= w;
   }
-  for (std::size_t a = 0; a < nb; ++a) {
-    const int oa = offset(f.blocks[a]);
-    if (oa < 0) continue;
-    g->segment(oa, sizes[a]) += J[a].transpose() * e;
-    for (std::size_t b = 0; b < nb; ++b) {
-      const int ob = offset(f.blocks[b]);
-      if (ob < 0) continue;
-      H->block(oa, ob, sizes[a], sizes[b]) += J[a].transpose() * J[b];
-    }
+  const int o0 = offset(f.blocks[0]), o1 = offset(f.blocks[1]);
+  if (o0 >= 0) {
+    H->block<N0, N0>(o0, o0) += J0.transpose().lazyProduct(J0);
+    g->segment<N0>(o0).noalias() += J0.transpose() * e;
+  }
+  if (o1 >= 0) {
+    H->block<N1, N1>(o1, o1) += J1.transpose().lazyProduct(J1);
+    g->segment<N1>(o1).noalias() += J1.transpose() * e;
+  }
+  if (o0 >= 0 && o1 >= 0) {
+    const Eigen::Matrix<double, N0, N1> X = J0.transpose().lazyProduct(J1);
+    H->block<N0, N1>(o0, o1) += X;
+    H->block<N1, N0>(o1, o0) += X.transpose();
   }
   return true;
 }
 
-}  // namespace magnav::tracker::internal
+}  // namespace
 
-namespace magnav::tracker::internal {
+bool AccumulateFactor(const Factor& f, const std::function<int(const double*)>& offset, LocalH* H, LocalG* g) {
+  const auto& sizes = f.cost->parameter_block_sizes();
+  if (sizes.size() != 2 || f.blocks.size() != 2) return false;
+  const int m = f.cost->num_residuals();
+  if (sizes[0] == 6 && sizes[1] == 3 && m == 8) return AccumulateFixed<8, 6, 3>(f, offset, H, g);
+  if (sizes[0] == 6 && sizes[1] == 3 && m == 9) return AccumulateFixed<9, 6, 3>(f, offset, H, g);
+  if (sizes[0] == 6 && sizes[1] == 6 && m == 5) return AccumulateFixed<5, 6, 6>(f, offset, H, g);
+  if (sizes[0] == 6 && sizes[1] == 6 && m == 1) return AccumulateFixed<1, 6, 6>(f, offset, H, g);
+  return false;  // not a tracker factor shape
+}
 
 double NextLossScale(const std::vector<Factor*>& measurements, double nominal, double previous) {
   std::vector<double> norms;
@@ -146,16 +158,18 @@ PassResult SolveWithContinuation(const TrackerOptions& options, int max_iteratio
   return out;
 }
 
-bool ChainCovariance(const std::vector<double*>& x, const double* m,
-                     const std::vector<std::vector<const Factor*>>& groups, std::vector<StateCovariance>* P_x,
-                     Eigen::Matrix3d* P_m) {
+bool FactorizeChain(const std::vector<double*>& x, const double* m,
+                    const std::vector<std::vector<const Factor*>>& groups, ChainFactorization* out) {
   const std::size_t n = x.size();
   if (n == 0 || groups.size() != n) return false;
-  using Mat69 = Eigen::Matrix<double, 6, 9>;
   using Mat99 = Eigen::Matrix<double, 9, 9>;
-  std::vector<StateCovariance> D_inv(n);
-  std::vector<Mat69> C(n);
+  out->D_inv.resize(n);
+  out->C.resize(n);
+  out->g.resize(n);
   Mat99 carried = Mat99::Zero();  // information on (x_k, m) from eliminated states
+  Eigen::Matrix<double, 9, 1> carried_g = Eigen::Matrix<double, 9, 1>::Zero();
+  LocalH H;
+  LocalG g;
   for (std::size_t k = 0; k < n; ++k) {
     const double* xk = x[k];
     const double* xn = k + 1 < n ? x[k + 1] : nullptr;
@@ -165,8 +179,8 @@ bool ChainCovariance(const std::vector<double*>& x, const double* m,
       if (p == m) return 12;
       return -1;
     };
-    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(15, 15);
-    Eigen::VectorXd g = Eigen::VectorXd::Zero(15);
+    H.setZero();
+    g.setZero();
     for (const Factor* f : groups[k]) {
       if (!AccumulateFactor(*f, offset, &H, &g)) return false;
     }
@@ -174,39 +188,83 @@ bool ChainCovariance(const std::vector<double*>& x, const double* m,
     H.block<6, 3>(0, 12) += carried.topRightCorner<6, 3>();
     H.block<3, 6>(12, 0) += carried.bottomLeftCorner<3, 6>();
     H.block<3, 3>(12, 12) += carried.bottomRightCorner<3, 3>();
+    g.head<6>() += carried_g.head<6>();
+    g.tail<3>() += carried_g.tail<3>();
     const StateCovariance D = H.topLeftCorner<6, 6>();
     const Eigen::LLT<StateCovariance> llt(D);
     if (llt.info() != Eigen::Success) return false;
-    D_inv[k] = llt.solve(StateCovariance::Identity());
-    C[k] = H.topRightCorner<6, 9>();
-    carried = H.bottomRightCorner<9, 9>() - C[k].transpose() * D_inv[k] * C[k];
+    out->D_inv[k] = llt.solve(StateCovariance::Identity());
+    out->C[k] = H.topRightCorner<6, 9>();
+    out->g[k] = g.head<6>();
+    // lazyProduct: coefficient-based kernels for these small fixed sizes.
+    const Eigen::Matrix<double, 9, 6> CtDinv = out->C[k].transpose().lazyProduct(out->D_inv[k]);
+    carried = H.bottomRightCorner<9, 9>() - CtDinv.lazyProduct(out->C[k]);
     carried = 0.5 * (carried + carried.transpose()).eval();
+    carried_g = g.tail<9>() - CtDinv * out->g[k];
   }
-  // After the last state only the moment block of `carried` is meaningful.
-  const Eigen::Matrix3d S = carried.bottomRightCorner<3, 3>();
-  const Eigen::LLT<Eigen::Matrix3d> llt_m(S);
-  if (llt_m.info() != Eigen::Success) return false;
-  *P_m = llt_m.solve(Eigen::Matrix3d::Identity());
+  // After the last state only the moment part of `carried` is meaningful.
+  out->S = carried.bottomRightCorner<3, 3>();
+  out->g_m = carried_g.tail<3>();
+  return Eigen::LLT<Eigen::Matrix3d>(out->S).info() == Eigen::Success;
+}
 
+bool ChainCovariance(const ChainFactorization& f, std::vector<StateCovariance>* P_x, Eigen::Matrix3d* P_m) {
+  using Mat99 = Eigen::Matrix<double, 9, 9>;
+  const std::size_t n = f.D_inv.size();
+  *P_m = Eigen::LLT<Eigen::Matrix3d>(f.S).solve(Eigen::Matrix3d::Identity());
   P_x->assign(n, StateCovariance::Zero());
   Mat99 sigma = Mat99::Zero();  // Cov(x_{k+1}, m)
   sigma.bottomRightCorner<3, 3>() = *P_m;
   for (std::size_t k = n; k-- > 0;) {
-    const Mat69 G = -D_inv[k] * C[k];
-    const Mat69 GS = G * sigma;
-    (*P_x)[k] = D_inv[k] + GS * G.transpose();
+    const Mat69 G = -f.D_inv[k].lazyProduct(f.C[k]);
+    const Mat69 GS = G.lazyProduct(sigma);
+    (*P_x)[k] = f.D_inv[k] + GS.lazyProduct(G.transpose());
     (*P_x)[k] = 0.5 * ((*P_x)[k] + (*P_x)[k].transpose()).eval();
-    Mat99 next = Mat99::Zero();
-    next.topLeftCorner<6, 6>() = (*P_x)[k];
-    next.topRightCorner<6, 3>() = GS.rightCols<3>();
-    next.bottomLeftCorner<3, 6>() = GS.rightCols<3>().transpose();
-    next.bottomRightCorner<3, 3>() = *P_m;
-    sigma = next;
+    sigma.topLeftCorner<6, 6>() = (*P_x)[k];
+    sigma.topRightCorner<6, 3>() = GS.rightCols<3>();
+    sigma.bottomLeftCorner<3, 6>() = GS.rightCols<3>().transpose();
   }
   for (const auto& P : *P_x) {
     if (!P.allFinite()) return false;
   }
-  return true;
+  return P_m->allFinite();
+}
+
+void ChainStep(const ChainFactorization& f, std::vector<StateVector>* dx, Eigen::Vector3d* dm) {
+  const std::size_t n = f.D_inv.size();
+  *dm = -Eigen::LLT<Eigen::Matrix3d>(f.S).solve(f.g_m);
+  dx->assign(n, StateVector::Zero());
+  Eigen::Matrix<double, 9, 1> y;  // (Δx_{k+1}, Δm)
+  y << StateVector::Zero(), *dm;
+  for (std::size_t k = n; k-- > 0;) {
+    (*dx)[k] = -f.D_inv[k] * (f.g[k] + f.C[k] * y);
+    y.head<6>() = (*dx)[k];
+  }
+}
+
+double TotalCost(const std::vector<std::vector<const Factor*>>& groups) {
+  double cost = 0.0;
+  for (const auto& group : groups) {
+    for (const Factor* f : group) {
+      // Tracker factors have two blocks and at most 9 residuals.
+      const int m = f->cost->num_residuals();
+      if (m > 9 || f->blocks.size() != 2) return std::numeric_limits<double>::infinity();
+      Eigen::Matrix<double, 9, 1> e = Eigen::Matrix<double, 9, 1>::Zero();
+      const double* params[2] = {f->blocks[0], f->blocks[1]};
+      if (!f->cost->Evaluate(params, e.data(), nullptr)) return std::numeric_limits<double>::infinity();
+      double rho[3] = {e.squaredNorm(), 1.0, 0.0};
+      if (f->loss != nullptr) f->loss->Evaluate(e.squaredNorm(), rho);
+      cost += 0.5 * rho[0];
+    }
+  }
+  return cost;
+}
+
+bool ChainCovariance(const std::vector<double*>& x, const double* m,
+                     const std::vector<std::vector<const Factor*>>& groups, std::vector<StateCovariance>* P_x,
+                     Eigen::Matrix3d* P_m) {
+  ChainFactorization f;
+  return FactorizeChain(x, m, groups, &f) && ChainCovariance(f, P_x, P_m);
 }
 
 }  // namespace magnav::tracker::internal

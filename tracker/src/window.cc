@@ -28,7 +28,7 @@ struct WindowEpoch {
 
 // Information on [a (6); b (6); m (3)]; eliminating a leaves information on
 // [b; m] (Schur complement), returned as H (9×9) and gradient g (9).
-void EliminateFirstState(const Eigen::MatrixXd& H, const Eigen::VectorXd& g, Eigen::Matrix<double, 9, 9>* H_out,
+void EliminateFirstState(const internal::LocalH& H, const internal::LocalG& g, Eigen::Matrix<double, 9, 9>* H_out,
                          Eigen::Matrix<double, 9, 1>* g_out) {
   const Eigen::Matrix<double, 6, 6> Haa = H.topLeftCorner<6, 6>();
   const Eigen::Matrix<double, 6, 9> Har = H.topRightCorner<6, 9>();
@@ -62,6 +62,10 @@ struct WindowTracker::Impl {
   std::deque<WindowEpoch> window;
   internal::Factor prior;  // on (window.front().x, moment); cost null = none
   Summary summary;
+  // Factorisation of the window at the current estimate (chain solver).
+  internal::ChainFactorization chain;
+  bool chain_ok = false;
+  bool chain_fresh = false;
 
   void Append(const Epoch& e, const StateVector& x0) {
     if (!window.empty()) {
@@ -82,10 +86,10 @@ struct WindowTracker::Impl {
 
   // Local system over [front state, second state, moment] from the factors of
   // the front epoch (prior, measurements, process to the next).
-  void FrontSystem(const WindowEpoch& a, const WindowEpoch* b, Eigen::MatrixXd* H, Eigen::VectorXd* g,
+  void FrontSystem(const WindowEpoch& a, const WindowEpoch* b, internal::LocalH* H, internal::LocalG* g,
                    const internal::Factor* prior_factor) const {
-    H->setZero(15, 15);
-    g->setZero(15);
+    H->setZero();
+    g->setZero();
     const double* m = moment.data();
     const auto offset = [&](const double* p) -> int {
       if (p == a.x.data()) return 0;
@@ -104,8 +108,8 @@ struct WindowTracker::Impl {
   void MarginalizeFront() {
     WindowEpoch& a = window[0];
     WindowEpoch& b = window[1];
-    Eigen::MatrixXd H;
-    Eigen::VectorXd g;
+    internal::LocalH H;
+    internal::LocalG g;
     FrontSystem(a, &b, &H, &g, &prior);
     Eigen::Matrix<double, 9, 9> Hm;
     Eigen::Matrix<double, 9, 1> gm;
@@ -135,18 +139,11 @@ struct WindowTracker::Impl {
 
   // Marginal covariance of the newest state and of the moment (chain
   // selected inversion over the window, prior included).
-  bool NewestCovariance(StateCovariance* P_state, Eigen::Matrix3d* P_moment) const {
-    std::vector<double*> xs;
-    std::vector<std::vector<const internal::Factor*>> groups(window.size());
-    for (std::size_t k = 0; k < window.size(); ++k) {
-      xs.push_back(const_cast<double*>(window[k].x.data()));
-      if (k == 0 && prior.cost) groups[k].push_back(&prior);
-      for (const auto& f : window[k].measurements) groups[k].push_back(&f);
-      for (const auto& f : window[k].to_next) groups[k].push_back(&f);
-    }
+  bool NewestCovariance(StateCovariance* P_state, Eigen::Matrix3d* P_moment) {
+    if (!chain_fresh) chain_fresh = internal::FactorizeChain(StatePointers(), moment.data(), Groups(), &chain);
     std::vector<StateCovariance> P;
     Eigen::Matrix3d Pm;
-    if (!internal::ChainCovariance(xs, moment.data(), groups, &P, &Pm)) return false;
+    if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
     *P_state = P.back();
     *P_moment = Pm * (moment_scale * moment_scale);
     return true;
@@ -173,10 +170,73 @@ struct WindowTracker::Impl {
     }
   }
 
+  std::vector<std::vector<const internal::Factor*>> Groups() const {
+    std::vector<std::vector<const internal::Factor*>> groups(window.size());
+    for (std::size_t k = 0; k < window.size(); ++k) {
+      if (k == 0 && prior.cost) groups[k].push_back(&prior);
+      for (const auto& f : window[k].measurements) groups[k].push_back(&f);
+      for (const auto& f : window[k].to_next) groups[k].push_back(&f);
+    }
+    return groups;
+  }
+
+  std::vector<double*> StatePointers() {
+    std::vector<double*> xs;
+    for (auto& w : window) xs.push_back(w.x.data());
+    return xs;
+  }
+
+  // Gauss-Newton on the window by chain elimination, with step halving;
+  // leaves the factorisation at the final point in `chain` (for covariance).
+  void ChainGaussNewton(ceres::Solver::Summary* cs, int* iterations, double* initial_cost) {
+    const auto groups = Groups();
+    const std::vector<double*> xs = StatePointers();
+    double cost = internal::TotalCost(groups);
+    *initial_cost = cost;
+    *iterations = 0;
+    chain_ok = internal::FactorizeChain(xs, moment.data(), groups, &chain);
+    cs->termination_type = ceres::CONVERGENCE;
+    cs->message = "chain Gauss-Newton";
+    std::vector<StateVector> dx;
+    Eigen::Vector3d dm;
+    std::vector<StateVector> x0(window.size());
+    for (int it = 0; chain_ok && it < options.window_max_num_iterations; ++it) {
+      internal::ChainStep(chain, &dx, &dm);
+      for (std::size_t k = 0; k < window.size(); ++k) x0[k] = window[k].x;
+      const Eigen::Vector3d m0 = moment;
+      double alpha = 1.0, new_cost = cost;
+      bool accepted = false;
+      for (int halving = 0; halving < 5 && !accepted; ++halving, alpha *= 0.5) {
+        for (std::size_t k = 0; k < window.size(); ++k) window[k].x = x0[k] + alpha * dx[k];
+        moment = m0 + alpha * dm;
+        new_cost = internal::TotalCost(groups);
+        accepted = new_cost <= cost;
+      }
+      if (!accepted) {
+        for (std::size_t k = 0; k < window.size(); ++k) window[k].x = x0[k];
+        moment = m0;
+        break;
+      }
+      ++*iterations;
+      const double decrease = cost - new_cost;
+      cost = new_cost;
+      chain_ok = internal::FactorizeChain(xs, moment.data(), groups, &chain);
+      if (decrease <= options.window_function_tolerance * cost) break;
+    }
+    cs->initial_cost = *initial_cost;
+    cs->final_cost = cost;
+    if (!chain_ok) {
+      cs->termination_type = ceres::FAILURE;
+      cs->message = "chain Gauss-Newton: singular window information";
+    }
+    chain_fresh = chain_ok;
+  }
+
   // Solves the window; `start` = first solve from the initialiser's guess
   // (robust-loss continuation, more iterations).
   void Solve(bool start) {
     const auto t0 = std::chrono::steady_clock::now();
+    chain_fresh = false;
     ceres::Solver::Summary cs;
     int iterations = 0;
     double initial_cost = 0.0, solve_time = 0.0;
@@ -193,6 +253,9 @@ struct WindowTracker::Impl {
       iterations = pr.iterations;
       initial_cost = pr.first_initial_cost;
       solve_time = pr.solve_time_s;
+    } else if (options.window_solver == TrackerOptions::WindowSolver::kChainGaussNewton) {
+      ChainGaussNewton(&cs, &iterations, &initial_cost);
+      solve_time = Seconds(t0, std::chrono::steady_clock::now());
     } else {
       ceres::Problem problem(internal::NonOwningProblemOptions());
       BuildProblem(&problem);

@@ -94,7 +94,14 @@ struct TrackerOptions {
   int window_max_num_iterations = 4;
   // Relative cost change that ends a window solve (the window starts from
   // the previous solution, so a loose tolerance loses nothing).
-  double window_function_tolerance = 1e-6;
+  double window_function_tolerance = 1e-4;
+  // Per-epoch window update: kChainGaussNewton = Gauss-Newton steps solved
+  // by block-tridiagonal elimination of the chain (O(window) per step, with
+  // backtracking and the robust weights of the factors); kCeres = a Ceres
+  // solve of the window problem (slower, same problem). The first window
+  // solve (initialisation) always uses Ceres.
+  enum class WindowSolver { kChainGaussNewton, kCeres };
+  WindowSolver window_solver = WindowSolver::kChainGaussNewton;
 
   // Compute the covariance of the estimate (marginal covariance of every
   // state and of the moment at the solution, robust weights applied).
