@@ -117,6 +117,8 @@ void AddTrackCommand(CLI::App& app) {
   cmd->add_option("--q-speed", args->process.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)");
   cmd->add_option("--q-heading", args->process.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)");
   cmd->add_option("--q-turn-rate", args->process.turn_rate_radps_per_sqrt_s, "turn-rate random walk, rad/s/sqrt(s)");
+  cmd->add_option("--q-turn-rate-window", args->process.window_turn_rate_radps_per_sqrt_s,
+                  "turn-rate random walk of the sliding window, rad/s/sqrt(s)");
   cmd->add_option("--q-turn-rate-warmup", args->process.turn_rate_warmup_radps_per_sqrt_s,
                   "turn-rate random walk of the batch warm-up pass (0 = none), rad/s/sqrt(s)");
   cmd->add_option("--turn-loss", args->turn_loss, "robust loss on turn-rate changes: huber, cauchy or trivial")

@@ -171,8 +171,9 @@ TEST(BatchPass, TwoPercentGrossOutliersChangeTheRmsByAtMostTwentyPercent) {
 }
 
 // Sliding window (20 s, causal: each epoch's estimate right after its
-// window solve). Figures are reported; the batch targets are asserted on the
-// SHIP pass, where the vessel stays observable after the closest approach.
+// window solve; epochs before the track starts have no estimate). The
+// requirement is stated for batch; the window gets the same RMS, moment and
+// NEES checks for the 1-sensor passes.
 class WindowPass : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(WindowPass, TracksCausally) {
@@ -197,15 +198,48 @@ TEST_P(WindowPass, TracksCausally) {
   std::cout << "| " << name << " | window 20 s | " << m.rms << " | " << m.max << " | " << 100.0 * m.moment_err
             << " | " << m.nees << " | " << m.n << " | - |\n";
   EXPECT_LE(m.moment_err, 0.02);
-  if (Vessel(name) == "ship") {
-    EXPECT_LE(m.rms, name.find("squid") != std::string::npos ? 0.01 : 0.3);
+  const bool squid = name.find("squid") != std::string::npos;
+  const bool noisefree = name.find("noisefree") != std::string::npos;
+  EXPECT_LE(m.rms, squid ? 0.01 : 0.3);
+  if (!noisefree) {
     EXPECT_GE(m.nees, 1.5);
     EXPECT_LE(m.nees, 6.0);
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(Reference, WindowPass,
-                         ::testing::Values("auv_1sensor_fluxgate", "ship_1sensor_fluxgate", "ship_1sensor_squid"));
+                         ::testing::Values("auv_1sensor_noisefree", "auv_1sensor_fluxgate", "auv_1sensor_squid",
+                                           "auv_4sensor_fluxgate", "ship_1sensor_noisefree", "ship_1sensor_fluxgate",
+                                           "ship_1sensor_squid", "ship_4sensor_fluxgate"));
+
+// The chain Gauss-Newton window update reaches the same estimates as a Ceres
+// solve of the same window problem (both iterated to convergence here).
+TEST(WindowSolver, ChainGaussNewtonAgreesWithCeres) {
+  const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
+  TrackerOptions opt;
+  opt.window_max_num_iterations = 50;
+  opt.window_function_tolerance = 1e-12;
+  auto epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
+  epochs = std::vector<Epoch>(epochs.begin() + 700, epochs.begin() + 1000);
+  std::vector<EpochEstimate> est[2];
+  Eigen::Vector3d m[2];
+  for (int solver = 0; solver < 2; ++solver) {
+    opt.window_solver = solver == 0 ? TrackerOptions::WindowSolver::kChainGaussNewton
+                                    : TrackerOptions::WindowSolver::kCeres;
+    WindowTracker tr(*f.B0, opt);
+    for (const auto& e : epochs) {
+      for (const auto& x : tr.AddEpoch(e)) est[solver].push_back(x);
+    }
+    m[solver] = tr.m_B_Am2();
+  }
+  ASSERT_EQ(est[0].size(), est[1].size());
+  ASSERT_GT(est[0].size(), 50u);
+  for (std::size_t k = 0; k < est[0].size(); ++k) {
+    const double sigma = std::sqrt(est[1][k].cov_p_W().trace());
+    EXPECT_LT((est[0][k].p_VinW - est[1][k].p_VinW).norm(), 0.1 * sigma) << "epoch " << est[0][k].t_s;
+  }
+  EXPECT_LT((m[0] - m[1]).norm() / m[1].norm(), 1e-3);
+}
 
 // The O(N) chain covariance equals ceres::Covariance (SPARSE_QR).
 TEST(Covariance, ChainSelectedInversionMatchesCeresCovariance) {

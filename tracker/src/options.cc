@@ -48,6 +48,9 @@ bool ProcessNoise::IsValid(std::string* error) const {
   if (!PositiveFinite(turn_rate_loss_scale_sigma)) {
     return Fail(error, "process.turn_rate_loss_scale_sigma must be > 0");
   }
+  if (!PositiveFinite(window_turn_rate_radps_per_sqrt_s)) {
+    return Fail(error, "process.window_turn_rate_radps_per_sqrt_s must be > 0");
+  }
   if (!std::isfinite(turn_rate_warmup_radps_per_sqrt_s) || turn_rate_warmup_radps_per_sqrt_s < 0.0) {
     return Fail(error, "process.turn_rate_warmup_radps_per_sqrt_s must be >= 0");
   }

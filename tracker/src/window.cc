@@ -72,7 +72,9 @@ struct WindowTracker::Impl {
       WindowEpoch& last = window.back();
       window.emplace_back();
       window.back().x = x0;
-      internal::AddProcessFactors(e.t_s - last.epoch.t_s, options.process, turn_loss.get(), last.x.data(),
+      ProcessNoise q = options.process;
+      q.turn_rate_radps_per_sqrt_s = q.window_turn_rate_radps_per_sqrt_s;
+      internal::AddProcessFactors(e.t_s - last.epoch.t_s, q, turn_loss.get(), last.x.data(),
                                   window.back().x.data(), &last.to_next);
     } else {
       window.emplace_back();

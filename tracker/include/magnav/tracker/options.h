@@ -34,6 +34,11 @@ struct ProcessNoise {
   // (no robust loss) lets the track follow manoeuvres as smooth ramps; the
   // final solve then sharpens them into jumps. 0 = no warm-up pass.
   double turn_rate_warmup_radps_per_sqrt_s = 1e-3;
+  // Turn-rate random walk of the sliding window, which replaces
+  // turn_rate_radps_per_sqrt_s there: a causal fixed-lag solver cannot place
+  // a manoeuvre onset it has not seen yet, so it needs a looser model to
+  // follow the turn (same robust loss).
+  double window_turn_rate_radps_per_sqrt_s = 3e-3;
 
   bool IsValid(std::string* error) const;
 };
