@@ -33,10 +33,11 @@ void WriteTrack(const std::string& path, const std::string& input, const std::st
               {{"source", input},
                {"mode", mode},
                {"moment_body_Am2", v3(m_B)},
-               {"sigma_moment_body_Am2", v3(sigma_m)}});
-  w.AddComment("frame: local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
-               "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if unknown");
-  w.AddComment(summary.BriefReport());
+               {"sigma_moment_body_Am2", v3(sigma_m)},
+               {"frame", "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
+                         "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
+                         "unknown"},
+               {"summary", summary.BriefReport()}});
   for (const auto& e : epochs) {
     const Eigen::Vector3d v = e.v_VinW();
     std::vector<std::string> row = {FormatNumber(e.t_s),  FormatNumber(e.p_VinW.x()), FormatNumber(e.p_VinW.y()),

@@ -95,8 +95,9 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
         if (f.kind == internal::Factor::Kind::kMeasurement) measurements.push_back(&f);
       }
     }
-    internal::PassResult r = internal::SolveWithContinuation(options, options.max_num_iterations, measurements,
-                                                             !warm_turn.empty(), build);
+    const bool last_stage = i0 == 0 && i1 + 1 == epochs.size();
+    internal::PassResult r = internal::SolveWithContinuation(options, options.max_num_iterations, !last_stage,
+                                                             measurements, !warm_turn.empty(), build);
     if (stage == 0) pr.first_initial_cost = r.first_initial_cost;
     pr.iterations += r.iterations;
     pr.solve_time_s += r.solve_time_s;
@@ -107,6 +108,12 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
     const std::size_t old0 = i0, old1 = i1;
     while (i0 > 0 && epochs[i0 - 1].t_s >= epochs[old0].t_s - grow) --i0;
     while (i1 + 1 < epochs.size() && epochs[i1 + 1].t_s <= epochs[old1].t_s + grow) ++i1;
+    // A span that would cover most of the pass becomes the whole pass (one
+    // stage less, the cost of a stage being proportional to its length).
+    if (3 * (i1 - i0 + 1) >= 2 * epochs.size()) {
+      i0 = 0;
+      i1 = epochs.size() - 1;
+    }
     for (std::size_t k = old1 + 1; k <= i1; ++k) {
       const CtState<double> s = PropagateCoordinatedTurn(state_of(old1), epochs[k].t_s - epochs[old1].t_s);
       x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;

@@ -68,7 +68,8 @@ struct PassResult {
   // Loss of the final pass; the measurement factors point to it.
   std::unique_ptr<ceres::LossFunction> final_loss;
 };
-PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass,
+// `intermediate`: every pass only gives a starting point (looser tolerance).
+PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass, bool intermediate,
                                  const std::vector<Factor*>& measurements, bool warm_up_turn_rate,
                                  const std::function<void(ceres::Problem*, bool warm_turn)>& build);
 

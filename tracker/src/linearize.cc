@@ -124,7 +124,7 @@ double NextLossScale(const std::vector<Factor*>& measurements, double nominal, d
   return std::max(nominal, std::min(previous / 10.0, 3.0 * norms[mid]));
 }
 
-PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass,
+PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass, bool intermediate,
                                  const std::vector<Factor*>& measurements, bool warm_up_turn_rate,
                                  const std::function<void(ceres::Problem*, bool warm_turn)>& build) {
   ceres::Solver::Options so;
@@ -141,6 +141,10 @@ PassResult SolveWithContinuation(const TrackerOptions& options, int max_iteratio
   bool warm = warm_up_turn_rate;
   for (int pass = 0; pass < 12; ++pass) {
     const bool final_pass = !warm && scale <= nominal;
+    // Passes whose result is only a starting point stop early.
+    so.function_tolerance = (intermediate || !final_pass)
+                                ? std::max(options.function_tolerance, options.intermediate_function_tolerance)
+                                : options.function_tolerance;
     out.final_loss = MakeLoss(options.measurement_loss, scale);
     for (Factor* f : measurements) f->loss = out.final_loss.get();
     {

@@ -248,7 +248,7 @@ struct WindowTracker::Impl {
         for (auto& f : w.measurements) meas.push_back(&f);
       }
       internal::PassResult pr = internal::SolveWithContinuation(
-          options, options.max_num_iterations, meas, false,
+          options, options.max_num_iterations, false, meas, false,
           [this](ceres::Problem* problem, bool) { BuildProblem(problem); });
       for (auto* f : meas) f->loss = meas_loss.get();  // the nominal loss from now on
       cs = pr.last;

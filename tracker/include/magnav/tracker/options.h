@@ -84,7 +84,12 @@ struct TrackerOptions {
 
   // Batch solver.
   int max_num_iterations = 100;
-  double function_tolerance = 1e-10;
+  double function_tolerance = 1e-8;
+  // Tolerance of the passes that only give a starting point (warm-up,
+  // robust-loss continuation, batch spans before the whole pass). Kept as
+  // tight as the final one: with 1e-6 the warm-up stopped early on the AUV
+  // pass with outliers and the final pass missed the turn onset (0.95 m RMS).
+  double intermediate_function_tolerance = 1e-8;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-10;
   int num_threads = 1;

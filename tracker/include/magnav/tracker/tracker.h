@@ -16,8 +16,6 @@
 //    (the newest state right after its window solve, i.e. a causal filter).
 #pragma once
 
-#include <cstdint>
-#include <deque>
 #include <memory>
 #include <vector>
 
