@@ -32,7 +32,9 @@ const Pass& LoadPass(const std::string& name) {
   return it->second;
 }
 
-const char* PassName(int64_t sensors) { return sensors == 1 ? "ship_1sensor_fluxgate" : "ship_4sensor_fluxgate"; }
+const char* PassName(int64_t sensors) {
+  return sensors == 1 ? "ship_1sensor_fluxgate" : "ship_4sensor_fluxgate";
+}
 
 // One window update (marginalisation + Ceres solve + newest covariance) per
 // iteration, in steady state: the tracker is warmed up over 60 s first and

@@ -14,7 +14,8 @@ namespace magnav::tools {
 namespace {
 
 struct TrackArgs {
-  std::string input, output, mode = "batch", loss = tracker::LossTypeName(tracker::TrackerOptions{}.measurement_loss);
+  std::string input, output, mode = "batch",
+                             loss = tracker::LossTypeName(tracker::TrackerOptions{}.measurement_loss);
   Vec3Arg b0;
   double window_s = tracker::TrackerOptions{}.window_s;
   double loss_scale_sigma = tracker::TrackerOptions{}.measurement_loss_scale_sigma;
@@ -34,14 +35,16 @@ void WriteTrack(const std::string& path, const std::string& input, const std::st
                {"mode", mode},
                {"moment_body_Am2", v3(m_B)},
                {"sigma_moment_body_Am2", v3(sigma_m)},
-               {"frame", "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
-                         "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
-                         "unknown"},
+               {"frame",
+                "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
+                "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
+                "unknown"},
                {"summary", summary.BriefReport()}});
   for (const auto& e : epochs) {
     const Eigen::Vector3d v = e.v_VinW();
-    std::vector<std::string> row = {FormatNumber(e.t_s),  FormatNumber(e.p_VinW.x()), FormatNumber(e.p_VinW.y()),
-                                    FormatNumber(e.p_VinW.z()), FormatNumber(v.x()),  FormatNumber(v.y()),
+    std::vector<std::string> row = {FormatNumber(e.t_s),        FormatNumber(e.p_VinW.x()),
+                                    FormatNumber(e.p_VinW.y()), FormatNumber(e.p_VinW.z()),
+                                    FormatNumber(v.x()),        FormatNumber(v.y()),
                                     FormatNumber(e.heading_rad)};
     for (int i = 0; i < 3; ++i) {
       row.push_back(e.has_covariance ? FormatNumber(std::sqrt(std::max(e.cov_state(i, i), 0.0))) : "");
@@ -113,16 +116,19 @@ void AddTrackCommand(CLI::App& app) {
   cmd->add_option("--window", args->window_s, "sliding-window length, s (window mode)");
   cmd->add_option("--loss", args->loss, "robust loss on each sample: huber, cauchy or trivial")
       ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
-  cmd->add_option("--loss-scale", args->loss_scale_sigma, "robust loss scale, in sigmas of the sample residual");
+  cmd->add_option("--loss-scale", args->loss_scale_sigma,
+                  "robust loss scale, in sigmas of the sample residual");
   cmd->add_option("--q-position", args->process.position_m_per_sqrt_s, "position random walk, m/sqrt(s)");
   cmd->add_option("--q-speed", args->process.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)");
   cmd->add_option("--q-heading", args->process.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)");
-  cmd->add_option("--q-turn-rate", args->process.turn_rate_radps_per_sqrt_s, "turn-rate random walk, rad/s/sqrt(s)");
+  cmd->add_option("--q-turn-rate", args->process.turn_rate_radps_per_sqrt_s,
+                  "turn-rate random walk, rad/s/sqrt(s)");
   cmd->add_option("--q-turn-rate-window", args->process.window_turn_rate_radps_per_sqrt_s,
                   "turn-rate random walk of the sliding window, rad/s/sqrt(s)");
   cmd->add_option("--q-turn-rate-warmup", args->process.turn_rate_warmup_radps_per_sqrt_s,
                   "turn-rate random walk of the batch warm-up pass (0 = none), rad/s/sqrt(s)");
-  cmd->add_option("--turn-loss", args->turn_loss, "robust loss on turn-rate changes: huber, cauchy or trivial")
+  cmd->add_option("--turn-loss", args->turn_loss,
+                  "robust loss on turn-rate changes: huber, cauchy or trivial")
       ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
   cmd->add_option("--turn-loss-scale", args->process.turn_rate_loss_scale_sigma,
                   "turn-rate loss scale, in sigmas of one step");

@@ -3,10 +3,10 @@
 // initialiser on noise-free reference data, option validation.
 #include "magnav/tracker/cost_functions.h"
 
-#include <random>
-
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
+
+#include <random>
 
 #include "magnav/core/csv.h"
 #include "magnav/core/frames.h"
@@ -44,7 +44,8 @@ TEST(MeasurementCost, AnalyticJacobiansAgreeWithNumericDifferentiation) {
     s.B = B + Eigen::Vector3d(2e-5, 1e-6, 4.5e-5);
     s.T = T;
     const MeasurementCost cost(s, Eigen::Vector3d(2e-5, 1e-6, 4.5e-5), L, scale);
-    ceres::GradientChecker checker(&cost, static_cast<const std::vector<const ceres::Manifold*>*>(nullptr), nd);
+    ceres::GradientChecker checker(&cost, static_cast<const std::vector<const ceres::Manifold*>*>(nullptr),
+                                   nd);
     std::vector<const double*> params = {x.data(), m_tilde.data()};
     ceres::GradientChecker::ProbeResults results;
     EXPECT_TRUE(checker.Probe(params.data(), 1e-6, &results)) << results.error_log;
@@ -106,7 +107,8 @@ TEST(PriorCost, ResidualAndJacobian) {
 // TED+EGT offsets on the noise-free AUV pass, including t = 77.6 s where T
 // is singular (sensor in the dipole's equatorial plane).
 TEST(SingleSampleOffset, RecoversTheNoiseFreeReferenceOffsets) {
-  const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_noisefree.csv"));
+  const GradiometerFile f =
+      ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_noisefree.csv"));
   const CsvTable truth = CsvTable::Read(testing::ReferencePath("track_truth_auv.csv"));
   ASSERT_EQ(truth.num_rows(), f.samples.size());
   double worst = 0.0;

@@ -7,14 +7,14 @@
 // fluxgate 1 sensor ≤ 0.3 m, SQUID ≤ 0.01 m, 4 sensors no worse than 1,
 // moment within 2 %; with 2 % gross outliers the RMS stays within 20 % of the
 // clean run. Solutions are computed once per file and shared (fixture cache).
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <map>
 #include <random>
-
-#include <Eigen/Cholesky>
-#include <gtest/gtest.h>
 
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
@@ -54,7 +54,8 @@ Metrics Evaluate(const std::vector<EpochEstimate>& est, const Eigen::Vector3d& m
                  const Truth& truth) {
   std::vector<Eigen::Vector3d> sensors;
   for (const auto& s : f.samples) {
-    if (std::none_of(sensors.begin(), sensors.end(), [&](const Eigen::Vector3d& p) { return p == s.p_SinW; })) {
+    if (std::none_of(sensors.begin(), sensors.end(),
+                     [&](const Eigen::Vector3d& p) { return p == s.p_SinW; })) {
       sensors.push_back(s.p_SinW);
     }
   }
@@ -150,8 +151,9 @@ TEST_P(BatchPass, MeetsTheAccuracyTargets) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Reference, BatchPass,
-                         ::testing::Values("auv_1sensor_noisefree", "auv_1sensor_fluxgate", "auv_1sensor_squid",
-                                           "auv_4sensor_fluxgate", "ship_1sensor_noisefree", "ship_1sensor_fluxgate",
+                         ::testing::Values("auv_1sensor_noisefree", "auv_1sensor_fluxgate",
+                                           "auv_1sensor_squid", "auv_4sensor_fluxgate",
+                                           "ship_1sensor_noisefree", "ship_1sensor_fluxgate",
                                            "ship_1sensor_squid", "ship_4sensor_fluxgate"));
 
 TEST(BatchPass, FourSensorsAreNoWorseThanOne) {
@@ -208,14 +210,16 @@ TEST_P(WindowPass, TracksCausally) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Reference, WindowPass,
-                         ::testing::Values("auv_1sensor_noisefree", "auv_1sensor_fluxgate", "auv_1sensor_squid",
-                                           "auv_4sensor_fluxgate", "ship_1sensor_noisefree", "ship_1sensor_fluxgate",
+                         ::testing::Values("auv_1sensor_noisefree", "auv_1sensor_fluxgate",
+                                           "auv_1sensor_squid", "auv_4sensor_fluxgate",
+                                           "ship_1sensor_noisefree", "ship_1sensor_fluxgate",
                                            "ship_1sensor_squid", "ship_4sensor_fluxgate"));
 
 // The chain Gauss-Newton window update reaches the same estimates as a Ceres
 // solve of the same window problem (both iterated to convergence here).
 TEST(WindowSolver, ChainGaussNewtonAgreesWithCeres) {
-  const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
+  const GradiometerFile f =
+      ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
   TrackerOptions opt;
   opt.window_max_num_iterations = 50;
   opt.window_function_tolerance = 1e-12;
@@ -224,8 +228,8 @@ TEST(WindowSolver, ChainGaussNewtonAgreesWithCeres) {
   std::vector<EpochEstimate> est[2];
   Eigen::Vector3d m[2];
   for (int solver = 0; solver < 2; ++solver) {
-    opt.window_solver = solver == 0 ? TrackerOptions::WindowSolver::kChainGaussNewton
-                                    : TrackerOptions::WindowSolver::kCeres;
+    opt.window_solver =
+        solver == 0 ? TrackerOptions::WindowSolver::kChainGaussNewton : TrackerOptions::WindowSolver::kCeres;
     WindowTracker tr(*f.B0, opt);
     for (const auto& e : epochs) {
       for (const auto& x : tr.AddEpoch(e)) est[solver].push_back(x);
@@ -243,7 +247,8 @@ TEST(WindowSolver, ChainGaussNewtonAgreesWithCeres) {
 
 // The O(N) chain covariance equals ceres::Covariance (SPARSE_QR).
 TEST(Covariance, ChainSelectedInversionMatchesCeresCovariance) {
-  const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
+  const GradiometerFile f =
+      ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
   TrackerOptions opt;
   auto epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
   epochs = std::vector<Epoch>(epochs.begin() + 800, epochs.begin() + 1100);
@@ -262,7 +267,8 @@ TEST(Covariance, ChainSelectedInversionMatchesCeresCovariance) {
 }
 
 TEST(Tracker, NoTrackWithoutSignalAndBadInputIsRejected) {
-  const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv"));
+  const GradiometerFile f =
+      ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv"));
   TrackerOptions opt;
   auto epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
   // The first 20 s: the AUV is 70 m away, below the noise.

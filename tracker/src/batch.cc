@@ -1,13 +1,13 @@
-#include <chrono>
-#include <cmath>
-
 #include <ceres/covariance.h>
 #include <ceres/solver.h>
 
+#include <chrono>
+#include <cmath>
+
 #include "factors.h"
-#include "magnav/tracker/cost_functions.h"
 #include "magnav/core/error.h"
 #include "magnav/core/units.h"
+#include "magnav/tracker/cost_functions.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/tracker.h"
 
@@ -47,15 +47,18 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
   Eigen::Vector3d moment = init->m_B_Am2 / moment_scale;
 
   // Factors grouped by their earliest epoch (measurements of k, process k→k+1).
-  const auto turn_loss = internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
+  const auto turn_loss =
+      internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
   std::vector<std::vector<internal::Factor>> factors(epochs.size());
   std::vector<internal::Factor> warm_turn;  // Gaussian warm-up turn-rate factors
   for (std::size_t k = 0; k < epochs.size(); ++k) {
-    internal::AddMeasurementFactors(epochs[k], B0_W, options, moment_scale, x[k].data(), moment.data(), &factors[k]);
+    internal::AddMeasurementFactors(epochs[k], B0_W, options, moment_scale, x[k].data(), moment.data(),
+                                    &factors[k]);
     sum.num_samples += static_cast<int>(epochs[k].samples.size());
     if (k + 1 < epochs.size()) {
       const double dt = epochs[k + 1].t_s - epochs[k].t_s;
-      internal::AddProcessFactors(dt, options.process, turn_loss.get(), x[k].data(), x[k + 1].data(), &factors[k]);
+      internal::AddProcessFactors(dt, options.process, turn_loss.get(), x[k].data(), x[k + 1].data(),
+                                  &factors[k]);
       if (options.process.turn_rate_warmup_radps_per_sqrt_s > 0.0) {
         internal::Factor w;
         w.kind = internal::Factor::Kind::kTurnRate;

@@ -2,15 +2,15 @@
 // tracker can rebuild problems and linearise factors for marginalisation.
 #pragma once
 
-#include <functional>
-#include <memory>
-#include <vector>
-
-#include <Eigen/Core>
 #include <ceres/cost_function.h>
 #include <ceres/loss_function.h>
 #include <ceres/problem.h>
 #include <ceres/solver.h>
+
+#include <Eigen/Core>
+#include <functional>
+#include <memory>
+#include <vector>
 
 #include "magnav/tracker/options.h"
 #include "magnav/tracker/tracker.h"
@@ -69,8 +69,9 @@ struct PassResult {
   std::unique_ptr<ceres::LossFunction> final_loss;
 };
 // `intermediate`: every pass only gives a starting point (looser tolerance).
-PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass, bool intermediate,
-                                 const std::vector<Factor*>& measurements, bool warm_up_turn_rate,
+PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass,
+                                 bool intermediate, const std::vector<Factor*>& measurements,
+                                 bool warm_up_turn_rate,
                                  const std::function<void(ceres::Problem*, bool warm_turn)>& build);
 
 // Marginal covariances of a chain of states x_0..x_{N-1} (6 each) and one

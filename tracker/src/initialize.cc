@@ -1,10 +1,9 @@
 #include "magnav/tracker/initialize.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <map>
-
-#include <Eigen/SVD>
 
 #include "magnav/core/dipole.h"
 #include "magnav/core/frames.h"
@@ -178,7 +177,8 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
       if (k >= init.fixes.size()) break;
       // Walk fixes and samples together (both in epoch/sample order).
       const double snr = s.T.norm() / SigmaT(s, options);
-      if (!(snr >= io.min_tensor_snr) || e.t_s != init.fixes[k].t_s || s.sensor_id != init.fixes[k].sensor_id) {
+      if (!(snr >= io.min_tensor_snr) || e.t_s != init.fixes[k].t_s ||
+          s.sensor_id != init.fixes[k].sensor_id) {
         continue;
       }
       ++k;

@@ -1,8 +1,7 @@
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-#include <Eigen/Cholesky>
 
 #include "factors.h"
 #include "magnav/tracker/cost_functions.h"
@@ -36,7 +35,8 @@ void AddToProblem(const Factor& f, ceres::Problem* problem) {
 void AddMeasurementFactors(const Epoch& epoch, const Eigen::Vector3d& B0_W, const TrackerOptions& options,
                            double moment_scale, double* state, double* moment, std::vector<Factor>* out) {
   for (const GradiometerSample& s : epoch.samples) {
-    const SqrtInfo8 L = MeasurementSqrtInfo(SigmaB(s, options), SigmaT(s, options), options.tensor_noise_trace_free);
+    const SqrtInfo8 L =
+        MeasurementSqrtInfo(SigmaB(s, options), SigmaT(s, options), options.tensor_noise_trace_free);
     Factor f;
     f.cost = std::make_unique<MeasurementCost>(s, B0_W, L, moment_scale);
     f.blocks = {state, moment};
@@ -99,7 +99,8 @@ bool AccumulateFixed(const Factor& f, const std::function<int(const double*)>& o
 
 }  // namespace
 
-bool AccumulateFactor(const Factor& f, const std::function<int(const double*)>& offset, LocalH* H, LocalG* g) {
+bool AccumulateFactor(const Factor& f, const std::function<int(const double*)>& offset, LocalH* H,
+                      LocalG* g) {
   const auto& sizes = f.cost->parameter_block_sizes();
   if (sizes.size() != 2 || f.blocks.size() != 2) return false;
   const int m = f.cost->num_residuals();
@@ -124,8 +125,9 @@ double NextLossScale(const std::vector<Factor*>& measurements, double nominal, d
   return std::max(nominal, std::min(previous / 10.0, 3.0 * norms[mid]));
 }
 
-PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass, bool intermediate,
-                                 const std::vector<Factor*>& measurements, bool warm_up_turn_rate,
+PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass,
+                                 bool intermediate, const std::vector<Factor*>& measurements,
+                                 bool warm_up_turn_rate,
                                  const std::function<void(ceres::Problem*, bool warm_turn)>& build) {
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -137,14 +139,15 @@ PassResult SolveWithContinuation(const TrackerOptions& options, int max_iteratio
   PassResult out;
   const double nominal = options.measurement_loss_scale_sigma;
   const bool robust = options.measurement_loss != LossType::kTrivial;
-  double scale = robust ? NextLossScale(measurements, nominal, std::numeric_limits<double>::infinity()) : nominal;
+  double scale =
+      robust ? NextLossScale(measurements, nominal, std::numeric_limits<double>::infinity()) : nominal;
   bool warm = warm_up_turn_rate;
   for (int pass = 0; pass < 12; ++pass) {
     const bool final_pass = !warm && scale <= nominal;
     // Passes whose result is only a starting point stop early.
-    so.function_tolerance = (intermediate || !final_pass)
-                                ? std::max(options.function_tolerance, options.intermediate_function_tolerance)
-                                : options.function_tolerance;
+    so.function_tolerance = (intermediate || !final_pass) ? std::max(options.function_tolerance,
+                                                                     options.intermediate_function_tolerance)
+                                                          : options.function_tolerance;
     out.final_loss = MakeLoss(options.measurement_loss, scale);
     for (Factor* f : measurements) f->loss = out.final_loss.get();
     {

@@ -40,7 +40,8 @@ bool MeasurementCost::Evaluate(double const* const* parameters, double* residual
   const Eigen::Vector3d m_W = WorldMoment(m_B, heading, &J_mW_h);
   Jacobian8x3 J_z_r, J_z_m;
   const bool want_J = jacobians != nullptr && (jacobians[0] != nullptr || jacobians[1] != nullptr);
-  const Measurement8 pred = DipoleMeasurement(r_DtoS, m_W, want_J ? &J_z_r : nullptr, want_J ? &J_z_m : nullptr);
+  const Measurement8 pred =
+      DipoleMeasurement(r_DtoS, m_W, want_J ? &J_z_r : nullptr, want_J ? &J_z_m : nullptr);
   Eigen::Map<Eigen::Matrix<double, 8, 1>> e(residuals);
   e = sqrt_info_ * (pred - z_);
   if (!want_J) return true;

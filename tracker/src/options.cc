@@ -41,7 +41,8 @@ const char* LossTypeName(LossType type) {
 bool ProcessNoise::IsValid(std::string* error) const {
   if (!PositiveFinite(position_m_per_sqrt_s)) return Fail(error, "process.position_m_per_sqrt_s must be > 0");
   if (!PositiveFinite(speed_mps_per_sqrt_s)) return Fail(error, "process.speed_mps_per_sqrt_s must be > 0");
-  if (!PositiveFinite(heading_rad_per_sqrt_s)) return Fail(error, "process.heading_rad_per_sqrt_s must be > 0");
+  if (!PositiveFinite(heading_rad_per_sqrt_s))
+    return Fail(error, "process.heading_rad_per_sqrt_s must be > 0");
   if (!PositiveFinite(turn_rate_radps_per_sqrt_s)) {
     return Fail(error, "process.turn_rate_radps_per_sqrt_s must be > 0");
   }
@@ -69,7 +70,8 @@ bool InitOptions::IsValid(std::string* error) const {
 bool TrackerOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(default_sigma_B_T)) return Fail(error, "default_sigma_B_T must be > 0");
   if (!PositiveFinite(default_sigma_T_Tpm)) return Fail(error, "default_sigma_T_Tpm must be > 0");
-  if (!PositiveFinite(measurement_loss_scale_sigma)) return Fail(error, "measurement_loss_scale_sigma must be > 0");
+  if (!PositiveFinite(measurement_loss_scale_sigma))
+    return Fail(error, "measurement_loss_scale_sigma must be > 0");
   if (!process.IsValid(error) || !init.IsValid(error)) return false;
   if (!std::isfinite(epoch_tolerance_s) || epoch_tolerance_s < 0.0) {
     return Fail(error, "epoch_tolerance_s must be >= 0");
@@ -92,8 +94,8 @@ std::string Summary::BriefReport() const {
   o << "tracker: " << (initialized ? "initialised" : "not initialised") << ", " << num_epochs << " epochs, "
     << num_samples << " samples, " << num_init_fixes << " init fixes, " << iterations << " iterations, cost "
     << initial_cost << " -> " << final_cost << ", solve " << solve_time_s << " s, covariance "
-    << covariance_time_s << " s (" << (covariance_ok ? "ok" : "none") << "), total " << total_time_s
-    << " s; " << message;
+    << covariance_time_s << " s (" << (covariance_ok ? "ok" : "none") << "), total " << total_time_s << " s; "
+    << message;
   return o.str();
 }
 

@@ -1,9 +1,9 @@
+#include <ceres/solver.h>
+
+#include <Eigen/Eigenvalues>
 #include <chrono>
 #include <cmath>
 #include <deque>
-
-#include <Eigen/Eigenvalues>
-#include <ceres/solver.h>
 
 #include "factors.h"
 #include "magnav/core/csv.h"
@@ -28,8 +28,8 @@ struct WindowEpoch {
 
 // Information on [a (6); b (6); m (3)]; eliminating a leaves information on
 // [b; m] (Schur complement), returned as H (9×9) and gradient g (9).
-void EliminateFirstState(const internal::LocalH& H, const internal::LocalG& g, Eigen::Matrix<double, 9, 9>* H_out,
-                         Eigen::Matrix<double, 9, 1>* g_out) {
+void EliminateFirstState(const internal::LocalH& H, const internal::LocalG& g,
+                         Eigen::Matrix<double, 9, 9>* H_out, Eigen::Matrix<double, 9, 1>* g_out) {
   const Eigen::Matrix<double, 6, 6> Haa = H.topLeftCorner<6, 6>();
   const Eigen::Matrix<double, 6, 9> Har = H.topRightCorner<6, 9>();
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(Haa);
@@ -82,7 +82,8 @@ struct WindowTracker::Impl {
     }
     WindowEpoch& w = window.back();
     w.epoch = e;
-    internal::AddMeasurementFactors(e, B0_W, options, moment_scale, w.x.data(), moment.data(), &w.measurements);
+    internal::AddMeasurementFactors(e, B0_W, options, moment_scale, w.x.data(), moment.data(),
+                                    &w.measurements);
     for (auto& f : w.measurements) f.loss = meas_loss.get();
   }
 
@@ -99,7 +100,8 @@ struct WindowTracker::Impl {
       if (p == m) return 12;
       return -1;
     };
-    if (prior_factor != nullptr && prior_factor->cost) internal::AccumulateFactor(*prior_factor, offset, H, g);
+    if (prior_factor != nullptr && prior_factor->cost)
+      internal::AccumulateFactor(*prior_factor, offset, H, g);
     for (const auto& f : a.measurements) internal::AccumulateFactor(f, offset, H, g);
     if (b != nullptr) {
       for (const auto& f : a.to_next) internal::AccumulateFactor(f, offset, H, g);
@@ -142,7 +144,8 @@ struct WindowTracker::Impl {
   // Marginal covariance of the newest state and of the moment (chain
   // selected inversion over the window, prior included).
   bool NewestCovariance(StateCovariance* P_state, Eigen::Matrix3d* P_moment) {
-    if (!chain_fresh) chain_fresh = internal::FactorizeChain(StatePointers(), moment.data(), Groups(), &chain);
+    if (!chain_fresh)
+      chain_fresh = internal::FactorizeChain(StatePointers(), moment.data(), Groups(), &chain);
     std::vector<StateCovariance> P;
     Eigen::Matrix3d Pm;
     if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
@@ -247,9 +250,9 @@ struct WindowTracker::Impl {
       for (auto& w : window) {
         for (auto& f : w.measurements) meas.push_back(&f);
       }
-      internal::PassResult pr = internal::SolveWithContinuation(
-          options, options.max_num_iterations, false, meas, false,
-          [this](ceres::Problem* problem, bool) { BuildProblem(problem); });
+      internal::PassResult pr =
+          internal::SolveWithContinuation(options, options.max_num_iterations, false, meas, false,
+                                          [this](ceres::Problem* problem, bool) { BuildProblem(problem); });
       for (auto* f : meas) f->loss = meas_loss.get();  // the nominal loss from now on
       cs = pr.last;
       iterations = pr.iterations;
@@ -348,7 +351,8 @@ WindowTracker::WindowTracker(const Eigen::Vector3d& B0_W, const TrackerOptions& 
   impl_->B0_W = B0_W;
   impl_->options = options;
   impl_->meas_loss = internal::MakeLoss(options.measurement_loss, options.measurement_loss_scale_sigma);
-  impl_->turn_loss = internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
+  impl_->turn_loss =
+      internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
 }
 
 WindowTracker::~WindowTracker() = default;
@@ -361,8 +365,8 @@ std::vector<EpochEstimate> WindowTracker::AddSample(const GradiometerSample& sam
     return {};
   }
   if (m.has_pending && sample.t_s < m.pending.t_s) {
-    throw InputError("tracker: sample time " + FormatNumber(sample.t_s) + " s is earlier than the current epoch " +
-                     FormatNumber(m.pending.t_s) + " s");
+    throw InputError("tracker: sample time " + FormatNumber(sample.t_s) +
+                     " s is earlier than the current epoch " + FormatNumber(m.pending.t_s) + " s");
   }
   std::vector<EpochEstimate> out;
   if (m.has_pending) out = AddEpoch(m.pending);
@@ -380,11 +384,12 @@ std::vector<EpochEstimate> WindowTracker::Flush() {
 
 std::vector<EpochEstimate> WindowTracker::AddEpoch(const Epoch& epoch) {
   Impl& m = *impl_;
-  const double last_t = m.initialized ? m.window.back().epoch.t_s
-                                      : (m.buffer.empty() ? -std::numeric_limits<double>::infinity()
-                                                          : m.buffer.back().t_s);
+  const double last_t =
+      m.initialized ? m.window.back().epoch.t_s
+                    : (m.buffer.empty() ? -std::numeric_limits<double>::infinity() : m.buffer.back().t_s);
   if (!(epoch.t_s > last_t + m.options.epoch_tolerance_s)) {
-    throw InputError("tracker: epoch at " + FormatNumber(epoch.t_s) + " s is not later than the previous one");
+    throw InputError("tracker: epoch at " + FormatNumber(epoch.t_s) +
+                     " s is not later than the previous one");
   }
   return m.Process(epoch);
 }

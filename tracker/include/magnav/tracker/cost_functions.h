@@ -6,11 +6,11 @@
 //               (A·m²), so that its entries are O(1) like the other parameters.
 #pragma once
 
-#include <cmath>
-
-#include <Eigen/Core>
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/sized_cost_function.h>
+
+#include <Eigen/Core>
+#include <cmath>
 
 #include "magnav/core/dipole.h"
 #include "magnav/core/gradiometer.h"

@@ -10,11 +10,10 @@
 // Rz(h)ᵀ m_W with m_W = FitDipoleMoment at each fix.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <optional>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "magnav/core/motion.h"
 #include "magnav/tracker/options.h"
@@ -33,16 +32,16 @@ struct DipoleFix {
   double t_s = 0.0;
   std::uint32_t sensor_id = 0;
   Eigen::Vector3d p_DinW = Eigen::Vector3d::Zero();  // m
-  double tensor_snr = 0.0;                          // ‖T‖_F / σ_T
+  double tensor_snr = 0.0;                           // ‖T‖_F / σ_T
 };
 
 struct InitialTrack {
-  double t_ref_s = 0.0;             // time of `state`
-  double t_first_s = 0.0;           // time span of the inlier fixes
+  double t_ref_s = 0.0;    // time of `state`
+  double t_first_s = 0.0;  // time span of the inlier fixes
   double t_last_s = 0.0;
-  CtState<double> state{};          // straight-line state at t_ref_s (ω = 0)
+  CtState<double> state{};  // straight-line state at t_ref_s (ω = 0)
   Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
-  std::vector<DipoleFix> fixes;     // inliers used
+  std::vector<DipoleFix> fixes;  // inliers used
 };
 
 // Fixes of every strong sample of the epochs.

@@ -127,19 +127,19 @@ struct TrackerOptions {
 
 // What a solve did.
 struct Summary {
-  bool initialized = false;     // a track was started
-  bool usable = false;          // Ceres returned a usable solution
-  int num_epochs = 0;           // epochs in the problem
-  int num_samples = 0;          // gradiometer samples in the problem
-  int num_init_fixes = 0;       // fixes kept by the initialiser
+  bool initialized = false;  // a track was started
+  bool usable = false;       // Ceres returned a usable solution
+  int num_epochs = 0;        // epochs in the problem
+  int num_samples = 0;       // gradiometer samples in the problem
+  int num_init_fixes = 0;    // fixes kept by the initialiser
   int iterations = 0;
-  double initial_cost = 0.0;    // ½ Σ ρ(‖r‖²), r in σ
+  double initial_cost = 0.0;  // ½ Σ ρ(‖r‖²), r in σ
   double final_cost = 0.0;
   double solve_time_s = 0.0;
   double covariance_time_s = 0.0;
   double total_time_s = 0.0;
   bool covariance_ok = false;
-  std::string message;          // Ceres termination message or failure reason
+  std::string message;  // Ceres termination message or failure reason
 
   std::string BriefReport() const;
 };

@@ -16,10 +16,9 @@
 //    (the newest state right after its window solve, i.e. a causal filter).
 #pragma once
 
+#include <Eigen/Core>
 #include <memory>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "magnav/core/gradiometer.h"
 #include "magnav/tracker/options.h"
@@ -46,18 +45,18 @@ struct EpochEstimate {
   double speed_mps = 0.0;
   double heading_rad = 0.0;  // wrapped to (−π, π]
   double turn_rate_radps = 0.0;
-  int num_samples = 0;       // samples of this epoch in the problem
+  int num_samples = 0;  // samples of this epoch in the problem
   bool has_covariance = false;
   StateCovariance cov_state = StateCovariance::Zero();  // order [x y z v h ω]
 
-  Eigen::Vector3d v_VinW() const;                     // m/s, world NED
+  Eigen::Vector3d v_VinW() const;                                              // m/s, world NED
   Eigen::Matrix3d cov_p_W() const { return cov_state.topLeftCorner<3, 3>(); }  // m²
 };
 
 struct TrackEstimate {
   std::vector<EpochEstimate> epochs;
-  Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();        // body moment
-  Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();         // (A·m²)²
+  Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();  // body moment
+  Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();  // (A·m²)²
   Summary summary;
 };
 
