@@ -24,6 +24,8 @@ void AddSimulateCommand(CLI::App& app);
 void AddEvaluateCommand(CLI::App& app);
 // `magnav invert` (cmd_invert.cc).
 void AddInvertCommand(CLI::App& app);
+// `magnav track`: batch or sliding-window tracking of one dipole (vessel).
+void AddTrackCommand(CLI::App& app);
 
 #ifdef MAGNAV_WITH_DDS
 using dds::AddDdsOptions;

@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
 #endif
   magnav::tools::AddInvertCommand(app);
   magnav::tools::AddEvaluateCommand(app);
+  magnav::tools::AddTrackCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

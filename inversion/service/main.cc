@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   using namespace magnav;
   CLI::App app{"magnav-inverter: dipole fixes from gradiometer samples (magnav/gradiometer -> magnav/dipole_fix)"};
   app.set_config("--config", "", "read options from a TOML/INI file (keys = long flag names)");
+  app.option_defaults()->always_capture_default();
   inversion::InverterOptions opt;
   inversion::MonteCarloTrackerOptions mc;
   std::string method = "ted-egt", b0, moment_body;

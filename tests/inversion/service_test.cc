@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <mutex>
 
@@ -97,6 +98,46 @@ TEST(InverterService, FixForEverySampleBadOnesRejectedServiceSurvives) {
     }
   }
   EXPECT_GT(valid, 40);  // most samples near the closest approach pass the gates
+}
+
+// Options from a TOML file: method and weak-signal gate taken from the file.
+TEST(InverterService, ReadsOptionsFromAConfigFile) {
+  const int domain = 10 + static_cast<int>(getpid() % 200);
+  const std::string cfg = testing::TempDir() + "/inverter.toml";
+  std::ofstream(cfg) << "# magnav-inverter options\nmethod = \"ted\"\nmin-snr = 1e12\nb0 = \"2e-05,1e-06,4.5e-05\"\n";
+  testing::Subprocess service({MAGNAV_INVERTER, "--config", cfg, "--stats-period", "0"},
+                              {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});
+  const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_squid.csv"));
+  std::mutex mu;
+  std::vector<msg::DipoleFix> fixes;
+  {
+    dds::NodeOptions o;
+    o.name = "inverter_config_test";
+    o.domain_id = domain;
+    dds::Node node(o);
+    auto reader = node.CreateReader<msg::DipoleFix>([&](const msg::DipoleFix& f, const auto&) {
+      std::lock_guard<std::mutex> lk(mu);
+      fixes.push_back(f);
+    });
+    auto writer = node.CreateWriter<msg::GradiometerSample>();
+    ASSERT_TRUE(writer->WaitForMatched(1, 20s));
+    ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+    ASSERT_TRUE(writer->Write(dds::ToMsg(file.samples[750], 0)));  // t = 75 s, strongest signal
+    ASSERT_TRUE(reader->WaitForSamples(1, 20s));
+  }
+  service.Signal(SIGTERM);
+  EXPECT_EQ(service.Wait(10s), 0);
+  std::lock_guard<std::mutex> lk(mu);
+  ASSERT_EQ(fixes.size(), 1u);
+  EXPECT_EQ(fixes[0].method(), msg::METHOD_TED);
+  EXPECT_FALSE(fixes[0].valid());
+  EXPECT_EQ(std::string(fixes[0].reason().c_str()), "weak_signal");  // SNR ~1e6 < 1e12
+
+  // A bad value in the file is an error naming the option, exit code != 0.
+  std::ofstream(cfg) << "max-speed = fast\n";
+  const auto [rc, out] = testing::RunCommand({MAGNAV_INVERTER, "--config", cfg});
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("max-speed"), std::string::npos) << out;
 }
 
 }  // namespace

@@ -16,13 +16,15 @@ int main(int argc, char** argv) {
   using namespace magnav;
   CLI::App app{"magnav-tracker: vessel tracks from gradiometer samples (magnav/gradiometer -> magnav/track)"};
   app.set_config("--config", "", "read options from a TOML/INI file (keys = long flag names)");
+  app.option_defaults()->always_capture_default();
   tracker::TrackerNodeOptions opt;
-  std::string b0, loss = "huber";
+  std::string b0, loss = tracker::LossTypeName(opt.tracker.measurement_loss);
   double stats_period_s = 10.0;
   magnav::dds::DdsArgs dds_args;
   app.add_option("--b0", b0, "background field BX,BY,BZ in T (NED)");
   app.add_option("--window", opt.tracker.window_s, "sliding window length, s");
   app.add_option("--loss", loss, "robust loss on measurements: trivial, huber, cauchy")
+      ->capture_default_str()
       ->check(CLI::IsMember({"trivial", "huber", "cauchy"}));
   app.add_option("--loss-scale", opt.tracker.measurement_loss_scale_sigma, "robust loss scale, sigmas");
   app.add_option("--sigma-b", opt.tracker.default_sigma_B_T, "B noise, T, for samples that carry none");
@@ -53,6 +55,7 @@ int main(int argc, char** argv) {
       }
     }
     tracker_node.Flush();
+    tracker_node.WaitForAcknowledgments(std::chrono::seconds(5));
     spdlog::info("magnav-tracker: stopping after {} samples, {} estimates", tracker_node.received(),
                  tracker_node.published());
   } catch (const InputError& e) {

@@ -32,6 +32,8 @@ class TrackerNode {
   TrackerNode(dds::Node& node, const TrackerNodeOptions& options);
   // Feeds what is still buffered to the tracker and publishes the result.
   void Flush();
+  // Waits until the readers acknowledged every estimate (before shutdown).
+  bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
 
   std::uint64_t received() const { return reader_->stats().samples.load(); }
   std::uint64_t published() const { return writer_->stats().samples.load(); }

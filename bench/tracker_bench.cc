@@ -1,0 +1,84 @@
+// Tracker timing: sliding-window update per new epoch (20 s window at 10 Hz)
+// and batch solve of a whole 200 s pass, with 1 and 4 gradiometers.
+// Run: build/bin/bench_tracker (reference files from tests/data/reference).
+#include <benchmark/benchmark.h>
+
+#include <map>
+#include <string>
+
+#include "magnav/core/gradiometer.h"
+#include "magnav/tracker/tracker.h"
+
+namespace {
+
+using magnav::tracker::Epoch;
+
+struct Pass {
+  std::vector<Epoch> epochs;
+  Eigen::Vector3d B0;
+};
+
+const Pass& LoadPass(const std::string& name) {
+  static std::map<std::string, Pass> cache;
+  auto it = cache.find(name);
+  if (it == cache.end()) {
+    const magnav::GradiometerFile f =
+        magnav::ReadGradiometerFile(std::string(MAGNAV_REFERENCE_DIR) + "/track_pass_" + name + ".csv");
+    Pass p;
+    p.B0 = *f.B0;
+    p.epochs = magnav::tracker::GroupEpochs(f.samples, magnav::tracker::TrackerOptions{}.epoch_tolerance_s);
+    it = cache.emplace(name, std::move(p)).first;
+  }
+  return it->second;
+}
+
+const char* PassName(int64_t sensors) {
+  return sensors == 1 ? "ship_1sensor_fluxgate" : "ship_4sensor_fluxgate";
+}
+
+// One window update (marginalisation + Ceres solve + newest covariance) per
+// iteration, in steady state: the tracker is warmed up over 60 s first and
+// restarted (untimed) when the pass runs out.
+void BM_WindowUpdatePerEpoch(benchmark::State& state) {
+  const Pass& pass = LoadPass(PassName(state.range(0)));
+  magnav::tracker::TrackerOptions opt;
+  opt.window_s = 20.0;
+  const std::size_t warm = 600;
+  std::unique_ptr<magnav::tracker::WindowTracker> tr;
+  std::size_t next = pass.epochs.size();
+  double iterations = 0.0;
+  for (auto _ : state) {
+    if (next >= pass.epochs.size()) {
+      state.PauseTiming();
+      tr = std::make_unique<magnav::tracker::WindowTracker>(pass.B0, opt);
+      for (next = 0; next < warm; ++next) tr->AddEpoch(pass.epochs[next]);
+      state.ResumeTiming();
+    }
+    benchmark::DoNotOptimize(tr->AddEpoch(pass.epochs[next++]));
+    iterations += tr->last_summary().iterations;
+  }
+  state.counters["gn_iterations"] = benchmark::Counter(iterations, benchmark::Counter::kAvgIterations);
+  state.counters["sensors"] = static_cast<double>(state.range(0));
+  state.counters["window_epochs"] = tr->last_summary().num_epochs;
+}
+BENCHMARK(BM_WindowUpdatePerEpoch)->Arg(1)->Arg(4)->Unit(benchmark::kMicrosecond);
+
+// Batch solve (growing solve + chain covariance) of the 200 s pass (2001 epochs).
+void BM_BatchSolve200s(benchmark::State& state) {
+  const Pass& pass = LoadPass(PassName(state.range(0)));
+  const magnav::tracker::TrackerOptions opt;
+  int iterations = 0;
+  for (auto _ : state) {
+    const auto est = magnav::tracker::SolveBatch(pass.epochs, pass.B0, opt);
+    iterations = est.summary.iterations;
+    benchmark::DoNotOptimize(est.m_B_Am2);
+  }
+  state.counters["sensors"] = static_cast<double>(state.range(0));
+  state.counters["epochs"] = static_cast<double>(pass.epochs.size());
+  state.counters["ceres_iterations"] = iterations;
+}
+BENCHMARK(BM_BatchSolve200s)->Arg(1)->Arg(4)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+}  // namespace
+
+BENCHMARK_MAIN();

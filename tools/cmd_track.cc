@@ -1,0 +1,138 @@
+// `magnav track`: follows one dipole (vessel) through a gradiometer pass file,
+// in batch (whole pass) or sliding-window mode, and writes one row per epoch.
+#include <memory>
+#include <string>
+
+#include "commands.h"
+#include "magnav/core/csv.h"
+#include "magnav/core/error.h"
+#include "magnav/core/gradiometer.h"
+#include "magnav/tracker/tracker.h"
+
+namespace magnav::tools {
+
+namespace {
+
+struct TrackArgs {
+  std::string input, output, mode = "batch",
+                             loss = tracker::LossTypeName(tracker::TrackerOptions{}.measurement_loss);
+  Vec3Arg b0;
+  double window_s = tracker::TrackerOptions{}.window_s;
+  double loss_scale_sigma = tracker::TrackerOptions{}.measurement_loss_scale_sigma;
+  tracker::ProcessNoise process;
+  std::string turn_loss = tracker::LossTypeName(tracker::ProcessNoise{}.turn_rate_loss);
+};
+
+void WriteTrack(const std::string& path, const std::string& input, const std::string& mode,
+                const std::vector<tracker::EpochEstimate>& epochs, const Eigen::Vector3d& m_B,
+                const Eigen::Matrix3d& cov_m_B, const tracker::Summary& summary) {
+  const auto v3 = [](const Eigen::Vector3d& v) {
+    return FormatNumber(v.x()) + ", " + FormatNumber(v.y()) + ", " + FormatNumber(v.z());
+  };
+  const Eigen::Vector3d sigma_m = cov_m_B.diagonal().cwiseMax(0.0).cwiseSqrt();
+  CsvWriter w(path, {"t", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z"},
+              {{"source", input},
+               {"mode", mode},
+               {"moment_body_Am2", v3(m_B)},
+               {"sigma_moment_body_Am2", v3(sigma_m)},
+               {"frame",
+                "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
+                "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
+                "unknown"},
+               {"summary", summary.BriefReport()}});
+  for (const auto& e : epochs) {
+    const Eigen::Vector3d v = e.v_VinW();
+    std::vector<std::string> row = {FormatNumber(e.t_s),        FormatNumber(e.p_VinW.x()),
+                                    FormatNumber(e.p_VinW.y()), FormatNumber(e.p_VinW.z()),
+                                    FormatNumber(v.x()),        FormatNumber(v.y()),
+                                    FormatNumber(e.heading_rad)};
+    for (int i = 0; i < 3; ++i) {
+      row.push_back(e.has_covariance ? FormatNumber(std::sqrt(std::max(e.cov_state(i, i), 0.0))) : "");
+    }
+    w.WriteRow(row);
+  }
+  w.Close();
+}
+
+void RunTrack(const TrackArgs& a) {
+  const GradiometerFile f = ReadGradiometerFile(a.input);
+  Eigen::Vector3d B0;
+  if (a.b0.set) {
+    B0 = {a.b0.v[0], a.b0.v[1], a.b0.v[2]};
+  } else if (f.B0) {
+    B0 = *f.B0;
+  } else {
+    throw InputError(a.input + ": no background field: give --b0 BX,BY,BZ or a '# B0_T:' line");
+  }
+  for (std::size_t i = 1; i < f.samples.size(); ++i) {
+    if (f.samples[i].t_s < f.samples[i - 1].t_s) {
+      throw InputError(a.input + ":" + std::to_string(f.lines[i]) +
+                       ": column 't': time goes backwards (rows must be ordered by t)");
+    }
+  }
+  tracker::TrackerOptions opt;
+  opt.window_s = a.window_s;
+  if (!tracker::ParseLossType(a.loss, &opt.measurement_loss)) {
+    throw InputError("--loss: expected huber, cauchy or trivial, got '" + a.loss + "'");
+  }
+  opt.measurement_loss_scale_sigma = a.loss_scale_sigma;
+  opt.process = a.process;
+  if (!tracker::ParseLossType(a.turn_loss, &opt.process.turn_rate_loss)) {
+    throw InputError("--turn-loss: expected huber, cauchy or trivial, got '" + a.turn_loss + "'");
+  }
+  std::string why;
+  if (!opt.IsValid(&why)) throw InputError("options: " + why);
+
+  if (a.mode == "batch") {
+    const auto epochs = tracker::GroupEpochs(f.samples, opt.epoch_tolerance_s);
+    const tracker::TrackEstimate est = tracker::SolveBatch(epochs, B0, opt);
+    if (!est.summary.initialized) throw InputError(a.input + ": " + est.summary.message);
+    WriteTrack(a.output, a.input, a.mode, est.epochs, est.m_B_Am2, est.cov_m_B, est.summary);
+  } else if (a.mode == "window") {
+    tracker::WindowTracker tr(B0, opt);
+    std::vector<tracker::EpochEstimate> all;
+    for (const auto& s : f.samples) {
+      for (auto& e : tr.AddSample(s)) all.push_back(e);
+    }
+    for (auto& e : tr.Flush()) all.push_back(e);
+    if (!tr.initialized()) throw InputError(a.input + ": no track: too few strong single-sample fixes");
+    WriteTrack(a.output, a.input, a.mode, all, tr.m_B_Am2(), tr.cov_m_B(), tr.last_summary());
+  } else {
+    throw InputError("--mode: expected batch or window, got '" + a.mode + "'");
+  }
+}
+
+}  // namespace
+
+void AddTrackCommand(CLI::App& app) {
+  auto args = std::make_shared<TrackArgs>();
+  CLI::App* cmd = app.add_subcommand("track", "Track one dipole (vessel) through a gradiometer pass");
+  cmd->add_option("--input", args->input, "pass file: t,sensor_id,sensor_x..z,B_x..B_z,T00..T22")->required();
+  cmd->add_option("--output", args->output, "track file: t,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z")
+      ->required();
+  AddVec3Option(*cmd, "--b0", &args->b0, "background field B0 in tesla, NED (default: the file's '# B0_T:')");
+  cmd->add_option("--mode", args->mode, "batch (whole pass) or window (fixed-lag, causal)")
+      ->check(CLI::IsMember({"batch", "window"}));
+  cmd->add_option("--window", args->window_s, "sliding-window length, s (window mode)");
+  cmd->add_option("--loss", args->loss, "robust loss on each sample: huber, cauchy or trivial")
+      ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
+  cmd->add_option("--loss-scale", args->loss_scale_sigma,
+                  "robust loss scale, in sigmas of the sample residual");
+  cmd->add_option("--q-position", args->process.position_m_per_sqrt_s, "position random walk, m/sqrt(s)");
+  cmd->add_option("--q-speed", args->process.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)");
+  cmd->add_option("--q-heading", args->process.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)");
+  cmd->add_option("--q-turn-rate", args->process.turn_rate_radps_per_sqrt_s,
+                  "turn-rate random walk, rad/s/sqrt(s)");
+  cmd->add_option("--q-turn-rate-window", args->process.window_turn_rate_radps_per_sqrt_s,
+                  "turn-rate random walk of the sliding window, rad/s/sqrt(s)");
+  cmd->add_option("--q-turn-rate-warmup", args->process.turn_rate_warmup_radps_per_sqrt_s,
+                  "turn-rate random walk of the batch warm-up pass (0 = none), rad/s/sqrt(s)");
+  cmd->add_option("--turn-loss", args->turn_loss,
+                  "robust loss on turn-rate changes: huber, cauchy or trivial")
+      ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
+  cmd->add_option("--turn-loss-scale", args->process.turn_rate_loss_scale_sigma,
+                  "turn-rate loss scale, in sigmas of one step");
+  cmd->callback([args] { RunTrack(*args); });
+}
+
+}  // namespace magnav::tools

@@ -1,0 +1,99 @@
+// Dipole (vessel) tracker: a coordinated-turn vessel with a body-fixed dipole
+// moment estimated from gradiometer samples by nonlinear least squares (Ceres).
+//
+// Frames and units: world = local NED (x north, y east, z down), metres. The
+// vessel state per epoch is p_VinW (m), speed (m/s), heading (rad from north,
+// clockwise seen from above) and turn rate (rad/s). The moment is in the BODY
+// frame (x forward, y starboard, z down), A·m², shared by all epochs; the world
+// moment is m_W = Rz(heading) m_B. B0_W is the constant background field (T)
+// subtracted from every B. Covariances are in the same units squared.
+//
+// Two modes:
+//  * SolveBatch: one problem over a whole pass (smoother), full covariance.
+//  * WindowTracker: fixed-lag sliding window fed one sample at a time; the
+//    epochs that leave the window are marginalised into a Gaussian prior on
+//    the oldest kept state and the moment. It emits one estimate per epoch
+//    (the newest state right after its window solve, i.e. a causal filter).
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <vector>
+
+#include "magnav/core/gradiometer.h"
+#include "magnav/tracker/options.h"
+
+namespace magnav::tracker {
+
+// Samples of all gradiometers taken at one instant.
+struct Epoch {
+  double t_s = 0.0;
+  std::vector<GradiometerSample> samples;
+};
+
+// Groups time-ordered samples into epochs (|Δt| ≤ tolerance_s). Throws
+// InputError if the samples are not ordered by time.
+std::vector<Epoch> GroupEpochs(const std::vector<GradiometerSample>& samples, double tolerance_s);
+
+// State vector layout of one epoch: [x, y, z, v, h, ω].
+using StateVector = Eigen::Matrix<double, 6, 1>;
+using StateCovariance = Eigen::Matrix<double, 6, 6>;
+
+struct EpochEstimate {
+  double t_s = 0.0;
+  Eigen::Vector3d p_VinW = Eigen::Vector3d::Zero();  // vessel (dipole) position, m
+  double speed_mps = 0.0;
+  double heading_rad = 0.0;  // wrapped to (−π, π]
+  double turn_rate_radps = 0.0;
+  int num_samples = 0;  // samples of this epoch in the problem
+  bool has_covariance = false;
+  StateCovariance cov_state = StateCovariance::Zero();  // order [x y z v h ω]
+
+  Eigen::Vector3d v_VinW() const;                                              // m/s, world NED
+  Eigen::Matrix3d cov_p_W() const { return cov_state.topLeftCorner<3, 3>(); }  // m²
+};
+
+struct TrackEstimate {
+  std::vector<EpochEstimate> epochs;
+  Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();  // body moment
+  Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();  // (A·m²)²
+  Summary summary;
+};
+
+// Batch solve over all epochs of a pass. If no track can be initialised the
+// result has summary.initialized == false and no epochs.
+TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                         const TrackerOptions& options);
+
+// Sliding-window (fixed-lag) tracker. Not thread-safe; one track.
+class WindowTracker {
+ public:
+  // Throws InputError if options are invalid.
+  WindowTracker(const Eigen::Vector3d& B0_W, const TrackerOptions& options);
+  ~WindowTracker();
+  WindowTracker(const WindowTracker&) = delete;
+  WindowTracker& operator=(const WindowTracker&) = delete;
+
+  // Adds one sample (non-decreasing time). A sample with a later time closes
+  // the current epoch, which is then processed; the returned estimates are
+  // those produced by that (usually one; at initialisation the whole buffered
+  // window; none while no track could be started).
+  std::vector<EpochEstimate> AddSample(const GradiometerSample& sample);
+  // Processes the pending epoch (end of stream).
+  std::vector<EpochEstimate> Flush();
+  // Processes one complete epoch directly (later than every previous one).
+  std::vector<EpochEstimate> AddEpoch(const Epoch& epoch);
+
+  bool initialized() const;
+  // Current body moment estimate and its covariance (valid once initialised).
+  Eigen::Vector3d m_B_Am2() const;
+  Eigen::Matrix3d cov_m_B() const;
+  // Summary of the last window solve.
+  const Summary& last_summary() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace magnav::tracker

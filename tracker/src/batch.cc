@@ -1,0 +1,196 @@
+#include <ceres/covariance.h>
+#include <ceres/solver.h>
+
+#include <chrono>
+#include <cmath>
+
+#include "factors.h"
+#include "magnav/core/error.h"
+#include "magnav/core/units.h"
+#include "magnav/tracker/cost_functions.h"
+#include "magnav/tracker/initialize.h"
+#include "magnav/tracker/tracker.h"
+
+namespace magnav::tracker {
+
+namespace {
+double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+}  // namespace
+
+TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                         const TrackerOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
+  const auto t_start = std::chrono::steady_clock::now();
+  TrackEstimate out;
+  Summary& sum = out.summary;
+  sum.num_epochs = static_cast<int>(epochs.size());
+
+  const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options);
+  if (!init) {
+    sum.message = "no track: too few strong single-sample fixes to initialise";
+    sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
+    return out;
+  }
+  sum.initialized = true;
+  sum.num_init_fixes = static_cast<int>(init->fixes.size());
+
+  // Parameters: one state per epoch (straight-line initial guess), one moment.
+  const double moment_scale = std::max(init->m_B_Am2.norm(), 1.0);
+  std::vector<StateVector> x(epochs.size());
+  for (std::size_t k = 0; k < epochs.size(); ++k) {
+    const CtState<double> s = PropagateCoordinatedTurn(init->state, epochs[k].t_s - init->t_ref_s);
+    x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+  }
+  Eigen::Vector3d moment = init->m_B_Am2 / moment_scale;
+
+  // Factors grouped by their earliest epoch (measurements of k, process k→k+1).
+  const auto turn_loss =
+      internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
+  std::vector<std::vector<internal::Factor>> factors(epochs.size());
+  std::vector<internal::Factor> warm_turn;  // Gaussian warm-up turn-rate factors
+  for (std::size_t k = 0; k < epochs.size(); ++k) {
+    internal::AddMeasurementFactors(epochs[k], B0_W, options, moment_scale, x[k].data(), moment.data(),
+                                    &factors[k]);
+    sum.num_samples += static_cast<int>(epochs[k].samples.size());
+    if (k + 1 < epochs.size()) {
+      const double dt = epochs[k + 1].t_s - epochs[k].t_s;
+      internal::AddProcessFactors(dt, options.process, turn_loss.get(), x[k].data(), x[k + 1].data(),
+                                  &factors[k]);
+      if (options.process.turn_rate_warmup_radps_per_sqrt_s > 0.0) {
+        internal::Factor w;
+        w.kind = internal::Factor::Kind::kTurnRate;
+        w.cost = std::make_unique<TurnRateCost>(dt, options.process.turn_rate_warmup_radps_per_sqrt_s);
+        w.blocks = {x[k].data(), x[k + 1].data()};
+        warm_turn.push_back(std::move(w));
+      }
+    }
+  }
+  // Growing solve: the initialiser's span first, then spans grown by
+  // batch_growth_factor with the new epochs predicted from the span's ends
+  // by the coordinated-turn model, until the whole pass is included.
+  std::size_t i0 = 0, i1 = epochs.size() - 1;
+  while (i0 + 1 < epochs.size() && epochs[i0].t_s < init->t_first_s) ++i0;
+  while (i1 > i0 && epochs[i1].t_s > init->t_last_s) --i1;
+  std::vector<internal::Factor*> measurements;
+  const auto build = [&](ceres::Problem* problem, bool warm) {
+    for (std::size_t k = i0; k <= i1; ++k) problem->AddParameterBlock(x[k].data(), 6);
+    problem->AddParameterBlock(moment.data(), 3);
+    for (std::size_t k = i0; k <= i1; ++k) {
+      for (const auto& f : factors[k]) {
+        const bool process = f.kind != internal::Factor::Kind::kMeasurement;
+        if (process && (k == i1 || (warm && f.kind == internal::Factor::Kind::kTurnRate))) continue;
+        internal::AddToProblem(f, problem);
+      }
+      if (warm && k < i1) internal::AddToProblem(warm_turn[k], problem);
+    }
+  };
+  const auto state_of = [&](std::size_t k) {
+    return CtState<double>{x[k](0), x[k](1), x[k](2), x[k](3), x[k](4), x[k](5)};
+  };
+  internal::PassResult pr;
+  for (int stage = 0;; ++stage) {
+    measurements.clear();
+    for (std::size_t k = i0; k <= i1; ++k) {
+      for (auto& f : factors[k]) {
+        if (f.kind == internal::Factor::Kind::kMeasurement) measurements.push_back(&f);
+      }
+    }
+    const bool last_stage = i0 == 0 && i1 + 1 == epochs.size();
+    internal::PassResult r = internal::SolveWithContinuation(options, options.max_num_iterations, !last_stage,
+                                                             measurements, !warm_turn.empty(), build);
+    if (stage == 0) pr.first_initial_cost = r.first_initial_cost;
+    pr.iterations += r.iterations;
+    pr.solve_time_s += r.solve_time_s;
+    pr.last = r.last;
+    pr.final_loss = std::move(r.final_loss);
+    if (i0 == 0 && i1 + 1 == epochs.size()) break;
+    const double grow = (epochs[i1].t_s - epochs[i0].t_s) * (options.batch_growth_factor - 1.0) * 0.5 + 1.0;
+    const std::size_t old0 = i0, old1 = i1;
+    while (i0 > 0 && epochs[i0 - 1].t_s >= epochs[old0].t_s - grow) --i0;
+    while (i1 + 1 < epochs.size() && epochs[i1 + 1].t_s <= epochs[old1].t_s + grow) ++i1;
+    // A span that would cover most of the pass becomes the whole pass (one
+    // stage less, the cost of a stage being proportional to its length).
+    if (3 * (i1 - i0 + 1) >= 2 * epochs.size()) {
+      i0 = 0;
+      i1 = epochs.size() - 1;
+    }
+    for (std::size_t k = old1 + 1; k <= i1; ++k) {
+      const CtState<double> s = PropagateCoordinatedTurn(state_of(old1), epochs[k].t_s - epochs[old1].t_s);
+      x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+    }
+    for (std::size_t k = i0; k < old0; ++k) {
+      const CtState<double> s = PropagateCoordinatedTurn(state_of(old0), epochs[k].t_s - epochs[old0].t_s);
+      x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+    }
+  }
+  const ceres::Solver::Summary& cs = pr.last;
+  sum.usable = cs.IsSolutionUsable();
+  sum.iterations = pr.iterations;
+  sum.initial_cost = pr.first_initial_cost;
+  sum.final_cost = cs.final_cost;
+  sum.solve_time_s = pr.solve_time_s;
+  sum.message = cs.message;
+
+  out.m_B_Am2 = moment * moment_scale;
+  out.epochs.resize(epochs.size());
+  for (std::size_t k = 0; k < epochs.size(); ++k) {
+    EpochEstimate& e = out.epochs[k];
+    e.t_s = epochs[k].t_s;
+    e.p_VinW = x[k].head<3>();
+    e.speed_mps = x[k](3);
+    e.heading_rad = WrapAngle(x[k](4));
+    e.turn_rate_radps = x[k](5);
+    e.num_samples = static_cast<int>(epochs[k].samples.size());
+  }
+
+  if (options.compute_covariance && sum.usable) {
+    const auto t_cov = std::chrono::steady_clock::now();
+    std::vector<StateCovariance> P(x.size());
+    Eigen::Matrix3d P_m;
+    if (options.covariance_method == TrackerOptions::CovarianceMethod::kChain) {
+      std::vector<double*> xs;
+      std::vector<std::vector<const internal::Factor*>> groups(x.size());
+      for (std::size_t k = 0; k < x.size(); ++k) {
+        xs.push_back(x[k].data());
+        for (const auto& f : factors[k]) groups[k].push_back(&f);
+      }
+      sum.covariance_ok = internal::ChainCovariance(xs, moment.data(), groups, &P, &P_m);
+    } else {
+      ceres::Covariance::Options co;
+      co.algorithm_type = ceres::SPARSE_QR;
+      co.num_threads = options.num_threads;
+      ceres::Covariance cov(co);
+      ceres::Problem problem(internal::NonOwningProblemOptions());
+      build(&problem, false);
+      std::vector<std::pair<const double*, const double*>> blocks;
+      for (auto& s : x) blocks.emplace_back(s.data(), s.data());
+      blocks.emplace_back(moment.data(), moment.data());
+      sum.covariance_ok = cov.Compute(blocks, &problem);
+      if (sum.covariance_ok) {
+        for (std::size_t k = 0; k < x.size(); ++k) {
+          Eigen::Matrix<double, 6, 6, Eigen::RowMajor> C;
+          cov.GetCovarianceBlock(x[k].data(), x[k].data(), C.data());
+          P[k] = C;
+        }
+        Eigen::Matrix<double, 3, 3, Eigen::RowMajor> Cm;
+        cov.GetCovarianceBlock(moment.data(), moment.data(), Cm.data());
+        P_m = Cm;
+      }
+    }
+    if (sum.covariance_ok) {
+      for (std::size_t k = 0; k < x.size(); ++k) {
+        out.epochs[k].cov_state = P[k];
+        out.epochs[k].has_covariance = true;
+      }
+      out.cov_m_B = P_m * (moment_scale * moment_scale);
+    }
+    sum.covariance_time_s = Seconds(t_cov, std::chrono::steady_clock::now());
+  }
+  sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
+  return out;
+}
+
+}  // namespace magnav::tracker

@@ -1,0 +1,201 @@
+#include "magnav/tracker/initialize.h"
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "magnav/core/dipole.h"
+#include "magnav/core/frames.h"
+#include "magnav/core/tensor.h"
+
+namespace magnav::tracker {
+
+namespace {
+
+double Median(std::vector<double> v) {
+  const std::size_t n = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n), v.end());
+  return v[n];
+}
+
+struct LineFit {
+  double t_ref = 0.0;
+  Eigen::Vector3d p_ref = Eigen::Vector3d::Zero();  // z: mean depth
+  Eigen::Vector2d v = Eigen::Vector2d::Zero();      // horizontal velocity
+  Eigen::Vector3d At(double t) const {
+    return {p_ref.x() + v.x() * (t - t_ref), p_ref.y() + v.y() * (t - t_ref), p_ref.z()};
+  }
+};
+
+// Least-squares x(t), y(t) lines and the mean depth over the selected fixes.
+LineFit FitLine(const std::vector<DipoleFix>& fixes, const std::vector<bool>& use) {
+  LineFit f;
+  double n = 0.0;
+  for (std::size_t i = 0; i < fixes.size(); ++i) {
+    if (!use[i]) continue;
+    f.t_ref += fixes[i].t_s;
+    f.p_ref += fixes[i].p_DinW;
+    n += 1.0;
+  }
+  f.t_ref /= n;
+  f.p_ref /= n;
+  double stt = 0.0;
+  Eigen::Vector2d stp = Eigen::Vector2d::Zero();
+  for (std::size_t i = 0; i < fixes.size(); ++i) {
+    if (!use[i]) continue;
+    const double dt = fixes[i].t_s - f.t_ref;
+    stt += dt * dt;
+    stp += dt * (fixes[i].p_DinW - f.p_ref).head<2>();
+  }
+  if (stt > 0.0) f.v = stp / stt;
+  return f;
+}
+
+}  // namespace
+
+double SigmaB(const GradiometerSample& s, const TrackerOptions& o) {
+  return s.sigma_B > 0.0 ? s.sigma_B : o.default_sigma_B_T;
+}
+double SigmaT(const GradiometerSample& s, const TrackerOptions& o) {
+  return s.sigma_T > 0.0 ? s.sigma_T : o.default_sigma_T_Tpm;
+}
+
+std::optional<Eigen::Vector3d> SingleSampleOffset(const Eigen::Vector3d& dB_W, const Eigen::Matrix3d& T) {
+  const double s = T.norm();
+  if (!(s > 0.0) || !std::isfinite(s) || !dB_W.allFinite()) return std::nullopt;
+  const SortedEigen eig = SortedEigenDecomposition(T);
+  const Eigen::Vector3d b3 = eig.vectors.col(eig.SmallestMagnitudeIndex());
+  Eigen::Matrix<double, 4, 3> A;
+  A.topRows<3>() = T / s;
+  A.row(3) = b3.transpose();
+  Eigen::Vector4d rhs;
+  rhs.head<3>() = -3.0 * dB_W / s;
+  rhs(3) = 0.0;
+  const Eigen::Vector3d r = A.jacobiSvd(Eigen::ComputeFullU | Eigen::ComputeFullV).solve(rhs);
+  if (!r.allFinite() || r.squaredNorm() == 0.0) return std::nullopt;
+  return r;
+}
+
+std::vector<DipoleFix> StrongFixes(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                   const TrackerOptions& options) {
+  std::vector<DipoleFix> fixes;
+  for (const Epoch& e : epochs) {
+    for (const GradiometerSample& s : e.samples) {
+      const double snr = s.T.norm() / SigmaT(s, options);
+      if (!(snr >= options.init.min_tensor_snr)) continue;
+      const auto r = SingleSampleOffset(s.B - B0_W, s.T);
+      if (!r) continue;
+      fixes.push_back(DipoleFix{e.t_s, s.sensor_id, s.p_SinW - *r, snr});
+    }
+  }
+  return fixes;
+}
+
+std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                            const TrackerOptions& options) {
+  const InitOptions& io = options.init;
+  std::vector<DipoleFix> all = StrongFixes(epochs, B0_W, options);
+  if (static_cast<int>(all.size()) < io.min_fixes) return std::nullopt;
+  // Strongest signal: largest running median over ±1 s of the SNR of all
+  // samples of one sensor (weak ones included, so an isolated bad sample
+  // cannot win).
+  // Per sensor, in time order: (t, SNR).
+  std::map<std::uint32_t, std::vector<std::pair<double, double>>> snr_by_sensor;
+  for (const Epoch& e : epochs) {
+    for (const GradiometerSample& s : e.samples) {
+      snr_by_sensor[s.sensor_id].emplace_back(e.t_s, s.T.norm() / SigmaT(s, options));
+    }
+  }
+  double t_peak = all.front().t_s, best = -1.0;
+  for (const auto& [id, snr_t] : snr_by_sensor) {
+    for (std::size_t i = 0, lo = 0, hi = 0; i < snr_t.size(); ++i) {
+      while (snr_t[lo].first < snr_t[i].first - 1.0) ++lo;
+      while (hi < snr_t.size() && snr_t[hi].first <= snr_t[i].first + 1.0) ++hi;
+      std::vector<double> snr;
+      for (std::size_t j = lo; j < hi; ++j) snr.push_back(snr_t[j].second);
+      const double med = Median(snr);
+      if (med > best) {
+        best = med;
+        t_peak = snr_t[i].first;
+      }
+    }
+  }
+  std::vector<DipoleFix> fixes;
+  for (const DipoleFix& f : all) {
+    if (std::abs(f.t_s - t_peak) <= 0.5 * io.span_s) fixes.push_back(f);
+  }
+  if (static_cast<int>(fixes.size()) < io.min_fixes) return std::nullopt;
+
+  // Robust line fit: refit without fixes far from the line (bad samples, or
+  // ill-conditioned single-sample inversions) until the inlier set settles.
+  std::vector<bool> use(fixes.size(), true);
+  LineFit line = FitLine(fixes, use);
+  for (int iter = 0; iter < 10; ++iter) {
+    std::vector<double> d(fixes.size()), d_in;
+    for (std::size_t i = 0; i < fixes.size(); ++i) {
+      d[i] = (fixes[i].p_DinW - line.At(fixes[i].t_s)).norm();
+      if (use[i]) d_in.push_back(d[i]);
+    }
+    const double sigma = 1.4826 * Median(d_in);
+    const double limit = std::max(io.outlier_threshold_mad * sigma, 1e-9);
+    std::vector<bool> next(fixes.size());
+    int n = 0;
+    for (std::size_t i = 0; i < fixes.size(); ++i) {
+      next[i] = d[i] <= limit;
+      n += next[i] ? 1 : 0;
+    }
+    if (n < io.min_fixes) return std::nullopt;
+    if (next == use) break;
+    use = next;
+    line = FitLine(fixes, use);
+  }
+
+  InitialTrack init;
+  double t_min = 1e300, t_max = -1e300;
+  for (std::size_t i = 0; i < fixes.size(); ++i) {
+    if (!use[i]) continue;
+    init.fixes.push_back(fixes[i]);
+    t_min = std::min(t_min, fixes[i].t_s);
+    t_max = std::max(t_max, fixes[i].t_s);
+  }
+  if (t_max - t_min < io.min_span_s) return std::nullopt;
+
+  init.t_ref_s = line.t_ref;
+  init.t_first_s = t_min;
+  init.t_last_s = t_max;
+  const double heading = std::atan2(line.v.y(), line.v.x());
+  init.state = CtState<double>{line.p_ref.x(), line.p_ref.y(), line.p_ref.z(), line.v.norm(), heading, 0.0};
+
+  // Body moment: median over the inlier fixes of Rz(h)ᵀ m_W, m_W fitted with
+  // the dipole on the line (less noisy than the single fixes).
+  const Eigen::Matrix3d R_WtoB = HeadingRotation(heading).transpose();
+  std::vector<double> mx, my, mz;
+  std::size_t k = 0;
+  for (const Epoch& e : epochs) {
+    for (const GradiometerSample& s : e.samples) {
+      if (k >= init.fixes.size()) break;
+      // Walk fixes and samples together (both in epoch/sample order).
+      const double snr = s.T.norm() / SigmaT(s, options);
+      if (!(snr >= io.min_tensor_snr) || e.t_s != init.fixes[k].t_s ||
+          s.sensor_id != init.fixes[k].sensor_id) {
+        continue;
+      }
+      ++k;
+      Eigen::Vector3d m_W;
+      if (!FitDipoleMoment(s.p_SinW - line.At(e.t_s), s.B - B0_W, s.T, SigmaB(s, options), SigmaT(s, options),
+                           &m_W)) {
+        continue;
+      }
+      const Eigen::Vector3d m_B = R_WtoB * m_W;
+      mx.push_back(m_B.x());
+      my.push_back(m_B.y());
+      mz.push_back(m_B.z());
+    }
+  }
+  if (mx.empty()) return std::nullopt;
+  init.m_B_Am2 = {Median(mx), Median(my), Median(mz)};
+  return init;
+}
+
+}  // namespace magnav::tracker

@@ -1,0 +1,402 @@
+#include <ceres/solver.h>
+
+#include <Eigen/Eigenvalues>
+#include <chrono>
+#include <cmath>
+#include <deque>
+
+#include "factors.h"
+#include "magnav/core/csv.h"
+#include "magnav/core/error.h"
+#include "magnav/core/units.h"
+#include "magnav/tracker/cost_functions.h"
+#include "magnav/tracker/initialize.h"
+#include "magnav/tracker/tracker.h"
+
+namespace magnav::tracker {
+
+namespace {
+
+// One epoch inside the window: its state and the factors it owns (its
+// measurements and the process factors to the next epoch).
+struct WindowEpoch {
+  Epoch epoch;
+  StateVector x = StateVector::Zero();
+  std::vector<internal::Factor> measurements;
+  std::vector<internal::Factor> to_next;
+};
+
+// Information on [a (6); b (6); m (3)]; eliminating a leaves information on
+// [b; m] (Schur complement), returned as H (9×9) and gradient g (9).
+void EliminateFirstState(const internal::LocalH& H, const internal::LocalG& g,
+                         Eigen::Matrix<double, 9, 9>* H_out, Eigen::Matrix<double, 9, 1>* g_out) {
+  const Eigen::Matrix<double, 6, 6> Haa = H.topLeftCorner<6, 6>();
+  const Eigen::Matrix<double, 6, 9> Har = H.topRightCorner<6, 9>();
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(Haa);
+  *H_out = H.bottomRightCorner<9, 9>() - Har.transpose() * ldlt.solve(Har);
+  *g_out = g.tail<9>() - Har.transpose() * ldlt.solve(g.head<6>());
+  *H_out = 0.5 * (*H_out + H_out->transpose());
+}
+
+double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+}  // namespace
+
+struct WindowTracker::Impl {
+  Eigen::Vector3d B0_W;
+  TrackerOptions options;
+  std::unique_ptr<ceres::LossFunction> meas_loss, turn_loss;
+
+  // Before a track exists: recent epochs, for the initialiser.
+  std::deque<Epoch> buffer;
+  // Sample stream: the epoch being filled.
+  bool has_pending = false;
+  Epoch pending;
+
+  bool initialized = false;
+  double moment_scale = 1.0;
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();  // m_B / moment_scale
+  Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();
+  std::deque<WindowEpoch> window;
+  internal::Factor prior;  // on (window.front().x, moment); cost null = none
+  Summary summary;
+  // Factorisation of the window at the current estimate (chain solver).
+  internal::ChainFactorization chain;
+  bool chain_ok = false;
+  bool chain_fresh = false;
+
+  void Append(const Epoch& e, const StateVector& x0) {
+    if (!window.empty()) {
+      WindowEpoch& last = window.back();
+      window.emplace_back();
+      window.back().x = x0;
+      ProcessNoise q = options.process;
+      q.turn_rate_radps_per_sqrt_s = q.window_turn_rate_radps_per_sqrt_s;
+      internal::AddProcessFactors(e.t_s - last.epoch.t_s, q, turn_loss.get(), last.x.data(),
+                                  window.back().x.data(), &last.to_next);
+    } else {
+      window.emplace_back();
+      window.back().x = x0;
+    }
+    WindowEpoch& w = window.back();
+    w.epoch = e;
+    internal::AddMeasurementFactors(e, B0_W, options, moment_scale, w.x.data(), moment.data(),
+                                    &w.measurements);
+    for (auto& f : w.measurements) f.loss = meas_loss.get();
+  }
+
+  // Local system over [front state, second state, moment] from the factors of
+  // the front epoch (prior, measurements, process to the next).
+  void FrontSystem(const WindowEpoch& a, const WindowEpoch* b, internal::LocalH* H, internal::LocalG* g,
+                   const internal::Factor* prior_factor) const {
+    H->setZero();
+    g->setZero();
+    const double* m = moment.data();
+    const auto offset = [&](const double* p) -> int {
+      if (p == a.x.data()) return 0;
+      if (b != nullptr && p == b->x.data()) return 6;
+      if (p == m) return 12;
+      return -1;
+    };
+    if (prior_factor != nullptr && prior_factor->cost)
+      internal::AccumulateFactor(*prior_factor, offset, H, g);
+    for (const auto& f : a.measurements) internal::AccumulateFactor(f, offset, H, g);
+    if (b != nullptr) {
+      for (const auto& f : a.to_next) internal::AccumulateFactor(f, offset, H, g);
+    }
+  }
+
+  // Drops the oldest epoch, folding its information into the prior.
+  void MarginalizeFront() {
+    WindowEpoch& a = window[0];
+    WindowEpoch& b = window[1];
+    internal::LocalH H;
+    internal::LocalG g;
+    FrontSystem(a, &b, &H, &g, &prior);
+    Eigen::Matrix<double, 9, 9> Hm;
+    Eigen::Matrix<double, 9, 1> gm;
+    EliminateFirstState(H, g, &Hm, &gm);
+    // ½ δᵀHδ + gᵀδ = ½‖Lδ + c‖² + const with H = V Λ Vᵀ, L = Λ^½ Vᵀ,
+    // c = Λ^-½ Vᵀ g (directions with no information are dropped).
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 9, 9>> es(Hm);
+    const Eigen::Matrix<double, 9, 1> lam = es.eigenvalues();
+    const double floor = std::max(lam.maxCoeff(), 0.0) * 1e-14;
+    Eigen::Matrix<double, 9, 9> L = Eigen::Matrix<double, 9, 9>::Zero();
+    Eigen::Matrix<double, 9, 1> c = Eigen::Matrix<double, 9, 1>::Zero();
+    const Eigen::Matrix<double, 9, 9> Vt = es.eigenvectors().transpose();
+    for (int i = 0; i < 9; ++i) {
+      if (lam(i) <= floor) continue;
+      const double s = std::sqrt(lam(i));
+      L.row(i) = s * Vt.row(i);
+      c(i) = Vt.row(i).dot(gm) / s;
+    }
+    Eigen::Matrix<double, 9, 1> x_bar;
+    x_bar << b.x, moment;
+    internal::Factor next;
+    next.cost = std::make_unique<PriorCost>(L, x_bar, c);
+    next.blocks = {b.x.data(), moment.data()};
+    prior = std::move(next);
+    window.pop_front();
+  }
+
+  // Marginal covariance of the newest state and of the moment (chain
+  // selected inversion over the window, prior included).
+  bool NewestCovariance(StateCovariance* P_state, Eigen::Matrix3d* P_moment) {
+    if (!chain_fresh)
+      chain_fresh = internal::FactorizeChain(StatePointers(), moment.data(), Groups(), &chain);
+    std::vector<StateCovariance> P;
+    Eigen::Matrix3d Pm;
+    if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
+    *P_state = P.back();
+    *P_moment = Pm * (moment_scale * moment_scale);
+    return true;
+  }
+
+  EpochEstimate Estimate(const WindowEpoch& w) const {
+    EpochEstimate e;
+    e.t_s = w.epoch.t_s;
+    e.p_VinW = w.x.head<3>();
+    e.speed_mps = w.x(3);
+    e.heading_rad = WrapAngle(w.x(4));
+    e.turn_rate_radps = w.x(5);
+    e.num_samples = static_cast<int>(w.epoch.samples.size());
+    return e;
+  }
+
+  void BuildProblem(ceres::Problem* problem) {
+    for (auto& w : window) problem->AddParameterBlock(w.x.data(), 6);
+    problem->AddParameterBlock(moment.data(), 3);
+    if (prior.cost) internal::AddToProblem(prior, problem);
+    for (const auto& w : window) {
+      for (const auto& f : w.measurements) internal::AddToProblem(f, problem);
+      for (const auto& f : w.to_next) internal::AddToProblem(f, problem);
+    }
+  }
+
+  std::vector<std::vector<const internal::Factor*>> Groups() const {
+    std::vector<std::vector<const internal::Factor*>> groups(window.size());
+    for (std::size_t k = 0; k < window.size(); ++k) {
+      if (k == 0 && prior.cost) groups[k].push_back(&prior);
+      for (const auto& f : window[k].measurements) groups[k].push_back(&f);
+      for (const auto& f : window[k].to_next) groups[k].push_back(&f);
+    }
+    return groups;
+  }
+
+  std::vector<double*> StatePointers() {
+    std::vector<double*> xs;
+    for (auto& w : window) xs.push_back(w.x.data());
+    return xs;
+  }
+
+  // Gauss-Newton on the window by chain elimination, with step halving;
+  // leaves the factorisation at the final point in `chain` (for covariance).
+  void ChainGaussNewton(ceres::Solver::Summary* cs, int* iterations, double* initial_cost) {
+    const auto groups = Groups();
+    const std::vector<double*> xs = StatePointers();
+    double cost = internal::TotalCost(groups);
+    *initial_cost = cost;
+    *iterations = 0;
+    chain_ok = internal::FactorizeChain(xs, moment.data(), groups, &chain);
+    cs->termination_type = ceres::CONVERGENCE;
+    cs->message = "chain Gauss-Newton";
+    std::vector<StateVector> dx;
+    Eigen::Vector3d dm;
+    std::vector<StateVector> x0(window.size());
+    for (int it = 0; chain_ok && it < options.window_max_num_iterations; ++it) {
+      internal::ChainStep(chain, &dx, &dm);
+      for (std::size_t k = 0; k < window.size(); ++k) x0[k] = window[k].x;
+      const Eigen::Vector3d m0 = moment;
+      double alpha = 1.0, new_cost = cost;
+      bool accepted = false;
+      for (int halving = 0; halving < 5 && !accepted; ++halving, alpha *= 0.5) {
+        for (std::size_t k = 0; k < window.size(); ++k) window[k].x = x0[k] + alpha * dx[k];
+        moment = m0 + alpha * dm;
+        new_cost = internal::TotalCost(groups);
+        accepted = new_cost <= cost;
+      }
+      if (!accepted) {
+        for (std::size_t k = 0; k < window.size(); ++k) window[k].x = x0[k];
+        moment = m0;
+        break;
+      }
+      ++*iterations;
+      const double decrease = cost - new_cost;
+      cost = new_cost;
+      chain_ok = internal::FactorizeChain(xs, moment.data(), groups, &chain);
+      if (decrease <= options.window_function_tolerance * cost) break;
+    }
+    cs->initial_cost = *initial_cost;
+    cs->final_cost = cost;
+    if (!chain_ok) {
+      cs->termination_type = ceres::FAILURE;
+      cs->message = "chain Gauss-Newton: singular window information";
+    }
+    chain_fresh = chain_ok;
+  }
+
+  // Solves the window; `start` = first solve from the initialiser's guess
+  // (robust-loss continuation, more iterations).
+  void Solve(bool start) {
+    const auto t0 = std::chrono::steady_clock::now();
+    chain_fresh = false;
+    ceres::Solver::Summary cs;
+    int iterations = 0;
+    double initial_cost = 0.0, solve_time = 0.0;
+    if (start) {
+      std::vector<internal::Factor*> meas;
+      for (auto& w : window) {
+        for (auto& f : w.measurements) meas.push_back(&f);
+      }
+      internal::PassResult pr =
+          internal::SolveWithContinuation(options, options.max_num_iterations, false, meas, false,
+                                          [this](ceres::Problem* problem, bool) { BuildProblem(problem); });
+      for (auto* f : meas) f->loss = meas_loss.get();  // the nominal loss from now on
+      cs = pr.last;
+      iterations = pr.iterations;
+      initial_cost = pr.first_initial_cost;
+      solve_time = pr.solve_time_s;
+    } else if (options.window_solver == TrackerOptions::WindowSolver::kChainGaussNewton) {
+      ChainGaussNewton(&cs, &iterations, &initial_cost);
+      solve_time = Seconds(t0, std::chrono::steady_clock::now());
+    } else {
+      ceres::Problem problem(internal::NonOwningProblemOptions());
+      BuildProblem(&problem);
+      ceres::Solver::Options so;
+      so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+      so.max_num_iterations = options.window_max_num_iterations;
+      so.function_tolerance = options.window_function_tolerance;
+      so.gradient_tolerance = options.gradient_tolerance;
+      so.parameter_tolerance = options.parameter_tolerance;
+      so.num_threads = options.num_threads;
+      ceres::Solve(so, &problem, &cs);
+      iterations = static_cast<int>(cs.iterations.size()) - 1;
+      initial_cost = cs.initial_cost;
+      solve_time = cs.total_time_in_seconds;
+    }
+    int num_samples = 0;
+    for (const auto& w : window) num_samples += static_cast<int>(w.epoch.samples.size());
+    summary.initialized = true;
+    summary.usable = cs.IsSolutionUsable();
+    summary.num_epochs = static_cast<int>(window.size());
+    summary.num_samples = num_samples;
+    summary.iterations = iterations;
+    summary.initial_cost = initial_cost;
+    summary.final_cost = cs.final_cost;
+    summary.solve_time_s = solve_time;
+    summary.message = cs.message;
+    summary.covariance_ok = false;
+    summary.covariance_time_s = 0.0;
+    summary.total_time_s = Seconds(t0, std::chrono::steady_clock::now());
+  }
+
+  std::vector<EpochEstimate> Process(const Epoch& e) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!initialized) {
+      buffer.push_back(e);
+      while (e.t_s - buffer.front().t_s > options.window_s + options.epoch_tolerance_s) buffer.pop_front();
+      const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
+      const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options);
+      if (!init) return {};
+      initialized = true;
+      moment_scale = std::max(init->m_B_Am2.norm(), 1.0);
+      moment = init->m_B_Am2 / moment_scale;
+      for (const Epoch& b : epochs) {
+        const CtState<double> s = PropagateCoordinatedTurn(init->state, b.t_s - init->t_ref_s);
+        StateVector x0;
+        x0 << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+        Append(b, x0);
+      }
+      buffer.clear();
+      Solve(true);
+      summary.num_init_fixes = static_cast<int>(init->fixes.size());
+    } else {
+      const WindowEpoch& last = window.back();
+      const CtState<double> s0{last.x(0), last.x(1), last.x(2), last.x(3), last.x(4), last.x(5)};
+      const CtState<double> s = PropagateCoordinatedTurn(s0, e.t_s - last.epoch.t_s);
+      StateVector x0;
+      x0 << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+      Append(e, x0);
+      while (window.size() > 2 &&
+             e.t_s - window.front().epoch.t_s > options.window_s + options.epoch_tolerance_s) {
+        MarginalizeFront();
+      }
+      Solve(false);
+      summary.num_init_fixes = 0;
+    }
+    EpochEstimate est = Estimate(window.back());
+    if (options.compute_covariance && summary.usable) {
+      const auto tc = std::chrono::steady_clock::now();
+      StateCovariance P;
+      Eigen::Matrix3d Pm;
+      if (NewestCovariance(&P, &Pm)) {
+        est.cov_state = P;
+        est.has_covariance = true;
+        cov_m_B = Pm;
+        summary.covariance_ok = true;
+      }
+      summary.covariance_time_s = Seconds(tc, std::chrono::steady_clock::now());
+    }
+    summary.total_time_s = Seconds(t0, std::chrono::steady_clock::now());
+    return {est};
+  }
+};
+
+WindowTracker::WindowTracker(const Eigen::Vector3d& B0_W, const TrackerOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
+  impl_->B0_W = B0_W;
+  impl_->options = options;
+  impl_->meas_loss = internal::MakeLoss(options.measurement_loss, options.measurement_loss_scale_sigma);
+  impl_->turn_loss =
+      internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
+}
+
+WindowTracker::~WindowTracker() = default;
+
+std::vector<EpochEstimate> WindowTracker::AddSample(const GradiometerSample& sample) {
+  Impl& m = *impl_;
+  if (!std::isfinite(sample.t_s)) throw InputError("tracker: sample time is not finite");
+  if (m.has_pending && std::abs(sample.t_s - m.pending.t_s) <= m.options.epoch_tolerance_s) {
+    m.pending.samples.push_back(sample);
+    return {};
+  }
+  if (m.has_pending && sample.t_s < m.pending.t_s) {
+    throw InputError("tracker: sample time " + FormatNumber(sample.t_s) +
+                     " s is earlier than the current epoch " + FormatNumber(m.pending.t_s) + " s");
+  }
+  std::vector<EpochEstimate> out;
+  if (m.has_pending) out = AddEpoch(m.pending);
+  m.pending = Epoch{sample.t_s, {sample}};
+  m.has_pending = true;
+  return out;
+}
+
+std::vector<EpochEstimate> WindowTracker::Flush() {
+  Impl& m = *impl_;
+  if (!m.has_pending) return {};
+  m.has_pending = false;
+  return AddEpoch(m.pending);
+}
+
+std::vector<EpochEstimate> WindowTracker::AddEpoch(const Epoch& epoch) {
+  Impl& m = *impl_;
+  const double last_t =
+      m.initialized ? m.window.back().epoch.t_s
+                    : (m.buffer.empty() ? -std::numeric_limits<double>::infinity() : m.buffer.back().t_s);
+  if (!(epoch.t_s > last_t + m.options.epoch_tolerance_s)) {
+    throw InputError("tracker: epoch at " + FormatNumber(epoch.t_s) +
+                     " s is not later than the previous one");
+  }
+  return m.Process(epoch);
+}
+
+bool WindowTracker::initialized() const { return impl_->initialized; }
+Eigen::Vector3d WindowTracker::m_B_Am2() const { return impl_->moment * impl_->moment_scale; }
+Eigen::Matrix3d WindowTracker::cov_m_B() const { return impl_->cov_m_B; }
+const Summary& WindowTracker::last_summary() const { return impl_->summary; }
+
+}  // namespace magnav::tracker
