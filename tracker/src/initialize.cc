@@ -1,6 +1,5 @@
 #include "magnav/tracker/initialize.h"
 
-#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -8,6 +7,8 @@
 #include "magnav/core/dipole.h"
 #include "magnav/core/frames.h"
 #include "magnav/core/tensor.h"
+#include "magnav/inversion/analytic.h"
+#include "magnav/inversion/inverter.h"
 
 namespace magnav::tracker {
 
@@ -62,19 +63,14 @@ double SigmaT(const GradiometerSample& s, const TrackerOptions& o) {
 }
 
 std::optional<Eigen::Vector3d> SingleSampleOffset(const Eigen::Vector3d& dB_W, const Eigen::Matrix3d& T) {
-  const double s = T.norm();
-  if (!(s > 0.0) || !std::isfinite(s) || !dB_W.allFinite()) return std::nullopt;
-  const SortedEigen eig = SortedEigenDecomposition(T);
-  const Eigen::Vector3d b3 = eig.vectors.col(eig.SmallestMagnitudeIndex());
-  Eigen::Matrix<double, 4, 3> A;
-  A.topRows<3>() = T / s;
-  A.row(3) = b3.transpose();
-  Eigen::Vector4d rhs;
-  rhs.head<3>() = -3.0 * dB_W / s;
-  rhs(3) = 0.0;
-  const Eigen::Vector3d r = A.jacobiSvd(Eigen::ComputeFullU | Eigen::ComputeFullV).solve(rhs);
-  if (!r.allFinite() || r.squaredNorm() == 0.0) return std::nullopt;
-  return r;
+  // The inverter's TED+EGT (scaled 4×3 pseudo-inverse), with its default
+  // eigenvector-row weight.
+  inversion::AnalyticSolution sol;
+  if (!inversion::SolveTedEgt(T, dB_W, inversion::InverterOptions{}.egt_row_weight, inversion::NoiseSigmas{}, &sol) ||
+      !sol.r_DtoS.allFinite() || sol.r_DtoS.squaredNorm() == 0.0) {
+    return std::nullopt;
+  }
+  return sol.r_DtoS;
 }
 
 std::vector<DipoleFix> StrongFixes(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,

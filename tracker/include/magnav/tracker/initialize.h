@@ -21,11 +21,9 @@
 
 namespace magnav::tracker {
 
-// Offset r_DtoS (m, dipole → sensor) from one sample by scaled TED+EGT:
-// with s = ‖T‖_F and b3 the unit eigenvector of the eigenvalue of smallest
-// magnitude, solve [T/s; b3ᵀ] r = [−3 (B − B0)/s; 0] by pseudo-inverse.
+// Offset r_DtoS (m, dipole → sensor) from one sample by the inverter's scaled
+// TED+EGT (magnav::inversion::SolveTedEgt with its default row weight).
 // dB_W = B − B0 (T), T in T/m. nullopt if T = 0 or the result is not finite.
-// (Self-contained stand-in for magnav::inversion; one function to swap.)
 std::optional<Eigen::Vector3d> SingleSampleOffset(const Eigen::Vector3d& dB_W, const Eigen::Matrix3d& T);
 
 struct DipoleFix {
