@@ -1,33 +1,41 @@
 #!/usr/bin/env bash
 # Service load benchmark on loopback: source -> NODE -> sink, where NODE is the
-# plain relay (baseline) and then each service given. Same rate and duration
-# for all, one after the other in this run.
+# plain relay (baseline) and then each service given, one after the other in
+# this run, in two phases:
+#   throughput: RATE_PER_S for DURATION_S (sustained rate, loss, latency under load)
+#   latency:    LAT_RATE_PER_S (default 1000) for LAT_DURATION_S (default 20):
+#               the hop latency without queueing, so the service's own cost shows
 #   bench/service_load.sh RATE_PER_S DURATION_S [SERVICE_BIN ...]
-# e.g. bench/service_load.sh 50000 60 build/bin/magnav-inverter
+# e.g. bench/service_load.sh 50000 60 "build/bin/magnav-inverter --b0 2e-05,1e-06,4.5e-05"
 set -euo pipefail
 cd "$(dirname "$0")/.."
 RATE=${1:-50000}; DUR=${2:-60}; shift 2 || true
+SERVICES=("$@")
 BIN=${MAGNAV_BUILD_DIR:-build}/bin
 DATA=tests/data/reference/track_pass_auv_4sensor_fluxgate.csv
-EXPECTED=$(python3 -c "print(int($RATE*$DUR))")
+LAT_RATE=${LAT_RATE:-1000}; LAT_DUR=${LAT_DUR:-20}
 export MAGNAV_DOMAIN_ID=${MAGNAV_DOMAIN_ID:-$(( $$ % 200 + 10 ))}
 unset MAGNAV_DDS_PROFILES MAGNAV_DDS_PARTICIPANT
 
-run() {  # run NAME CMD...
-  local name=$1; shift
+run() {  # run NAME RATE DURATION CMD...
+  local name=$1 rate=$2 dur=$3; shift 3
+  local expected=$(( ${rate%.*} * ${dur%.*} ))
   local sink_out; sink_out=$(mktemp)
-  "$BIN/bench_dds_sink" "$EXPECTED" 2 5 > "$sink_out" &
+  "$BIN/bench_dds_sink" "$expected" 2 5 > "$sink_out" &
   local sink=$!
   "$@" > /dev/null 2>&1 &
   local node=$!
   until grep -q "sink ready" "$sink_out"; do sleep 0.1; done
-  local src; src=$("$BIN/bench_dds_source" "$DATA" "$RATE" "$DUR")
+  local src; src=$("$BIN/bench_dds_source" "$DATA" "$rate" "$dur")
   wait "$sink"
   kill -TERM "$node"; wait "$node" || true
-  echo "$name: $src | $(grep '^sink received' "$sink_out")"
+  echo "$name @ $rate/s: $src | $(grep '^sink received' "$sink_out")"
   rm -f "$sink_out"
 }
 
-echo "# $(date -u +%F) $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores; rate $RATE/s for $DUR s; domain $MAGNAV_DOMAIN_ID"
-run relay "$BIN/bench_dds_relay"
-for svc in "$@"; do run "$(basename "$svc")" "$svc"; done
+echo "# $(date -u '+%F %H:%M') UTC, $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg); domain $MAGNAV_DOMAIN_ID"
+for phase in "$RATE $DUR" "$LAT_RATE $LAT_DUR"; do
+  set -- $phase "${SERVICES[@]}"
+  run relay "$1" "$2" "$BIN/bench_dds_relay"
+  for svc in "${SERVICES[@]}"; do run "$(basename "${svc%% *}")" "$1" "$2" $svc; done
+done

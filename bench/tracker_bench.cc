@@ -64,9 +64,11 @@ void BM_WindowUpdatePerEpoch(benchmark::State& state) {
 BENCHMARK(BM_WindowUpdatePerEpoch)->Arg(1)->Arg(4)->Unit(benchmark::kMicrosecond);
 
 // Batch solve (growing solve + chain covariance) of the 200 s pass (2001 epochs).
+// Args: sensors, Ceres threads (the machine has 2 cores).
 void BM_BatchSolve200s(benchmark::State& state) {
   const Pass& pass = LoadPass(PassName(state.range(0)));
-  const magnav::tracker::TrackerOptions opt;
+  magnav::tracker::TrackerOptions opt;
+  opt.num_threads = static_cast<int>(state.range(1));
   int iterations = 0;
   for (auto _ : state) {
     const auto est = magnav::tracker::SolveBatch(pass.epochs, pass.B0, opt);
@@ -76,8 +78,16 @@ void BM_BatchSolve200s(benchmark::State& state) {
   state.counters["sensors"] = static_cast<double>(state.range(0));
   state.counters["epochs"] = static_cast<double>(pass.epochs.size());
   state.counters["ceres_iterations"] = iterations;
+  state.counters["threads"] = static_cast<double>(opt.num_threads);
 }
-BENCHMARK(BM_BatchSolve200s)->Arg(1)->Arg(4)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_BatchSolve200s)
+    ->Args({1, 1})
+    ->Args({4, 1})
+    ->Args({1, 2})
+    ->Args({4, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(2.0)
+    ->UseRealTime();
 
 }  // namespace
 
