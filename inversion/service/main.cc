@@ -47,7 +47,7 @@ int main(int argc, char** argv) {
   magnav::dds::AddDdsOptions(app, &dds_args);
   CLI11_PARSE(app, argc, argv);
 
-  try {
+  return magnav::dds::RunService("magnav-inverter", [&] {
     if (!b0.empty()) opt.B0_W = ParseVec3("--b0", b0);
     magnav::dds::InstallShutdownHandlers();
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-inverter"));
@@ -64,22 +64,13 @@ int main(int argc, char** argv) {
     }
     spdlog::info("magnav-inverter: method {} on domain {}", method, node.domain_id());
     std::uint64_t last = 0;
-    while (!magnav::dds::WaitForShutdown(std::chrono::milliseconds(
-        stats_period_s > 0 ? static_cast<long>(stats_period_s * 1000) : 1000))) {
-      if (stats_period_s <= 0) continue;
+    magnav::dds::RunUntilShutdown(stats_period_s, [&] {
       const std::uint64_t n = inverter->processed();
       spdlog::info("magnav-inverter: {} samples ({:.0f}/s), {} fixes, {} lost, {} handler errors", n,
                    (n - last) / stats_period_s, inverter->published(), inverter->input_stats().lost.load(),
                    inverter->input_stats().callback_errors.load());
       last = n;
-    }
+    });
     spdlog::info("magnav-inverter: stopping after {} samples", inverter->processed());
-  } catch (const InputError& e) {
-    std::fprintf(stderr, "magnav-inverter: error: %s\n", e.what());
-    return 2;
-  } catch (const magnav::dds::DdsError& e) {
-    std::fprintf(stderr, "magnav-inverter: DDS error: %s\n", e.what());
-    return 4;
-  }
-  return 0;
+  });
 }

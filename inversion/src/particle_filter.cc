@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numbers>
 
@@ -121,12 +122,13 @@ double DipoleParticleFilter::Normal() {
   return x;
 }
 
-void DipoleParticleFilter::InitializeAround(const Vec3& p_DinW, double position_sigma_m, double t_s) {
+void DipoleParticleFilter::InitializeWith(const std::function<Vec3()>& draw_position, double t_s) {
   const std::size_t n = px_.size();
   for (std::size_t i = 0; i < n; ++i) {
-    px_[i] = p_DinW.x() + position_sigma_m * Normal();
-    py_[i] = p_DinW.y() + position_sigma_m * Normal();
-    pz_[i] = p_DinW.z() + position_sigma_m * Normal();
+    const Vec3 p = draw_position();
+    px_[i] = p.x();
+    py_[i] = p.y();
+    pz_[i] = p.z();
     const double speed = options_.init_speed_max_mps * Uniform();
     const double heading = 2.0 * std::numbers::pi * Uniform();
     vx_[i] = speed * std::cos(heading);
@@ -137,6 +139,18 @@ void DipoleParticleFilter::InitializeAround(const Vec3& p_DinW, double position_
   ess_ = static_cast<double>(n);
   estimate_valid_ = false;
   initialized_ = true;
+}
+
+void DipoleParticleFilter::InitializeAround(const Vec3& p_DinW, double position_sigma_m, double t_s) {
+  InitializeWith(
+      [&] {
+        // Draw order x, y, z (the stream of a seed stays the same).
+        const double x = p_DinW.x() + position_sigma_m * Normal();
+        const double y = p_DinW.y() + position_sigma_m * Normal();
+        const double z = p_DinW.z() + position_sigma_m * Normal();
+        return Vec3(x, y, z);
+      },
+      t_s);
 }
 
 void DipoleParticleFilter::InitializeAround(const Vec3& p_DinW, double position_sigma_m,
@@ -150,21 +164,14 @@ void DipoleParticleFilter::InitializeAround(const Vec3& p_DinW, double position_
 }
 
 void DipoleParticleFilter::InitializeBox(const Vec3& lo_W, const Vec3& hi_W, double t_s) {
-  const std::size_t n = px_.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    px_[i] = lo_W.x() + (hi_W.x() - lo_W.x()) * Uniform();
-    py_[i] = lo_W.y() + (hi_W.y() - lo_W.y()) * Uniform();
-    pz_[i] = lo_W.z() + (hi_W.z() - lo_W.z()) * Uniform();
-    const double speed = options_.init_speed_max_mps * Uniform();
-    const double heading = 2.0 * std::numbers::pi * Uniform();
-    vx_[i] = speed * std::cos(heading);
-    vy_[i] = speed * std::sin(heading);
-    w_[i] = 1.0 / static_cast<double>(n);
-  }
-  t_s_ = t_s;
-  ess_ = static_cast<double>(n);
-  estimate_valid_ = false;
-  initialized_ = true;
+  InitializeWith(
+      [&] {
+        const double x = lo_W.x() + (hi_W.x() - lo_W.x()) * Uniform();
+        const double y = lo_W.y() + (hi_W.y() - lo_W.y()) * Uniform();
+        const double z = lo_W.z() + (hi_W.z() - lo_W.z()) * Uniform();
+        return Vec3(x, y, z);
+      },
+      t_s);
 }
 
 void DipoleParticleFilter::Predict(double t_s) {

@@ -24,6 +24,29 @@ namespace {
 using namespace std::chrono_literals;
 namespace msg = ::magnav::msg;
 
+// Publishes samples to the magnav-inverter running on `domain` and returns the
+// fixes it publishes, in order (the service answers every sample).
+std::vector<msg::DipoleFix> Exchange(int domain, const std::vector<GradiometerSample>& samples) {
+  std::mutex mu;
+  std::vector<msg::DipoleFix> fixes;
+  dds::NodeOptions o;
+  o.name = "inverter_service_test";
+  o.domain_id = domain;
+  dds::Node node(o);
+  auto reader = node.CreateReader<msg::DipoleFix>([&](const msg::DipoleFix& f, const auto&) {
+    std::lock_guard<std::mutex> lk(mu);
+    fixes.push_back(f);
+  });
+  auto writer = node.CreateWriter<msg::GradiometerSample>();
+  EXPECT_TRUE(writer->WaitForMatched(1, 20s));
+  EXPECT_TRUE(reader->WaitForMatched(1, 20s));
+  for (std::size_t i = 0; i < samples.size(); ++i) EXPECT_TRUE(writer->Write(dds::ToMsg(samples[i], i)));
+  EXPECT_TRUE(reader->WaitForSamples(samples.size(), 20s)) << reader->stats().samples.load();
+  reader.reset();
+  std::lock_guard<std::mutex> lk(mu);
+  return fixes;
+}
+
 TEST(InverterService, FixForEverySampleBadOnesRejectedServiceSurvives) {
   const int domain = 10 + static_cast<int>(getpid() % 200);
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_squid.csv"));
@@ -52,23 +75,7 @@ TEST(InverterService, FixForEverySampleBadOnesRejectedServiceSurvives) {
 
   testing::Subprocess service({MAGNAV_INVERTER, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
                               {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});
-  std::mutex mu;
-  std::vector<msg::DipoleFix> fixes;
-  {
-    dds::NodeOptions o;
-    o.name = "inverter_service_test";
-    o.domain_id = domain;
-    dds::Node node(o);
-    auto reader = node.CreateReader<msg::DipoleFix>([&](const msg::DipoleFix& f, const auto&) {
-      std::lock_guard<std::mutex> lk(mu);
-      fixes.push_back(f);
-    });
-    auto writer = node.CreateWriter<msg::GradiometerSample>();
-    ASSERT_TRUE(writer->WaitForMatched(1, 20s));
-    ASSERT_TRUE(reader->WaitForMatched(1, 20s));
-    for (std::size_t i = 0; i < input.size(); ++i) ASSERT_TRUE(writer->Write(dds::ToMsg(input[i], i)));
-    ASSERT_TRUE(reader->WaitForSamples(input.size(), 20s)) << reader->stats().samples.load();
-  }
+  const std::vector<msg::DipoleFix> fixes = Exchange(domain, input);
   service.Signal(SIGTERM);
   EXPECT_EQ(service.Wait(10s), 0) << "the service must stop cleanly after bad input";
 
@@ -76,7 +83,6 @@ TEST(InverterService, FixForEverySampleBadOnesRejectedServiceSurvives) {
   InverterOptions options;
   options.B0_W = *file.B0;
   Inverter inverter(options);
-  std::lock_guard<std::mutex> lk(mu);
   ASSERT_EQ(fixes.size(), input.size());
   const std::vector<std::string> bad_reasons = {"non_finite", "zero_tensor", "asymmetric", "non_finite"};
   int valid = 0;
@@ -108,26 +114,9 @@ TEST(InverterService, ReadsOptionsFromAConfigFile) {
   testing::Subprocess service({MAGNAV_INVERTER, "--config", cfg, "--stats-period", "0"},
                               {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_squid.csv"));
-  std::mutex mu;
-  std::vector<msg::DipoleFix> fixes;
-  {
-    dds::NodeOptions o;
-    o.name = "inverter_config_test";
-    o.domain_id = domain;
-    dds::Node node(o);
-    auto reader = node.CreateReader<msg::DipoleFix>([&](const msg::DipoleFix& f, const auto&) {
-      std::lock_guard<std::mutex> lk(mu);
-      fixes.push_back(f);
-    });
-    auto writer = node.CreateWriter<msg::GradiometerSample>();
-    ASSERT_TRUE(writer->WaitForMatched(1, 20s));
-    ASSERT_TRUE(reader->WaitForMatched(1, 20s));
-    ASSERT_TRUE(writer->Write(dds::ToMsg(file.samples[750], 0)));  // t = 75 s, strongest signal
-    ASSERT_TRUE(reader->WaitForSamples(1, 20s));
-  }
+  const std::vector<msg::DipoleFix> fixes = Exchange(domain, {file.samples[750]});  // t = 75 s, strongest signal
   service.Signal(SIGTERM);
   EXPECT_EQ(service.Wait(10s), 0);
-  std::lock_guard<std::mutex> lk(mu);
   ASSERT_EQ(fixes.size(), 1u);
   EXPECT_EQ(fixes[0].method(), msg::METHOD_TED);
   EXPECT_FALSE(fixes[0].valid());

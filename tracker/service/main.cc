@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
   magnav::dds::AddDdsOptions(app, &dds_args);
   CLI11_PARSE(app, argc, argv);
 
-  try {
+  return magnav::dds::RunService("magnav-tracker", [&] {
     if (!b0.empty()) {
       const auto v = ParseNumberList(b0);
       if (!v || v->size() != 3) throw InputError("--b0: expected BX,BY,BZ, got '" + b0 + "'");
@@ -46,24 +46,13 @@ int main(int argc, char** argv) {
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-tracker"));
     tracker::TrackerNode tracker_node(node, opt);
     spdlog::info("magnav-tracker: window {} s on domain {}", opt.tracker.window_s, node.domain_id());
-    while (!magnav::dds::WaitForShutdown(std::chrono::milliseconds(
-        stats_period_s > 0 ? static_cast<long>(stats_period_s * 1000) : 1000))) {
-      if (stats_period_s > 0) {
-        spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} late, {} rejected",
-                     tracker_node.received(), tracker_node.published(), tracker_node.dropped_late(),
-                     tracker_node.rejected());
-      }
-    }
+    magnav::dds::RunUntilShutdown(stats_period_s, [&] {
+      spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} late, {} rejected", tracker_node.received(),
+                   tracker_node.published(), tracker_node.dropped_late(), tracker_node.rejected());
+    });
     tracker_node.Flush();
     tracker_node.WaitForAcknowledgments(std::chrono::seconds(5));
     spdlog::info("magnav-tracker: stopping after {} samples, {} estimates", tracker_node.received(),
                  tracker_node.published());
-  } catch (const InputError& e) {
-    std::fprintf(stderr, "magnav-tracker: error: %s\n", e.what());
-    return 2;
-  } catch (const magnav::dds::DdsError& e) {
-    std::fprintf(stderr, "magnav-tracker: DDS error: %s\n", e.what());
-    return 4;
-  }
-  return 0;
+  });
 }

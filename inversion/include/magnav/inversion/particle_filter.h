@@ -22,6 +22,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <random>
 #include <string>
 #include <unordered_map>
@@ -97,6 +98,9 @@ class DipoleParticleFilter {
   const ParticleFilterOptions& options() const { return options_; }
 
  private:
+  // Draws every particle's position with draw_position, a random velocity
+  // (speed ≤ init_speed_max_mps, any heading) and equal weights.
+  void InitializeWith(const std::function<Vec3()>& draw_position, double t_s);
   void Resample();
   ParticleEstimate ComputeEstimate() const;
   double Normal();   // standard normal (tabulated quantiles, see .cc)
