@@ -41,7 +41,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    return app.exit(e) == 0 ? 0 : 2;  // usage errors are bad input too
   } catch (const magnav::InputError& e) {
     std::fprintf(stderr, "magnav: error: %s\n", e.what());
     return 2;

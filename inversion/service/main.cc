@@ -45,7 +45,7 @@ int main(int argc, char** argv) {
   app.add_option("--seed", mc.filter.seed, "random seed (mc)");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::dds::AddDdsOptions(app, &dds_args);
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = magnav::dds::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-inverter", [&] {
     if (!b0.empty()) opt.B0_W = ParseVec3("--b0", b0);

@@ -33,7 +33,7 @@ int main(int argc, char** argv) {
   app.add_option("--track-id", opt.track_id, "track id published");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::dds::AddDdsOptions(app, &dds_args);
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = magnav::dds::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-tracker", [&] {
     if (!b0.empty()) {
