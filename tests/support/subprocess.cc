@@ -1,7 +1,7 @@
 #include "subprocess.h"
 
 #include <signal.h>
-#include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,13 +15,7 @@ namespace magnav::testing {
 
 Subprocess::Subprocess(const std::vector<std::string>& argv, const std::map<std::string, std::string>& env,
                        bool merge_stderr) {
-  int out[2];
-  if (pipe(out) != 0) throw std::runtime_error("pipe failed");
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_adddup2(&fa, out[1], STDOUT_FILENO);
-  if (merge_stderr) posix_spawn_file_actions_adddup2(&fa, out[1], STDERR_FILENO);
-  posix_spawn_file_actions_addclose(&fa, out[0]);
+  // Everything the child needs is built before fork (no allocation after it).
   std::vector<std::string> env_store;
   for (char** e = environ; *e; ++e) {
     const std::string kv(*e);
@@ -34,11 +28,25 @@ Subprocess::Subprocess(const std::vector<std::string>& argv, const std::map<std:
   std::vector<std::string> argv_copy = argv;
   for (auto& a : argv_copy) args.push_back(a.data());
   args.push_back(nullptr);
-  const int rc = posix_spawn(&pid_, argv_copy[0].c_str(), &fa, nullptr, args.data(), envp.data());
-  posix_spawn_file_actions_destroy(&fa);
+  int out[2];
+  if (pipe(out) != 0) throw std::runtime_error("pipe failed");
+  const pid_t parent = getpid();
+  pid_ = fork();
+  if (pid_ < 0) throw std::runtime_error("fork failed");
+  if (pid_ == 0) {
+    // The child must not outlive a test that crashed: it would hold the test's
+    // output pipe open and hang the test runner.
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (getppid() != parent) _exit(127);
+    dup2(out[1], STDOUT_FILENO);
+    if (merge_stderr) dup2(out[1], STDERR_FILENO);
+    close(out[0]);
+    close(out[1]);
+    execve(args[0], args.data(), envp.data());
+    _exit(127);
+  }
   close(out[1]);
   out_fd_ = out[0];
-  if (rc != 0) throw std::runtime_error("cannot spawn " + argv[0] + ": " + std::strerror(rc));
 }
 
 Subprocess::~Subprocess() {
