@@ -50,3 +50,12 @@ function(magnav_test name)
     DISCOVERY_TIMEOUT 60
     PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT} ${env_props})
 endfunction()
+
+# magnav_service_test(<name> SERVICE <target> SOURCES ... DEPS ... LABELS <label>):
+# a test that starts the service executable; its path is MAGNAV_SERVICE_BIN.
+function(magnav_service_test name)
+  cmake_parse_arguments(ARG "" "SERVICE;LABELS" "SOURCES;DEPS" ${ARGN})
+  magnav_test(${name} SOURCES ${ARG_SOURCES} DEPS ${ARG_DEPS} magnav::dds LABELS ${ARG_LABELS} TIMEOUT 180)
+  target_compile_definitions(${name} PRIVATE MAGNAV_SERVICE_BIN="$<TARGET_FILE:${ARG_SERVICE}>")
+  add_dependencies(${name} ${ARG_SERVICE})
+endfunction()

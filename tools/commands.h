@@ -7,18 +7,16 @@
 
 #include <CLI/CLI.hpp>
 
+#include "magnav/cli/options.h"
+
 #ifdef MAGNAV_WITH_DDS
 #include "magnav/dds/cli.h"
 #endif
 
 namespace magnav::tools {
 
-// Parses "a,b,c" (a CLI value) into three numbers; throws InputError naming the flag.
-struct Vec3Arg {
-  bool set = false;
-  double v[3] = {0, 0, 0};
-};
-void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const std::string& help);
+using cli::AddVec3Option;
+using cli::Vec3Arg;
 
 void AddSimulateCommand(CLI::App& app);
 void AddEvaluateCommand(CLI::App& app);

@@ -7,26 +7,6 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 
-namespace magnav::tools {
-
-void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const std::string& help) {
-  app.add_option_function<std::string>(
-         name,
-         [name, out](const std::string& s) {
-           const auto v = ParseNumberList(s);
-           if (!v || v->size() != 3) {
-             throw CLI::ValidationError(name, "expected three comma-separated numbers, got '" + s + "'");
-           }
-           for (int i = 0; i < 3; ++i) out->v[i] = (*v)[i];
-           out->set = true;
-         },
-         help)
-      ->type_name("X,Y,Z");
-}
-
-
-}  // namespace magnav::tools
-
 int main(int argc, char** argv) {
   CLI::App app{"magnav: find and follow magnetic objects with gradiometer networks"};
   app.require_subcommand(1);
@@ -39,9 +19,7 @@ int main(int argc, char** argv) {
   magnav::tools::AddEvaluateCommand(app);
   magnav::tools::AddTrackCommand(app);
   try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;  // usage errors are bad input too
+    if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
   } catch (const magnav::InputError& e) {
     std::fprintf(stderr, "magnav: error: %s\n", e.what());
     return 2;

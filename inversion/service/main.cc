@@ -7,34 +7,24 @@
 #include <spdlog/spdlog.h>
 
 #include "inverter_node.h"
-#include "magnav/core/csv.h"
+#include "magnav/cli/options.h"
 #include "magnav/core/error.h"
 #include "magnav/dds/cli.h"
 #include "magnav/dds/shutdown.h"
 
-namespace {
-
-Eigen::Vector3d ParseVec3(const std::string& flag, const std::string& text) {
-  const auto v = magnav::ParseNumberList(text);
-  if (!v || v->size() != 3) throw magnav::InputError(flag + ": expected X,Y,Z, got '" + text + "'");
-  return {(*v)[0], (*v)[1], (*v)[2]};
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
   using namespace magnav;
   CLI::App app{"magnav-inverter: dipole fixes from gradiometer samples (magnav/gradiometer -> magnav/dipole_fix)"};
-  app.set_config("--config", "", "read options from a TOML/INI file (keys = long flag names)");
-  app.option_defaults()->always_capture_default();
+  magnav::cli::ConfigureServiceApp(app);
   inversion::InverterOptions opt;
   inversion::MonteCarloTrackerOptions mc;
-  std::string method = "ted-egt", b0, moment_body;
+  std::string method = "ted-egt";
+  magnav::cli::Vec3Arg b0, moment_body;
   double stats_period_s = 10.0;
   magnav::dds::DdsArgs dds_args;
   app.add_option("--method", method, "ted, ted-egt, egt or mc")->check(CLI::IsMember({"ted", "ted-egt", "egt", "mc"}));
-  app.add_option("--b0", b0, "regional field BX,BY,BZ in T (NED), subtracted before TED");
-  app.add_option("--moment-body", moment_body, "known body moment MX,MY,MZ in A*m^2 (mc only)");
+  magnav::cli::AddVec3Option(app, "--b0", &b0, "regional field in T (NED), subtracted before TED");
+  magnav::cli::AddVec3Option(app, "--moment-body", &moment_body, "known body moment in A*m^2 (mc only)");
   app.add_option("--min-snr", opt.gates.min_snr, "weak-signal gate: reject when |T|_F < min_snr * sigma_T");
   app.add_option("--max-cond-ted", opt.gates.max_cond_ted, "condition-number gate for TED");
   app.add_option("--max-cond-ted-egt", opt.gates.max_cond_ted_egt, "condition-number gate for TED+EGT");
@@ -45,16 +35,16 @@ int main(int argc, char** argv) {
   app.add_option("--seed", mc.filter.seed, "random seed (mc)");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::dds::AddDdsOptions(app, &dds_args);
-  if (const int code = magnav::dds::ParseCommandLine(app, argc, argv); code >= 0) return code;
+  if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-inverter", [&] {
-    if (!b0.empty()) opt.B0_W = ParseVec3("--b0", b0);
+    if (b0.set) opt.B0_W = b0.value();
     magnav::dds::InstallShutdownHandlers();
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-inverter"));
     std::unique_ptr<inversion::InverterNode> inverter;
     if (method == "mc") {
-      if (moment_body.empty()) throw InputError("--method mc needs --moment-body");
-      mc.filter.moment_body_Am2 = ParseVec3("--moment-body", moment_body);
+      if (!moment_body.set) throw InputError("--method mc needs --moment-body");
+      mc.filter.moment_body_Am2 = moment_body.value();
       mc.filter.sigma_T_fallback = opt.sigma_T_fallback;
       mc.init_inverter = opt;
       inverter = std::make_unique<inversion::InverterNode>(node, mc);

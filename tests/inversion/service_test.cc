@@ -73,7 +73,7 @@ TEST(InverterService, FixForEverySampleBadOnesRejectedServiceSurvives) {
   input.insert(input.end(), good.begin() + 50, good.end());
   for (std::size_t i = 50; i < 54; ++i) input[i].t_s = good[49].t_s + 0.01 * static_cast<double>(i - 49);
 
-  testing::Subprocess service({MAGNAV_INVERTER, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
                               {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});
   const std::vector<msg::DipoleFix> fixes = Exchange(domain, input);
   service.Signal(SIGTERM);
@@ -111,7 +111,7 @@ TEST(InverterService, ReadsOptionsFromAConfigFile) {
   const int domain = 10 + static_cast<int>(getpid() % 200);
   const std::string cfg = testing::TempDir() + "/inverter.toml";
   std::ofstream(cfg) << "# magnav-inverter options\nmethod = \"ted\"\nmin-snr = 1e12\nb0 = \"2e-05,1e-06,4.5e-05\"\n";
-  testing::Subprocess service({MAGNAV_INVERTER, "--config", cfg, "--stats-period", "0"},
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--config", cfg, "--stats-period", "0"},
                               {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_squid.csv"));
   const std::vector<msg::DipoleFix> fixes = Exchange(domain, {file.samples[750]});  // t = 75 s, strongest signal
@@ -124,7 +124,7 @@ TEST(InverterService, ReadsOptionsFromAConfigFile) {
 
   // A bad value in the file is an error naming the option, exit code != 0.
   std::ofstream(cfg) << "max-speed = fast\n";
-  const auto [rc, out] = testing::RunCommand({MAGNAV_INVERTER, "--config", cfg});
+  const auto [rc, out] = testing::RunCommand({MAGNAV_SERVICE_BIN, "--config", cfg});
   EXPECT_NE(rc, 0);
   EXPECT_NE(out.find("max-speed"), std::string::npos) << out;
 }

@@ -27,7 +27,7 @@ namespace msg = ::magnav::msg;
 TEST(TrackerService, PublishesTheLibraryEstimatesForAPass) {
   const int domain = 10 + static_cast<int>(getpid() % 200);
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
-  testing::Subprocess service({MAGNAV_TRACKER, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
                               {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});
   // The library on the same samples (as the service sees them: through the message).
   TrackerOptions options;

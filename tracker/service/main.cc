@@ -6,7 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
-#include "magnav/core/csv.h"
+#include "magnav/cli/options.h"
 #include "magnav/core/error.h"
 #include "magnav/dds/cli.h"
 #include "magnav/dds/shutdown.h"
@@ -15,13 +15,13 @@
 int main(int argc, char** argv) {
   using namespace magnav;
   CLI::App app{"magnav-tracker: vessel tracks from gradiometer samples (magnav/gradiometer -> magnav/track)"};
-  app.set_config("--config", "", "read options from a TOML/INI file (keys = long flag names)");
-  app.option_defaults()->always_capture_default();
+  magnav::cli::ConfigureServiceApp(app);
   tracker::TrackerNodeOptions opt;
-  std::string b0, loss = tracker::LossTypeName(opt.tracker.measurement_loss);
+  magnav::cli::Vec3Arg b0;
+  std::string loss = tracker::LossTypeName(opt.tracker.measurement_loss);
   double stats_period_s = 10.0;
   magnav::dds::DdsArgs dds_args;
-  app.add_option("--b0", b0, "background field BX,BY,BZ in T (NED)");
+  magnav::cli::AddVec3Option(app, "--b0", &b0, "background field in T (NED)");
   app.add_option("--window", opt.tracker.window_s, "sliding window length, s");
   app.add_option("--loss", loss, "robust loss on measurements: trivial, huber, cauchy")
       ->capture_default_str()
@@ -33,14 +33,10 @@ int main(int argc, char** argv) {
   app.add_option("--track-id", opt.track_id, "track id published");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::dds::AddDdsOptions(app, &dds_args);
-  if (const int code = magnav::dds::ParseCommandLine(app, argc, argv); code >= 0) return code;
+  if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-tracker", [&] {
-    if (!b0.empty()) {
-      const auto v = ParseNumberList(b0);
-      if (!v || v->size() != 3) throw InputError("--b0: expected BX,BY,BZ, got '" + b0 + "'");
-      opt.B0_W = {(*v)[0], (*v)[1], (*v)[2]};
-    }
+    if (b0.set) opt.B0_W = b0.value();
     tracker::ParseLossType(loss, &opt.tracker.measurement_loss);
     magnav::dds::InstallShutdownHandlers();
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-tracker"));

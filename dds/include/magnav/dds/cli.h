@@ -39,19 +39,6 @@ inline void AddDdsOptions(CLI::App& app, DdsArgs* out) {
                  "participant profile (default magnav_loopback: 127.0.0.1 + shared memory only)");
 }
 
-// Parses a command line; on a bad flag prints CLI11's message and returns 2
-// (1 never escapes: exit codes are 0 ok, 2 bad input, 3 internal, 4 DDS);
-// --help prints and returns 0. Returns -1 when the program should go on.
-inline int ParseCommandLine(CLI::App& app, int argc, char** argv) {
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
-  return -1;
-}
-
 // Runs a service's body and turns its errors into a message and an exit code:
 // 2 for bad input or options (InputError), 4 for the middleware (DdsError),
 // 3 for anything else. The body returns when a shutdown was requested.

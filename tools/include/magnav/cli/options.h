@@ -1,0 +1,56 @@
+// Command-line helpers shared by the `magnav` program and the services:
+// three-number options ("X,Y,Z"), the common set-up of a service's command
+// line (options also from a TOML/INI file), and parsing with magnav's exit codes.
+#pragma once
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
+
+#include "magnav/core/csv.h"
+
+namespace magnav::cli {
+
+// A "X,Y,Z" option; `set` tells whether it was given.
+struct Vec3Arg {
+  bool set = false;
+  double v[3] = {0, 0, 0};
+  Eigen::Vector3d value() const { return {v[0], v[1], v[2]}; }
+};
+
+inline void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, const std::string& help) {
+  app.add_option_function<std::string>(
+         name,
+         [name, out](const std::string& s) {
+           const auto v = ParseNumberList(s);
+           if (!v || v->size() != 3) {
+             throw CLI::ValidationError(name, "expected three comma-separated numbers, got '" + s + "'");
+           }
+           for (int i = 0; i < 3; ++i) out->v[i] = (*v)[i];
+           out->set = true;
+         },
+         help)
+      ->type_name("X,Y,Z");
+}
+
+// --config FILE (TOML/INI, keys = long flag names) and defaults shown in --help.
+// Call before adding the options.
+inline void ConfigureServiceApp(CLI::App& app) {
+  app.set_config("--config", "", "read options from a TOML/INI file (keys = long flag names)");
+  app.option_defaults()->always_capture_default();
+}
+
+// Parses a command line. On a bad flag prints CLI11's message and returns 2
+// (magnav's exit codes: 0 ok, 2 bad input, 3 internal, 4 DDS); --help prints
+// and returns 0. Returns -1 when the program should go on.
+inline int ParseCommandLine(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  return -1;
+}
+
+}  // namespace magnav::cli
