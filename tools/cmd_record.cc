@@ -72,7 +72,7 @@ std::vector<std::string> Row(const dds::msg::TrackEstimate& m) {
 
 class Sink {
  public:
-  Sink(const std::string& path, const std::vector<std::string>& header) : path_(path), width_(header.size()) {
+  Sink(const std::string& path, const std::vector<std::string>& header) {
     if (path == "-") {
       Print(header);
     } else {
@@ -99,8 +99,6 @@ class Sink {
     std::fputc('\n', stdout);
     std::fflush(stdout);
   }
-  std::string path_;
-  std::size_t width_;
   std::mutex mu_;
   std::unique_ptr<CsvWriter> writer_;
   std::atomic<std::uint64_t> count_{0};

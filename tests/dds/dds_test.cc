@@ -18,13 +18,14 @@
 #include "magnav/dds/node.h"
 #include "sample_pattern.h"
 #include "subprocess.h"
+#include "test_data.h"
 
 namespace magnav::dds {
 namespace {
 
 using namespace std::chrono_literals;
 
-int TestDomain() { return 10 + static_cast<int>(::getpid() % 200); }
+int TestDomain() { return testing::TestDomainId(); }
 
 NodeOptions TestNode(const std::string& name) {
   NodeOptions o;

@@ -48,7 +48,7 @@ std::vector<msg::DipoleFix> Exchange(int domain, const std::vector<GradiometerSa
 }
 
 TEST(InverterService, FixForEverySampleBadOnesRejectedServiceSurvives) {
-  const int domain = 10 + static_cast<int>(getpid() % 200);
+  const int domain = testing::TestDomainId();
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_squid.csv"));
   // Samples around the closest approach (t = 70..80 s), then bad ones, then good ones again.
   std::vector<GradiometerSample> good;
@@ -108,7 +108,7 @@ TEST(InverterService, FixForEverySampleBadOnesRejectedServiceSurvives) {
 
 // Options from a TOML file: method and weak-signal gate taken from the file.
 TEST(InverterService, ReadsOptionsFromAConfigFile) {
-  const int domain = 10 + static_cast<int>(getpid() % 200);
+  const int domain = testing::TestDomainId();
   const std::string cfg = testing::TempDir() + "/inverter.toml";
   std::ofstream(cfg) << "# magnav-inverter options\nmethod = \"ted\"\nmin-snr = 1e12\nb0 = \"2e-05,1e-06,4.5e-05\"\n";
   testing::Subprocess service({MAGNAV_SERVICE_BIN, "--config", cfg, "--stats-period", "0"},

@@ -14,6 +14,8 @@ std::string TestDataDir() {
 
 std::string ReferencePath(const std::string& name) { return TestDataDir() + "/reference/" + name; }
 
+int TestDomainId() { return 10 + static_cast<int>(::getpid() % 200); }
+
 std::string TempDir() {
   static int counter = 0;
   const auto dir = std::filesystem::temp_directory_path() /

@@ -11,6 +11,10 @@ namespace magnav::testing {
 std::string TestDataDir();
 // Path of a reference file, e.g. ReferencePath("dipole_cases.csv").
 std::string ReferencePath(const std::string& name);
+// DDS domain id of this test process (10 + pid % 200), as Fast DDS's blackbox
+// tests derive theirs: concurrent test processes rarely share a domain.
+int TestDomainId();
+
 // A fresh temporary directory for one test (removed by the OS on reboot).
 std::string TempDir();
 

@@ -35,7 +35,7 @@ TEST(MagnavCli, BadInputGivesExitCode2AndNamesThePlace) {
                                   << "0,0,0,0,0,1,1,1,1,1,1,1,1,1,1,1,1\n"
                                   << "0.1,0,0,0,0,1,1,oops,1,1,1,1,1,1,1,1,1\n";
   const auto [rc, out] = testing::RunCommand({kMagnav, "replay", "--input", dir + "/bad.csv", "--wait-readers", "0"},
-                                             {{"MAGNAV_DOMAIN_ID", std::to_string(10 + getpid() % 200)}});
+                                             {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}});
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find(dir + "/bad.csv:3: column 'B_z': 'oops' is not a finite number"), std::string::npos) << out;
   const auto [rc2, out2] = testing::RunCommand({kMagnav, "simulate", "--output", dir + "/x.csv", "--turns", "5:abc"});
@@ -47,7 +47,7 @@ TEST(MagnavCli, BadInputGivesExitCode2AndNamesThePlace) {
 
 TEST(MagnavCli, ReplayThenRecordDeliversEverySampleUnchanged) {
   const std::string dir = testing::TempDir();
-  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(10 + getpid() % 200)}};
+  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}};
   ASSERT_EQ(testing::RunCommand({kMagnav, "simulate", "--noise", "fluxgate", "--sensors", "0,0,0;20,20,0",
                                  "--output", dir + "/p.csv"}).first, 0);
   testing::Subprocess rec({kMagnav, "record", "--topic", "gradiometer", "--count", "4002", "--duration", "60",

@@ -25,7 +25,7 @@ using namespace std::chrono_literals;
 namespace msg = ::magnav::msg;
 
 TEST(TrackerService, PublishesTheLibraryEstimatesForAPass) {
-  const int domain = 10 + static_cast<int>(getpid() % 200);
+  const int domain = testing::TestDomainId();
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
   testing::Subprocess service({MAGNAV_SERVICE_BIN, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
                               {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});

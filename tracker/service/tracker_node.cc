@@ -5,7 +5,6 @@
 #include <spdlog/spdlog.h>
 
 #include "magnav/core/error.h"
-#include "magnav/core/frames.h"
 #include "magnav/core/units.h"
 #include "magnav/dds/convert.h"
 
