@@ -33,18 +33,11 @@ void Run(const EvaluateArgs& a) {
   const std::size_t te = est.column("t"), tt = truth.column("t");
   const auto valid_col = est.find_column("valid");
   const bool has_sigma = est.has_column("sigma_x");
+  const Xyz ps = has_sigma ? Xyz{est.column("sigma_x"), est.column("sigma_y"), est.column("sigma_z")} : Xyz{0, 0, 0};
   std::vector<Eigen::Vector3d> sensors;
   if (a.max_range_m > 0) {
     if (a.sensors.empty()) throw InputError("--max-range needs --sensors X,Y,Z[;X,Y,Z...]");
-    std::size_t pos = 0;
-    while (pos <= a.sensors.size()) {
-      const std::size_t semi = a.sensors.find(';', pos);
-      const auto v = ParseNumberList(a.sensors.substr(pos, semi == std::string::npos ? std::string::npos : semi - pos));
-      if (!v || v->size() != 3) throw InputError("--sensors: expected X,Y,Z[;X,Y,Z...]");
-      sensors.emplace_back((*v)[0], (*v)[1], (*v)[2]);
-      if (semi == std::string::npos) break;
-      pos = semi + 1;
-    }
+    sensors = cli::ParseVec3List("--sensors", a.sensors);
   }
   // Truth by time, in ns to match exactly.
   std::map<long long, std::size_t> truth_at;
@@ -80,8 +73,7 @@ void Run(const EvaluateArgs& a) {
     max_err = std::max(max_err, e.norm());
     ++used;
     if (has_sigma) {
-      const Eigen::Vector3d s(est.number(i, est.column("sigma_x")), est.number(i, est.column("sigma_y")),
-                              est.number(i, est.column("sigma_z")));
+      const Eigen::Vector3d s(est.number(i, ps.x), est.number(i, ps.y), est.number(i, ps.z));
       if ((s.array() > 0).all()) {
         sum_nees += (e.array() / s.array()).square().sum();
         ++nees_n;

@@ -8,6 +8,7 @@
 
 #include "commands.h"
 #include "magnav/core/csv.h"
+#include "magnav/core/gradiometer.h"
 #include "magnav/core/units.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
@@ -32,8 +33,9 @@ void Append(std::vector<std::string>& f, const std::array<double, K>& a) {
 
 std::vector<std::string> Header(const std::string& topic) {
   if (topic == "gradiometer") {
-    return {"t", "sensor_id", "seq", "sensor_x", "sensor_y", "sensor_z", "B_x", "B_y", "B_z",
-            "T00", "T01", "T02", "T10", "T11", "T12", "T20", "T21", "T22"};
+    std::vector<std::string> h = {"t", "sensor_id", "seq"};
+    for (std::string& c : GradiometerDataColumns()) h.push_back(std::move(c));
+    return h;
   }
   if (topic == "dipole_fix") {
     return {"t", "sensor_id", "seq", "method", "dipole_x", "dipole_y", "dipole_z", "valid", "reason", "cond"};

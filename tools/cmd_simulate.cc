@@ -34,22 +34,6 @@ std::vector<TurnSegment> ParseTurns(const std::string& s) {
   return out;
 }
 
-// "x,y,z;x,y,z" -> sensor positions
-std::vector<Eigen::Vector3d> ParseSensors(const std::string& s) {
-  std::vector<Eigen::Vector3d> out;
-  std::size_t pos = 0;
-  while (pos <= s.size()) {
-    const std::size_t semi = s.find(';', pos);
-    const std::string item = s.substr(pos, semi == std::string::npos ? std::string::npos : semi - pos);
-    const auto v = ParseNumberList(item);
-    if (!v || v->size() != 3) throw InputError("--sensors: '" + item + "' is not X,Y,Z");
-    out.emplace_back((*v)[0], (*v)[1], (*v)[2]);
-    if (semi == std::string::npos) break;
-    pos = semi + 1;
-  }
-  return out;
-}
-
 void Run(const SimulateArgs& a) {
   PassScenario sc;
   if (a.noise == "fluxgate") {
@@ -68,7 +52,7 @@ void Run(const SimulateArgs& a) {
   if (a.heading < 1e8) sc.start_heading_rad = a.heading;
   if (a.rate > 0) sc.rate_hz = a.rate;
   if (!a.turns.empty()) sc.segments = ParseTurns(a.turns);
-  if (!a.sensors.empty()) sc.sensors = ParseSensors(a.sensors);
+  if (!a.sensors.empty()) sc.sensors = cli::ParseVec3List("--sensors", a.sensors);
   sc.seed = a.seed;
   const SimulatedPass pass = SimulatePass(sc);
   WritePassCsv(a.output, sc, pass);

@@ -12,6 +12,14 @@ std::string TensorColumnName(const std::string& prefix, int i, int j) {
   return name;
 }
 
+std::vector<std::string> GradiometerDataColumns() {
+  std::vector<std::string> c = {"sensor_x", "sensor_y", "sensor_z", "B_x", "B_y", "B_z"};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) c.push_back(TensorColumnName("T", i, j));
+  }
+  return c;
+}
+
 GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerColumns& cols) {
   const CsvTable t = CsvTable::Read(path);
   GradiometerFile f;

@@ -128,10 +128,8 @@ std::string Vec3Param(const Eigen::Vector3d& v) {
 }  // namespace
 
 void WritePassCsv(const std::string& path, const PassScenario& sc, const SimulatedPass& pass) {
-  std::vector<std::string> header = {"t", "sensor_id", "sensor_x", "sensor_y", "sensor_z", "B_x", "B_y", "B_z"};
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) header.push_back(TensorColumnName("T", i, j));
-  }
+  std::vector<std::string> header = {"t", "sensor_id"};
+  for (std::string& c : GradiometerDataColumns()) header.push_back(std::move(c));
   CsvWriter w(path, header,
               {{"B0_T", Vec3Param(sc.B0)},
                {"moment_body_Am2", Vec3Param(sc.moment_body)},

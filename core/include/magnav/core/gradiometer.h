@@ -46,6 +46,10 @@ struct GradiometerColumns {
 // Name of the tensor column (i, j) in files: prefix + "ij", e.g. "T01".
 std::string TensorColumnName(const std::string& prefix, int i, int j);
 
+// The 15 data columns of a gradiometer row, in file order:
+// sensor_x,sensor_y,sensor_z, B_x,B_y,B_z, T00..T22.
+std::vector<std::string> GradiometerDataColumns();
+
 // Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22 and, if
 // present, t, sensor_id and case_id. Sample sigmas come from the file's
 // sigma parameters (0 when absent). Throws InputError naming file, line and

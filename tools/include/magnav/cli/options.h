@@ -4,11 +4,13 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 
 #include "magnav/core/csv.h"
+#include "magnav/core/error.h"
 
 namespace magnav::cli {
 
@@ -32,6 +34,22 @@ inline void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, 
          },
          help)
       ->type_name("X,Y,Z");
+}
+
+// Parses "X,Y,Z;X,Y,Z;..." (a list of points, e.g. sensor positions). Throws
+// InputError naming the flag and the item that is not X,Y,Z.
+inline std::vector<Eigen::Vector3d> ParseVec3List(const std::string& flag, const std::string& text) {
+  std::vector<Eigen::Vector3d> out;
+  std::size_t pos = 0;
+  while (true) {
+    const std::size_t semi = text.find(';', pos);
+    const std::string item = text.substr(pos, semi == std::string::npos ? std::string::npos : semi - pos);
+    const auto v = ParseNumberList(item);
+    if (!v || v->size() != 3) throw InputError(flag + ": '" + item + "' is not X,Y,Z");
+    out.emplace_back((*v)[0], (*v)[1], (*v)[2]);
+    if (semi == std::string::npos) return out;
+    pos = semi + 1;
+  }
 }
 
 // --config FILE (TOML/INI, keys = long flag names) and defaults shown in --help.
