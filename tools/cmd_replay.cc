@@ -29,6 +29,9 @@ void Run(const ReplayArgs& a) {
   dds::InstallShutdownHandlers();
   dds::Node node(a.dds.ToNodeOptions("magnav_replay"));
   auto writer = node.CreateWriter<dds::msg::GradiometerSample>();
+  // Never outrun the readers' acknowledgments by more than half the stream
+  // history (config/magnav_profiles.xml: KEEP_LAST 1000 per sensor).
+  writer->SetFlowControl(500, std::chrono::seconds(10));
   const auto wait = std::chrono::milliseconds(static_cast<long>(a.wait_s * 1000));
   if (a.wait_readers > 0 && !writer->WaitForMatched(a.wait_readers, wait)) {
     throw InputError("replay: no reader of magnav/gradiometer appeared within " + FormatNumber(a.wait_s) +
@@ -45,7 +48,7 @@ void Run(const ReplayArgs& a) {
       std::this_thread::sleep_until(due);
     }
     if (!writer->Write(dds::ToMsg(s, seq[s.sensor_id]++))) {
-      throw InputError("replay: the middleware refused a sample (readers too slow?)");
+      throw InputError("replay: a reader did not acknowledge samples within 10 s (too slow or gone)");
     }
     ++sent;
   }

@@ -27,6 +27,9 @@ int main(int argc, char** argv) {
     if (mode == "stream") {
       auto w = node.CreateWriter<magnav::dds::msg::GradiometerSample>();
       if (!w->WaitForMatched(1, 20s)) return 3;
+      // The burst (10,000) is longer than the KEEP_LAST history: send it with
+      // the adapter's acknowledgment-based flow control, as magnav replay does.
+      w->SetFlowControl(500, 20s);
       for (std::uint64_t i = 0; i < n; ++i) {
         if (!w->Write(magnav::testing::PatternSample(static_cast<std::uint32_t>(i % 4), i))) return 4;
       }

@@ -4,6 +4,8 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <map>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -58,13 +60,23 @@ TEST(MagnavCli, ReplayThenRecordDeliversEverySampleUnchanged) {
   const GradiometerFile sent = ReadGradiometerFile(dir + "/p.csv");
   const CsvTable got = CsvTable::Read(dir + "/r.csv");
   ASSERT_EQ(got.num_rows(), sent.samples.size());
-  for (std::size_t i = 0; i < got.num_rows(); ++i) {
+  // DDS orders samples per instance (sensor), not across sensors: match each
+  // received row to the sent sample with its sensor and sequence number, and
+  // check that each sensor's stream arrives in order.
+  std::map<long long, long long> next_seq;
+  std::set<std::pair<long long, long long>> seen;
+  for (std::size_t r = 0; r < got.num_rows(); ++r) {
+    const long long id = got.integer(r, got.column("sensor_id"));
+    const long long seq = got.integer(r, got.column("seq"));
+    ASSERT_EQ(seq, next_seq[id]++) << "sensor " << id << " out of order at row " << r;
+    ASSERT_TRUE(seen.insert({id, seq}).second);
+    const std::size_t i = static_cast<std::size_t>(2 * seq + id);  // file: t, then sensor id
+    ASSERT_LT(i, sent.samples.size());
     const auto& s = sent.samples[i];
-    ASSERT_EQ(got.integer(i, got.column("sensor_id")), s.sensor_id);
-    ASSERT_EQ(got.integer(i, got.column("seq")), static_cast<long long>(i / 2));
-    ASSERT_NEAR(got.number(i, got.column("t")), s.t_s, 1e-9);
-    ASSERT_EQ(got.number(i, got.column("B_y")), s.B.y());
-    ASSERT_EQ(got.number(i, got.column("T12")), s.T(1, 2));
+    ASSERT_EQ(id, s.sensor_id);
+    ASSERT_NEAR(got.number(r, got.column("t")), s.t_s, 1e-9);
+    ASSERT_EQ(got.number(r, got.column("B_y")), s.B.y());
+    ASSERT_EQ(got.number(r, got.column("T12")), s.T(1, 2));
   }
 }
 

@@ -97,11 +97,28 @@ class Writer {
   Writer& operator=(const Writer&) = delete;
 
   // Publishes a sample; false if the middleware refused it (e.g. blocked too long).
+  // Publishes a sample; false if the middleware refused it (e.g. blocked too
+  // long) or, with flow control on, if the readers did not acknowledge in time.
   bool Write(const M& sample) {
+    if (flow_window_ > 0 && ++since_ack_ >= flow_window_) {
+      since_ack_ = 0;
+      if (!WaitForAcknowledgments(flow_timeout_)) return false;
+    }
     M copy = sample;  // Fast DDS takes a non-const pointer
     const bool ok = writer_->write(&copy);
     if (ok) ++stats_.samples;
     return ok;
+  }
+  // Flow control for senders that publish faster than readers may take (a
+  // file replayed without pacing): every `window` samples, wait until every
+  // matched reader has acknowledged all of them. With a KEEP_LAST history this
+  // is what keeps a burst longer than the history from overwriting samples a
+  // slow reader has not received yet. Keep window below the history depth.
+  // window 0 turns it off (the default: live streams are paced by the sensor).
+  void SetFlowControl(int window, std::chrono::milliseconds timeout) {
+    flow_window_ = window;
+    flow_timeout_ = timeout;
+    since_ack_ = 0;
   }
   // Waits until at least n readers are matched.
   bool WaitForMatched(int n, std::chrono::milliseconds timeout) {
@@ -144,6 +161,9 @@ class Writer {
   }
   fdds::Publisher* node_publisher_;
   fdds::DataWriter* writer_ = nullptr;
+  int flow_window_ = 0;
+  int since_ack_ = 0;
+  std::chrono::milliseconds flow_timeout_{0};
   std::string topic_;
   EndpointStats stats_;
   Listener listener_;
