@@ -32,11 +32,11 @@ const Pass& LoadPass(const std::string& name) {
   return it->second;
 }
 
-const char* PassName(int64_t sensors) {
-  return sensors == 1 ? "ship_1sensor_fluxgate" : "ship_4sensor_fluxgate";
+std::string PassName(int64_t sensors, const std::string& vessel = "ship") {
+  return vessel + (sensors == 1 ? "_1sensor_fluxgate" : "_4sensor_fluxgate");
 }
 
-// One window update (marginalisation + Ceres solve + newest covariance) per
+// One window update (marginalisation + chain Gauss-Newton + newest covariance) per
 // iteration, in steady state: the tracker is warmed up over 60 s first and
 // restarted (untimed) when the pass runs out.
 void BM_WindowUpdatePerEpoch(benchmark::State& state) {
@@ -63,28 +63,37 @@ void BM_WindowUpdatePerEpoch(benchmark::State& state) {
 }
 BENCHMARK(BM_WindowUpdatePerEpoch)->Arg(1)->Arg(4)->Unit(benchmark::kMicrosecond);
 
-// Batch solve (growing solve + chain covariance) of the 200 s pass (2001 epochs).
-// Args: sensors, Ceres threads (the machine has 2 cores).
+// Batch solve (initialisation + growing solve + chain covariance) of a 200 s
+// pass (2001 epochs). Args: vessel (0 = ship, 1 = AUV: its turn is found
+// later, more iterations), sensors, solver (0 = the default chain
+// Levenberg-Marquardt, 1 = Ceres SPARSE_NORMAL_CHOLESKY on the same
+// problems), threads.
 void BM_BatchSolve200s(benchmark::State& state) {
-  const Pass& pass = LoadPass(PassName(state.range(0)));
+  const std::string vessel = state.range(0) == 0 ? "ship" : "auv";
+  const Pass& pass = LoadPass(PassName(state.range(1), vessel));
   magnav::tracker::TrackerOptions opt;
-  opt.num_threads = static_cast<int>(state.range(1));
+  opt.batch_solver = state.range(2) == 0 ? magnav::tracker::TrackerOptions::BatchSolver::kChainLevenbergMarquardt
+                                         : magnav::tracker::TrackerOptions::BatchSolver::kCeres;
+  opt.num_threads = static_cast<int>(state.range(3));
   int iterations = 0;
   for (auto _ : state) {
     const auto est = magnav::tracker::SolveBatch(pass.epochs, pass.B0, opt);
     iterations = est.summary.iterations;
     benchmark::DoNotOptimize(est.m_B_Am2);
   }
-  state.counters["sensors"] = static_cast<double>(state.range(0));
+  state.SetLabel(vessel + (state.range(2) == 0 ? " chain LM" : " ceres"));
+  state.counters["sensors"] = static_cast<double>(state.range(1));
   state.counters["epochs"] = static_cast<double>(pass.epochs.size());
-  state.counters["ceres_iterations"] = iterations;
+  state.counters["iterations"] = iterations;
   state.counters["threads"] = static_cast<double>(opt.num_threads);
 }
 BENCHMARK(BM_BatchSolve200s)
-    ->Args({1, 1})
-    ->Args({4, 1})
-    ->Args({1, 2})
-    ->Args({4, 2})
+    ->ArgNames({"auv", "sensors", "ceres", "threads"})
+    ->ArgsProduct({{0, 1}, {1, 4}, {0}, {1, 2}})
+    ->Args({0, 1, 1, 1})
+    ->Args({0, 4, 1, 1})
+    ->Args({1, 1, 1, 1})
+    ->Args({1, 4, 1, 1})
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0)
     ->UseRealTime();

@@ -21,6 +21,7 @@ struct TrackArgs {
   double loss_scale_sigma = tracker::TrackerOptions{}.measurement_loss_scale_sigma;
   tracker::ProcessNoise process;
   std::string turn_loss = tracker::LossTypeName(tracker::ProcessNoise{}.turn_rate_loss);
+  std::string solver = "chain";
 };
 
 void WriteTrack(const std::string& path, const std::string& input, const std::string& mode,
@@ -80,6 +81,13 @@ void RunTrack(const TrackArgs& a) {
   if (!tracker::ParseLossType(a.turn_loss, &opt.process.turn_rate_loss)) {
     throw InputError("--turn-loss: expected huber, cauchy or trivial, got '" + a.turn_loss + "'");
   }
+  if (a.solver == "chain") {
+    opt.batch_solver = tracker::TrackerOptions::BatchSolver::kChainLevenbergMarquardt;
+  } else if (a.solver == "ceres") {
+    opt.batch_solver = tracker::TrackerOptions::BatchSolver::kCeres;
+  } else {
+    throw InputError("--solver: expected chain or ceres, got '" + a.solver + "'");
+  }
   std::string why;
   if (!opt.IsValid(&why)) throw InputError("options: " + why);
 
@@ -114,6 +122,10 @@ void AddTrackCommand(CLI::App& app) {
   cmd->add_option("--mode", args->mode, "batch (whole pass) or window (fixed-lag, causal)")
       ->check(CLI::IsMember({"batch", "window"}));
   cmd->add_option("--window", args->window_s, "sliding-window length, s (window mode)");
+  cmd->add_option("--solver", args->solver,
+                  "batch solver: chain (Levenberg-Marquardt on the chain of states, O(N)) or ceres "
+                  "(ceres::Solve, sparse Cholesky; same problem, slower)")
+      ->check(CLI::IsMember({"chain", "ceres"}));
   cmd->add_option("--loss", args->loss, "robust loss on each sample: huber, cauchy or trivial")
       ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
   cmd->add_option("--loss-scale", args->loss_scale_sigma,

@@ -75,17 +75,23 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
   while (i0 + 1 < epochs.size() && epochs[i0].t_s < init->t_first_s) ++i0;
   while (i1 > i0 && epochs[i1].t_s > init->t_last_s) --i1;
   std::vector<internal::Factor*> measurements;
-  const auto build = [&](ceres::Problem* problem, bool warm) {
-    for (std::size_t k = i0; k <= i1; ++k) problem->AddParameterBlock(x[k].data(), 6);
-    problem->AddParameterBlock(moment.data(), 3);
+  // The span [i0, i1] as a chain problem; `warm`: Gaussian warm-up
+  // turn-rate factors instead of the robust ones.
+  const auto build = [&](bool warm) {
+    internal::ChainProblem chain;
+    chain.moment = moment.data();
+    chain.groups.resize(i1 - i0 + 1);
     for (std::size_t k = i0; k <= i1; ++k) {
+      chain.states.push_back(x[k].data());
+      auto& group = chain.groups[k - i0];
       for (const auto& f : factors[k]) {
         const bool process = f.kind != internal::Factor::Kind::kMeasurement;
         if (process && (k == i1 || (warm && f.kind == internal::Factor::Kind::kTurnRate))) continue;
-        internal::AddToProblem(f, problem);
+        group.push_back(&f);
       }
-      if (warm && k < i1) internal::AddToProblem(warm_turn[k], problem);
+      if (warm && k < i1) group.push_back(&warm_turn[k]);
     }
+    return chain;
   };
   const auto state_of = [&](std::size_t k) {
     return CtState<double>{x[k](0), x[k](1), x[k](2), x[k](3), x[k](4), x[k](5)};
@@ -128,6 +134,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
   }
   const ceres::Solver::Summary& cs = pr.last;
   sum.usable = cs.IsSolutionUsable();
+  sum.converged = cs.termination_type == ceres::CONVERGENCE;
   sum.iterations = pr.iterations;
   sum.initial_cost = pr.first_initial_cost;
   sum.final_cost = cs.final_cost;
@@ -151,20 +158,14 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
     std::vector<StateCovariance> P(x.size());
     Eigen::Matrix3d P_m;
     if (options.covariance_method == TrackerOptions::CovarianceMethod::kChain) {
-      std::vector<double*> xs;
-      std::vector<std::vector<const internal::Factor*>> groups(x.size());
-      for (std::size_t k = 0; k < x.size(); ++k) {
-        xs.push_back(x[k].data());
-        for (const auto& f : factors[k]) groups[k].push_back(&f);
-      }
-      sum.covariance_ok = internal::ChainCovariance(xs, moment.data(), groups, &P, &P_m);
+      sum.covariance_ok = internal::ChainCovariance(build(false), &P, &P_m);
     } else {
       ceres::Covariance::Options co;
       co.algorithm_type = ceres::SPARSE_QR;
       co.num_threads = options.num_threads;
       ceres::Covariance cov(co);
       ceres::Problem problem(internal::NonOwningProblemOptions());
-      build(&problem, false);
+      internal::AddToProblem(build(false), &problem);
       std::vector<std::pair<const double*, const double*>> blocks;
       for (auto& s : x) blocks.emplace_back(s.data(), s.data());
       blocks.emplace_back(moment.data(), moment.data());

@@ -43,18 +43,19 @@ bool MeasurementCost::Evaluate(double const* const* parameters, double* residual
   const Measurement8 pred =
       DipoleMeasurement(r_DtoS, m_W, want_J ? &J_z_r : nullptr, want_J ? &J_z_m : nullptr);
   Eigen::Map<Eigen::Matrix<double, 8, 1>> e(residuals);
-  e = sqrt_info_ * (pred - z_);
+  // lazyProduct: coefficient-based kernels for these small fixed sizes.
+  e = sqrt_info_.lazyProduct(pred - z_);
   if (!want_J) return true;
 
   if (jacobians[0] != nullptr) {
     Eigen::Map<Eigen::Matrix<double, 8, 6, Eigen::RowMajor>> J(jacobians[0]);
     J.setZero();
-    J.leftCols<3>() = -sqrt_info_ * J_z_r;  // ∂r/∂p_V = −I
-    J.col(4) = sqrt_info_ * (J_z_m * J_mW_h);
+    J.leftCols<3>() = -sqrt_info_.lazyProduct(J_z_r);  // ∂r/∂p_V = −I
+    J.col(4) = sqrt_info_.lazyProduct(J_z_m.lazyProduct(J_mW_h));
   }
   if (jacobians[1] != nullptr) {
     Eigen::Map<Eigen::Matrix<double, 8, 3, Eigen::RowMajor>> J(jacobians[1]);
-    J = (sqrt_info_ * J_z_m) * (HeadingRotation(heading) * moment_scale_);
+    J = sqrt_info_.lazyProduct(J_z_m).lazyProduct(HeadingRotation(heading) * moment_scale_);
   }
   return true;
 }

@@ -93,13 +93,7 @@ struct WindowTracker::Impl {
                    const internal::Factor* prior_factor) const {
     H->setZero();
     g->setZero();
-    const double* m = moment.data();
-    const auto offset = [&](const double* p) -> int {
-      if (p == a.x.data()) return 0;
-      if (b != nullptr && p == b->x.data()) return 6;
-      if (p == m) return 12;
-      return -1;
-    };
+    const internal::LocalOffset offset{a.x.data(), b != nullptr ? b->x.data() : nullptr, moment.data()};
     if (prior_factor != nullptr && prior_factor->cost)
       internal::AccumulateFactor(*prior_factor, offset, H, g);
     for (const auto& f : a.measurements) internal::AccumulateFactor(f, offset, H, g);
@@ -145,7 +139,7 @@ struct WindowTracker::Impl {
   // selected inversion over the window, prior included).
   bool NewestCovariance(StateCovariance* P_state, Eigen::Matrix3d* P_moment) {
     if (!chain_fresh)
-      chain_fresh = internal::FactorizeChain(StatePointers(), moment.data(), Groups(), &chain);
+      chain_fresh = internal::FactorizeChain(Chain(), &chain);
     std::vector<StateCovariance> P;
     Eigen::Matrix3d Pm;
     if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
@@ -165,41 +159,30 @@ struct WindowTracker::Impl {
     return e;
   }
 
-  void BuildProblem(ceres::Problem* problem) {
-    for (auto& w : window) problem->AddParameterBlock(w.x.data(), 6);
-    problem->AddParameterBlock(moment.data(), 3);
-    if (prior.cost) internal::AddToProblem(prior, problem);
-    for (const auto& w : window) {
-      for (const auto& f : w.measurements) internal::AddToProblem(f, problem);
-      for (const auto& f : w.to_next) internal::AddToProblem(f, problem);
-    }
-  }
-
-  std::vector<std::vector<const internal::Factor*>> Groups() const {
-    std::vector<std::vector<const internal::Factor*>> groups(window.size());
+  // The window as a chain problem: the prior and the front epoch's factors
+  // in group 0, each later epoch's measurements and process factors in its own.
+  internal::ChainProblem Chain() {
+    internal::ChainProblem chain;
+    chain.moment = moment.data();
+    chain.groups.resize(window.size());
     for (std::size_t k = 0; k < window.size(); ++k) {
-      if (k == 0 && prior.cost) groups[k].push_back(&prior);
-      for (const auto& f : window[k].measurements) groups[k].push_back(&f);
-      for (const auto& f : window[k].to_next) groups[k].push_back(&f);
+      chain.states.push_back(window[k].x.data());
+      if (k == 0 && prior.cost) chain.groups[k].push_back(&prior);
+      for (const auto& f : window[k].measurements) chain.groups[k].push_back(&f);
+      for (const auto& f : window[k].to_next) chain.groups[k].push_back(&f);
     }
-    return groups;
-  }
-
-  std::vector<double*> StatePointers() {
-    std::vector<double*> xs;
-    for (auto& w : window) xs.push_back(w.x.data());
-    return xs;
+    return chain;
   }
 
   // Gauss-Newton on the window by chain elimination, with step halving;
   // leaves the factorisation at the final point in `chain` (for covariance).
   void ChainGaussNewton(ceres::Solver::Summary* cs, int* iterations, double* initial_cost) {
-    const auto groups = Groups();
-    const std::vector<double*> xs = StatePointers();
+    const internal::ChainProblem problem = Chain();
+    const auto& groups = problem.groups;
     double cost = internal::TotalCost(groups);
     *initial_cost = cost;
     *iterations = 0;
-    chain_ok = internal::FactorizeChain(xs, moment.data(), groups, &chain);
+    chain_ok = internal::FactorizeChain(problem, &chain);
     cs->termination_type = ceres::CONVERGENCE;
     cs->message = "chain Gauss-Newton";
     std::vector<StateVector> dx;
@@ -225,7 +208,7 @@ struct WindowTracker::Impl {
       ++*iterations;
       const double decrease = cost - new_cost;
       cost = new_cost;
-      chain_ok = internal::FactorizeChain(xs, moment.data(), groups, &chain);
+      chain_ok = internal::FactorizeChain(problem, &chain);
       if (decrease <= options.window_function_tolerance * cost) break;
     }
     cs->initial_cost = *initial_cost;
@@ -252,7 +235,7 @@ struct WindowTracker::Impl {
       }
       internal::PassResult pr =
           internal::SolveWithContinuation(options, options.max_num_iterations, false, meas, false,
-                                          [this](ceres::Problem* problem, bool) { BuildProblem(problem); });
+                                          [this](bool) { return Chain(); });
       for (auto* f : meas) f->loss = meas_loss.get();  // the nominal loss from now on
       cs = pr.last;
       iterations = pr.iterations;
@@ -263,7 +246,7 @@ struct WindowTracker::Impl {
       solve_time = Seconds(t0, std::chrono::steady_clock::now());
     } else {
       ceres::Problem problem(internal::NonOwningProblemOptions());
-      BuildProblem(&problem);
+      internal::AddToProblem(Chain(), &problem);
       ceres::Solver::Options so;
       so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
       so.max_num_iterations = options.window_max_num_iterations;
@@ -280,6 +263,7 @@ struct WindowTracker::Impl {
     for (const auto& w : window) num_samples += static_cast<int>(w.epoch.samples.size());
     summary.initialized = true;
     summary.usable = cs.IsSolutionUsable();
+    summary.converged = cs.termination_type == ceres::CONVERGENCE;
     summary.num_epochs = static_cast<int>(window.size());
     summary.num_samples = num_samples;
     summary.iterations = iterations;

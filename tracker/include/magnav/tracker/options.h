@@ -94,6 +94,15 @@ struct TrackerOptions {
   double parameter_tolerance = 1e-10;
   int num_threads = 1;
 
+  // Solver of the batch passes and of the window's first solve (same problem
+  // either way). kChainLevenbergMarquardt: Levenberg-Marquardt with Ceres'
+  // step rules whose damped normal equations are solved by block-tridiagonal
+  // elimination of the chain of states plus the shared moment (O(N) per
+  // iteration); kCeres: ceres::Solve with SPARSE_NORMAL_CHOLESKY (general
+  // sparse Cholesky, slower on long passes; kept as the reference).
+  enum class BatchSolver { kChainLevenbergMarquardt, kCeres };
+  BatchSolver batch_solver = BatchSolver::kChainLevenbergMarquardt;
+
   // Batch: the pass is solved first over the initialiser's span, then over
   // spans grown by this factor (new epochs predicted from the span's ends)
   // until every epoch is included; > 1.
@@ -109,7 +118,7 @@ struct TrackerOptions {
   // by block-tridiagonal elimination of the chain (O(window) per step, with
   // backtracking and the robust weights of the factors); kCeres = a Ceres
   // solve of the window problem (slower, same problem). The first window
-  // solve (initialisation) always uses Ceres.
+  // solve (initialisation) uses batch_solver.
   enum class WindowSolver { kChainGaussNewton, kCeres };
   WindowSolver window_solver = WindowSolver::kChainGaussNewton;
 
@@ -128,7 +137,9 @@ struct TrackerOptions {
 // What a solve did.
 struct Summary {
   bool initialized = false;  // a track was started
-  bool usable = false;       // Ceres returned a usable solution
+  bool usable = false;       // the solver returned a usable solution
+  bool converged = false;    // ... and its last pass met a convergence tolerance
+                             // (false: stopped at max_num_iterations)
   int num_epochs = 0;        // epochs in the problem
   int num_samples = 0;       // gradiometer samples in the problem
   int num_init_fixes = 0;    // fixes kept by the initialiser
