@@ -185,11 +185,11 @@ PassResult SolveWithContinuation(const TrackerOptions& options, int max_iteratio
 
 namespace {
 
-// Inverse of a symmetric positive-definite 6×6 matrix by Cholesky with
-// fixed-size loops (Eigen's LLT::solve takes its dynamic-size triangular
+// Inverse of a symmetric positive-definite 6×6 matrix A = LLᵀ (and L⁻¹) by
+// Cholesky with fixed-size loops (Eigen's LLT::solve takes its dynamic-size triangular
 // path for a matrix right-hand side, a third of the chain elimination's
 // time). False if A is not positive definite.
-bool InvertSpd6(const StateCovariance& A, StateCovariance* A_inv) {
+bool InvertSpd6(const StateCovariance& A, StateCovariance* A_inv, StateCovariance* L_inv_out) {
   StateCovariance L = StateCovariance::Zero();
   for (int j = 0; j < 6; ++j) {
     double d = A(j, j);
@@ -202,7 +202,8 @@ bool InvertSpd6(const StateCovariance& A, StateCovariance* A_inv) {
       L(i, j) = v / L(j, j);
     }
   }
-  StateCovariance L_inv = StateCovariance::Zero();  // lower triangular
+  StateCovariance& L_inv = *L_inv_out;  // lower triangular
+  L_inv.setZero();
   for (int j = 0; j < 6; ++j) {
     L_inv(j, j) = 1.0 / L(j, j);
     for (int i = j + 1; i < 6; ++i) {
@@ -289,31 +290,35 @@ bool EliminateChain(const ChainLinearization& lin, double lambda, ChainFactoriza
   Eigen::Matrix<double, 9, 1> carried_g = Eigen::Matrix<double, 9, 1>::Zero();
   StateVector diag_next = StateVector::Zero();  // undamped diag(H) of x_k from group k−1
   Eigen::Vector3d diag_m = Eigen::Vector3d::Zero();
-  LocalH H;
-  LocalG g;
+  StateCovariance L_inv;
   for (std::size_t k = 0; k < n; ++k) {
-    H = lin.H[k];
-    g = lin.g[k];
+    // Blocks of group k over [x_k; x_{k+1}; m], plus what the eliminated
+    // states carried onto (x_k, m): D (x_k), C (x_k with (x_{k+1}, m)), B.
+    const LocalH& H = lin.H[k];
+    const LocalG& g = lin.g[k];
+    StateCovariance D = H.topLeftCorner<6, 6>() + carried.topLeftCorner<6, 6>();
     diag_m += H.diagonal().tail<3>();
     if (lambda > 0.0) {
-      const StateVector d = H.diagonal().head<6>() + diag_next;
+      D.diagonal() += damping((H.diagonal().head<6>() + diag_next).eval());
       diag_next = H.diagonal().segment<6>(6);
-      H.diagonal().head<6>() += damping(d);
     }
-    H.topLeftCorner<6, 6>() += carried.topLeftCorner<6, 6>();
-    H.block<6, 3>(0, 12) += carried.topRightCorner<6, 3>();
-    H.block<3, 6>(12, 0) += carried.bottomLeftCorner<3, 6>();
-    H.block<3, 3>(12, 12) += carried.bottomRightCorner<3, 3>();
-    g.head<6>() += carried_g.head<6>();
-    g.tail<3>() += carried_g.tail<3>();
-    if (!InvertSpd6(H.topLeftCorner<6, 6>(), &out->D_inv[k])) return false;
-    out->C[k] = H.topRightCorner<6, 9>();
-    out->g[k] = g.head<6>();
-    // lazyProduct: coefficient-based kernels for these small fixed sizes.
-    const Eigen::Matrix<double, 9, 6> CtDinv = out->C[k].transpose().lazyProduct(out->D_inv[k]);
-    carried = H.bottomRightCorner<9, 9>() - CtDinv.lazyProduct(out->C[k]);
-    carried = 0.5 * (carried + carried.transpose()).eval();
-    carried_g = g.tail<9>() - CtDinv.lazyProduct(out->g[k]);
+    Mat69& C = out->C[k];
+    C.leftCols<6>() = H.block<6, 6>(0, 6);
+    C.rightCols<3>() = H.block<6, 3>(0, 12) + carried.topRightCorner<6, 3>();
+    out->g[k] = g.head<6>() + carried_g.head<6>();
+    if (!InvertSpd6(D, &out->D_inv[k], &L_inv)) return false;
+    // Schur complement B − Cᵀ D⁻¹ C = B − WᵀW with W = L⁻¹ C (symmetric by
+    // construction); lazyProduct: coefficient-based kernels for small sizes.
+    const Mat69 W = L_inv.lazyProduct(C);
+    const Eigen::Matrix<double, 6, 1> w = L_inv.lazyProduct(out->g[k]);
+    const Eigen::Matrix3d carried_mm = carried.bottomRightCorner<3, 3>();
+    const Eigen::Vector3d carried_gm = carried_g.tail<3>();
+    carried = H.bottomRightCorner<9, 9>();
+    carried.bottomRightCorner<3, 3>() += carried_mm;
+    carried.noalias() -= W.transpose().lazyProduct(W);
+    carried_g = g.tail<9>();
+    carried_g.tail<3>() += carried_gm;
+    carried_g.noalias() -= W.transpose().lazyProduct(w);
   }
   // After the last state only the moment part of `carried` is meaningful.
   out->S = carried.bottomRightCorner<3, 3>();
