@@ -2,6 +2,7 @@
 // closed-form kinematics there) and against the ω → 0 limit.
 #include "magnav/core/motion.h"
 
+#include <ceres/jet.h>
 #include <gtest/gtest.h>
 
 #include "magnav/core/csv.h"
@@ -52,6 +53,34 @@ TEST(CoordinatedTurn, StraightLineLimitIsContinuous) {
   EXPECT_NEAR(c.x, s.x, 1e-12);
   EXPECT_NEAR(c.y, s.y, 1e-12);
   for (double u : {1e-4, 9.99e-4, 1.001e-3, 0.1}) EXPECT_NEAR(Sinc(u), std::sin(u) / u, 3e-16);
+}
+
+// The analytic Jacobian equals automatic differentiation of the templated
+// propagation (Ceres Jets, exact to rounding), on turning and straight states.
+TEST(CoordinatedTurn, AnalyticJacobianEqualsAutomaticDifferentiation) {
+  using Jet = ceres::Jet<double, 6>;
+  for (double w : {0.0, 1e-7, 5e-4, 0.02, -0.3}) {
+    for (double dt : {0.1, -0.5, 7.0}) {
+      const CtState<double> s{10.0, -4.0, 3.0, 2.5, 2.9, w};
+      const double in[6] = {s.x, s.y, s.z, s.v, s.heading, s.turn_rate};
+      CtState<Jet> sj;
+      Jet* fields[6] = {&sj.x, &sj.y, &sj.z, &sj.v, &sj.heading, &sj.turn_rate};
+      for (int i = 0; i < 6; ++i) *fields[i] = Jet(in[i], i);
+      const CtState<Jet> o = PropagateCoordinatedTurn(sj, dt);
+      const Jet out[6] = {o.x, o.y, o.z, o.v, o.heading, o.turn_rate};
+      const Eigen::Matrix<double, 6, 6> F = CoordinatedTurnJacobian(s, dt);
+      for (int r = 0; r < 6; ++r) {
+        for (int c = 0; c < 6; ++c) {
+          EXPECT_NEAR(F(r, c), out[r].v[c], 1e-12 * (1.0 + std::abs(out[r].v[c])))
+              << "row " << r << " col " << c << " omega " << w << " dt " << dt;
+        }
+      }
+    }
+  }
+  for (double u : {0.0, 1e-4, 9.99e-4, 1.001e-3, 0.1, -2.0}) {
+    const double h = 1e-6;
+    EXPECT_NEAR(SincDerivative(u), (Sinc(u + h) - Sinc(u - h)) / (2 * h), 1e-9) << u;
+  }
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <ceres/gradient_checker.h>
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <random>
 
 #include "magnav/core/csv.h"
@@ -81,6 +82,31 @@ TEST(MeasurementSqrtInfo, WhitensTheTraceFreeTensorNoise) {
   cov(3, 6) = cov(6, 3) = -0.5 * sT * sT;  // Txx, Tyy
   const Eigen::Matrix<double, 8, 8> I = L * cov * L.transpose();
   EXPECT_LT((I - Eigen::Matrix<double, 8, 8>::Identity()).norm(), 1e-9);
+}
+
+// The analytic kinematic factor equals the autodiff one (residuals and both
+// Jacobians), turning and straight.
+TEST(KinematicCost, EqualsAutomaticDifferentiationOfTheResidual) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 50; ++trial) {
+    const double dt = 0.05 + 0.5 * (u(rng) + 1.0);
+    const KinematicCost analytic(dt, 0.01, 0.005, 0.002);
+    std::unique_ptr<ceres::CostFunction> autodiff(KinematicResidual::Create(dt, 0.01, 0.005, 0.002));
+    Eigen::Matrix<double, 6, 1> s0, s1;
+    s0 << 50 * u(rng), 50 * u(rng), 20 + u(rng), 3 + u(rng), 3 * u(rng), trial % 5 == 0 ? 0.0 : 0.05 * u(rng);
+    s1 = s0 + 0.1 * Eigen::Matrix<double, 6, 1>::NullaryExpr([&] { return u(rng); });
+    const double* params[] = {s0.data(), s1.data()};
+    Eigen::Matrix<double, 5, 1> ea, ed;
+    Eigen::Matrix<double, 5, 6, Eigen::RowMajor> A0, A1, D0, D1;
+    double* ja[] = {A0.data(), A1.data()};
+    double* jd[] = {D0.data(), D1.data()};
+    ASSERT_TRUE(analytic.Evaluate(params, ea.data(), ja));
+    ASSERT_TRUE(autodiff->Evaluate(params, ed.data(), jd));
+    EXPECT_LT((ea - ed).norm(), 1e-12 * (1.0 + ed.norm())) << trial;
+    EXPECT_LT((A0 - D0).norm(), 1e-12 * D0.norm()) << trial;
+    EXPECT_EQ(A1, D1) << trial;
+  }
 }
 
 TEST(PriorCost, ResidualAndJacobian) {

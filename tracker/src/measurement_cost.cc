@@ -1,6 +1,7 @@
 #include <Eigen/Cholesky>
 
 #include "magnav/core/frames.h"
+#include "magnav/core/motion.h"
 #include "magnav/core/tensor.h"
 #include "magnav/tracker/cost_functions.h"
 
@@ -56,6 +57,38 @@ bool MeasurementCost::Evaluate(double const* const* parameters, double* residual
   if (jacobians[1] != nullptr) {
     Eigen::Map<Eigen::Matrix<double, 8, 3, Eigen::RowMajor>> J(jacobians[1]);
     J = sqrt_info_.lazyProduct(J_z_m).lazyProduct(HeadingRotation(heading) * moment_scale_);
+  }
+  return true;
+}
+
+KinematicCost::KinematicCost(double dt_s, double sigma_p, double sigma_v, double sigma_h) : dt_(dt_s) {
+  const double root_dt = std::sqrt(dt_s);
+  w_ << 1.0 / (sigma_p * root_dt), 1.0 / (sigma_p * root_dt), 1.0 / (sigma_p * root_dt), 1.0 / (sigma_v * root_dt),
+      1.0 / (sigma_h * root_dt);
+}
+
+bool KinematicCost::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
+  const double* s0 = parameters[0];
+  const double* s1 = parameters[1];
+  const CtState<double> a{s0[0], s0[1], s0[2], s0[3], s0[4], s0[5]};
+  const CtState<double> p = PropagateCoordinatedTurn(a, dt_);
+  residuals[0] = (s1[0] - p.x) * w_(0);
+  residuals[1] = (s1[1] - p.y) * w_(1);
+  residuals[2] = (s1[2] - p.z) * w_(2);
+  residuals[3] = (s1[3] - s0[3]) * w_(3);
+  residuals[4] = (s1[4] - p.heading) * w_(4);
+  if (jacobians == nullptr) return true;
+  // Residual rows are rows (x, y, z, v, heading) of x_{k+1} − f(x_k), weighted.
+  static constexpr int kRows[5] = {0, 1, 2, 3, 4};
+  if (jacobians[0] != nullptr) {
+    const Eigen::Matrix<double, 6, 6> F = CoordinatedTurnJacobian(a, dt_);
+    Eigen::Map<Eigen::Matrix<double, 5, 6, Eigen::RowMajor>> J(jacobians[0]);
+    for (int r = 0; r < 5; ++r) J.row(r) = -w_(r) * F.row(kRows[r]);
+  }
+  if (jacobians[1] != nullptr) {
+    Eigen::Map<Eigen::Matrix<double, 5, 6, Eigen::RowMajor>> J(jacobians[1]);
+    J.setZero();
+    for (int r = 0; r < 5; ++r) J(r, kRows[r]) = w_(r);
   }
   return true;
 }

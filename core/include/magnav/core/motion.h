@@ -14,6 +14,7 @@
 // and smooth (derivatives included). Templated so Ceres can differentiate it.
 #pragma once
 
+#include <Eigen/Core>
 #include <cmath>
 
 namespace magnav {
@@ -28,6 +29,15 @@ T Sinc(const T& u) {
     return T(1.0) - u2 / T(6.0) + u2 * u2 / T(120.0) - u2 * u2 * u2 / T(5040.0);
   }
   return sin(u) / u;
+}
+
+// d/du [sin(u)/u] = (u cos u − sin u)/u², smooth at 0 (series for |u| < 1e-3).
+inline double SincDerivative(double u) {
+  if (std::abs(u) < 1e-3) {
+    const double u2 = u * u;
+    return u * (-1.0 / 3.0 + u2 / 30.0 - u2 * u2 / 840.0);
+  }
+  return (u * std::cos(u) - std::sin(u)) / (u * u);
 }
 
 template <typename T>
@@ -52,6 +62,28 @@ CtState<T> PropagateCoordinatedTurn(const CtState<T>& s, double dt) {
   o.y = s.y + d * sin(mid);
   o.heading = s.heading + s.turn_rate * T(dt);
   return o;
+}
+
+// Jacobian of PropagateCoordinatedTurn(s, dt) with respect to s, rows and
+// columns in the order (x, y, z, v, heading, turn_rate). Analytic, exact at
+// ω → 0 (used by the tracker's kinematic factor; as fast as needed for EKFs).
+inline Eigen::Matrix<double, 6, 6> CoordinatedTurnJacobian(const CtState<double>& s, double dt) {
+  const double half = s.turn_rate * 0.5 * dt;
+  const double mid = s.heading + half;
+  const double S = Sinc(half);
+  const double d = s.v * dt * S;
+  const double c = std::cos(mid), sn = std::sin(mid);
+  // ∂d/∂ω = v dt S'(half) dt/2; ∂mid/∂ω = dt/2.
+  const double dd_dw = s.v * dt * SincDerivative(half) * 0.5 * dt;
+  Eigen::Matrix<double, 6, 6> F = Eigen::Matrix<double, 6, 6>::Identity();
+  F(0, 3) = dt * S * c;
+  F(0, 4) = -d * sn;
+  F(0, 5) = dd_dw * c - d * sn * 0.5 * dt;
+  F(1, 3) = dt * S * sn;
+  F(1, 4) = d * c;
+  F(1, 5) = dd_dw * sn + d * c * 0.5 * dt;
+  F(4, 5) = dt;
+  return F;
 }
 
 }  // namespace magnav

@@ -49,7 +49,10 @@ class MeasurementCost final : public ceres::SizedCostFunction<8, 6, 3> {
   double moment_scale_;
 };
 
-// Kinematic process residual between consecutive epochs (autodiff).
+// Kinematic process residual between consecutive epochs. KinematicCost is
+// the analytic one the tracker uses (CoordinatedTurnJacobian of core/motion.h);
+// KinematicResidual is the same residual as a templated functor, kept for
+// automatic differentiation (the tests compare the two).
 //
 //   x̂_{k+1} = PropagateCoordinatedTurn(x_k, dt)
 //   e = [(p_{k+1} − p̂)/σ_p, (v_{k+1} − v_k)/σ_v, (h_{k+1} − ĥ)/σ_h] / √dt
@@ -81,6 +84,16 @@ struct KinematicResidual {
   }
 
   double dt, w_p, w_v, w_h;
+};
+
+class KinematicCost final : public ceres::SizedCostFunction<5, 6, 6> {
+ public:
+  KinematicCost(double dt_s, double sigma_p, double sigma_v, double sigma_h);
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+
+ private:
+  double dt_;
+  Eigen::Matrix<double, 5, 1> w_;  // 1/(σ √dt) per residual
 };
 
 // Turn-rate random walk: e = (ω_{k+1} − ω_k) / (σ_ω √dt). Linear, analytic.
