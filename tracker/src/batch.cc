@@ -20,7 +20,7 @@ double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_cloc
 }  // namespace
 
 TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                         const TrackerOptions& options) {
+                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
   const auto t_start = std::chrono::steady_clock::now();
@@ -28,14 +28,15 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
   Summary& sum = out.summary;
   sum.num_epochs = static_cast<int>(epochs.size());
 
-  const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options);
+  const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options, fixes);
   if (!init) {
-    sum.message = "no track: too few strong single-sample fixes to initialise";
+    sum.message = NoTrackMessage(options, fixes != nullptr);
     sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
     return out;
   }
   sum.initialized = true;
   sum.num_init_fixes = static_cast<int>(init->fixes.size());
+  sum.init_from_external_fixes = init->from_external_fixes;
 
   // Parameters: one state per epoch (straight-line initial guess), one moment.
   const double moment_scale = std::max(init->m_B_Am2.norm(), 1.0);

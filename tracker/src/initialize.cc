@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 
+#include "magnav/core/csv.h"
 #include "magnav/core/dipole.h"
 #include "magnav/core/frames.h"
 #include "magnav/core/tensor.h"
@@ -53,6 +54,19 @@ LineFit FitLine(const std::vector<DipoleFix>& fixes, const std::vector<bool>& us
   return f;
 }
 
+// A fix and the sample it was computed from.
+struct Candidate {
+  DipoleFix fix;
+  const GradiometerSample* sample = nullptr;
+};
+
+std::vector<DipoleFix> FixesOf(const std::vector<Candidate>& c) {
+  std::vector<DipoleFix> out;
+  out.reserve(c.size());
+  for (const auto& x : c) out.push_back(x.fix);
+  return out;
+}
+
 }  // namespace
 
 double SigmaB(const GradiometerSample& s, const TrackerOptions& o) {
@@ -73,25 +87,85 @@ std::optional<Eigen::Vector3d> SingleSampleOffset(const Eigen::Vector3d& dB_W, c
   return sol.r_DtoS;
 }
 
-std::vector<DipoleFix> StrongFixes(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                                   const TrackerOptions& options) {
-  std::vector<DipoleFix> fixes;
+namespace {
+
+double Snr(const GradiometerSample& s, const TrackerOptions& options) { return s.T.norm() / SigmaT(s, options); }
+
+std::vector<Candidate> StrongCandidates(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                        const TrackerOptions& options) {
+  std::vector<Candidate> out;
   for (const Epoch& e : epochs) {
     for (const GradiometerSample& s : e.samples) {
-      const double snr = s.T.norm() / SigmaT(s, options);
+      const double snr = Snr(s, options);
       if (!(snr >= options.init.min_tensor_snr)) continue;
       const auto r = SingleSampleOffset(s.B - B0_W, s.T);
       if (!r) continue;
-      fixes.push_back(DipoleFix{e.t_s, s.sensor_id, s.p_SinW - *r, snr});
+      out.push_back({DipoleFix{e.t_s, s.sensor_id, s.p_SinW - *r, snr}, &s});
     }
   }
-  return fixes;
+  return out;
 }
 
-std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                                            const TrackerOptions& options) {
+std::vector<Candidate> MatchCandidates(const std::vector<Epoch>& epochs, const std::vector<DipoleFix>& fixes,
+                                       const TrackerOptions& options) {
+  const double tol = options.epoch_tolerance_s;
+  std::vector<Candidate> out;
+  for (const DipoleFix& f : fixes) {
+    if (!f.valid || !std::isfinite(f.t_s) || !f.p_DinW.allFinite()) continue;
+    const auto e = std::lower_bound(epochs.begin(), epochs.end(), f.t_s - tol,
+                                    [](const Epoch& a, double t) { return a.t_s < t; });
+    if (e == epochs.end() || std::abs(e->t_s - f.t_s) > tol) continue;
+    const auto s = std::find_if(e->samples.begin(), e->samples.end(),
+                                [&](const GradiometerSample& x) { return x.sensor_id == f.sensor_id; });
+    if (s == e->samples.end()) continue;
+    const double snr = Snr(*s, options);
+    if (!(snr >= options.init.min_tensor_snr)) continue;
+    out.push_back({DipoleFix{e->t_s, f.sensor_id, f.p_DinW, snr}, &*s});
+  }
+  std::stable_sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) {
+    return a.fix.t_s != b.fix.t_s ? a.fix.t_s < b.fix.t_s : a.fix.sensor_id < b.fix.sensor_id;
+  });
+  // One fix per sample: a repeated fix (the same sample published twice) counts once.
+  out.erase(std::unique(out.begin(), out.end(),
+                        [](const Candidate& a, const Candidate& b) { return a.sample == b.sample; }),
+            out.end());
+  return out;
+}
+
+}  // namespace
+
+std::vector<DipoleFix> StrongFixes(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                   const TrackerOptions& options) {
+  return FixesOf(StrongCandidates(epochs, B0_W, options));
+}
+
+std::vector<DipoleFix> MatchFixes(const std::vector<Epoch>& epochs, const std::vector<DipoleFix>& fixes,
+                                  const TrackerOptions& options) {
+  return FixesOf(MatchCandidates(epochs, fixes, options));
+}
+
+std::string NoTrackMessage(const TrackerOptions& options, bool have_external_fixes) {
+  const InitSource src = options.init.source;
+  if (src == InitSource::kExternal && !have_external_fixes) {
+    return "no track: the initialiser takes only fixes from outside (init source dipole_fix) and none were given";
+  }
+  const std::string need = " (at least " + std::to_string(options.init.min_fixes) +
+                           " on a line near the strongest signal, spanning " +
+                           FormatNumber(options.init.min_span_s) + " s)";
+  if (src == InitSource::kExternal) return "no track: too few of the given fixes match a strong sample" + need;
+  if (src == InitSource::kAuto && have_external_fixes) {
+    return "no track: neither the given fixes nor the tracker's own single-sample fixes suffice" + need;
+  }
+  return "no track: too few strong single-sample fixes to initialise" + need;
+}
+
+namespace {
+
+// The initial track from one set of fixes (see the header).
+std::optional<InitialTrack> InitializeFrom(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                           const TrackerOptions& options, const std::vector<Candidate>& all,
+                                           bool external) {
   const InitOptions& io = options.init;
-  std::vector<DipoleFix> all = StrongFixes(epochs, B0_W, options);
   if (static_cast<int>(all.size()) < io.min_fixes) return std::nullopt;
   // Strongest signal: largest running median over ±1 s of the SNR of all
   // samples of one sensor (weak ones included, so an isolated bad sample
@@ -100,10 +174,10 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
   std::map<std::uint32_t, std::vector<std::pair<double, double>>> snr_by_sensor;
   for (const Epoch& e : epochs) {
     for (const GradiometerSample& s : e.samples) {
-      snr_by_sensor[s.sensor_id].emplace_back(e.t_s, s.T.norm() / SigmaT(s, options));
+      snr_by_sensor[s.sensor_id].emplace_back(e.t_s, Snr(s, options));
     }
   }
-  double t_peak = all.front().t_s, best = -1.0;
+  double t_peak = all.front().fix.t_s, best = -1.0;
   for (const auto& [id, snr_t] : snr_by_sensor) {
     for (std::size_t i = 0, lo = 0, hi = 0; i < snr_t.size(); ++i) {
       while (snr_t[lo].first < snr_t[i].first - 1.0) ++lo;
@@ -117,10 +191,11 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
       }
     }
   }
-  std::vector<DipoleFix> fixes;
-  for (const DipoleFix& f : all) {
-    if (std::abs(f.t_s - t_peak) <= 0.5 * io.span_s) fixes.push_back(f);
+  std::vector<Candidate> candidates;
+  for (const Candidate& c : all) {
+    if (std::abs(c.fix.t_s - t_peak) <= 0.5 * io.span_s) candidates.push_back(c);
   }
+  const std::vector<DipoleFix> fixes = FixesOf(candidates);
   if (static_cast<int>(fixes.size()) < io.min_fixes) return std::nullopt;
 
   // Robust line fit: refit without fixes far from the line (bad samples, or
@@ -148,10 +223,13 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
   }
 
   InitialTrack init;
+  init.from_external_fixes = external;
   double t_min = 1e300, t_max = -1e300;
+  std::vector<const GradiometerSample*> inlier_samples;
   for (std::size_t i = 0; i < fixes.size(); ++i) {
     if (!use[i]) continue;
     init.fixes.push_back(fixes[i]);
+    inlier_samples.push_back(candidates[i].sample);
     t_min = std::min(t_min, fixes[i].t_s);
     t_max = std::max(t_max, fixes[i].t_s);
   }
@@ -163,35 +241,39 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
   const double heading = std::atan2(line.v.y(), line.v.x());
   init.state = CtState<double>{line.p_ref.x(), line.p_ref.y(), line.p_ref.z(), line.v.norm(), heading, 0.0};
 
-  // Body moment: median over the inlier fixes of Rz(h)ᵀ m_W, m_W fitted with
-  // the dipole on the line (less noisy than the single fixes).
+  // Body moment: median over the inlier fixes of Rz(h)ᵀ m_W, m_W fitted from
+  // each fix's sample with the dipole on the line (less noisy than the fixes).
   const Eigen::Matrix3d R_WtoB = HeadingRotation(heading).transpose();
   std::vector<double> mx, my, mz;
-  std::size_t k = 0;
-  for (const Epoch& e : epochs) {
-    for (const GradiometerSample& s : e.samples) {
-      if (k >= init.fixes.size()) break;
-      // Walk fixes and samples together (both in epoch/sample order).
-      const double snr = s.T.norm() / SigmaT(s, options);
-      if (!(snr >= io.min_tensor_snr) || e.t_s != init.fixes[k].t_s ||
-          s.sensor_id != init.fixes[k].sensor_id) {
-        continue;
-      }
-      ++k;
-      Eigen::Vector3d m_W;
-      if (!FitDipoleMoment(s.p_SinW - line.At(e.t_s), s.B - B0_W, s.T, SigmaB(s, options), SigmaT(s, options),
-                           &m_W)) {
-        continue;
-      }
-      const Eigen::Vector3d m_B = R_WtoB * m_W;
-      mx.push_back(m_B.x());
-      my.push_back(m_B.y());
-      mz.push_back(m_B.z());
+  for (std::size_t k = 0; k < init.fixes.size(); ++k) {
+    const GradiometerSample& s = *inlier_samples[k];
+    Eigen::Vector3d m_W;
+    if (!FitDipoleMoment(s.p_SinW - line.At(init.fixes[k].t_s), s.B - B0_W, s.T, SigmaB(s, options),
+                         SigmaT(s, options), &m_W)) {
+      continue;
     }
+    const Eigen::Vector3d m_B = R_WtoB * m_W;
+    mx.push_back(m_B.x());
+    my.push_back(m_B.y());
+    mz.push_back(m_B.z());
   }
   if (mx.empty()) return std::nullopt;
   init.m_B_Am2 = {Median(mx), Median(my), Median(mz)};
   return init;
+}
+
+}  // namespace
+
+std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                            const TrackerOptions& options,
+                                            const std::vector<DipoleFix>* external_fixes) {
+  const InitSource src = options.init.source;
+  if (external_fixes != nullptr && src != InitSource::kSamples) {
+    auto init = InitializeFrom(epochs, B0_W, options, MatchCandidates(epochs, *external_fixes, options), true);
+    if (init || src == InitSource::kExternal) return init;
+  }
+  if (src == InitSource::kExternal) return std::nullopt;
+  return InitializeFrom(epochs, B0_W, options, StrongCandidates(epochs, B0_W, options), false);
 }
 
 }  // namespace magnav::tracker

@@ -38,6 +38,31 @@ const char* LossTypeName(LossType type) {
   return "?";
 }
 
+bool ParseInitSource(const std::string& name, InitSource* source) {
+  if (name == "samples") {
+    *source = InitSource::kSamples;
+  } else if (name == "dipole_fix") {
+    *source = InitSource::kExternal;
+  } else if (name == "auto") {
+    *source = InitSource::kAuto;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+const char* InitSourceName(InitSource source) {
+  switch (source) {
+    case InitSource::kSamples:
+      return "samples";
+    case InitSource::kExternal:
+      return "dipole_fix";
+    case InitSource::kAuto:
+      return "auto";
+  }
+  return "?";
+}
+
 bool ProcessNoise::IsValid(std::string* error) const {
   if (!PositiveFinite(position_m_per_sqrt_s)) return Fail(error, "process.position_m_per_sqrt_s must be > 0");
   if (!PositiveFinite(speed_mps_per_sqrt_s)) return Fail(error, "process.speed_mps_per_sqrt_s must be > 0");
@@ -92,7 +117,8 @@ bool TrackerOptions::IsValid(std::string* error) const {
 std::string Summary::BriefReport() const {
   std::ostringstream o;
   o << "tracker: " << (initialized ? "initialised" : "not initialised") << ", " << num_epochs << " epochs, "
-    << num_samples << " samples, " << num_init_fixes << " init fixes, " << iterations << " iterations, cost "
+    << num_samples << " samples, " << num_init_fixes
+    << (init_from_external_fixes ? " external" : "") << " init fixes, " << iterations << " iterations, cost "
     << initial_cost << " -> " << final_cost << ", solve " << solve_time_s << " s, covariance "
     << covariance_time_s << " s (" << (covariance_ok ? "ok" : "none") << "), total " << total_time_s << " s; "
     << message;

@@ -49,8 +49,11 @@ struct WindowTracker::Impl {
   TrackerOptions options;
   std::unique_ptr<ceres::LossFunction> meas_loss, turn_loss;
 
-  // Before a track exists: recent epochs, for the initialiser.
+  // Before a track exists: recent epochs, and fixes handed in, for the
+  // initialiser (any_fix: a fix has been handed in, ever).
   std::deque<Epoch> buffer;
+  std::deque<DipoleFix> fixes;
+  bool any_fix = false;
   // Sample stream: the epoch being filled.
   bool has_pending = false;
   Epoch pending;
@@ -281,10 +284,13 @@ struct WindowTracker::Impl {
     if (!initialized) {
       buffer.push_back(e);
       while (e.t_s - buffer.front().t_s > options.window_s + options.epoch_tolerance_s) buffer.pop_front();
+      while (!fixes.empty() && fixes.front().t_s < buffer.front().t_s - options.epoch_tolerance_s) fixes.pop_front();
       const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
-      const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options);
+      const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
+      const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options, any_fix ? &given : nullptr);
       if (!init) return {};
       initialized = true;
+      fixes.clear();
       moment_scale = std::max(init->m_B_Am2.norm(), 1.0);
       moment = init->m_B_Am2 / moment_scale;
       for (const Epoch& b : epochs) {
@@ -296,6 +302,7 @@ struct WindowTracker::Impl {
       buffer.clear();
       Solve(true);
       summary.num_init_fixes = static_cast<int>(init->fixes.size());
+      summary.init_from_external_fixes = init->from_external_fixes;
     } else {
       const WindowEpoch& last = window.back();
       const CtState<double> s0{last.x(0), last.x(1), last.x(2), last.x(3), last.x(4), last.x(5)};
@@ -309,6 +316,7 @@ struct WindowTracker::Impl {
       }
       Solve(false);
       summary.num_init_fixes = 0;
+      summary.init_from_external_fixes = false;
     }
     EpochEstimate est = Estimate(window.back());
     if (options.compute_covariance && summary.usable) {
@@ -376,6 +384,20 @@ std::vector<EpochEstimate> WindowTracker::AddEpoch(const Epoch& epoch) {
                      " s is not later than the previous one");
   }
   return m.Process(epoch);
+}
+
+void WindowTracker::AddFix(const DipoleFix& fix) {
+  Impl& m = *impl_;
+  if (!std::isfinite(fix.t_s) || (fix.valid && !fix.p_DinW.allFinite())) {
+    throw InputError("tracker: fix of sensor " + std::to_string(fix.sensor_id) + " at t = " + FormatNumber(fix.t_s) +
+                     " s: time or position is not finite");
+  }
+  m.any_fix = true;
+  if (!fix.valid || m.initialized || m.options.init.source == InitSource::kSamples) return;
+  // Older than every buffered epoch: its sample is gone (or never came).
+  if (!m.buffer.empty() && fix.t_s < m.buffer.front().t_s - m.options.epoch_tolerance_s) return;
+  m.fixes.push_back(fix);
+  if (m.fixes.size() > kMaxPendingFixes) m.fixes.pop_front();
 }
 
 bool WindowTracker::initialized() const { return impl_->initialized; }

@@ -3,7 +3,10 @@
 // Frames and units: world NED, metres, seconds, tesla, T/m, A·m², radians.
 //
 // Each strong sample (‖T‖_F ≥ min_tensor_snr · σ_T) gives a dipole position
-// p_D = p_S − r by TED+EGT (see SingleSampleOffset). A robust straight-line
+// p_D = p_S − r by TED+EGT (see SingleSampleOffset) — or the fixes come from
+// outside (magnav-inverter's gated fixes on magnav/dipole_fix, or the output
+// of `magnav invert`), matched to the samples they were computed from;
+// options.init.source chooses. A robust straight-line
 // fit p(t) = p̄ + v (t − t̄) over the fixes within ±span_s/2 of the strongest
 // signal gives position, speed and heading
 // (turn rate 0); the body moment is the component-wise median of
@@ -13,6 +16,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "magnav/core/motion.h"
@@ -26,13 +30,6 @@ namespace magnav::tracker {
 // dB_W = B − B0 (T), T in T/m. nullopt if T = 0 or the result is not finite.
 std::optional<Eigen::Vector3d> SingleSampleOffset(const Eigen::Vector3d& dB_W, const Eigen::Matrix3d& T);
 
-struct DipoleFix {
-  double t_s = 0.0;
-  std::uint32_t sensor_id = 0;
-  Eigen::Vector3d p_DinW = Eigen::Vector3d::Zero();  // m
-  double tensor_snr = 0.0;                           // ‖T‖_F / σ_T
-};
-
 struct InitialTrack {
   double t_ref_s = 0.0;    // time of `state`
   double t_first_s = 0.0;  // time span of the inlier fixes
@@ -40,15 +37,35 @@ struct InitialTrack {
   CtState<double> state{};  // straight-line state at t_ref_s (ω = 0)
   Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
   std::vector<DipoleFix> fixes;  // inliers used
+  bool from_external_fixes = false;  // fixes handed in, not the tracker's own
 };
 
 // Fixes of every strong sample of the epochs.
 std::vector<DipoleFix> StrongFixes(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                    const TrackerOptions& options);
 
-// Initial track, or nullopt if there are too few strong fixes.
+// Fixes handed in from outside, matched to the samples they came from (same
+// sensor, epoch time within options.epoch_tolerance_s), with tensor_snr set
+// from that sample. Left out: a fix that is not valid, whose position or time
+// is not finite,
+// whose sample is not among the epochs, or whose sample is weak (‖T‖_F <
+// min_tensor_snr · σ_T, as for the tracker's own fixes). Ordered by time, then
+// sensor.
+std::vector<DipoleFix> MatchFixes(const std::vector<Epoch>& epochs, const std::vector<DipoleFix>& fixes,
+                                  const TrackerOptions& options);
+
+// Initial track, or nullopt if there are too few fixes. `external_fixes`:
+// fixes handed in from outside (nullptr = none has been). options.init.source:
+// kAuto tries them first when given and falls back to the tracker's own fixes
+// when they do not suffice (InitialTrack::from_external_fixes tells which
+// were used); kExternal uses nothing else; kSamples ignores them.
 std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                                            const TrackerOptions& options);
+                                            const TrackerOptions& options,
+                                            const std::vector<DipoleFix>* external_fixes = nullptr);
+
+// Why InitializeTrack gave no track, for a user: `have_external_fixes` as
+// its external_fixes != nullptr.
+std::string NoTrackMessage(const TrackerOptions& options, bool have_external_fixes);
 
 // Effective sensor sigmas of a sample (the sample's, else the options').
 double SigmaB(const GradiometerSample& s, const TrackerOptions& options);

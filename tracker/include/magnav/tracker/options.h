@@ -43,8 +43,28 @@ struct ProcessNoise {
   bool IsValid(std::string* error) const;
 };
 
-// Initialisation from single-sample TED+EGT fixes.
+// Where the initialiser takes its single-sample fixes from.
+enum class InitSource {
+  // The tracker's own TED+EGT (the inverter's solver) on every strong sample.
+  kSamples,
+  // Only fixes handed in from outside: WindowTracker::AddFix (magnav-tracker
+  // feeds it magnav-inverter's gated fixes from magnav/dipole_fix) or the
+  // `fixes` of SolveBatch (magnav track --fixes). No fix, no track.
+  kExternal,
+  // The fixes handed in (once any has been, rejected ones included) when they
+  // suffice to start a track, the tracker's own otherwise: never starts later
+  // than kSamples. (magnav-inverter's default gates are strict — σ ≤ 5 cm per
+  // fix — so on a fluxgate pass its fixes may be too few or span too short.)
+  kAuto,
+};
+
+// Parses "samples" | "dipole_fix" | "auto"; false on anything else.
+bool ParseInitSource(const std::string& name, InitSource* source);
+const char* InitSourceName(InitSource source);
+
+// Initialisation from single-sample fixes (TED+EGT).
 struct InitOptions {
+  InitSource source = InitSource::kAuto;
   // A sample gives a fix only if ‖T‖_F ≥ min_tensor_snr · σ_T (strong signal).
   double min_tensor_snr = 50.0;
   // At least this many fixes, spanning at least min_span_s, are needed.
@@ -143,6 +163,7 @@ struct Summary {
   int num_epochs = 0;        // epochs in the problem
   int num_samples = 0;       // gradiometer samples in the problem
   int num_init_fixes = 0;    // fixes kept by the initialiser
+  bool init_from_external_fixes = false;  // ... handed in (AddFix / SolveBatch's fixes)
   int iterations = 0;
   double initial_cost = 0.0;  // ½ Σ ρ(‖r‖²), r in σ
   double final_cost = 0.0;

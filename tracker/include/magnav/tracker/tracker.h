@@ -17,6 +17,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -34,6 +36,18 @@ struct Epoch {
 // Groups time-ordered samples into epochs (|Δt| ≤ tolerance_s). Throws
 // InputError if the samples are not ordered by time.
 std::vector<Epoch> GroupEpochs(const std::vector<GradiometerSample>& samples, double tolerance_s);
+
+// A single-sample dipole fix: the dipole position computed from the sample
+// of gradiometer `sensor_id` taken at t_s. A fix rejected by its producer's
+// gates (valid = false) is never used for a track, but tells the tracker that
+// fixes are being produced (InitSource::kAuto).
+struct DipoleFix {
+  double t_s = 0.0;  // time of the sample, s
+  std::uint32_t sensor_id = 0;
+  Eigen::Vector3d p_DinW = Eigen::Vector3d::Zero();  // m
+  double tensor_snr = 0.0;                           // ‖T‖_F / σ_T of the sample
+  bool valid = true;
+};
 
 // State vector layout of one epoch: [x, y, z, v, h, ω].
 using StateVector = Eigen::Matrix<double, 6, 1>;
@@ -61,9 +75,12 @@ struct TrackEstimate {
 };
 
 // Batch solve over all epochs of a pass. If no track can be initialised the
-// result has summary.initialized == false and no epochs.
+// result has summary.initialized == false and no epochs. `fixes`: single-sample
+// fixes computed elsewhere (e.g. `magnav invert`'s output) for the
+// initialiser, used as options.init.source says (see InitializeTrack); nullptr
+// = none.
 TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                         const TrackerOptions& options);
+                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes = nullptr);
 
 // Sliding-window (fixed-lag) tracker. Not thread-safe; one track.
 class WindowTracker {
@@ -83,6 +100,15 @@ class WindowTracker {
   std::vector<EpochEstimate> Flush();
   // Processes one complete epoch directly (later than every previous one).
   std::vector<EpochEstimate> AddEpoch(const Epoch& epoch);
+  // Hands the initialiser a fix computed elsewhere (every fix magnav-inverter
+  // publishes, rejected ones included: with InitSource::kAuto the first fix,
+  // valid or not, makes the initialiser try the fixes handed in first), used
+  // as options.init.source says (see InitializeTrack). A fix may come before or after its sample;
+  // valid fixes are kept while no track exists, for the span the initialiser
+  // looks at (at most kMaxPendingFixes), then dropped. Throws InputError if
+  // the time, or the position of a valid fix, is not finite.
+  void AddFix(const DipoleFix& fix);
+  static constexpr std::size_t kMaxPendingFixes = 100000;
 
   bool initialized() const;
   // Current body moment estimate and its covariance (valid once initialised).

@@ -1,0 +1,322 @@
+// Track initiation from fixes computed elsewhere (magnav-inverter's gated
+// TED+EGT fixes, as magnav-tracker receives them on magnav/dipole_fix, or the
+// output of `magnav invert`), against the reference truth.
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <random>
+
+#include "magnav/core/csv.h"
+#include "magnav/core/error.h"
+#include "magnav/core/gradiometer.h"
+#include "magnav/inversion/inverter.h"
+#include "magnav/tracker/initialize.h"
+#include "magnav/tracker/tracker.h"
+#include "test_data.h"
+
+namespace magnav::tracker {
+namespace {
+
+struct Pass {
+  GradiometerFile file;
+  std::vector<Epoch> epochs;
+  std::vector<Eigen::Vector3d> truth;  // by epoch index (the truth file has one row per epoch)
+};
+
+Pass ReadPass(const std::string& name) {
+  Pass p;
+  p.file = ReadGradiometerFile(testing::ReferencePath("track_pass_" + name + ".csv"));
+  p.epochs = GroupEpochs(p.file.samples, TrackerOptions{}.epoch_tolerance_s);
+  const CsvTable t =
+      CsvTable::Read(testing::ReferencePath("track_truth_" + name.substr(0, name.find('_')) + ".csv"));
+  for (std::size_t i = 0; i < t.num_rows(); ++i) {
+    p.truth.emplace_back(t.number(i, t.column("x")), t.number(i, t.column("y")), t.number(i, t.column("z")));
+  }
+  EXPECT_EQ(p.truth.size(), p.epochs.size());
+  return p;
+}
+
+// The fixes of the inverter library (default gates, speed gate per sensor),
+// one per sample, rejected ones with valid = false: what magnav-inverter
+// publishes.
+std::vector<DipoleFix> InverterFixes(const Pass& p) {
+  inversion::InverterOptions o;
+  o.B0_W = *p.file.B0;
+  inversion::Inverter inverter(o);
+  std::vector<DipoleFix> out;
+  for (const auto& s : p.file.samples) {
+    const inversion::DipoleFix f = inverter.Process(s);
+    out.push_back(DipoleFix{s.t_s, s.sensor_id, f.p_DinW, 0.0, f.valid});
+  }
+  return out;
+}
+
+// 3-D position RMS and mean NEES over the epochs within 30 m horizontal range
+// of a gradiometer (the metric, as in tracker_reference_test.cc).
+struct Score {
+  double rms = 0.0, nees = 0.0;
+  int n = 0;
+};
+
+Score ScoreTrack(const std::vector<EpochEstimate>& est, const Pass& p) {
+  Score s;
+  double se = 0.0, nees = 0.0;
+  for (const auto& e : est) {
+    const auto k = static_cast<std::size_t>(std::llround(e.t_s * 10.0));
+    double range = 1e300;
+    for (const auto& smp : p.epochs[k].samples) range = std::min(range, (p.truth[k] - smp.p_SinW).head<2>().norm());
+    if (range > 30.0) continue;
+    const Eigen::Vector3d d = e.p_VinW - p.truth[k];
+    se += d.squaredNorm();
+    nees += d.dot(e.cov_p_W().ldlt().solve(d));
+    ++s.n;
+  }
+  s.rms = std::sqrt(se / s.n);
+  s.nees = nees / s.n;
+  return s;
+}
+
+bool Squid(const std::string& name) { return name.find("squid") != std::string::npos; }
+
+// Passes on which the inverter's default gates accept enough fixes to start a
+// track (measured: 169–2001 valid fixes over 30–90 s; docs/ACCURACY.md).
+class ExternalFixes : public ::testing::TestWithParam<const char*> {};
+
+// The batch started from the inverter's fixes meets the targets and
+// reaches the minimum the tracker's own initiation reaches.
+TEST_P(ExternalFixes, InverterFixesStartTheBatch) {
+  const Pass p = ReadPass(GetParam());
+  const std::vector<DipoleFix> fixes = InverterFixes(p);
+  const TrackerOptions opt;  // init.source = kAuto: given fixes are tried first
+
+  const std::optional<InitialTrack> init = InitializeTrack(p.epochs, *p.file.B0, opt, &fixes);
+  ASSERT_TRUE(init.has_value());
+  EXPECT_TRUE(init->from_external_fixes);
+  ASSERT_GE(static_cast<int>(init->fixes.size()), opt.init.min_fixes);
+  // Every fix it kept is a valid one of those handed in, unchanged.
+  for (const auto& f : init->fixes) {
+    EXPECT_TRUE(std::any_of(fixes.begin(), fixes.end(), [&](const DipoleFix& g) {
+      return g.valid && g.t_s == f.t_s && g.sensor_id == f.sensor_id && g.p_DinW == f.p_DinW;
+    }));
+  }
+
+  const TrackEstimate ext = SolveBatch(p.epochs, *p.file.B0, opt, &fixes);
+  const TrackEstimate own = SolveBatch(p.epochs, *p.file.B0, opt);
+  ASSERT_TRUE(ext.summary.usable && ext.summary.covariance_ok) << ext.summary.BriefReport();
+  EXPECT_TRUE(ext.summary.init_from_external_fixes);
+  EXPECT_FALSE(own.summary.init_from_external_fixes);
+  EXPECT_NE(ext.summary.BriefReport().find("external init fixes"), std::string::npos);
+  const Score s = ScoreTrack(ext.epochs, p);
+  ASSERT_GT(s.n, 300);
+  EXPECT_LE(s.rms, Squid(GetParam()) ? 0.01 : 0.3);
+  EXPECT_GE(s.nees, 1.5);
+  EXPECT_LE(s.nees, 6.0);
+  EXPECT_LE((ext.m_B_Am2 - *p.file.moment_body).norm() / p.file.moment_body->norm(), 0.02);
+  // Same minimum from either start: positions within 1 % of their own σ.
+  ASSERT_EQ(ext.epochs.size(), own.epochs.size());
+  double worst = 0.0;
+  for (std::size_t k = 0; k < ext.epochs.size(); ++k) {
+    worst = std::max(worst, (ext.epochs[k].p_VinW - own.epochs[k].p_VinW).norm() /
+                                std::sqrt(own.epochs[k].cov_p_W().trace()));
+  }
+  EXPECT_LT(worst, 0.01) << GetParam();
+}
+
+// The sliding window with InitSource::kExternal (magnav-tracker --init-from
+// dipole_fix), fed each fix with its sample as the service is: it starts only
+// from the inverter's fixes — later than from its own, since the inverter's
+// gates are stricter — and then follows the truth.
+TEST_P(ExternalFixes, DipoleFixOnlyWindowTracks) {
+  const Pass p = ReadPass(GetParam());
+  const std::vector<DipoleFix> fixes = InverterFixes(p);
+  TrackerOptions opt;
+  opt.init.source = InitSource::kExternal;
+  WindowTracker tr(*p.file.B0, opt);
+  std::vector<EpochEstimate> est;
+  std::size_t next_fix = 0;
+  double t_start = -1.0;
+  for (const auto& s : p.file.samples) {
+    while (next_fix < fixes.size() && fixes[next_fix].t_s <= s.t_s) tr.AddFix(fixes[next_fix++]);
+    const bool was = tr.initialized();
+    for (auto& e : tr.AddSample(s)) est.push_back(e);
+    if (!was && tr.initialized()) {
+      t_start = s.t_s;
+      EXPECT_TRUE(tr.last_summary().init_from_external_fixes);
+    }
+  }
+  for (auto& e : tr.Flush()) est.push_back(e);
+  ASSERT_TRUE(tr.initialized());
+  // No track before the first valid inverter fix.
+  const auto first_valid = std::find_if(fixes.begin(), fixes.end(), [](const DipoleFix& f) { return f.valid; });
+  EXPECT_GT(t_start, first_valid->t_s);
+  const Score s = ScoreTrack(est, p);
+  std::cout << "| " << GetParam() << " | window, --init-from dipole_fix | start " << t_start << " s | " << s.rms
+            << " | " << s.nees << " | " << s.n << " |\n";
+  ASSERT_GT(s.n, 300);
+  EXPECT_LE(s.rms, Squid(GetParam()) ? 0.01 : 0.3);
+  EXPECT_GE(s.nees, 1.5);
+  EXPECT_LE(s.nees, 6.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Reference, ExternalFixes,
+                         ::testing::Values("auv_1sensor_squid", "auv_4sensor_fluxgate", "ship_1sensor_fluxgate",
+                                           "ship_4sensor_fluxgate"));
+
+// With kAuto the window tries the given fixes first: where both suffice at
+// once (SQUID: every sample passes the inverter's gates), it starts from them.
+TEST(ExternalFixesSource, AutoWindowPrefersGivenFixesWhenBothSuffice) {
+  const Pass p = ReadPass("ship_1sensor_squid");
+  const std::vector<DipoleFix> fixes = InverterFixes(p);
+  WindowTracker tr(*p.file.B0, TrackerOptions{});
+  std::size_t next_fix = 0;
+  for (const auto& s : p.file.samples) {
+    while (next_fix < fixes.size() && fixes[next_fix].t_s <= s.t_s) tr.AddFix(fixes[next_fix++]);
+    const bool was = tr.initialized();
+    tr.AddSample(s);
+    if (!was && tr.initialized()) {
+      EXPECT_TRUE(tr.last_summary().init_from_external_fixes);
+      EXPECT_GE(tr.last_summary().num_init_fixes, TrackerOptions{}.init.min_fixes);
+      return;
+    }
+  }
+  FAIL() << "no track";
+}
+
+// AUV, one fluxgate: the inverter accepts only 39 fixes, over 3.8 s (its 5 cm
+// σ gate rejects the rest), fewer than an initiation needs. kAuto falls back
+// to the tracker's own fixes (the same track as without fixes, bit for bit);
+// kExternal gives no track and says why.
+TEST(ExternalFixesSource, TooFewGivenFixesFallBackInAutoAndStopInExternal) {
+  const Pass p = ReadPass("auv_1sensor_fluxgate");
+  const std::vector<DipoleFix> fixes = InverterFixes(p);
+  TrackerOptions opt;
+  const TrackEstimate a = SolveBatch(p.epochs, *p.file.B0, opt, &fixes);
+  const TrackEstimate b = SolveBatch(p.epochs, *p.file.B0, opt);
+  ASSERT_TRUE(a.summary.usable);
+  EXPECT_FALSE(a.summary.init_from_external_fixes);
+  ASSERT_EQ(a.epochs.size(), b.epochs.size());
+  for (std::size_t k = 0; k < a.epochs.size(); ++k) ASSERT_EQ(a.epochs[k].p_VinW, b.epochs[k].p_VinW);
+
+  opt.init.source = InitSource::kExternal;
+  const TrackEstimate none = SolveBatch(p.epochs, *p.file.B0, opt, &fixes);
+  EXPECT_FALSE(none.summary.initialized);
+  EXPECT_NE(none.summary.message.find("too few of the given fixes"), std::string::npos) << none.summary.message;
+  WindowTracker tr(*p.file.B0, opt);
+  std::size_t next_fix = 0;
+  for (const auto& s : p.file.samples) {
+    while (next_fix < fixes.size() && fixes[next_fix].t_s <= s.t_s) tr.AddFix(fixes[next_fix++]);
+    EXPECT_TRUE(tr.AddSample(s).empty());
+  }
+  EXPECT_FALSE(tr.initialized());
+}
+
+// Wrong fixes among the given ones (10 %, moved 5–20 m) are outvoted by the
+// robust line fit: none is kept, and the track is as good as without them.
+TEST(ExternalFixesRobustness, GrossWrongFixesAreNotKept) {
+  const Pass p = ReadPass("ship_1sensor_fluxgate");
+  std::vector<DipoleFix> fixes = InverterFixes(p);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<bool> wrong(fixes.size(), false);
+  for (std::size_t i = 0; i < fixes.size(); ++i) {
+    if (!fixes[i].valid || u(rng) >= 0.1) continue;
+    const Eigen::Vector3d dir = Eigen::Vector3d(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+    fixes[i].p_DinW += (5.0 + 15.0 * u(rng)) * dir;
+    wrong[i] = true;
+  }
+  const TrackerOptions opt;
+  const std::optional<InitialTrack> init = InitializeTrack(p.epochs, *p.file.B0, opt, &fixes);
+  ASSERT_TRUE(init.has_value());
+  EXPECT_TRUE(init->from_external_fixes);
+  int wrong_near_peak = 0;
+  for (std::size_t i = 0; i < fixes.size(); ++i) {
+    const bool kept = std::any_of(init->fixes.begin(), init->fixes.end(), [&](const DipoleFix& f) {
+      return f.t_s == fixes[i].t_s && f.p_DinW == fixes[i].p_DinW;
+    });
+    if (wrong[i]) {
+      EXPECT_FALSE(kept) << "wrong fix at t = " << fixes[i].t_s << " kept";
+    }
+    if (wrong[i] && fixes[i].t_s >= init->t_first_s && fixes[i].t_s <= init->t_last_s) ++wrong_near_peak;
+  }
+  EXPECT_GT(wrong_near_peak, 5);  // the test put wrong fixes where the initialiser looks
+  const TrackEstimate ext = SolveBatch(p.epochs, *p.file.B0, opt, &fixes);
+  const TrackEstimate own = SolveBatch(p.epochs, *p.file.B0, opt);
+  ASSERT_TRUE(ext.summary.usable);
+  EXPECT_TRUE(ext.summary.init_from_external_fixes);
+  EXPECT_LE(ScoreTrack(ext.epochs, p).rms, 1.01 * ScoreTrack(own.epochs, p).rms);
+}
+
+// Which fixes match a sample: same sensor, same epoch, finite, strong sample;
+// a fix repeated counts once.
+TEST(ExternalFixesMatching, KeepsOnlyFixesOfStrongSamplesInTheEpochs) {
+  const Pass p = ReadPass("ship_4sensor_fluxgate");
+  const TrackerOptions opt;
+  // Epoch 1000 (t = 100 s) is near closest approach: sensors 0..3 are strong there.
+  const Epoch& e = p.epochs[1000];
+  ASSERT_EQ(e.samples.size(), 4u);
+  const Eigen::Vector3d p0(1.0, 2.0, 3.0);
+  std::vector<DipoleFix> given = {
+      {e.t_s, e.samples[2].sensor_id, p0, 0.0},                         // kept
+      {e.t_s, e.samples[2].sensor_id, p0 + Eigen::Vector3d::Ones(), 0.0},  // same sample again: dropped
+      {e.t_s + 0.05, e.samples[0].sensor_id, p0, 0.0},                  // between epochs
+      {e.t_s, 99, p0, 0.0},                                             // no such sensor
+      {e.t_s, e.samples[1].sensor_id, Eigen::Vector3d(NAN, 0, 0), 0.0},  // not finite
+      {e.t_s, e.samples[3].sensor_id, p0, 0.0, false},                  // rejected by its producer
+      {p.epochs[5].t_s, p.epochs[5].samples[0].sensor_id, p0, 0.0},     // weak sample (vessel far away)
+      {e.t_s, e.samples[0].sensor_id, p0, 0.0},                         // kept, sorted before sensor 2
+  };
+  const std::vector<DipoleFix> m = MatchFixes(p.epochs, given, opt);
+  ASSERT_EQ(m.size(), 2u);
+  EXPECT_EQ(m[0].sensor_id, e.samples[0].sensor_id);
+  EXPECT_EQ(m[1].sensor_id, e.samples[2].sensor_id);
+  EXPECT_EQ(m[1].p_DinW, p0);
+  EXPECT_NEAR(m[1].tensor_snr, e.samples[2].T.norm() / e.samples[2].sigma_T, 1e-9);
+}
+
+TEST(ExternalFixesSource, SamplesIgnoresGivenFixesAndExternalNeedsThem) {
+  const Pass p = ReadPass("ship_1sensor_fluxgate");
+  std::vector<DipoleFix> fixes = InverterFixes(p);
+  for (auto& f : fixes) f.p_DinW.x() += 3.0;  // wrong: would change the start
+  TrackerOptions opt;
+  opt.init.source = InitSource::kSamples;
+  const TrackEstimate a = SolveBatch(p.epochs, *p.file.B0, opt, &fixes);
+  const TrackEstimate b = SolveBatch(p.epochs, *p.file.B0, opt);
+  ASSERT_TRUE(a.summary.usable);
+  EXPECT_FALSE(a.summary.init_from_external_fixes);
+  ASSERT_EQ(a.epochs.size(), b.epochs.size());
+  for (std::size_t k = 0; k < a.epochs.size(); ++k) ASSERT_EQ(a.epochs[k].p_VinW, b.epochs[k].p_VinW);
+
+  opt.init.source = InitSource::kExternal;
+  const TrackEstimate none = SolveBatch(p.epochs, *p.file.B0, opt);
+  EXPECT_FALSE(none.summary.initialized);
+  EXPECT_NE(none.summary.message.find("dipole_fix"), std::string::npos) << none.summary.message;
+
+  // The window likewise: without fixes it never starts.
+  WindowTracker tr(*p.file.B0, opt);
+  for (const auto& s : p.file.samples) EXPECT_TRUE(tr.AddSample(s).empty());
+  EXPECT_TRUE(tr.Flush().empty());
+  EXPECT_FALSE(tr.initialized());
+}
+
+TEST(ExternalFixesSource, NamesParseBothWays) {
+  for (InitSource s : {InitSource::kSamples, InitSource::kExternal, InitSource::kAuto}) {
+    InitSource back = InitSource::kAuto;
+    ASSERT_TRUE(ParseInitSource(InitSourceName(s), &back));
+    EXPECT_EQ(back, s);
+  }
+  InitSource x;
+  EXPECT_FALSE(ParseInitSource("inverter", &x));
+}
+
+TEST(ExternalFixesRobustness, NonFiniteFixIsAnInputError) {
+  WindowTracker tr(Eigen::Vector3d::Zero(), TrackerOptions{});
+  EXPECT_THROW(tr.AddFix(DipoleFix{NAN, 0, Eigen::Vector3d::Zero(), 0.0}), InputError);
+  EXPECT_THROW(tr.AddFix(DipoleFix{1.0, 0, Eigen::Vector3d(0, INFINITY, 0), 0.0}), InputError);
+  EXPECT_NO_THROW(tr.AddFix(DipoleFix{1.0, 0, Eigen::Vector3d::Zero(), 0.0}));
+  // A rejected fix carries no position (the inverter sends NaN): fine.
+  EXPECT_NO_THROW(tr.AddFix(DipoleFix{1.1, 0, Eigen::Vector3d::Constant(NAN), 0.0, false}));
+}
+
+}  // namespace
+}  // namespace magnav::tracker
