@@ -1,6 +1,7 @@
-// magnav-tracker: subscribes magnav/gradiometer, publishes magnav/track (one
-// TrackEstimate per epoch from the sliding-window tracker). Options from flags
-// or a TOML/INI file (--config). Stops cleanly on SIGINT/SIGTERM.
+// magnav-tracker: subscribes magnav/gradiometer (and magnav/dipole_fix, for
+// track initiation), publishes magnav/track (one TrackEstimate per epoch from
+// the sliding-window tracker). Options from flags or a TOML/INI file
+// (--config). Stops cleanly on SIGINT/SIGTERM.
 #include <cstdio>
 
 #include <CLI/CLI.hpp>
@@ -19,6 +20,7 @@ int main(int argc, char** argv) {
   tracker::TrackerNodeOptions opt;
   magnav::cli::Vec3Arg b0;
   std::string loss = tracker::LossTypeName(opt.tracker.measurement_loss);
+  std::string init_from = tracker::InitSourceName(opt.tracker.init.source);
   double stats_period_s = 10.0;
   magnav::dds::DdsArgs dds_args;
   magnav::cli::AddVec3Option(app, "--b0", &b0, "background field in T (NED)");
@@ -29,6 +31,11 @@ int main(int argc, char** argv) {
   app.add_option("--loss-scale", opt.tracker.measurement_loss_scale_sigma, "robust loss scale, sigmas");
   app.add_option("--sigma-b", opt.tracker.default_sigma_B_T, "B noise, T, for samples that carry none");
   app.add_option("--sigma-t", opt.tracker.default_sigma_T_Tpm, "tensor noise, T/m, for samples that carry none");
+  app.add_option("--init-from", init_from,
+                 "fixes that start a track: auto (magnav-inverter's from magnav/dipole_fix when they suffice, "
+                 "else its own TED+EGT on the samples), dipole_fix (the inverter's only), samples (its own only)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "dipole_fix", "samples"}));
   app.add_option("--reorder-delay", opt.reorder_delay_s, "hold samples this long (sample time, s) to order streams");
   app.add_option("--track-id", opt.track_id, "track id published");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
@@ -38,13 +45,16 @@ int main(int argc, char** argv) {
   return magnav::dds::RunService("magnav-tracker", [&] {
     if (b0.set) opt.B0_W = b0.value();
     tracker::ParseLossType(loss, &opt.tracker.measurement_loss);
+    tracker::ParseInitSource(init_from, &opt.tracker.init.source);
     magnav::dds::InstallShutdownHandlers();
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-tracker"));
     tracker::TrackerNode tracker_node(node, opt);
-    spdlog::info("magnav-tracker: window {} s on domain {}", opt.tracker.window_s, node.domain_id());
+    spdlog::info("magnav-tracker: window {} s, initiation from {}, on domain {}", opt.tracker.window_s, init_from,
+                 node.domain_id());
     magnav::dds::RunUntilShutdown(stats_period_s, [&] {
-      spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} late, {} rejected", tracker_node.received(),
-                   tracker_node.published(), tracker_node.dropped_late(), tracker_node.rejected());
+      spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} late, {} rejected; {} fixes in, {} skipped",
+                   tracker_node.received(), tracker_node.published(), tracker_node.dropped_late(),
+                   tracker_node.rejected(), tracker_node.fixes_received(), tracker_node.fixes_rejected());
     });
     tracker_node.Flush();
     tracker_node.WaitForAcknowledgments(std::chrono::seconds(5));

@@ -7,6 +7,7 @@
 #include "magnav/core/error.h"
 #include "magnav/core/units.h"
 #include "magnav/dds/convert.h"
+#include "magnav/tracker/initialize.h"
 
 namespace magnav::tracker {
 
@@ -44,6 +45,15 @@ dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B
   return m;
 }
 
+DipoleFix FromMsg(const dds::msg::DipoleFix& m) {
+  DipoleFix f;
+  f.t_s = NanosToSeconds(m.stamp_ns());
+  f.sensor_id = m.sensor_id();
+  f.p_DinW = {m.position()[0], m.position()[1], m.position()[2]};
+  f.valid = m.valid();
+  return f;
+}
+
 namespace {
 const TrackerNodeOptions& Checked(const TrackerNodeOptions& o) {
   std::string err;
@@ -55,8 +65,23 @@ const TrackerNodeOptions& Checked(const TrackerNodeOptions& o) {
 TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options)
     : options_(Checked(options)), tracker_(options.B0_W, options.tracker) {
   writer_ = node.CreateWriter<dds::msg::TrackEstimate>();
+  if (options_.tracker.init.source != InitSource::kSamples) {
+    fix_reader_ =
+        node.CreateReader<dds::msg::DipoleFix>([this](const dds::msg::DipoleFix& m, const auto&) { OnFix(m); });
+  }
   reader_ = node.CreateReader<dds::msg::GradiometerSample>(
       [this](const dds::msg::GradiometerSample& m, const auto&) { OnSample(m); });
+}
+
+void TrackerNode::OnFix(const dds::msg::DipoleFix& m) {
+  const DipoleFix f = FromMsg(m);
+  std::lock_guard<std::mutex> lk(mu_);
+  try {
+    tracker_.AddFix(f);
+  } catch (const InputError& e) {
+    ++fixes_rejected_;
+    spdlog::warn("magnav-tracker: dipole_fix skipped: {}", e.what());
+  }
 }
 
 void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
@@ -77,7 +102,13 @@ void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
 void TrackerNode::Feed(const GradiometerSample& s) {
   fed_until_s_ = s.t_s;
   try {
+    const bool was_tracking = tracker_.initialized();
     Publish(tracker_.AddSample(s));
+    if (!was_tracking && tracker_.initialized()) {
+      const Summary& sum = tracker_.last_summary();
+      spdlog::info("magnav-tracker: track {} started from {} {} fixes", options_.track_id, sum.num_init_fixes,
+                   sum.init_from_external_fixes ? "dipole_fix" : "of its own TED+EGT");
+    }
   } catch (const InputError& e) {
     ++rejected_;
     spdlog::warn("magnav-tracker: sample of sensor {} at t = {} s rejected: {}", s.sensor_id, s.t_s, e.what());

@@ -4,6 +4,10 @@
 // reorder buffer first: a sample is handed to the tracker once a sample at
 // least `reorder_delay_s` newer has arrived (or at shutdown); a sample older
 // than what the tracker has already consumed is counted and dropped.
+// Unless tracker.init.source is kSamples it also subscribes DipoleFix
+// (magnav-inverter's fixes, rejected ones included) and hands every fix to the
+// tracker's initialiser (WindowTracker::AddFix); a fix that cannot be used
+// (non-finite time or position) is counted, logged and skipped.
 #pragma once
 
 #include <map>
@@ -26,6 +30,9 @@ struct TrackerNodeOptions {
 
 dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B, const Eigen::Matrix3d& cov_m_B,
                               std::uint32_t track_id);
+// A magnav/dipole_fix message as the initialiser takes it (tensor_snr is set
+// by the tracker from the matching sample).
+DipoleFix FromMsg(const dds::msg::DipoleFix& m);
 
 class TrackerNode {
  public:
@@ -39,9 +46,12 @@ class TrackerNode {
   std::uint64_t published() const { return writer_->stats().samples.load(); }
   std::uint64_t dropped_late() const { return dropped_late_; }
   std::uint64_t rejected() const { return rejected_; }
+  std::uint64_t fixes_received() const { return fix_reader_ ? fix_reader_->stats().samples.load() : 0; }
+  std::uint64_t fixes_rejected() const { return fixes_rejected_; }
 
  private:
   void OnSample(const dds::msg::GradiometerSample& m);
+  void OnFix(const dds::msg::DipoleFix& m);
   void Feed(const GradiometerSample& s);  // mu_ held
   void Publish(const std::vector<EpochEstimate>& estimates);
 
@@ -50,9 +60,10 @@ class TrackerNode {
   WindowTracker tracker_;
   std::multimap<double, GradiometerSample> pending_;  // by time
   double fed_until_s_ = -1e300;
-  std::uint64_t dropped_late_ = 0, rejected_ = 0;
+  std::uint64_t dropped_late_ = 0, rejected_ = 0, fixes_rejected_ = 0;
   std::unique_ptr<dds::Writer<dds::msg::TrackEstimate>> writer_;
   std::unique_ptr<dds::Reader<dds::msg::GradiometerSample>> reader_;
+  std::unique_ptr<dds::Reader<dds::msg::DipoleFix>> fix_reader_;  // null with init source kSamples
 };
 
 }  // namespace magnav::tracker
