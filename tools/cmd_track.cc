@@ -1,12 +1,18 @@
 // `magnav track`: follows one dipole (vessel) through a gradiometer pass file,
 // in batch (whole pass) or sliding-window mode, and writes one row per epoch.
+// --fixes hands the initialiser single-sample fixes computed elsewhere (the
+// output of `magnav invert`, or `magnav record --topic dipole_fix`), as
+// magnav-tracker takes them from magnav/dipole_fix.
+#include <algorithm>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "commands.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
+#include "magnav/tracker/initialize.h"
 #include "magnav/tracker/tracker.h"
 
 namespace magnav::tools {
@@ -22,7 +28,30 @@ struct TrackArgs {
   tracker::ProcessNoise process;
   std::string turn_loss = tracker::LossTypeName(tracker::ProcessNoise{}.turn_rate_loss);
   std::string solver = "chain";
+  std::string fixes;
+  std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
 };
+
+// A fix file: t, sensor_id (optional: 0), dipole_x..z, valid (optional: 1).
+// A row that is not valid may leave its position empty. In time order.
+std::vector<tracker::DipoleFix> ReadFixes(const std::string& path) {
+  const CsvTable c = CsvTable::Read(path);
+  const std::size_t t = c.column("t"), x = c.column("dipole_x"), y = c.column("dipole_y"), z = c.column("dipole_z");
+  const auto id = c.find_column("sensor_id");
+  const auto valid = c.find_column("valid");
+  std::vector<tracker::DipoleFix> out;
+  for (std::size_t i = 0; i < c.num_rows(); ++i) {
+    tracker::DipoleFix f;
+    f.t_s = c.number(i, t);
+    f.sensor_id = id ? static_cast<std::uint32_t>(c.integer(i, *id)) : 0;
+    f.valid = !valid || c.integer(i, *valid) != 0;
+    if (f.valid) f.p_DinW = {c.number(i, x), c.number(i, y), c.number(i, z)};
+    out.push_back(f);
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const tracker::DipoleFix& a, const tracker::DipoleFix& b) { return a.t_s < b.t_s; });
+  return out;
+}
 
 void WriteTrack(const std::string& path, const std::string& input, const std::string& mode,
                 const std::vector<tracker::EpochEstimate>& epochs, const Eigen::Vector3d& m_B,
@@ -88,22 +117,34 @@ void RunTrack(const TrackArgs& a) {
   } else {
     throw InputError("--solver: expected chain or ceres, got '" + a.solver + "'");
   }
+  if (!tracker::ParseInitSource(a.init_from, &opt.init.source)) {
+    throw InputError("--init-from: expected auto, dipole_fix or samples, got '" + a.init_from + "'");
+  }
+  if (opt.init.source == tracker::InitSource::kExternal && a.fixes.empty()) {
+    throw InputError("--init-from dipole_fix needs --fixes FILE (e.g. the output of magnav invert)");
+  }
   std::string why;
   if (!opt.IsValid(&why)) throw InputError("options: " + why);
+  std::optional<std::vector<tracker::DipoleFix>> fixes;
+  if (!a.fixes.empty()) fixes = ReadFixes(a.fixes);
+  const std::vector<tracker::DipoleFix>* given = fixes ? &*fixes : nullptr;
 
   if (a.mode == "batch") {
     const auto epochs = tracker::GroupEpochs(f.samples, opt.epoch_tolerance_s);
-    const tracker::TrackEstimate est = tracker::SolveBatch(epochs, B0, opt);
+    const tracker::TrackEstimate est = tracker::SolveBatch(epochs, B0, opt, given);
     if (!est.summary.initialized) throw InputError(a.input + ": " + est.summary.message);
     WriteTrack(a.output, a.input, a.mode, est.epochs, est.m_B_Am2, est.cov_m_B, est.summary);
   } else if (a.mode == "window") {
+    // As magnav-tracker: each fix is handed in before the sample it came from.
     tracker::WindowTracker tr(B0, opt);
     std::vector<tracker::EpochEstimate> all;
+    std::size_t next_fix = 0;
     for (const auto& s : f.samples) {
+      while (given && next_fix < given->size() && (*given)[next_fix].t_s <= s.t_s) tr.AddFix((*given)[next_fix++]);
       for (auto& e : tr.AddSample(s)) all.push_back(e);
     }
     for (auto& e : tr.Flush()) all.push_back(e);
-    if (!tr.initialized()) throw InputError(a.input + ": no track: too few strong single-sample fixes");
+    if (!tr.initialized()) throw InputError(a.input + ": " + tracker::NoTrackMessage(opt, given != nullptr));
     WriteTrack(a.output, a.input, a.mode, all, tr.m_B_Am2(), tr.cov_m_B(), tr.last_summary());
   } else {
     throw InputError("--mode: expected batch or window, got '" + a.mode + "'");
@@ -126,6 +167,13 @@ void AddTrackCommand(CLI::App& app) {
                   "batch solver: chain (Levenberg-Marquardt on the chain of states, O(N)) or ceres "
                   "(ceres::Solve, sparse Cholesky; same problem, slower)")
       ->check(CLI::IsMember({"chain", "ceres"}));
+  cmd->add_option("--fixes", args->fixes,
+                  "single-sample fixes to start the track from (magnav invert output or a recorded dipole_fix "
+                  "topic: t,sensor_id,dipole_x..z,valid)");
+  cmd->add_option("--init-from", args->init_from,
+                  "fixes that start the track: auto (--fixes when they suffice, else its own TED+EGT on the "
+                  "samples), dipole_fix (--fixes only), samples (its own only)")
+      ->check(CLI::IsMember({"auto", "dipole_fix", "samples"}));
   cmd->add_option("--loss", args->loss, "robust loss on each sample: huber, cauchy or trivial")
       ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
   cmd->add_option("--loss-scale", args->loss_scale_sigma,

@@ -1,6 +1,7 @@
 // `magnav track` end to end: the binary's track file holds exactly what the
 // library computes (columns, one row per epoch, moment line, σ columns), both
-// solvers give the same track, and bad input exits 2 naming the place.
+// solvers give the same track, fixes from `magnav invert` start the track as
+// in the library, and bad input exits 2 naming the place.
 #include <cmath>
 #include <fstream>
 #include <string>
@@ -86,6 +87,80 @@ TEST(TrackCli, WindowModeWritesOneRowPerEstimatedEpoch) {
     EXPECT_GT(t.number(k, t.column("t")), t.number(k - 1, t.column("t")));
     EXPECT_GT(t.number(k, t.column("sigma_x")), 0.0);
   }
+}
+
+// --fixes: the track started from `magnav invert`'s fixes equals the library
+// started from the same fixes, and says so; with --init-from dipole_fix the
+// window starts only after the first valid fix.
+TEST(TrackCli, FixesFromInvertStartTheTrack) {
+  const std::string dir = testing::TempDir();
+  const std::string input = testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv");
+  auto [rc, out] = testing::RunCommand(
+      {kMagnav, "invert", "--input", input, "--method", "ted-egt", "--output", dir + "/fixes.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) = Track({"--input", input, "--fixes", dir + "/fixes.csv", "--output", dir + "/track.csv"});
+  ASSERT_EQ(rc, 0) << out;
+
+  const CsvTable fx = CsvTable::Read(dir + "/fixes.csv");
+  std::vector<DipoleFix> fixes;
+  double first_valid_t = -1.0;
+  for (std::size_t i = 0; i < fx.num_rows(); ++i) {
+    DipoleFix f;
+    f.t_s = fx.number(i, fx.column("t"));
+    f.sensor_id = static_cast<std::uint32_t>(fx.integer(i, fx.column("sensor_id")));
+    f.valid = fx.integer(i, fx.column("valid")) == 1;
+    if (!f.valid) continue;
+    if (first_valid_t < 0) first_valid_t = f.t_s;
+    f.p_DinW = {fx.number(i, fx.column("dipole_x")), fx.number(i, fx.column("dipole_y")),
+                fx.number(i, fx.column("dipole_z"))};
+    fixes.push_back(f);
+  }
+  const GradiometerFile f = ReadGradiometerFile(input);
+  const TrackerOptions opt;
+  const TrackEstimate lib = SolveBatch(GroupEpochs(f.samples, opt.epoch_tolerance_s), *f.B0, opt, &fixes);
+  ASSERT_TRUE(lib.summary.init_from_external_fixes);
+  const CsvTable t = CsvTable::Read(dir + "/track.csv");
+  EXPECT_NE(t.params().at("summary").find("external init fixes"), std::string::npos);
+  ASSERT_EQ(t.num_rows(), lib.epochs.size());
+  for (std::size_t k = 0; k < t.num_rows(); ++k) {
+    ASSERT_EQ(t.number(k, t.column("x")), lib.epochs[k].p_VinW.x()) << k;
+    ASSERT_EQ(t.number(k, t.column("y")), lib.epochs[k].p_VinW.y()) << k;
+  }
+
+  std::tie(rc, out) = Track({"--input", input, "--fixes", dir + "/fixes.csv", "--init-from", "dipole_fix", "--mode",
+                             "window", "--output", dir + "/window.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  const CsvTable w = CsvTable::Read(dir + "/window.csv");
+  ASSERT_GT(w.num_rows(), 1000u);
+  EXPECT_GT(w.number(0, w.column("t")), first_valid_t);
+}
+
+TEST(TrackCli, BadFixesExitTwoAndNameThePlace) {
+  const std::string dir = testing::TempDir();
+  const std::string input = testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv");
+  std::ofstream(dir + "/text.csv") << "t,sensor_id,dipole_x,dipole_y,dipole_z,valid\n"
+                                   << "0,0,,,,0\n"  // a rejected fix may have no position
+                                   << "0.1,0,1.5,abc,2,1\n";
+  auto [rc, out] = Track({"--input", input, "--fixes", dir + "/text.csv", "--output", dir + "/o.csv"});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find(dir + "/text.csv:3: column 'dipole_y'"), std::string::npos) << out;
+
+  std::ofstream(dir + "/cols.csv") << "t,sensor_id,x,y,z\n0,0,1,2,3\n";
+  std::tie(rc, out) = Track({"--input", input, "--fixes", dir + "/cols.csv", "--output", dir + "/o.csv"});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("missing column 'dipole_x'"), std::string::npos) << out;
+
+  std::tie(rc, out) = Track({"--input", input, "--init-from", "dipole_fix", "--output", dir + "/o.csv"});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("--init-from dipole_fix needs --fixes"), std::string::npos) << out;
+
+  // Fixes that match no sample of the pass (another time base): no track, said so.
+  std::ofstream(dir + "/elsewhere.csv") << "t,sensor_id,dipole_x,dipole_y,dipole_z,valid\n"
+                                        << "1000.05,0,1,2,3,1\n";
+  std::tie(rc, out) = Track({"--input", input, "--fixes", dir + "/elsewhere.csv", "--init-from", "dipole_fix",
+                             "--output", dir + "/o.csv"});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("no track: too few of the given fixes"), std::string::npos) << out;
 }
 
 TEST(TrackCli, BadInputExitsTwoAndNamesThePlace) {
