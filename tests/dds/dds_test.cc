@@ -138,6 +138,27 @@ TEST(Dds, LoopbackProfileBindsOnlyToLoopback) {
   EXPECT_GT(udp, 0);
 }
 
+// Unicast discovery on loopback reaches the participant indices the initial
+// peers cover (Fast DDS's default: 0–3). A field host runs more participants
+// than that (the demo: 2 services, 3 recorders, replay); every one must find
+// every other, including the 5th and 6th (indices 4 and 5 announce only to
+// the indices in range, so with the default range they never meet).
+TEST(Dds, EightParticipantsOnOneHostAllDiscoverEachOther) {
+  constexpr int kNodes = 8;
+  std::vector<std::unique_ptr<Node>> nodes;
+  std::vector<std::unique_ptr<Writer<msg::GradiometerSample>>> writers;
+  std::vector<std::unique_ptr<Reader<msg::GradiometerSample>>> readers;
+  for (int i = 0; i < kNodes; ++i) {
+    nodes.push_back(std::make_unique<Node>(TestNode("discovery_" + std::to_string(i))));
+    writers.push_back(nodes.back()->CreateWriter<msg::GradiometerSample>());
+    readers.push_back(nodes.back()->CreateReader<msg::GradiometerSample>([](const auto&, const auto&) {}));
+  }
+  for (int i = 0; i < kNodes; ++i) {
+    EXPECT_TRUE(readers[i]->WaitForMatched(kNodes, 10s))
+        << "participant " << i << " matched " << readers[i]->stats().matched.load() << " of " << kNodes << " writers";
+  }
+}
+
 TEST(Dds, ConversionRoundTripsCoreSample) {
   GradiometerSample s;
   s.sensor_id = 3;
