@@ -81,6 +81,35 @@ bool Squid(const std::string& name) { return name.find("squid") != std::string::
 
 // Passes on which the inverter's default gates accept enough fixes to start a
 // track (measured: 169–2001 valid fixes over 30–90 s; docs/ACCURACY.md).
+// Feeds a pass to a window tracker as magnav-tracker does: each fix before
+// the sample it came from. Returns every estimate; *t_start (if given) = the
+// time of the sample that started the track (−1: none), *started_external =
+// whether it started from the fixes handed in.
+std::vector<EpochEstimate> RunWindow(WindowTracker* tr, const Pass& p, const std::vector<DipoleFix>& fixes,
+                                     double* t_start = nullptr, bool* started_external = nullptr) {
+  std::vector<EpochEstimate> est;
+  std::size_t next_fix = 0;
+  if (t_start) *t_start = -1.0;
+  for (const auto& s : p.file.samples) {
+    while (next_fix < fixes.size() && fixes[next_fix].t_s <= s.t_s) tr->AddFix(fixes[next_fix++]);
+    const bool was = tr->initialized();
+    for (auto& e : tr->AddSample(s)) est.push_back(e);
+    if (!was && tr->initialized()) {
+      if (t_start) *t_start = s.t_s;
+      if (started_external) *started_external = tr->last_summary().init_from_external_fixes;
+    }
+  }
+  for (auto& e : tr->Flush()) est.push_back(e);
+  return est;
+}
+
+// The same track, bit for bit.
+void ExpectSameTrack(const TrackEstimate& a, const TrackEstimate& b) {
+  ASSERT_TRUE(a.summary.usable);
+  ASSERT_EQ(a.epochs.size(), b.epochs.size());
+  for (std::size_t k = 0; k < a.epochs.size(); ++k) ASSERT_EQ(a.epochs[k].p_VinW, b.epochs[k].p_VinW) << k;
+}
+
 class ExternalFixes : public ::testing::TestWithParam<const char*> {};
 
 // The batch started from the inverter's fixes meets the targets and
@@ -133,20 +162,11 @@ TEST_P(ExternalFixes, DipoleFixOnlyWindowTracks) {
   TrackerOptions opt;
   opt.init.source = InitSource::kExternal;
   WindowTracker tr(*p.file.B0, opt);
-  std::vector<EpochEstimate> est;
-  std::size_t next_fix = 0;
   double t_start = -1.0;
-  for (const auto& s : p.file.samples) {
-    while (next_fix < fixes.size() && fixes[next_fix].t_s <= s.t_s) tr.AddFix(fixes[next_fix++]);
-    const bool was = tr.initialized();
-    for (auto& e : tr.AddSample(s)) est.push_back(e);
-    if (!was && tr.initialized()) {
-      t_start = s.t_s;
-      EXPECT_TRUE(tr.last_summary().init_from_external_fixes);
-    }
-  }
-  for (auto& e : tr.Flush()) est.push_back(e);
+  bool external = false;
+  const std::vector<EpochEstimate> est = RunWindow(&tr, p, fixes, &t_start, &external);
   ASSERT_TRUE(tr.initialized());
+  EXPECT_TRUE(external);
   // No track before the first valid inverter fix.
   const auto first_valid = std::find_if(fixes.begin(), fixes.end(), [](const DipoleFix& f) { return f.valid; });
   EXPECT_GT(t_start, first_valid->t_s);
@@ -169,18 +189,10 @@ TEST(ExternalFixesSource, AutoWindowPrefersGivenFixesWhenBothSuffice) {
   const Pass p = ReadPass("ship_1sensor_squid");
   const std::vector<DipoleFix> fixes = InverterFixes(p);
   WindowTracker tr(*p.file.B0, TrackerOptions{});
-  std::size_t next_fix = 0;
-  for (const auto& s : p.file.samples) {
-    while (next_fix < fixes.size() && fixes[next_fix].t_s <= s.t_s) tr.AddFix(fixes[next_fix++]);
-    const bool was = tr.initialized();
-    tr.AddSample(s);
-    if (!was && tr.initialized()) {
-      EXPECT_TRUE(tr.last_summary().init_from_external_fixes);
-      EXPECT_GE(tr.last_summary().num_init_fixes, TrackerOptions{}.init.min_fixes);
-      return;
-    }
-  }
-  FAIL() << "no track";
+  bool external = false;
+  RunWindow(&tr, p, fixes, nullptr, &external);
+  ASSERT_TRUE(tr.initialized());
+  EXPECT_TRUE(external);
 }
 
 // AUV, one fluxgate: the inverter accepts only 39 fixes, over 3.8 s (its 5 cm
@@ -192,22 +204,15 @@ TEST(ExternalFixesSource, TooFewGivenFixesFallBackInAutoAndStopInExternal) {
   const std::vector<DipoleFix> fixes = InverterFixes(p);
   TrackerOptions opt;
   const TrackEstimate a = SolveBatch(p.epochs, *p.file.B0, opt, &fixes);
-  const TrackEstimate b = SolveBatch(p.epochs, *p.file.B0, opt);
-  ASSERT_TRUE(a.summary.usable);
   EXPECT_FALSE(a.summary.init_from_external_fixes);
-  ASSERT_EQ(a.epochs.size(), b.epochs.size());
-  for (std::size_t k = 0; k < a.epochs.size(); ++k) ASSERT_EQ(a.epochs[k].p_VinW, b.epochs[k].p_VinW);
+  ExpectSameTrack(a, SolveBatch(p.epochs, *p.file.B0, opt));
 
   opt.init.source = InitSource::kExternal;
   const TrackEstimate none = SolveBatch(p.epochs, *p.file.B0, opt, &fixes);
   EXPECT_FALSE(none.summary.initialized);
   EXPECT_NE(none.summary.message.find("too few of the given fixes"), std::string::npos) << none.summary.message;
   WindowTracker tr(*p.file.B0, opt);
-  std::size_t next_fix = 0;
-  for (const auto& s : p.file.samples) {
-    while (next_fix < fixes.size() && fixes[next_fix].t_s <= s.t_s) tr.AddFix(fixes[next_fix++]);
-    EXPECT_TRUE(tr.AddSample(s).empty());
-  }
+  EXPECT_TRUE(RunWindow(&tr, p, fixes).empty());
   EXPECT_FALSE(tr.initialized());
 }
 
@@ -281,11 +286,8 @@ TEST(ExternalFixesSource, SamplesIgnoresGivenFixesAndExternalNeedsThem) {
   TrackerOptions opt;
   opt.init.source = InitSource::kSamples;
   const TrackEstimate a = SolveBatch(p.epochs, *p.file.B0, opt, &fixes);
-  const TrackEstimate b = SolveBatch(p.epochs, *p.file.B0, opt);
-  ASSERT_TRUE(a.summary.usable);
   EXPECT_FALSE(a.summary.init_from_external_fixes);
-  ASSERT_EQ(a.epochs.size(), b.epochs.size());
-  for (std::size_t k = 0; k < a.epochs.size(); ++k) ASSERT_EQ(a.epochs[k].p_VinW, b.epochs[k].p_VinW);
+  ExpectSameTrack(a, SolveBatch(p.epochs, *p.file.B0, opt));
 
   opt.init.source = InitSource::kExternal;
   const TrackEstimate none = SolveBatch(p.epochs, *p.file.B0, opt);
@@ -294,8 +296,7 @@ TEST(ExternalFixesSource, SamplesIgnoresGivenFixesAndExternalNeedsThem) {
 
   // The window likewise: without fixes it never starts.
   WindowTracker tr(*p.file.B0, opt);
-  for (const auto& s : p.file.samples) EXPECT_TRUE(tr.AddSample(s).empty());
-  EXPECT_TRUE(tr.Flush().empty());
+  EXPECT_TRUE(RunWindow(&tr, p, {}).empty());
   EXPECT_FALSE(tr.initialized());
 }
 

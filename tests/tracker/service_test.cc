@@ -43,6 +43,38 @@ std::pair<double, int> ShipRmsWithin30m(const std::vector<msg::TrackEstimate>& g
   return {n > 0 ? std::sqrt(sum / n) : 0.0, n};
 }
 
+// The test's side of the exchange, on `domain`: records every TrackEstimate
+// the service publishes and writes samples to it (unpaced, with the adapter's
+// flow control: without it a burst longer than the keep-last history of 1000
+// overwrites samples the service has not taken yet, its listeners waiting
+// while the tracker solves).
+struct TestPeer {
+  explicit TestPeer(int domain) : node(Options(domain)) {
+    reader = node.CreateReader<msg::TrackEstimate>([this](const msg::TrackEstimate& e, const auto&) {
+      std::lock_guard<std::mutex> lk(mu);
+      got.push_back(e);
+    });
+    writer = node.CreateWriter<msg::GradiometerSample>();
+    writer->SetFlowControl(500, 20s);
+  }
+  static dds::NodeOptions Options(int domain) {
+    dds::NodeOptions o;
+    o.name = "tracker_service_test";
+    o.domain_id = domain;
+    return o;
+  }
+  std::vector<msg::TrackEstimate> Got() {
+    std::lock_guard<std::mutex> lk(mu);
+    return got;
+  }
+
+  dds::Node node;
+  std::mutex mu;
+  std::vector<msg::TrackEstimate> got;
+  std::unique_ptr<dds::Reader<msg::TrackEstimate>> reader;
+  std::unique_ptr<dds::Writer<msg::GradiometerSample>> writer;
+};
+
 TEST(TrackerService, PublishesTheLibraryEstimatesForAPass) {
   const int domain = testing::TestDomainId();
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
@@ -58,32 +90,22 @@ TEST(TrackerService, PublishesTheLibraryEstimatesForAPass) {
   for (auto& e : lib.Flush()) want.push_back(e);
   ASSERT_GT(want.size(), 1000u);
 
-  std::mutex mu;
   std::vector<msg::TrackEstimate> got;
   {
-    dds::NodeOptions o;
-    o.name = "tracker_service_test";
-    o.domain_id = domain;
-    dds::Node node(o);
-    auto reader = node.CreateReader<msg::TrackEstimate>([&](const msg::TrackEstimate& e, const auto&) {
-      std::lock_guard<std::mutex> lk(mu);
-      got.push_back(e);
-    });
-    auto writer = node.CreateWriter<msg::GradiometerSample>();
-    writer->SetFlowControl(500, 20s);  // an unpaced burst (see the test below)
-    ASSERT_TRUE(writer->WaitForMatched(1, 20s));
-    ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+    TestPeer peer(domain);
+    ASSERT_TRUE(peer.writer->WaitForMatched(1, 20s));
+    ASSERT_TRUE(peer.reader->WaitForMatched(1, 20s));
     for (std::size_t i = 0; i < file.samples.size(); ++i) {
-      ASSERT_TRUE(writer->Write(dds::ToMsg(file.samples[i], i)));
+      ASSERT_TRUE(peer.writer->Write(dds::ToMsg(file.samples[i], i)));
     }
-    ASSERT_TRUE(writer->WaitForAcknowledgments(30s));
+    ASSERT_TRUE(peer.writer->WaitForAcknowledgments(30s));
     // The last 0.25 s stay in the reorder buffer until the service stops.
-    ASSERT_TRUE(reader->WaitForSamples(want.size() - 5, 60s)) << reader->stats().samples.load();
+    ASSERT_TRUE(peer.reader->WaitForSamples(want.size() - 5, 60s)) << peer.reader->stats().samples.load();
     service.Signal(SIGTERM);
     EXPECT_EQ(service.Wait(20s), 0);
-    reader->WaitForSamples(want.size(), 5s);
+    peer.reader->WaitForSamples(want.size(), 5s);
+    got = peer.Got();
   }
-  std::lock_guard<std::mutex> lk(mu);
   ASSERT_EQ(got.size(), want.size());
   for (std::size_t i = 0; i < want.size(); ++i) {
     EXPECT_EQ(got[i].stamp_ns(), SecondsToNanos(want[i].t_s)) << i;
@@ -130,46 +152,33 @@ TEST(TrackerService, StartsFromTheInvertersFixes) {
   }
   ASSERT_GT(first_valid_t, 60.0);
 
-  std::mutex mu;
   std::vector<msg::TrackEstimate> got;
   {
-    dds::NodeOptions o;
-    o.name = "tracker_service_fix_test";
-    o.domain_id = domain;
-    dds::Node node(o);
-    auto reader = node.CreateReader<msg::TrackEstimate>([&](const msg::TrackEstimate& e, const auto&) {
-      std::lock_guard<std::mutex> lk(mu);
-      got.push_back(e);
-    });
-    auto fix_writer = node.CreateWriter<msg::DipoleFix>();
-    auto writer = node.CreateWriter<msg::GradiometerSample>();
-    // Unpaced, as magnav replay --speed 0: without flow control a burst longer
-    // than the keep-last history (1000) overwrites fixes the service has not
-    // taken yet (its fix listener waits while the tracker solves).
+    TestPeer peer(domain);
+    auto fix_writer = peer.node.CreateWriter<msg::DipoleFix>();
     fix_writer->SetFlowControl(500, 20s);
-    writer->SetFlowControl(500, 20s);
     ASSERT_TRUE(fix_writer->WaitForMatched(1, 20s));
-    ASSERT_TRUE(writer->WaitForMatched(1, 20s));
-    ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+    ASSERT_TRUE(peer.writer->WaitForMatched(1, 20s));
+    ASSERT_TRUE(peer.reader->WaitForMatched(1, 20s));
     msg::DipoleFix bad = fixes[0];  // claims to be valid, has no position
     bad.valid(true);
     bad.position({std::nan(""), 0.0, 0.0});
     ASSERT_TRUE(fix_writer->Write(bad));
     for (std::size_t i = 0; i < file.samples.size(); ++i) {
       ASSERT_TRUE(fix_writer->Write(fixes[i]));
-      ASSERT_TRUE(writer->Write(dds::ToMsg(file.samples[i], i)));
+      ASSERT_TRUE(peer.writer->Write(dds::ToMsg(file.samples[i], i)));
     }
     ASSERT_TRUE(fix_writer->WaitForAcknowledgments(30s));
-    ASSERT_TRUE(writer->WaitForAcknowledgments(30s));
+    ASSERT_TRUE(peer.writer->WaitForAcknowledgments(30s));
     // The library starts at 85.6 s with these fixes: ~1140 estimates.
-    ASSERT_TRUE(reader->WaitForSamples(1000, 60s)) << reader->stats().samples.load();
+    ASSERT_TRUE(peer.reader->WaitForSamples(1000, 60s)) << peer.reader->stats().samples.load();
     service.Signal(SIGTERM);
     EXPECT_EQ(service.Wait(20s), 0);
+    got = peer.Got();
   }
   const std::string log = service.ReadAll();
   EXPECT_NE(log.find("dipole_fix fixes"), std::string::npos) << log;  // "track 0 started from N dipole_fix fixes"
   EXPECT_NE(log.find("dipole_fix skipped"), std::string::npos) << log;
-  std::lock_guard<std::mutex> lk(mu);
   ASSERT_FALSE(got.empty());
   EXPECT_GT(NanosToSeconds(got.front().stamp_ns()), first_valid_t);
   const auto [rms, n] = ShipRmsWithin30m(got);
