@@ -11,12 +11,14 @@
 #include <gtest/gtest.h>
 
 #include "magnav/core/csv.h"
+#include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
 #include "magnav/core/units.h"
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
 #include "magnav/inversion/inverter.h"
 #include "magnav/tracker/tracker.h"
+#include "tracker_node.h"
 #include "subprocess.h"
 #include "test_data.h"
 
@@ -125,9 +127,11 @@ TEST(TrackerService, PublishesTheLibraryEstimatesForAPass) {
 // With --init-from dipole_fix the service starts its track only from the
 // fixes it receives on magnav/dipole_fix (here the inverter library's on the
 // same samples, rejected ones included, as magnav-inverter publishes them),
-// skips a fix it cannot use and goes on, and follows the truth. Its own
-// fixes would start the track at 55 s; the inverter's first valid fix is at
-// 80.5 s (docs/ACCURACY.md).
+// skips a fix it cannot use and goes on. All fixes are sent before the
+// samples (an inverter running ahead), so the order in which the two streams
+// reach the tracker is fixed and its estimates are exactly the library's fed
+// the same way (interleaved order: tracker_initialize_test). Its own fixes
+// would start the track at 55 s; the inverter's first valid fix is at 80.5 s.
 TEST(TrackerService, StartsFromTheInvertersFixes) {
   const int domain = testing::TestDomainId();
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
@@ -138,6 +142,10 @@ TEST(TrackerService, StartsFromTheInvertersFixes) {
   io.B0_W = *file.B0;
   inversion::Inverter inverter(io);
   std::vector<msg::DipoleFix> fixes;
+  msg::DipoleFix bad;  // claims to be valid, has no position
+  bad.valid(true);
+  bad.position({std::nan(""), 0.0, 0.0});
+  fixes.push_back(bad);
   double first_valid_t = -1.0;
   for (std::size_t i = 0; i < file.samples.size(); ++i) {
     const inversion::DipoleFix f = inverter.Process(file.samples[i]);
@@ -151,6 +159,19 @@ TEST(TrackerService, StartsFromTheInvertersFixes) {
     if (f.valid && first_valid_t < 0) first_valid_t = file.samples[i].t_s;
   }
   ASSERT_GT(first_valid_t, 60.0);
+  // The library fed the same way, through the messages.
+  TrackerOptions options;
+  options.init.source = InitSource::kExternal;
+  WindowTracker lib(*file.B0, options);
+  EXPECT_THROW(lib.AddFix(FromMsg(fixes[0])), InputError);
+  for (std::size_t i = 1; i < fixes.size(); ++i) lib.AddFix(FromMsg(fixes[i]));
+  std::vector<EpochEstimate> want;
+  for (std::size_t i = 0; i < file.samples.size(); ++i) {
+    for (auto& e : lib.AddSample(dds::FromMsg(dds::ToMsg(file.samples[i], i)))) want.push_back(e);
+  }
+  for (auto& e : lib.Flush()) want.push_back(e);
+  ASSERT_GT(want.size(), 1000u);
+  EXPECT_GT(want.front().t_s, first_valid_t);
 
   std::vector<msg::TrackEstimate> got;
   {
@@ -160,29 +181,28 @@ TEST(TrackerService, StartsFromTheInvertersFixes) {
     ASSERT_TRUE(fix_writer->WaitForMatched(1, 20s));
     ASSERT_TRUE(peer.writer->WaitForMatched(1, 20s));
     ASSERT_TRUE(peer.reader->WaitForMatched(1, 20s));
-    msg::DipoleFix bad = fixes[0];  // claims to be valid, has no position
-    bad.valid(true);
-    bad.position({std::nan(""), 0.0, 0.0});
-    ASSERT_TRUE(fix_writer->Write(bad));
+    for (const auto& f : fixes) ASSERT_TRUE(fix_writer->Write(f));
+    ASSERT_TRUE(fix_writer->WaitForAcknowledgments(30s));
     for (std::size_t i = 0; i < file.samples.size(); ++i) {
-      ASSERT_TRUE(fix_writer->Write(fixes[i]));
       ASSERT_TRUE(peer.writer->Write(dds::ToMsg(file.samples[i], i)));
     }
-    ASSERT_TRUE(fix_writer->WaitForAcknowledgments(30s));
     ASSERT_TRUE(peer.writer->WaitForAcknowledgments(30s));
-    // The library starts at 85.6 s with these fixes: ~1140 estimates.
-    ASSERT_TRUE(peer.reader->WaitForSamples(1000, 60s)) << peer.reader->stats().samples.load();
+    ASSERT_TRUE(peer.reader->WaitForSamples(want.size() - 5, 60s)) << peer.reader->stats().samples.load();
     service.Signal(SIGTERM);
     EXPECT_EQ(service.Wait(20s), 0);
+    peer.reader->WaitForSamples(want.size(), 5s);
     got = peer.Got();
   }
   const std::string log = service.ReadAll();
   EXPECT_NE(log.find("dipole_fix fixes"), std::string::npos) << log;  // "track 0 started from N dipole_fix fixes"
   EXPECT_NE(log.find("dipole_fix skipped"), std::string::npos) << log;
-  ASSERT_FALSE(got.empty());
-  EXPECT_GT(NanosToSeconds(got.front().stamp_ns()), first_valid_t);
+  ASSERT_EQ(got.size(), want.size()) << log;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    EXPECT_EQ(got[i].stamp_ns(), SecondsToNanos(want[i].t_s)) << i;
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(got[i].position()[k], want[i].p_VinW[k]) << i;
+  }
   const auto [rms, n] = ShipRmsWithin30m(got);
-  ASSERT_GT(n, 250);
+  ASSERT_GT(n, 300);
   EXPECT_LT(rms, 0.3);
 }
 
