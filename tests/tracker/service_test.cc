@@ -69,6 +69,19 @@ struct TestPeer {
     std::lock_guard<std::mutex> lk(mu);
     return got;
   }
+  // Writes the pass, waits for the `expected` estimates (the last 0.25 s stay
+  // in the service's reorder buffer until it stops), stops the service (exit
+  // 0 expected) and returns what arrived.
+  std::vector<msg::TrackEstimate> SendPassAndStop(const GradiometerFile& file, std::size_t expected,
+                                                  testing::Subprocess* service) {
+    for (std::size_t i = 0; i < file.samples.size(); ++i) EXPECT_TRUE(writer->Write(dds::ToMsg(file.samples[i], i)));
+    EXPECT_TRUE(writer->WaitForAcknowledgments(30s));
+    EXPECT_TRUE(reader->WaitForSamples(expected - 5, 60s)) << reader->stats().samples.load();
+    service->Signal(SIGTERM);
+    EXPECT_EQ(service->Wait(20s), 0);
+    reader->WaitForSamples(expected, 5s);
+    return Got();
+  }
 
   dds::Node node;
   std::mutex mu;
@@ -97,16 +110,7 @@ TEST(TrackerService, PublishesTheLibraryEstimatesForAPass) {
     TestPeer peer(domain);
     ASSERT_TRUE(peer.writer->WaitForMatched(1, 20s));
     ASSERT_TRUE(peer.reader->WaitForMatched(1, 20s));
-    for (std::size_t i = 0; i < file.samples.size(); ++i) {
-      ASSERT_TRUE(peer.writer->Write(dds::ToMsg(file.samples[i], i)));
-    }
-    ASSERT_TRUE(peer.writer->WaitForAcknowledgments(30s));
-    // The last 0.25 s stay in the reorder buffer until the service stops.
-    ASSERT_TRUE(peer.reader->WaitForSamples(want.size() - 5, 60s)) << peer.reader->stats().samples.load();
-    service.Signal(SIGTERM);
-    EXPECT_EQ(service.Wait(20s), 0);
-    peer.reader->WaitForSamples(want.size(), 5s);
-    got = peer.Got();
+    got = peer.SendPassAndStop(file, want.size(), &service);
   }
   ASSERT_EQ(got.size(), want.size());
   for (std::size_t i = 0; i < want.size(); ++i) {
@@ -183,15 +187,7 @@ TEST(TrackerService, StartsFromTheInvertersFixes) {
     ASSERT_TRUE(peer.reader->WaitForMatched(1, 20s));
     for (const auto& f : fixes) ASSERT_TRUE(fix_writer->Write(f));
     ASSERT_TRUE(fix_writer->WaitForAcknowledgments(30s));
-    for (std::size_t i = 0; i < file.samples.size(); ++i) {
-      ASSERT_TRUE(peer.writer->Write(dds::ToMsg(file.samples[i], i)));
-    }
-    ASSERT_TRUE(peer.writer->WaitForAcknowledgments(30s));
-    ASSERT_TRUE(peer.reader->WaitForSamples(want.size() - 5, 60s)) << peer.reader->stats().samples.load();
-    service.Signal(SIGTERM);
-    EXPECT_EQ(service.Wait(20s), 0);
-    peer.reader->WaitForSamples(want.size(), 5s);
-    got = peer.Got();
+    got = peer.SendPassAndStop(file, want.size(), &service);
   }
   const std::string log = service.ReadAll();
   EXPECT_NE(log.find("dipole_fix fixes"), std::string::npos) << log;  // "track 0 started from N dipole_fix fixes"
