@@ -43,7 +43,7 @@ std::vector<tracker::DipoleFix> ReadFixes(const std::string& path) {
   for (std::size_t i = 0; i < c.num_rows(); ++i) {
     tracker::DipoleFix f;
     f.t_s = c.number(i, t);
-    f.sensor_id = id ? static_cast<std::uint32_t>(c.integer(i, *id)) : 0;
+    f.sensor_id = id ? c.uint32(i, *id) : 0;
     f.valid = !valid || c.integer(i, *valid) != 0;
     if (f.valid) f.p_DinW = {c.number(i, x), c.number(i, y), c.number(i, z)};
     out.push_back(f);

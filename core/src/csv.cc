@@ -182,6 +182,15 @@ long long CsvTable::integer(std::size_t row, std::size_t col) const {
                    (f.empty() ? std::string("empty field") : Quote(f) + " is not a non-negative integer"));
 }
 
+std::uint32_t CsvTable::uint32(std::size_t row, std::size_t col) const {
+  const long long v = integer(row, col);
+  if (v > 0xFFFFFFFFLL) {
+    throw InputError(source_ + ":" + std::to_string(lines_[row]) + ": column " + Quote(header_[col]) +
+                     ": out of range");
+  }
+  return static_cast<std::uint32_t>(v);
+}
+
 std::vector<double> CsvTable::param_numbers(const std::string& key, std::size_t expected_count) const {
   const auto it = params_.find(key);
   if (it == params_.end()) throw InputError(source_ + ": missing parameter line '# " + key + ": ...'");

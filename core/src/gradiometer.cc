@@ -48,13 +48,7 @@ GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerCo
   f.lines.reserve(t.num_rows());
   for (std::size_t r = 0; r < t.num_rows(); ++r) {
     GradiometerSample s;
-    if (c_id) {
-      const long long id = t.integer(r, *c_id);
-      if (id > 0xFFFFFFFFLL) {
-        throw InputError(path + ":" + std::to_string(t.line_of(r)) + ": column 'sensor_id': out of range");
-      }
-      s.sensor_id = static_cast<std::uint32_t>(id);
-    }
+    if (c_id) s.sensor_id = t.uint32(r, *c_id);
     s.t_s = c_t ? t.number(r, *c_t) : 0.0;
     s.p_SinW = {t.number(r, sx), t.number(r, sy), t.number(r, sz)};
     for (int i = 0; i < 3; ++i) s.B[i] = t.number(r, b[i]);

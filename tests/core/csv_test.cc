@@ -106,6 +106,12 @@ TEST(CsvErrors, MissingFileDuplicateColumnEmptyFieldBinary) {
             std::string::npos);
 }
 
+TEST(CsvErrors, IdOutOfRangeNamesLineAndColumn) {
+  const CsvTable t = CsvTable::Parse("# c\nsensor_id\n4294967295\n4294967296\n", "id.csv");
+  EXPECT_EQ(t.uint32(0, 0), 4294967295u);
+  EXPECT_NE(ErrorOf([&] { t.uint32(1, 0); }).find("id.csv:4: column 'sensor_id': out of range"), std::string::npos);
+}
+
 TEST(CsvErrors, BadParameterInGradiometerFile) {
   const std::string p = WriteTemp("badparam.csv", "# B0_T: 1, 2\nsensor_x\n1\n");
   const std::string msg = ErrorOf([&] { ReadGradiometerFile(p); });

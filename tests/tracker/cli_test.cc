@@ -145,6 +145,12 @@ TEST(TrackCli, BadFixesExitTwoAndNameThePlace) {
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find(dir + "/text.csv:3: column 'dipole_y'"), std::string::npos) << out;
 
+  std::ofstream(dir + "/id.csv") << "t,sensor_id,dipole_x,dipole_y,dipole_z,valid\n"
+                                 << "0,4294967296,1,2,3,1\n";
+  std::tie(rc, out) = Track({"--input", input, "--fixes", dir + "/id.csv", "--output", dir + "/o.csv"});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find(dir + "/id.csv:2: column 'sensor_id': out of range"), std::string::npos) << out;
+
   std::ofstream(dir + "/cols.csv") << "t,sensor_id,x,y,z\n0,0,1,2,3\n";
   std::tie(rc, out) = Track({"--input", input, "--fixes", dir + "/cols.csv", "--output", dir + "/o.csv"});
   EXPECT_EQ(rc, 2);

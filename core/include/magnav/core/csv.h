@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -44,6 +45,9 @@ class CsvTable {
   double number(std::size_t row, std::size_t col) const;
   // The field as a non-negative integer.
   long long integer(std::size_t row, std::size_t col) const;
+  // The field as an unsigned 32-bit id (e.g. sensor_id); throws
+  // "FILE:LINE: column 'NAME': out of range" above 4294967295.
+  std::uint32_t uint32(std::size_t row, std::size_t col) const;
 
   // "# key: value" parameters.
   const std::map<std::string, std::string>& params() const { return params_; }
