@@ -1,9 +1,38 @@
 #include "magnav/core/gradiometer.h"
 
+#include <cmath>
+
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 
 namespace magnav {
+
+const char* SampleDefectName(SampleDefect defect) {
+  switch (defect) {
+    case SampleDefect::kNone:
+      return "";
+    case SampleDefect::kNonFiniteTime:
+      return "non_finite_time";
+    case SampleDefect::kNonFinite:
+      return "non_finite";
+    case SampleDefect::kBadSigma:
+      return "bad_sigma";
+    case SampleDefect::kZeroTensor:
+      return "zero_tensor";
+  }
+  return "unknown";
+}
+
+SampleDefect CheckSample(const GradiometerSample& s) {
+  if (!std::isfinite(s.t_s)) return SampleDefect::kNonFiniteTime;
+  if (!s.B.allFinite() || !s.T.allFinite() || !s.p_SinW.allFinite()) return SampleDefect::kNonFinite;
+  // ‖T‖ can overflow to inf from finite elements (1e200): as bad as a NaN.
+  if (!std::isfinite(s.T.norm()) || !std::isfinite(s.B.norm())) return SampleDefect::kNonFinite;
+  const auto sigma_ok = [](double v) { return std::isfinite(v) && v >= 0.0; };
+  if (!sigma_ok(s.sigma_B) || !sigma_ok(s.sigma_T)) return SampleDefect::kBadSigma;
+  if (s.T.isZero(0.0)) return SampleDefect::kZeroTensor;
+  return SampleDefect::kNone;
+}
 
 std::string TensorColumnName(const std::string& prefix, int i, int j) {
   std::string name = prefix;

@@ -21,6 +21,22 @@ struct GradiometerSample {
   double sigma_T = 0.0;                        // 1-σ noise per element, T/m (0 = unknown)
 };
 
+// What is wrong with a sample, checked at the door before any estimator sees
+// it (CheckSample). Stable snake_case names (SampleDefectName): "" for kNone.
+enum class SampleDefect {
+  kNone = 0,
+  kNonFiniteTime,  // t_s NaN or ±inf
+  kNonFinite,      // B, T or the sensor position not finite (NaN, ±inf)
+  kBadSigma,       // sigma_B or sigma_T negative or not finite (0 = unknown is fine)
+  kZeroTensor,     // every element of T is exactly 0: a dead or unwired gradiometer
+};
+const char* SampleDefectName(SampleDefect defect);
+
+// The checks every consumer of samples (inverter, trackers, estimators of B0)
+// applies first. Does not judge signal strength, symmetry or range: those are
+// the estimators' own gates.
+SampleDefect CheckSample(const GradiometerSample& sample);
+
 // Everything a gradiometer file holds: the samples plus its parameters.
 struct GradiometerFile {
   std::string path;
