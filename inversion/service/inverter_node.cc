@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "magnav/core/error.h"
 #include "magnav/dds/convert.h"
 
 namespace magnav::inversion {
@@ -35,22 +36,35 @@ dds::msg::DipoleFix ToMsg(const DipoleFix& fix, std::uint64_t stamp_ns, std::uin
   m.has_moment(fix.has_moment && fix.m_W.allFinite());
   m.moment(m.has_moment() ? Arr(fix.m_W) : std::array<double, 3>{0, 0, 0});
   m.condition_number(fix.cond);
-  std::array<double, 9> cov{};
-  if (std::isfinite(fix.position_sigma_m)) {
-    const double v = fix.position_sigma_m * fix.position_sigma_m;
-    cov[0] = cov[4] = cov[8] = v;  // isotropic first-order 1-σ (see inverter.h)
+  std::array<double, 9> cov{};  // all 0 = unknown (magnav.idl)
+  if (fix.cov_p_DinW.allFinite()) {
+    for (int k = 0; k < 9; ++k) cov[k] = fix.cov_p_DinW(k / 3, k % 3);
   }
   m.covariance(cov);
   return m;
 }
 
-InverterNode::InverterNode(dds::Node& node, const InverterOptions& options)
-    : engine_(std::in_place_type<Inverter>, options), method_(MsgMethod(options.method)) {
+namespace {
+template <typename T>
+const T& ZeroB0(const T& options, const Vec3& B0_W) {
+  if (!B0_W.isZero(0.0)) throw InputError("inverter node: B0 comes from its RegionalFieldSource; set B0_W = 0");
+  return options;
+}
+}  // namespace
+
+InverterNode::InverterNode(dds::Node& node, const InverterOptions& options,
+                           std::unique_ptr<dds::RegionalFieldSource> b0)
+    : b0_(std::move(b0)),
+      engine_(std::in_place_type<Inverter>, ZeroB0(options, options.B0_W)),
+      method_(MsgMethod(options.method)) {
   Start(node);
 }
 
-InverterNode::InverterNode(dds::Node& node, const MonteCarloTrackerOptions& options)
-    : engine_(std::in_place_type<MonteCarloTracker>, options), method_(dds::msg::METHOD_MC) {
+InverterNode::InverterNode(dds::Node& node, const MonteCarloTrackerOptions& options,
+                           std::unique_ptr<dds::RegionalFieldSource> b0)
+    : b0_(std::move(b0)),
+      engine_(std::in_place_type<MonteCarloTracker>, ZeroB0(options, options.init_inverter.B0_W)),
+      method_(dds::msg::METHOD_MC) {
   Start(node);
 }
 
@@ -61,9 +75,23 @@ void InverterNode::Start(dds::Node& node) {
 }
 
 void InverterNode::OnSample(const dds::msg::GradiometerSample& m) {
-  const GradiometerSample s = dds::FromMsg(m);
+  GradiometerSample s = dds::FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
-  const DipoleFix fix = std::visit([&](auto& engine) { return engine.Process(s); }, engine_);
+  DipoleFix fix;
+  if (door_.Check(s) == SampleDefect::kNone) {
+    if (const auto B0 = b0_->For(s)) {
+      s.B -= *B0;
+      fix = std::visit([&](auto& engine) { return engine.Process(s); }, engine_);
+    } else {
+      fix.sensor_id = s.sensor_id;
+      fix.t_s = s.t_s;
+      fix.reason = RejectReason::kNoRegionalField;
+    }
+  } else {
+    // The engine rejects it by its own first gate (non_finite, zero_tensor)
+    // without touching any state.
+    fix = std::visit([&](auto& engine) { return engine.Process(s); }, engine_);
+  }
   writer_->Write(ToMsg(fix, m.stamp_ns(), m.seq(), method_));
 }
 

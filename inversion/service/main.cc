@@ -2,6 +2,8 @@
 // for every sample (rejected ones with the gate's reason). Options from flags
 // or a TOML/INI file (--config). Stops cleanly on SIGINT/SIGTERM.
 #include <cstdio>
+#include <utility>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -10,6 +12,7 @@
 #include "magnav/cli/options.h"
 #include "magnav/core/error.h"
 #include "magnav/dds/cli.h"
+#include "magnav/dds/regional_field_source.h"
 #include "magnav/dds/shutdown.h"
 
 int main(int argc, char** argv) {
@@ -23,7 +26,9 @@ int main(int argc, char** argv) {
   double stats_period_s = 10.0;
   magnav::dds::DdsArgs dds_args;
   app.add_option("--method", method, "ted, ted-egt, egt or mc")->check(CLI::IsMember({"ted", "ted-egt", "egt", "mc"}));
-  magnav::cli::AddVec3Option(app, "--b0", &b0, "regional field in T (NED), subtracted before TED");
+  magnav::cli::AddVec3Option(app, "--b0", &b0,
+                             "regional field in T (NED), subtracted before TED; not given: estimated per sensor "
+                             "from quiet stretches of the stream (fixes are rejected with reason no_b0 until then)");
   magnav::cli::AddVec3Option(app, "--moment-body", &moment_body, "known body moment in A*m^2 (mc only)");
   app.add_option("--min-snr", opt.gates.min_snr, "weak-signal gate: reject when |T|_F < min_snr * sigma_T");
   app.add_option("--max-cond-ted", opt.gates.max_cond_ted, "condition-number gate for TED");
@@ -35,10 +40,26 @@ int main(int argc, char** argv) {
   app.add_option("--seed", mc.filter.seed, "random seed (mc)");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::dds::AddDdsOptions(app, &dds_args);
+  // Gate flags: for --method mc they override the initialising inverter's
+  // gates only when given (its defaults differ from the single-sample ones).
+  const std::vector<std::pair<std::string, std::pair<double*, double*>>> gate_flags = {
+      {"--min-snr", {&opt.gates.min_snr, &mc.init_inverter.gates.min_snr}},
+      {"--max-cond-ted", {&opt.gates.max_cond_ted, &mc.init_inverter.gates.max_cond_ted}},
+      {"--max-cond-ted-egt", {&opt.gates.max_cond_ted_egt, &mc.init_inverter.gates.max_cond_ted_egt}},
+      {"--max-speed", {&opt.gates.max_speed_mps, &mc.init_inverter.gates.max_speed_mps}},
+  };
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-inverter", [&] {
-    if (b0.set) opt.B0_W = b0.value();
+    std::unique_ptr<magnav::dds::RegionalFieldSource> b0_source;
+    if (b0.set) {
+      b0_source = std::make_unique<magnav::dds::RegionalFieldSource>("magnav-inverter", b0.value());
+    } else {
+      RegionalFieldOptions est;
+      est.sigma_B_fallback = opt.sigma_B_fallback;
+      est.sigma_T_fallback = opt.sigma_T_fallback;
+      b0_source = std::make_unique<magnav::dds::RegionalFieldSource>("magnav-inverter", est);
+    }
     magnav::dds::InstallShutdownHandlers();
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-inverter"));
     std::unique_ptr<inversion::InverterNode> inverter;
@@ -46,19 +67,27 @@ int main(int argc, char** argv) {
       if (!moment_body.set) throw InputError("--method mc needs --moment-body");
       mc.filter.moment_body_Am2 = moment_body.value();
       mc.filter.sigma_T_fallback = opt.sigma_T_fallback;
-      mc.init_inverter = opt;
-      inverter = std::make_unique<inversion::InverterNode>(node, mc);
+      // The initialising fixes keep the Monte-Carlo defaults (their own,
+      // looser uncertainty gate: see MonteCarloTrackerOptions); only the
+      // noise fallbacks and the flags given for the gates are carried over.
+      mc.init_inverter.sigma_B_fallback = opt.sigma_B_fallback;
+      mc.init_inverter.sigma_T_fallback = opt.sigma_T_fallback;
+      for (const auto& [flag, value] : gate_flags) {
+        if (app.count(flag) > 0) *value.second = *value.first;
+      }
+      inverter = std::make_unique<inversion::InverterNode>(node, mc, std::move(b0_source));
     } else {
       inversion::ParseMethod(method, &opt.method);
-      inverter = std::make_unique<inversion::InverterNode>(node, opt);
+      inverter = std::make_unique<inversion::InverterNode>(node, opt, std::move(b0_source));
     }
-    spdlog::info("magnav-inverter: method {} on domain {}", method, node.domain_id());
+    spdlog::info("magnav-inverter: method {} on domain {}; {}", method, node.domain_id(), inverter->b0().Describe());
     std::uint64_t last = 0;
     magnav::dds::RunUntilShutdown(stats_period_s, [&] {
       const std::uint64_t n = inverter->processed();
-      spdlog::info("magnav-inverter: {} samples ({:.0f}/s), {} fixes, {} lost, {} handler errors", n,
-                   (n - last) / stats_period_s, inverter->published(), inverter->input_stats().lost.load(),
-                   inverter->input_stats().callback_errors.load());
+      spdlog::info("magnav-inverter: {} samples ({:.0f}/s), {} fixes, {} lost, {} bad samples, {} before B0, "
+                   "{} handler errors",
+                   n, (n - last) / stats_period_s, inverter->published(), inverter->input_stats().lost.load(),
+                   inverter->bad_samples(), inverter->b0().waiting(), inverter->input_stats().callback_errors.load());
       last = n;
     });
     spdlog::info("magnav-inverter: stopping after {} samples", inverter->processed());

@@ -11,12 +11,12 @@ namespace {
 
 bool FiniteInput(const Mat3& T, const Vec3& dB) { return T.allFinite() && dB.allFinite(); }
 
-// 1-σ position error for r = V y with y_i = g_i (Vᵀ e)_i, where e = δT r + 3 δB
-// has per-component variance ≈ σ_T² |r|² + 9 σ_B² (independent elements).
-double PropagatedSigma(const Vec3& gain, double r_norm, const NoiseSigmas& noise) {
+// Variance per component of the Euler-row error e = δT r + 3 δB, ≈ σ_T² |r|² +
+// 9 σ_B² (independent elements): isotropic, so Vᵀ e has the same variance.
+// NaN when neither sigma is known.
+double EulerRowVariance(double r_norm, const NoiseSigmas& noise) {
   if (!(noise.sigma_B > 0.0) && !(noise.sigma_T > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-  const double var_e = noise.sigma_T * noise.sigma_T * r_norm * r_norm + 9.0 * noise.sigma_B * noise.sigma_B;
-  return std::sqrt(gain.squaredNorm() * var_e);
+  return noise.sigma_T * noise.sigma_T * r_norm * r_norm + 9.0 * noise.sigma_B * noise.sigma_B;
 }
 
 // Shared core of TED and TED+EGT in T's eigenbasis. row_weight < 0 means
@@ -54,8 +54,10 @@ bool SolveInEigenbasis(const Mat3& T, const Vec3& dB, double row_weight, const N
   out->r_DtoS = eig.vectors * y;
   out->has_moment = false;
   out->cond = sv_max / sv_min;
-  out->position_sigma_m = PropagatedSigma(gain, out->r_DtoS.norm(), noise);
-  if (row_weight > 0.0 && noise.sigma_T > 0.0 && std::isfinite(out->position_sigma_m)) {
+  // r = V y with y_i = g_i (Vᵀ e)_i: cov r = V diag(g_i² var_e) Vᵀ.
+  const double var_e = EulerRowVariance(out->r_DtoS.norm(), noise);
+  Vec3 var_y = gain.cwiseAbs2() * var_e;
+  if (row_weight > 0.0 && noise.sigma_T > 0.0 && std::isfinite(var_e)) {
     // The eigenvector row is noisy too: to first order b3 tilts by
     // Σ_j (v_jᵀ δT b3)/(λ_k − λ_j) v_j, so b3ᵀ r errs by ε with
     // var ε = σ_T² Σ_{j≠k} y_j² / (λ_k − λ_j)², and y_k takes the share
@@ -69,9 +71,10 @@ bool SolveInEigenbasis(const Mat3& T, const Vec3& dB, double row_weight, const N
     var_eps *= noise.sigma_T * noise.sigma_T;
     const double w2 = row_weight * row_weight;
     const double share = w2 / (lam[k] * lam[k] + w2);
-    const double var = out->position_sigma_m * out->position_sigma_m + share * share * var_eps;
-    out->position_sigma_m = std::sqrt(var);
+    var_y[k] += share * share * var_eps;
   }
+  out->cov_r = eig.vectors * var_y.asDiagonal() * eig.vectors.transpose();
+  out->position_sigma_3d_m = std::sqrt(var_y.sum());
   return out->r_DtoS.allFinite();
 }
 
@@ -131,9 +134,10 @@ bool SolveEgt(const Mat3& T, const Vec3& dB_W, const NoiseSigmas& noise, Analyti
   out->cond = eig.ConditionNumber();
   // Error propagation proxy: the Euler rows with the eigenvector row at weight 1.
   AnalyticSolution proxy;
-  out->position_sigma_m = SolveInEigenbasis(T, dB_W, 1.0, noise, &proxy)
-                              ? proxy.position_sigma_m
-                              : std::numeric_limits<double>::quiet_NaN();
+  if (SolveInEigenbasis(T, dB_W, 1.0, noise, &proxy)) {
+    out->cov_r = proxy.cov_r;
+    out->position_sigma_3d_m = proxy.position_sigma_3d_m;
+  }
   return out->r_DtoS.allFinite() && out->m_W.allFinite();
 }
 

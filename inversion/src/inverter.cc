@@ -55,6 +55,10 @@ const char* RejectReasonName(RejectReason reason) {
       return "solver_failed";
     case RejectReason::kNotInitialized:
       return "not_initialized";
+    case RejectReason::kUnknownSigma:
+      return "unknown_sigma";
+    case RejectReason::kNoRegionalField:
+      return "no_b0";
   }
   return "unknown";
 }
@@ -77,7 +81,7 @@ bool GateOptions::IsValid(std::string* error) const {
   if (!(max_cond_ted >= 1.0)) return Fail(error, "gates.max_cond_ted must be >= 1");
   if (!(max_cond_ted_egt >= 1.0)) return Fail(error, "gates.max_cond_ted_egt must be >= 1");
   if (!(max_cond_egt >= 1.0)) return Fail(error, "gates.max_cond_egt must be >= 1");
-  if (!PositiveOrInf(max_position_sigma_m)) return Fail(error, "gates.max_position_sigma_m must be > 0");
+  if (!PositiveOrInf(max_position_sigma_3d_m)) return Fail(error, "gates.max_position_sigma_3d_m must be > 0");
   if (!PositiveOrInf(max_speed_mps)) return Fail(error, "gates.max_speed_mps must be > 0");
   if (!(speed_slack_m >= 0.0) || !std::isfinite(speed_slack_m)) {
     return Fail(error, "gates.speed_slack_m must be finite and >= 0");
@@ -111,17 +115,19 @@ DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& o
     return fix;
   };
 
-  // 1. Non-finite input.
-  if (!sample.B.allFinite() || !sample.T.allFinite() || !sample.p_SinW.allFinite() ||
-      !std::isfinite(sample.t_s) || !options.B0_W.allFinite()) {
-    return reject(RejectReason::kNonFinite);
+  // 1–2. The door check every consumer applies (core CheckSample).
+  switch (CheckSample(sample)) {
+    case SampleDefect::kNone:
+      break;
+    case SampleDefect::kZeroTensor:  // dead sensor, or no signal at all
+      return reject(RejectReason::kZeroTensor);
+    default:  // non-finite time, B, T, position, or σ
+      return reject(RejectReason::kNonFinite);
   }
+  if (!options.B0_W.allFinite()) return reject(RejectReason::kNonFinite);
   const double sigma_B = sample.sigma_B > 0.0 ? sample.sigma_B : options.sigma_B_fallback;
   const double sigma_T = sample.sigma_T > 0.0 ? sample.sigma_T : options.sigma_T_fallback;
   const double t_norm = sample.T.norm();
-  if (!std::isfinite(t_norm)) return reject(RejectReason::kNonFinite);  // overflow
-  // 2. All-zero tensor (dead sensor, or no signal at all).
-  if (t_norm == 0.0) return reject(RejectReason::kZeroTensor);
   // 3. Weak signal.
   if (sigma_T > 0.0) {
     fix.snr = t_norm / sigma_T;
@@ -160,11 +166,12 @@ DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& o
   }
   fix.r_DtoS = sol.r_DtoS;
   fix.p_DinW = sample.p_SinW - sol.r_DtoS;
-  fix.position_sigma_m = sol.position_sigma_m;
+  fix.cov_p_DinW = sol.cov_r;  // p_D = p_S − r: same covariance
+  fix.position_sigma_3d_m = sol.position_sigma_3d_m;
   // 5. Condition number.
   if (!(sol.cond <= max_cond)) return reject(RejectReason::kIllConditioned);
   // 6. Predicted position error (skipped when no sigma is known).
-  if (std::isfinite(g.max_position_sigma_m) && sol.position_sigma_m > g.max_position_sigma_m) {
+  if (std::isfinite(g.max_position_sigma_3d_m) && sol.position_sigma_3d_m > g.max_position_sigma_3d_m) {
     return reject(RejectReason::kUncertain);
   }
   // Moment of an accepted fix: closed form (EGT) or weighted least squares.

@@ -279,17 +279,21 @@ ParticleEstimate DipoleParticleFilter::ComputeEstimate() const {
   ParticleEstimate e;
   e.t_s = t_s_;
   e.ess = ess_;
-  Vec3 mean = Vec3::Zero(), mean_sq = Vec3::Zero();
+  Vec3 mean = Vec3::Zero();
   Eigen::Vector2d v = Eigen::Vector2d::Zero();
   for (std::size_t i = 0; i < px_.size(); ++i) {
-    const Vec3 p(px_[i], py_[i], pz_[i]);
-    mean += w_[i] * p;
-    mean_sq += w_[i] * p.cwiseProduct(p);
+    mean += w_[i] * Vec3(px_[i], py_[i], pz_[i]);
     v += w_[i] * Eigen::Vector2d(vx_[i], vy_[i]);
+  }
+  Mat3 cov = Mat3::Zero();  // about the mean (no cancellation of large squares)
+  for (std::size_t i = 0; i < px_.size(); ++i) {
+    const Vec3 d(px_[i] - mean.x(), py_[i] - mean.y(), pz_[i] - mean.z());
+    cov.noalias() += w_[i] * d * d.transpose();
   }
   e.p_DinW = mean;
   e.v_W = v;
-  e.position_std_m = (mean_sq - mean.cwiseProduct(mean)).cwiseMax(0.0).cwiseSqrt();
+  e.cov_p_W = cov;
+  e.position_std_m = cov.diagonal().cwiseMax(0.0).cwiseSqrt();
   return e;
 }
 
@@ -342,8 +346,9 @@ bool MonteCarloTracker::TryInitialize(Track* track, double t_s) const {
   if (!(stt > 0.0)) return false;
   const Vec3 v = stp / stt;
   const Vec3 p_now = p_mean + v * (t_s - t_mean);
-  // Prior σ: the option, or the newest fix's own predicted σ if larger.
-  const double sigma_fix = f.back().position_sigma_m;
+  // Prior σ per axis: the option, or the newest fix's 3-D RMS σ if larger
+  // (deliberately wide: √3 × its per-axis σ for an isotropic error).
+  const double sigma_fix = f.back().position_sigma_3d_m;
   const double sigma_p =
       std::isfinite(sigma_fix) ? std::max(options_.init_position_sigma_m, sigma_fix) : options_.init_position_sigma_m;
   track->filter.InitializeAround(p_now, sigma_p, v.head<2>(),
@@ -352,6 +357,14 @@ bool MonteCarloTracker::TryInitialize(Track* track, double t_s) const {
 }
 
 DipoleFix MonteCarloTracker::Process(const GradiometerSample& sample) {
+  DipoleFix fix;
+  fix.sensor_id = sample.sensor_id;
+  fix.t_s = sample.t_s;
+  // The door: a bad sample reaches neither the initialiser nor the filter.
+  if (const SampleDefect defect = CheckSample(sample); defect != SampleDefect::kNone) {
+    fix.reason = defect == SampleDefect::kZeroTensor ? RejectReason::kZeroTensor : RejectReason::kNonFinite;
+    return fix;
+  }
   auto it = tracks_.find(sample.sensor_id);
   if (it == tracks_.end()) {
     ParticleFilterOptions filter_options = options_.filter;
@@ -362,13 +375,9 @@ DipoleFix MonteCarloTracker::Process(const GradiometerSample& sample) {
              .first;
   }
   Track& track = it->second;
-  DipoleFix fix;
-  fix.sensor_id = sample.sensor_id;
-  fix.t_s = sample.t_s;
-  if (sample.T.allFinite() && sample.T.norm() > 0.0) {
-    fix.cond = SortedEigenDecomposition(sample.T).ConditionNumber();
-  }
+  fix.cond = SortedEigenDecomposition(sample.T).ConditionNumber();
   const DipoleFix analytic = track.inverter.Process(sample);
+  fix.snr = analytic.snr;
   DipoleParticleFilter& pf = track.filter;
   if (analytic.valid) {
     track.recent.push_back(analytic);
@@ -384,15 +393,21 @@ DipoleFix MonteCarloTracker::Process(const GradiometerSample& sample) {
     fix.reason = RejectReason::kNotInitialized;
     return fix;
   }
-  if (!pf.Step(sample) && std::isfinite(sample.t_s)) pf.Predict(sample.t_s);
+  const bool sigma_known = sample.sigma_T > 0.0 || options_.filter.sigma_T_fallback > 0.0;
+  const bool updated = sigma_known && pf.Step(sample);
+  if (!updated) pf.Predict(sample.t_s);
   const ParticleEstimate e = pf.Estimate();
-  fix.valid = true;
   fix.p_DinW = e.p_DinW;
   fix.r_DtoS = sample.p_SinW - e.p_DinW;
-  fix.position_sigma_m = e.position_std_m.norm();
+  fix.cov_p_DinW = e.cov_p_W;
+  fix.position_sigma_3d_m = std::sqrt(e.cov_p_W.trace());
+  if (!updated) {
+    fix.reason = sigma_known ? RejectReason::kSolverFailed : RejectReason::kUnknownSigma;
+    return fix;
+  }
+  fix.valid = true;
   fix.m_W = WorldMoment(options_.filter.moment_body_Am2, std::atan2(e.v_W.y(), e.v_W.x()));
   fix.has_moment = true;
-  fix.snr = analytic.snr;
   return fix;
 }
 

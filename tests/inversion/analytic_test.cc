@@ -143,7 +143,7 @@ TEST(AnalyticNoisy, AcceptedFixesHonourTheSigmaGate) {
     const DipoleFix fix = InvertSample(c.noisy, InverterOptions{});
     if (!fix.valid) continue;
     ++accepted;
-    EXPECT_LE(fix.position_sigma_m, 0.05);
+    EXPECT_LE(fix.position_sigma_3d_m, 0.05);
     worst = std::max(worst, (fix.p_DinW - c.p_DinW).norm());
   }
   std::printf("default gates: %d of 500 noisy cases accepted, worst error %.3f m\n", accepted, worst);
@@ -226,7 +226,7 @@ TEST(AnalyticNoisy, PredictedSigmaMatchesObservedScatter) {
     if (c.noisy.T.norm() <= 100.0 * testing::kCaseSigmaT) continue;
     AnalyticSolution s;
     ASSERT_TRUE(SolveTedEgt(c.noisy.T, c.noisy.B, InverterOptions{}.egt_row_weight, {testing::kCaseSigmaB, testing::kCaseSigmaT}, &s));
-    const double z = (s.r_DtoS - c.r_DtoS()).norm() / s.position_sigma_m;
+    const double z = (s.r_DtoS - c.r_DtoS()).norm() / s.position_sigma_3d_m;
     sum += z * z;
     ++n;
   }

@@ -170,8 +170,8 @@ TEST(Options, InvalidValuesAreNamed) {
   o.gates.reference_timeout_s = std::nan("");
   expect_invalid(o, "reference_timeout_s");
   o = {};
-  o.gates.max_position_sigma_m = -1;
-  expect_invalid(o, "max_position_sigma_m");
+  o.gates.max_position_sigma_3d_m = -1;
+  expect_invalid(o, "max_position_sigma_3d_m");
 
   ParticleFilterOptions p;
   p.moment_body_Am2 = kMoment;

@@ -178,11 +178,11 @@ TEST(MonteCarloTracker, StartsFromFixesPerSensorAndReportsMoment) {
       EXPECT_EQ(last.reason, RejectReason::kNotInitialized);
       ++not_initialized;
     }
-    // Sensor 7 has seen nothing useful (zero tensor): still waiting.
+    // Sensor 7 sends a dead (all-zero) tensor: refused at the door.
     GradiometerSample other = s;
     other.sensor_id = 7;
     other.T.setZero();
-    EXPECT_EQ(tracker.Process(other).reason, RejectReason::kNotInitialized);
+    EXPECT_EQ(tracker.Process(other).reason, RejectReason::kZeroTensor);
   }
   // The prior needs 5 accepted fixes spanning ≥ 0.5 s.
   EXPECT_GE(not_initialized, 5);
@@ -191,7 +191,7 @@ TEST(MonteCarloTracker, StartsFromFixesPerSensorAndReportsMoment) {
   EXPECT_LT((last.p_DinW - pass.p(12.0)).norm(), 0.3);
   ASSERT_TRUE(last.has_moment);
   EXPECT_LT((last.m_W - m_W).norm(), 0.1 * m_W.norm());
-  EXPECT_GT(last.position_sigma_m, 0.0);
+  EXPECT_GT(last.position_sigma_3d_m, 0.0);
 }
 
 }  // namespace

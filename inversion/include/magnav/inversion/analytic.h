@@ -31,12 +31,17 @@ struct AnalyticSolution {
   //   TED+EGT: σmax/σmin of the scaled 4×3 matrix [T/‖T‖_F; w b3ᵀ];
   //   EGT:     cond(T) (informative; EGT does not invert T).
   double cond = std::numeric_limits<double>::infinity();
-  // First-order 1-σ 3-D position error (m) from σ_B, σ_T propagated through
-  // the Euler rows (δr = −A⁺ [δT r + 3 δB; 0]); NaN when no sigmas were given.
-  double position_sigma_m = std::numeric_limits<double>::quiet_NaN();
+  // First-order covariance of r_DtoS (and so of the dipole position), m²,
+  // world NED, from σ_B, σ_T propagated through the Euler rows
+  // (δr = −A⁺ [δT r + 3 δB; 0]) and the eigenvector row; NaN when no sigmas
+  // were given.
+  Mat3 cov_r = Mat3::Constant(std::numeric_limits<double>::quiet_NaN());
+  // The 3-D RMS 1-σ error sqrt(trace cov_r), m (NOT a per-axis σ: for an
+  // isotropic error each axis has σ = position_sigma_3d_m/√3).
+  double position_sigma_3d_m = std::numeric_limits<double>::quiet_NaN();
 };
 
-// Noise levels used for position_sigma_m (0 = unknown).
+// Noise levels used for cov_r (0 = unknown).
 struct NoiseSigmas {
   double sigma_B = 0.0;  // T per axis
   double sigma_T = 0.0;  // T/m per element

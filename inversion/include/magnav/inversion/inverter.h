@@ -8,12 +8,13 @@
 //
 // Gates (paper §3.3 plus input checks), applied in this order; the first that
 // fails names the fix's reason:
-//   1. non-finite input (B, T, position, time)            -> kNonFinite
+//   1. non-finite input (B, T, position, time, σ)         -> kNonFinite
 //   2. all-zero tensor                                     -> kZeroTensor
+//      (1–2 are core's CheckSample; B0 not known           -> kNoRegionalField)
 //   3. weak signal: ‖T‖_F < min_snr · σ_T                  -> kWeakSignal
 //   4. asymmetric / not trace-free beyond tolerance        -> kAsymmetric / kNotTraceFree
 //   5. condition number of the method's system > limit     -> kIllConditioned
-//   6. predicted 1-σ position error > limit                -> kUncertain
+//   6. predicted 3-D RMS 1-σ position error > limit        -> kUncertain
 //   7. |Δp|/Δt against the sensor's last accepted fix      -> kInfeasibleSpeed
 // A solver failure (singular system) gives kSolverFailed.
 #pragma once
@@ -48,7 +49,9 @@ enum class RejectReason {
   kUncertain,
   kInfeasibleSpeed,
   kSolverFailed,
-  kNotInitialized,  // used by the Monte-Carlo runner before its prior exists
+  kNotInitialized,   // used by the Monte-Carlo runner before its prior exists
+  kUnknownSigma,     // Monte-Carlo: σ_T unknown, the filter cannot weigh the sample
+  kNoRegionalField,  // the regional field B0 of this sensor is not known (yet)
 };
 // Stable snake_case names ("weak_signal", ...); "" for kNone.
 const char* RejectReasonName(RejectReason reason);
@@ -66,7 +69,13 @@ struct DipoleFix {
   bool has_moment = false;
   double cond = std::numeric_limits<double>::quiet_NaN();  // see AnalyticSolution::cond
   double snr = std::numeric_limits<double>::quiet_NaN();   // ‖T‖_F / σ_T (NaN if σ_T unknown)
-  double position_sigma_m = std::numeric_limits<double>::quiet_NaN();
+  // Covariance of p_DinW, m², world NED (first-order propagation of σ_B, σ_T
+  // for the analytic methods; the particles' weighted covariance for mc);
+  // NaN when σ_B and σ_T are unknown.
+  Mat3 cov_p_DinW = Mat3::Constant(std::numeric_limits<double>::quiet_NaN());
+  // sqrt(trace cov_p_DinW): the 3-D RMS 1-σ error, m (each axis's σ is the
+  // square root of its diagonal entry, not this).
+  double position_sigma_3d_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct GateOptions {
@@ -85,14 +94,14 @@ struct GateOptions {
   double max_cond_ted = 50.0;
   double max_cond_ted_egt = 1e3;
   double max_cond_egt = 1e4;
-  // Reject when the first-order 1-σ position error (AnalyticSolution::
-  // position_sigma_m) exceeds this (m); infinity disables; skipped when σ_B
+  // Reject when the first-order 3-D RMS 1-σ position error (AnalyticSolution::
+  // position_sigma_3d_m) exceeds this (m); infinity disables; skipped when σ_B
   // and σ_T are unknown. The weak-signal gate bounds the *relative* error, so
   // a SQUID still passes it at 75 m with ~0.5 m errors; this gate bounds the
   // absolute error. 5 cm keeps fixes usable one by one (observed errors are
   // ≈ 1.5 σ RMS, ≤ ~4 σ; sweep in docs/ACCURACY.md); coarser information is
   // better used by the Monte-Carlo filter.
-  double max_position_sigma_m = 0.05;
+  double max_position_sigma_3d_m = 0.05;
   // Speed gate (difference operator): reject when
   // |p − p_last| > max_speed_mps · Δt + speed_slack_m against the sensor's
   // last accepted fix. The reference is ignored (and replaced by the next

@@ -68,6 +68,7 @@ struct ParticleEstimate {
   Vec3 p_DinW = Vec3::Zero();              // weighted mean position, m
   Eigen::Vector2d v_W = Eigen::Vector2d::Zero();  // weighted mean horizontal velocity, m/s
   Vec3 position_std_m = Vec3::Zero();      // weighted std per axis, m
+  Mat3 cov_p_W = Mat3::Zero();             // weighted covariance of the position, m²
   double ess = 0.0;                        // effective sample size after the update
 };
 
@@ -135,7 +136,7 @@ struct MonteCarloTrackerOptions {
   // are accepted here (1 m).
   InverterOptions init_inverter = [] {
     InverterOptions o;
-    o.gates.max_position_sigma_m = 1.0;
+    o.gates.max_position_sigma_3d_m = 1.0;
     return o;
   }();
   double init_window_s = 1.0;               // s
@@ -151,10 +152,15 @@ class MonteCarloTracker {
  public:
   explicit MonteCarloTracker(const MonteCarloTrackerOptions& options);
   // Samples of one sensor must come in time order. The returned fix is valid
-  // once the sensor's filter is initialised (reason kNotInitialized before);
-  // it carries the filter's mean position, position_sigma_m = the 3-D spread
-  // of the particles, the world moment at the mean velocity's heading and
-  // the sample's cond(T).
+  // only when the sample updated the sensor's filter: not before the filter
+  // is initialised (kNotInitialized), not for a sample that fails core's
+  // CheckSample (kNonFinite, kZeroTensor: the filter does not see it), not
+  // when σ_T is unknown (kUnknownSigma) nor when the filter refused the
+  // sample (out of time order, no particle explains it: kSolverFailed); those
+  // carry the filter's prediction for diagnostics. A valid fix carries the
+  // filter's mean position, cov_p_DinW = the particles' weighted covariance
+  // (position_sigma_3d_m its trace's root), the world moment at the mean
+  // velocity's heading and the sample's cond(T).
   DipoleFix Process(const GradiometerSample& sample);
 
  private:
