@@ -23,7 +23,9 @@ int main(int argc, char** argv) {
   std::string init_from = tracker::InitSourceName(opt.tracker.init.source);
   double stats_period_s = 10.0;
   magnav::dds::DdsArgs dds_args;
-  magnav::cli::AddVec3Option(app, "--b0", &b0, "background field in T (NED)");
+  magnav::cli::AddVec3Option(app, "--b0", &b0,
+                             "background field in T (NED); not given: estimated per sensor from quiet stretches of "
+                             "the stream (a sensor's samples are not used until then)");
   app.add_option("--window", opt.tracker.window_s, "sliding window length, s");
   app.add_option("--loss", loss, "robust loss on measurements: trivial, huber, cauchy")
       ->capture_default_str()
@@ -43,18 +45,28 @@ int main(int argc, char** argv) {
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-tracker", [&] {
-    if (b0.set) opt.B0_W = b0.value();
+    std::unique_ptr<magnav::dds::RegionalFieldSource> b0_source;
+    if (b0.set) {
+      b0_source = std::make_unique<magnav::dds::RegionalFieldSource>("magnav-tracker", b0.value());
+    } else {
+      RegionalFieldOptions est;
+      est.sigma_B_fallback = opt.tracker.default_sigma_B_T;
+      est.sigma_T_fallback = opt.tracker.default_sigma_T_Tpm;
+      b0_source = std::make_unique<magnav::dds::RegionalFieldSource>("magnav-tracker", est);
+    }
     tracker::ParseLossType(loss, &opt.tracker.measurement_loss);
     tracker::ParseInitSource(init_from, &opt.tracker.init.source);
     magnav::dds::InstallShutdownHandlers();
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-tracker"));
-    tracker::TrackerNode tracker_node(node, opt);
-    spdlog::info("magnav-tracker: window {} s, initiation from {}, on domain {}", opt.tracker.window_s, init_from,
-                 node.domain_id());
+    tracker::TrackerNode tracker_node(node, opt, std::move(b0_source));
+    spdlog::info("magnav-tracker: window {} s, initiation from {}, on domain {}; {}", opt.tracker.window_s, init_from,
+                 node.domain_id(), tracker_node.b0().Describe());
     magnav::dds::RunUntilShutdown(stats_period_s, [&] {
-      spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} late, {} rejected; {} fixes in, {} skipped",
+      spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} late, {} rejected, {} bad samples, {} before "
+                   "B0; {} fixes in, {} skipped",
                    tracker_node.received(), tracker_node.published(), tracker_node.dropped_late(),
-                   tracker_node.rejected(), tracker_node.fixes_received(), tracker_node.fixes_rejected());
+                   tracker_node.rejected(), tracker_node.bad_samples(), tracker_node.b0().waiting(),
+                   tracker_node.fixes_received(), tracker_node.fixes_rejected());
     });
     tracker_node.Flush();
     tracker_node.WaitForAcknowledgments(std::chrono::seconds(5));

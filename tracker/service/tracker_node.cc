@@ -12,10 +12,6 @@
 namespace magnav::tracker {
 
 bool TrackerNodeOptions::IsValid(std::string* error) const {
-  if (!B0_W.allFinite()) {
-    if (error) *error = "B0 must be finite";
-    return false;
-  }
   if (!(reorder_delay_s >= 0.0) || !std::isfinite(reorder_delay_s)) {
     if (error) *error = "reorder_delay_s must be finite and >= 0";
     return false;
@@ -34,7 +30,8 @@ dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B
   m.heading(e.heading_rad);
   m.turn_rate(e.turn_rate_radps);
   std::array<double, 9> cov{}, cov_m{};
-  if (e.has_covariance) {
+  m.usable(e.usable);
+  if (e.usable && e.has_covariance) {
     for (int k = 0; k < 9; ++k) cov[k] = e.cov_state(k / 3, k % 3);
   }
   for (int k = 0; k < 9; ++k) cov_m[k] = cov_m_B(k / 3, k % 3);
@@ -62,8 +59,9 @@ const TrackerNodeOptions& Checked(const TrackerNodeOptions& o) {
 }
 }  // namespace
 
-TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options)
-    : options_(Checked(options)), tracker_(options.B0_W, options.tracker) {
+TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options,
+                         std::unique_ptr<dds::RegionalFieldSource> b0)
+    : options_(Checked(options)), b0_(std::move(b0)), tracker_(Eigen::Vector3d::Zero(), options.tracker) {
   writer_ = node.CreateWriter<dds::msg::TrackEstimate>();
   if (options_.tracker.init.source != InitSource::kSamples) {
     fix_reader_ =
@@ -85,8 +83,17 @@ void TrackerNode::OnFix(const dds::msg::DipoleFix& m) {
 }
 
 void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
-  const GradiometerSample s = dds::FromMsg(m);
+  GradiometerSample s = dds::FromMsg(m);
+  if (door_.Check(s) != SampleDefect::kNone) return;
+  const auto B0 = b0_->For(s);
+  if (!B0) return;  // counted by the source (waiting)
+  s.B -= *B0;
   std::lock_guard<std::mutex> lk(mu_);
+  if ((s.sigma_B == 0.0 || s.sigma_T == 0.0) && no_sigma_logged_.insert(s.sensor_id).second) {
+    spdlog::warn("magnav-tracker: sensor {} sends no sigma_B/sigma_T: assuming sigma_B = {} T, sigma_T = {} T/m "
+                 "(--sigma-b, --sigma-t); its covariances are only as right as that",
+                 s.sensor_id, options_.tracker.default_sigma_B_T, options_.tracker.default_sigma_T_Tpm);
+  }
   if (s.t_s < fed_until_s_) {
     ++dropped_late_;
     return;

@@ -8,20 +8,27 @@
 // (magnav-inverter's fixes, rejected ones included) and hands every fix to the
 // tracker's initialiser (WindowTracker::AddFix); a fix that cannot be used
 // (non-finite time or position) is counted, logged and skipped.
+// Each sample passes the door first (SampleDoor: a bad one is counted, logged
+// once per sensor and skipped) and gets its sensor's B0 from the
+// RegionalFieldSource, which the node subtracts from B (the tracker runs with
+// B0 = 0); a sample whose sensor has no B0 yet is counted and skipped.
 #pragma once
+
+#include <set>
 
 #include <map>
 #include <memory>
 #include <mutex>
 
 #include "magnav/dds/node.h"
+#include "magnav/dds/regional_field_source.h"
+#include "magnav/dds/sample_door.h"
 #include "magnav/tracker/tracker.h"
 
 namespace magnav::tracker {
 
 struct TrackerNodeOptions {
   TrackerOptions tracker;
-  Eigen::Vector3d B0_W = Eigen::Vector3d::Zero();  // background field, T
   double reorder_delay_s = 0.25;                    // s of sample time
   std::uint32_t track_id = 0;
 
@@ -36,7 +43,7 @@ DipoleFix FromMsg(const dds::msg::DipoleFix& m);
 
 class TrackerNode {
  public:
-  TrackerNode(dds::Node& node, const TrackerNodeOptions& options);
+  TrackerNode(dds::Node& node, const TrackerNodeOptions& options, std::unique_ptr<dds::RegionalFieldSource> b0);
   // Feeds what is still buffered to the tracker and publishes the result.
   void Flush();
   // Waits until the readers acknowledged every estimate (before shutdown).
@@ -46,6 +53,8 @@ class TrackerNode {
   std::uint64_t published() const { return writer_->stats().samples.load(); }
   std::uint64_t dropped_late() const { return dropped_late_; }
   std::uint64_t rejected() const { return rejected_; }
+  std::uint64_t bad_samples() const { return door_.rejected(); }
+  const dds::RegionalFieldSource& b0() const { return *b0_; }
   std::uint64_t fixes_received() const { return fix_reader_ ? fix_reader_->stats().samples.load() : 0; }
   std::uint64_t fixes_rejected() const { return fixes_rejected_; }
 
@@ -57,6 +66,9 @@ class TrackerNode {
 
   TrackerNodeOptions options_;
   std::mutex mu_;
+  dds::SampleDoor door_{"magnav-tracker"};
+  std::unique_ptr<dds::RegionalFieldSource> b0_;
+  std::set<std::uint32_t> no_sigma_logged_;  // sensors whose missing σ was logged
   WindowTracker tracker_;
   std::multimap<double, GradiometerSample> pending_;  // by time
   double fed_until_s_ = -1e300;

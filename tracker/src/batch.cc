@@ -19,13 +19,28 @@ double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_cloc
 }
 }  // namespace
 
-TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
                          const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
+  if (!B0_W.allFinite()) throw InputError("tracker: B0 is not finite");
   const auto t_start = std::chrono::steady_clock::now();
   TrackEstimate out;
   Summary& sum = out.summary;
+  // The door: samples that fail core's CheckSample are left out and counted.
+  std::vector<Epoch> epochs;
+  epochs.reserve(input.size());
+  for (const Epoch& e : input) {
+    Epoch kept{e.t_s, {}};
+    for (const auto& s : e.samples) {
+      if (CheckSample(s) == SampleDefect::kNone) {
+        kept.samples.push_back(s);
+      } else {
+        ++sum.num_rejected_samples;
+      }
+    }
+    if (!kept.samples.empty()) epochs.push_back(std::move(kept));
+  }
   sum.num_epochs = static_cast<int>(epochs.size());
 
   const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options, fixes);
@@ -69,10 +84,29 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
       }
     }
   }
+  // The whole pass's cost at the initial guess, with the nominal losses, so
+  // that Summary::initial_cost and final_cost are over the same factors.
+  std::size_t i0 = 0, i1 = epochs.size() - 1;
+  {
+    const auto nominal = internal::MakeLoss(options.measurement_loss, options.measurement_loss_scale_sigma);
+    internal::ChainProblem whole;
+    for (std::size_t k = 0; k < epochs.size(); ++k) {
+      whole.groups.emplace_back();
+      for (auto& f : factors[k]) {
+        if (f.kind == internal::Factor::Kind::kMeasurement) f.loss = nominal.get();
+        if (f.kind == internal::Factor::Kind::kMeasurement || k + 1 < epochs.size()) whole.groups.back().push_back(&f);
+      }
+    }
+    sum.initial_cost = internal::TotalCost(whole.groups, options.num_threads);
+    for (auto& group : factors) {
+      for (auto& f : group) {
+        if (f.kind == internal::Factor::Kind::kMeasurement) f.loss = nullptr;
+      }
+    }
+  }
   // Growing solve: the initialiser's span first, then spans grown by
   // batch_growth_factor with the new epochs predicted from the span's ends
   // by the coordinated-turn model, until the whole pass is included.
-  std::size_t i0 = 0, i1 = epochs.size() - 1;
   while (i0 + 1 < epochs.size() && epochs[i0].t_s < init->t_first_s) ++i0;
   while (i1 > i0 && epochs[i1].t_s > init->t_last_s) --i1;
   std::vector<internal::Factor*> measurements;
@@ -98,6 +132,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
     return CtState<double>{x[k](0), x[k](1), x[k](2), x[k](3), x[k](4), x[k](5)};
   };
   internal::PassResult pr;
+  bool r_final_pass = false;
   for (int stage = 0;; ++stage) {
     measurements.clear();
     for (std::size_t k = i0; k <= i1; ++k) {
@@ -113,6 +148,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
     pr.solve_time_s += r.solve_time_s;
     pr.last = r.last;
     pr.final_loss = std::move(r.final_loss);
+    r_final_pass = r.reached_final_pass;
     if (i0 == 0 && i1 + 1 == epochs.size()) break;
     const double grow = (epochs[i1].t_s - epochs[i0].t_s) * (options.batch_growth_factor - 1.0) * 0.5 + 1.0;
     const std::size_t old0 = i0, old1 = i1;
@@ -135,9 +171,8 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
   }
   const ceres::Solver::Summary& cs = pr.last;
   sum.usable = cs.IsSolutionUsable();
-  sum.converged = cs.termination_type == ceres::CONVERGENCE;
+  sum.converged = r_final_pass && cs.termination_type == ceres::CONVERGENCE;
   sum.iterations = pr.iterations;
-  sum.initial_cost = pr.first_initial_cost;
   sum.final_cost = cs.final_cost;
   sum.solve_time_s = pr.solve_time_s;
   sum.message = cs.message;
@@ -152,6 +187,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
     e.heading_rad = WrapAngle(x[k](4));
     e.turn_rate_radps = x[k](5);
     e.num_samples = static_cast<int>(epochs[k].samples.size());
+    e.usable = sum.usable && x[k].allFinite() && moment.allFinite();
   }
 
   if (options.compute_covariance && sum.usable) {
@@ -184,10 +220,16 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
     }
     if (sum.covariance_ok) {
       for (std::size_t k = 0; k < x.size(); ++k) {
+        if (!P[k].allFinite()) {
+          out.epochs[k].usable = false;
+          continue;
+        }
         out.epochs[k].cov_state = P[k];
         out.epochs[k].has_covariance = true;
       }
       out.cov_m_B = P_m * (moment_scale * moment_scale);
+    } else {
+      for (auto& e : out.epochs) e.usable = false;  // a covariance was asked for and cannot be given
     }
     sum.covariance_time_s = Seconds(t_cov, std::chrono::steady_clock::now());
   }

@@ -89,6 +89,9 @@ struct PassResult {
   int iterations = 0;
   double solve_time_s = 0.0;
   double first_initial_cost = 0.0;
+  // The continuation reached its pass at the nominal loss scale (false: it
+  // ran out of passes, and the last solve's CONVERGENCE is not the problem's).
+  bool reached_final_pass = false;
   // Loss of the final pass; the measurement factors point to it.
   std::unique_ptr<ceres::LossFunction> final_loss;
 };

@@ -75,6 +75,8 @@ bool AccumulateFixed(const Factor& f, const LocalOffset& offset, LocalH* H, Loca
   double* jac[2] = {J0.data(), J1.data()};
   const double* params[2] = {f.blocks[0], f.blocks[1]};
   if (!f.cost->Evaluate(params, e.data(), jac)) return false;
+  // A non-finite residual or Jacobian contributes nothing (never NaN into H).
+  if (!e.allFinite() || !J0.allFinite() || !J1.allFinite()) return false;
   if (f.loss != nullptr) {
     double rho[3];
     f.loss->Evaluate(e.squaredNorm(), rho);
@@ -176,7 +178,10 @@ PassResult SolveWithContinuation(const TrackerOptions& options, int max_iteratio
     if (pass == 0) out.first_initial_cost = out.last.initial_cost;
     out.iterations += static_cast<int>(out.last.iterations.size()) - 1;
     out.solve_time_s += out.last.total_time_in_seconds;
-    if (final_pass) break;
+    if (final_pass) {
+      out.reached_final_pass = true;
+      break;
+    }
     warm = false;
     if (robust) scale = NextLossScale(measurements, nominal, scale);
   }
@@ -451,13 +456,23 @@ void SolveChainLevenbergMarquardt(const ChainSolverOptions& options, const Chain
       it.relative_decrease = it.cost_change / model_change;
       accepted = std::isfinite(new_cost) && it.relative_decrease > options.min_relative_decrease;
       converged = std::isfinite(new_cost) && std::abs(it.cost_change) <= options.function_tolerance * cost;
+      bool relinearize = false;
       if (accepted) {
-        cost = new_cost;
-        accepted = LinearizeChain(chain, &lin, options.num_threads);
+        // The new point counts only once it can be linearised.
+        if (LinearizeChain(chain, &lin, options.num_threads)) {
+          cost = new_cost;
+        } else {
+          accepted = converged = false;
+          relinearize = true;  // lin holds a partial linearisation: redo it at x0
+        }
       }
       if (!accepted) {
         for (std::size_t k = 0; k < n; ++k) Eigen::Map<StateVector>(chain.states[k]) = x0[k];
         Eigen::Map<Eigen::Vector3d>(chain.moment) = m0;
+        if (relinearize && !LinearizeChain(chain, &lin, options.num_threads)) {
+          finish(ceres::FAILURE, "chain Levenberg-Marquardt: the current point could no longer be linearised");
+          return;
+        }
       }
     }
     it.cost = cost;

@@ -65,6 +65,8 @@ struct WindowTracker::Impl {
   std::deque<WindowEpoch> window;
   internal::Factor prior;  // on (window.front().x, moment); cost null = none
   Summary summary;
+  int rejected_samples = 0;  // refused at the door (CheckSample)
+  int dropped_factors = 0;   // left out of a marginalisation
   // Factorisation of the window at the current estimate (chain solver).
   internal::ChainFactorization chain;
   bool chain_ok = false;
@@ -92,17 +94,20 @@ struct WindowTracker::Impl {
 
   // Local system over [front state, second state, moment] from the factors of
   // the front epoch (prior, measurements, process to the next).
-  void FrontSystem(const WindowEpoch& a, const WindowEpoch* b, internal::LocalH* H, internal::LocalG* g,
-                   const internal::Factor* prior_factor) const {
+  // Returns the number of factors that could not be evaluated (left out).
+  int FrontSystem(const WindowEpoch& a, const WindowEpoch* b, internal::LocalH* H, internal::LocalG* g,
+                  const internal::Factor* prior_factor) const {
     H->setZero();
     g->setZero();
     const internal::LocalOffset offset{a.x.data(), b != nullptr ? b->x.data() : nullptr, moment.data()};
-    if (prior_factor != nullptr && prior_factor->cost)
-      internal::AccumulateFactor(*prior_factor, offset, H, g);
-    for (const auto& f : a.measurements) internal::AccumulateFactor(f, offset, H, g);
+    int failed = 0;
+    if (prior_factor != nullptr && prior_factor->cost && !internal::AccumulateFactor(*prior_factor, offset, H, g))
+      ++failed;
+    for (const auto& f : a.measurements) failed += internal::AccumulateFactor(f, offset, H, g) ? 0 : 1;
     if (b != nullptr) {
-      for (const auto& f : a.to_next) internal::AccumulateFactor(f, offset, H, g);
+      for (const auto& f : a.to_next) failed += internal::AccumulateFactor(f, offset, H, g) ? 0 : 1;
     }
+    return failed;
   }
 
   // Drops the oldest epoch, folding its information into the prior.
@@ -111,10 +116,21 @@ struct WindowTracker::Impl {
     WindowEpoch& b = window[1];
     internal::LocalH H;
     internal::LocalG g;
-    FrontSystem(a, &b, &H, &g, &prior);
+    // A factor that cannot be evaluated is left out (and counted): its NaN
+    // would otherwise live on in the prior and fail every later solve.
+    dropped_factors += FrontSystem(a, &b, &H, &g, &prior);
     Eigen::Matrix<double, 9, 9> Hm;
     Eigen::Matrix<double, 9, 1> gm;
     EliminateFirstState(H, g, &Hm, &gm);
+    if (!Hm.allFinite() || !gm.allFinite()) {
+      // Cannot happen with finite factors (the front state's information is
+      // positive definite through the process factor); if it does, the window
+      // goes on without a prior rather than with a poisoned one.
+      ++dropped_factors;
+      prior = internal::Factor{};
+      window.pop_front();
+      return;
+    }
     // ½ δᵀHδ + gᵀδ = ½‖Lδ + c‖² + const with H = V Λ Vᵀ, L = Λ^½ Vᵀ,
     // c = Λ^-½ Vᵀ g (directions with no information are dropped).
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 9, 9>> es(Hm);
@@ -182,12 +198,21 @@ struct WindowTracker::Impl {
   void ChainGaussNewton(ceres::Solver::Summary* cs, int* iterations, double* initial_cost) {
     const internal::ChainProblem problem = Chain();
     const auto& groups = problem.groups;
-    double cost = internal::TotalCost(groups);
+    const int threads = options.num_threads;
+    double cost = internal::TotalCost(groups, threads);
     *initial_cost = cost;
     *iterations = 0;
+    cs->initial_cost = cost;
+    cs->final_cost = cost;
+    if (!std::isfinite(cost)) {
+      chain_ok = chain_fresh = false;
+      cs->termination_type = ceres::FAILURE;
+      cs->message = "chain Gauss-Newton: the window's cost is not finite";
+      return;
+    }
     chain_ok = internal::FactorizeChain(problem, &chain);
-    cs->termination_type = ceres::CONVERGENCE;
-    cs->message = "chain Gauss-Newton";
+    cs->termination_type = ceres::NO_CONVERGENCE;
+    cs->message = "chain Gauss-Newton: iteration limit";
     std::vector<StateVector> dx;
     Eigen::Vector3d dm;
     std::vector<StateVector> x0(window.size());
@@ -200,19 +225,32 @@ struct WindowTracker::Impl {
       for (int halving = 0; halving < 5 && !accepted; ++halving, alpha *= 0.5) {
         for (std::size_t k = 0; k < window.size(); ++k) window[k].x = x0[k] + alpha * dx[k];
         moment = m0 + alpha * dm;
-        new_cost = internal::TotalCost(groups);
+        new_cost = internal::TotalCost(groups, threads);
         accepted = new_cost <= cost;
       }
       if (!accepted) {
         for (std::size_t k = 0; k < window.size(); ++k) window[k].x = x0[k];
         moment = m0;
+        cs->message = "chain Gauss-Newton: no descent step (estimate kept)";
         break;
       }
       ++*iterations;
+      // Parameter tolerance (Ceres' rule): the step is tiny against the state.
+      double step_sq = (alpha * 2.0) * (alpha * 2.0) * dm.squaredNorm(), x_sq = moment.squaredNorm();
+      for (std::size_t k = 0; k < window.size(); ++k) {
+        step_sq += (alpha * 2.0) * (alpha * 2.0) * dx[k].squaredNorm();
+        x_sq += window[k].x.squaredNorm();
+      }
+      const bool tiny_step =
+          std::sqrt(step_sq) <= options.parameter_tolerance * (std::sqrt(x_sq) + options.parameter_tolerance);
       const double decrease = cost - new_cost;
       cost = new_cost;
       chain_ok = internal::FactorizeChain(problem, &chain);
-      if (decrease <= options.window_function_tolerance * cost) break;
+      if (decrease <= options.window_function_tolerance * cost || tiny_step) {
+        cs->termination_type = ceres::CONVERGENCE;
+        cs->message = "chain Gauss-Newton: function tolerance reached";
+        break;
+      }
     }
     cs->initial_cost = *initial_cost;
     cs->final_cost = cost;
@@ -265,7 +303,7 @@ struct WindowTracker::Impl {
     int num_samples = 0;
     for (const auto& w : window) num_samples += static_cast<int>(w.epoch.samples.size());
     summary.initialized = true;
-    summary.usable = cs.IsSolutionUsable();
+    summary.usable = cs.IsSolutionUsable() && std::isfinite(cs.final_cost);
     summary.converged = cs.termination_type == ceres::CONVERGENCE;
     summary.num_epochs = static_cast<int>(window.size());
     summary.num_samples = num_samples;
@@ -318,16 +356,21 @@ struct WindowTracker::Impl {
       summary.num_init_fixes = 0;
       summary.init_from_external_fixes = false;
     }
+    summary.num_rejected_samples = rejected_samples;
+    summary.num_dropped_factors = dropped_factors;
     EpochEstimate est = Estimate(window.back());
-    if (options.compute_covariance && summary.usable) {
+    est.usable = summary.usable && window.back().x.allFinite() && moment.allFinite();
+    if (options.compute_covariance && est.usable) {
       const auto tc = std::chrono::steady_clock::now();
       StateCovariance P;
       Eigen::Matrix3d Pm;
-      if (NewestCovariance(&P, &Pm)) {
+      if (NewestCovariance(&P, &Pm) && P.allFinite() && Pm.allFinite()) {
         est.cov_state = P;
         est.has_covariance = true;
         cov_m_B = Pm;
         summary.covariance_ok = true;
+      } else {
+        est.usable = false;  // a covariance was asked for and cannot be given
       }
       summary.covariance_time_s = Seconds(tc, std::chrono::steady_clock::now());
     }
@@ -351,7 +394,11 @@ WindowTracker::~WindowTracker() = default;
 
 std::vector<EpochEstimate> WindowTracker::AddSample(const GradiometerSample& sample) {
   Impl& m = *impl_;
-  if (!std::isfinite(sample.t_s)) throw InputError("tracker: sample time is not finite");
+  if (CheckSample(sample) != SampleDefect::kNone) {  // the door
+    ++m.rejected_samples;
+    m.summary.num_rejected_samples = m.rejected_samples;
+    return {};
+  }
   if (m.has_pending && std::abs(sample.t_s - m.pending.t_s) <= m.options.epoch_tolerance_s) {
     m.pending.samples.push_back(sample);
     return {};
@@ -374,8 +421,19 @@ std::vector<EpochEstimate> WindowTracker::Flush() {
   return AddEpoch(m.pending);
 }
 
-std::vector<EpochEstimate> WindowTracker::AddEpoch(const Epoch& epoch) {
+std::vector<EpochEstimate> WindowTracker::AddEpoch(const Epoch& raw) {
   Impl& m = *impl_;
+  Epoch epoch{raw.t_s, {}};
+  for (const auto& s : raw.samples) {  // the door, for epochs handed in whole
+    if (CheckSample(s) == SampleDefect::kNone) {
+      epoch.samples.push_back(s);
+    } else {
+      ++m.rejected_samples;
+    }
+  }
+  m.summary.num_rejected_samples = m.rejected_samples;
+  if (!std::isfinite(epoch.t_s)) throw InputError("tracker: epoch time is not finite");
+  if (epoch.samples.empty()) return {};
   const double last_t =
       m.initialized ? m.window.back().epoch.t_s
                     : (m.buffer.empty() ? -std::numeric_limits<double>::infinity() : m.buffer.back().t_s);

@@ -159,7 +159,8 @@ struct Summary {
   bool initialized = false;  // a track was started
   bool usable = false;       // the solver returned a usable solution
   bool converged = false;    // ... and its last pass met a convergence tolerance
-                             // (false: stopped at max_num_iterations)
+                             // (false: stopped at max_num_iterations, or a
+                             // window update found no descent step)
   int num_epochs = 0;        // epochs in the problem
   int num_samples = 0;       // gradiometer samples in the problem
   int num_init_fixes = 0;    // fixes kept by the initialiser
@@ -171,6 +172,13 @@ struct Summary {
   double covariance_time_s = 0.0;
   double total_time_s = 0.0;
   bool covariance_ok = false;
+  // Samples refused at the door (core CheckSample: non-finite time, field,
+  // tensor, position or σ; all-zero tensor), never seen by the solver: for a
+  // batch, in its input; for a window, since the tracker was made.
+  int num_rejected_samples = 0;
+  // Window: factors left out of a marginalisation because they could not be
+  // evaluated at the estimate (non-finite), since the tracker was made.
+  int num_dropped_factors = 0;
   std::string message;  // Ceres termination message or failure reason
 
   std::string BriefReport() const;

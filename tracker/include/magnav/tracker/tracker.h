@@ -60,6 +60,9 @@ struct EpochEstimate {
   double heading_rad = 0.0;  // wrapped to (−π, π]
   double turn_rate_radps = 0.0;
   int num_samples = 0;  // samples of this epoch in the problem
+  // false: do not use this estimate (the solve that made it failed, or its
+  // state or covariance is not finite); its covariance is then not given.
+  bool usable = false;
   bool has_covariance = false;
   StateCovariance cov_state = StateCovariance::Zero();  // order [x y z v h ω]
 
@@ -93,8 +96,11 @@ class WindowTracker {
 
   // Adds one sample (non-decreasing time). A sample with a later time closes
   // the current epoch, which is then processed; the returned estimates are
-  // those produced by that (usually one; at initialisation the whole buffered
-  // window; none while no track could be started).
+  // those produced by that (one per processed epoch; none while no track
+  // could be started). A sample that fails core's CheckSample (non-finite
+  // time, B, T, position or σ; all-zero tensor) is refused: counted in
+  // Summary::num_rejected_samples, never seen by the solver. Throws
+  // InputError if the time goes back.
   std::vector<EpochEstimate> AddSample(const GradiometerSample& sample);
   // Processes the pending epoch (end of stream).
   std::vector<EpochEstimate> Flush();
