@@ -37,10 +37,20 @@ std::optional<Eigen::Vector3d> RegionalFieldSource::For(const GradiometerSample&
 }
 
 std::string RegionalFieldSource::Describe() const {
-  if (fixed_) return "B0 = " + Vec3Text(*fixed_) + " T (--b0)";
-  return "B0 not given: estimated per sensor from quiet stretches (" + FormatNumber(options_.window_s) +
+  if (fixed_) return "B0 = " + Vec3Text(*fixed_) + " T (given)";
+  return "B0 estimated per sensor from quiet stretches (" + FormatNumber(options_.window_s) +
          " s with the tensor at noise level and a steady field); until a sensor's B0 is known its samples "
          "are not used";
+}
+
+std::unique_ptr<RegionalFieldSource> MakeRegionalFieldSource(const std::string& service,
+                                                             const std::optional<Eigen::Vector3d>& given,
+                                                             double sigma_B_fallback, double sigma_T_fallback) {
+  if (given) return std::make_unique<RegionalFieldSource>(service, *given);
+  RegionalFieldOptions options;
+  options.sigma_B_fallback = sigma_B_fallback;
+  options.sigma_T_fallback = sigma_T_fallback;
+  return std::make_unique<RegionalFieldSource>(service, options);
 }
 
 }  // namespace magnav::dds

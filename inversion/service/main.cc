@@ -22,13 +22,14 @@ int main(int argc, char** argv) {
   inversion::InverterOptions opt;
   inversion::MonteCarloTrackerOptions mc;
   std::string method = "ted-egt";
-  magnav::cli::Vec3Arg b0, moment_body;
+  magnav::cli::B0Arg b0;
+  magnav::cli::Vec3Arg moment_body;
   double stats_period_s = 10.0;
   magnav::dds::DdsArgs dds_args;
   app.add_option("--method", method, "ted, ted-egt, egt or mc")->check(CLI::IsMember({"ted", "ted-egt", "egt", "mc"}));
-  magnav::cli::AddVec3Option(app, "--b0", &b0,
-                             "regional field in T (NED), subtracted before TED; not given: estimated per sensor "
-                             "from quiet stretches of the stream (fixes are rejected with reason no_b0 until then)");
+  magnav::cli::AddB0Option(app, &b0,
+                           "regional field: BX,BY,BZ in T (NED), subtracted before TED, or 'estimate': per sensor from quiet stretches of "
+                           "the stream (fixes are rejected with reason no_b0 until then). Required");
   magnav::cli::AddVec3Option(app, "--moment-body", &moment_body, "known body moment in A*m^2 (mc only)");
   app.add_option("--min-snr", opt.gates.min_snr, "weak-signal gate: reject when |T|_F < min_snr * sigma_T");
   app.add_option("--max-cond-ted", opt.gates.max_cond_ted, "condition-number gate for TED");
@@ -51,15 +52,8 @@ int main(int argc, char** argv) {
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-inverter", [&] {
-    std::unique_ptr<magnav::dds::RegionalFieldSource> b0_source;
-    if (b0.set) {
-      b0_source = std::make_unique<magnav::dds::RegionalFieldSource>("magnav-inverter", b0.value());
-    } else {
-      RegionalFieldOptions est;
-      est.sigma_B_fallback = opt.sigma_B_fallback;
-      est.sigma_T_fallback = opt.sigma_T_fallback;
-      b0_source = std::make_unique<magnav::dds::RegionalFieldSource>("magnav-inverter", est);
-    }
+    std::unique_ptr<magnav::dds::RegionalFieldSource> b0_source =
+        magnav::dds::MakeRegionalFieldSource("magnav-inverter", magnav::cli::RequireB0(b0), opt.sigma_B_fallback, opt.sigma_T_fallback);
     magnav::dds::InstallShutdownHandlers();
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-inverter"));
     std::unique_ptr<inversion::InverterNode> inverter;

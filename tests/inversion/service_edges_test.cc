@@ -1,6 +1,6 @@
-// magnav-inverter at its edges, as a process on loopback DDS: without --b0 it
-// estimates B0 per sensor and answers "no_b0" until then (never a fix made
-// with B0 = 0); --method mc runs the measured Monte-Carlo configuration; bad
+// magnav-inverter at its edges, as a process on loopback DDS: it refuses to
+// run without --b0; with --b0 estimate it estimates B0 per sensor and answers
+// "no_b0" until then (never a fix made with B0 = 0); --method mc runs the measured Monte-Carlo configuration; bad
 // samples mid-pass (NaN, infinite σ, dead tensor) are rejected and leave the
 // other fixes exactly as a clean run's.
 #include <signal.h>
@@ -73,14 +73,22 @@ std::vector<Vec3> TruthPositions(const std::string& vessel) {
 
 Vec3 Position(const msg::DipoleFix& f) { return {f.position()[0], f.position()[1], f.position()[2]}; }
 
-// AUV fluxgate pass, no --b0: the first full quiet window (10 s) gives B0;
+// No --b0 at all: the service refuses to start and says what to give (a
+// silent B0 = 0 made "valid" fixes 467 m RMS off on the ship SQUID pass).
+TEST(InverterServiceB0, RefusesToStartWithoutB0) {
+  const auto [rc, out] = testing::RunCommand({MAGNAV_SERVICE_BIN, "--stats-period", "0"});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("--b0 estimate"), std::string::npos) << out;
+}
+
+// AUV fluxgate pass, --b0 estimate: the first full quiet window (10 s) gives B0;
 // before it every fix says "no_b0"; after it the fixes are as good as with
 // the true B0 (the review: without --b0 the service used B0 = 0 and its
 // "valid" fixes were 467 m RMS off on the ship SQUID pass).
-TEST(InverterServiceB0, EstimatedFromTheStreamWhenNotGiven) {
+TEST(InverterServiceB0, EstimatedFromTheStream) {
   const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv"));
   const std::vector<Vec3> truth = TruthPositions("auv");
-  const std::vector<msg::DipoleFix> got = RunService({}, f.samples);
+  const std::vector<msg::DipoleFix> got = RunService({"--b0", "estimate"}, f.samples);
   ASSERT_EQ(got.size(), f.samples.size());
   InverterOptions o;
   o.B0_W = *f.B0;
@@ -98,7 +106,7 @@ TEST(InverterServiceB0, EstimatedFromTheStreamWhenNotGiven) {
     if (got[i].valid()) ++valid, sum += (Position(got[i]) - truth[i]).squaredNorm();
   }
   const double rms = std::sqrt(sum / valid), rms_known = std::sqrt(sum_known / valid_known);
-  std::printf("no --b0: %d no_b0, %d valid fixes, RMS %.4f m; with the true B0: %d valid, RMS %.4f m\n", no_b0, valid,
+  std::printf("--b0 estimate: %d no_b0, %d valid fixes, RMS %.4f m; with the true B0: %d valid, RMS %.4f m\n", no_b0, valid,
               rms, valid_known, rms_known);
   EXPECT_GE(no_b0, 85);  // the first window (judged once it spans 9 s)
   EXPECT_LE(no_b0, 100);
@@ -106,11 +114,11 @@ TEST(InverterServiceB0, EstimatedFromTheStreamWhenNotGiven) {
   EXPECT_LE(rms, 1.5 * rms_known);
 }
 
-// Ship SQUID pass, no --b0: the ship is never out of range, no quiet
+// Ship SQUID pass, --b0 estimate: the ship is never out of range, no quiet
 // stretch, so no B0 and no valid fix at all.
 TEST(InverterServiceB0, NoFixWhenB0CannotBeEstimated) {
   const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_squid.csv"));
-  const std::vector<msg::DipoleFix> got = RunService({}, f.samples);
+  const std::vector<msg::DipoleFix> got = RunService({"--b0", "estimate"}, f.samples);
   ASSERT_EQ(got.size(), f.samples.size());
   for (const auto& fix : got) {
     EXPECT_FALSE(fix.valid());

@@ -6,6 +6,8 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <mutex>
 
 #include <gtest/gtest.h>
@@ -29,9 +31,9 @@ using namespace std::chrono_literals;
 namespace msg = ::magnav::msg;
 
 // RMS of the 3-D position error over the estimates within 30 m horizontal
-// range of the ship pass's sensor (at the origin), and how many there were.
-std::pair<double, int> ShipRmsWithin30m(const std::vector<msg::TrackEstimate>& got) {
-  const CsvTable truth = CsvTable::Read(testing::ReferencePath("track_truth_ship.csv"));
+// range of a 1-sensor pass's sensor (at the origin), and how many there were.
+std::pair<double, int> RmsWithin30m(const std::vector<msg::TrackEstimate>& got, const std::string& vessel) {
+  const CsvTable truth = CsvTable::Read(testing::ReferencePath("track_truth_" + vessel + ".csv"));
   double sum = 0;
   int n = 0;
   for (const auto& e : got) {
@@ -74,9 +76,13 @@ struct TestPeer {
   // 0 expected) and returns what arrived.
   std::vector<msg::TrackEstimate> SendPassAndStop(const GradiometerFile& file, std::size_t expected,
                                                   testing::Subprocess* service) {
-    for (std::size_t i = 0; i < file.samples.size(); ++i) EXPECT_TRUE(writer->Write(dds::ToMsg(file.samples[i], i)));
+    return SendAndStop(file.samples, expected, service);
+  }
+  std::vector<msg::TrackEstimate> SendAndStop(const std::vector<GradiometerSample>& samples, std::size_t expected,
+                                              testing::Subprocess* service) {
+    for (std::size_t i = 0; i < samples.size(); ++i) EXPECT_TRUE(writer->Write(dds::ToMsg(samples[i], i)));
     EXPECT_TRUE(writer->WaitForAcknowledgments(30s));
-    EXPECT_TRUE(reader->WaitForSamples(expected - 5, 60s)) << reader->stats().samples.load();
+    if (expected > 5) EXPECT_TRUE(reader->WaitForSamples(expected - 5, 60s)) << reader->stats().samples.load();
     service->Signal(SIGTERM);
     EXPECT_EQ(service->Wait(20s), 0);
     reader->WaitForSamples(expected, 5s);
@@ -123,7 +129,7 @@ TEST(TrackerService, PublishesTheLibraryEstimatesForAPass) {
   }
   // And they follow the truth near the sensor (issue 4: window figures; the
   // batch target 0.3 m RMS for fluxgate applies here too).
-  const auto [rms, n] = ShipRmsWithin30m(got);
+  const auto [rms, n] = RmsWithin30m(got, "ship");
   ASSERT_GT(n, 300);
   EXPECT_LT(rms, 0.3);
 }
@@ -197,9 +203,118 @@ TEST(TrackerService, StartsFromTheInvertersFixes) {
     EXPECT_EQ(got[i].stamp_ns(), SecondsToNanos(want[i].t_s)) << i;
     for (int k = 0; k < 3; ++k) ASSERT_EQ(got[i].position()[k], want[i].p_VinW[k]) << i;
   }
-  const auto [rms, n] = ShipRmsWithin30m(got);
+  const auto [rms, n] = RmsWithin30m(got, "ship");
   ASSERT_GT(n, 300);
   EXPECT_LT(rms, 0.3);
+}
+
+// The library's window estimates for samples fed through the message.
+std::vector<EpochEstimate> LibraryWindow(const std::vector<GradiometerSample>& samples, const Eigen::Vector3d& B0) {
+  WindowTracker lib(B0, TrackerOptions{});
+  std::vector<EpochEstimate> want;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    for (auto& e : lib.AddSample(dds::FromMsg(dds::ToMsg(samples[i], i)))) want.push_back(e);
+  }
+  for (auto& e : lib.Flush()) want.push_back(e);
+  return want;
+}
+
+// A NaN sample, an infinite σ and a dead tensor mid-pass (the review's NaN at
+// t = 100 s made the track coast 24 m off while claiming σ 0.6 m): skipped at
+// the door, logged, and the track is the library's without those samples;
+// after them it stays within a small part of its σ of the clean pass's track.
+TEST(TrackerService, BadSamplesMidPassDoNotPoisonTheTrack) {
+  const int domain = testing::TestDomainId();
+  const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
+  std::vector<GradiometerSample> input = file.samples, without;
+  input[1000].B.x() = std::nan("");                               // t = 100.0 s
+  input[1005].sigma_T = std::numeric_limits<double>::infinity();  // t = 100.5 s
+  input[1010].T.setZero();                                        // t = 101.0 s
+  for (const auto& s : input) {
+    if (CheckSample(s) == SampleDefect::kNone) without.push_back(s);
+  }
+  ASSERT_EQ(without.size() + 3, input.size());
+  const std::vector<EpochEstimate> want = LibraryWindow(without, *file.B0);
+  const std::vector<EpochEstimate> clean = LibraryWindow(file.samples, *file.B0);
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
+                              {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}}, /*merge_stderr=*/true);
+  std::vector<msg::TrackEstimate> got;
+  {
+    TestPeer peer(domain);
+    ASSERT_TRUE(peer.writer->WaitForMatched(1, 20s));
+    ASSERT_TRUE(peer.reader->WaitForMatched(1, 20s));
+    got = peer.SendAndStop(input, want.size(), &service);
+  }
+  const std::string log = service.ReadAll();
+  for (const char* defect : {"non_finite", "bad_sigma", "zero_tensor"}) {
+    EXPECT_NE(log.find(std::string("skipped: ") + defect), std::string::npos) << log;
+  }
+  ASSERT_EQ(got.size(), want.size()) << log;
+  std::size_t j = 0;
+  double worst_z = 0.0;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(got[i].position()[k], want[i].p_VinW[k]) << i;
+    EXPECT_TRUE(got[i].usable()) << i;
+    while (clean[j].t_s < want[i].t_s) ++j;
+    const double sigma = std::sqrt(want[i].cov_p_W().trace());
+    worst_z = std::max(worst_z, (want[i].p_VinW - clean[j].p_VinW).norm() / sigma);
+  }
+  EXPECT_LT(worst_z, 1.0);  // measured 0.56: three epochs of the turn left out
+  const auto [rms, n] = RmsWithin30m(got, "ship");
+  ASSERT_GT(n, 300);
+  EXPECT_LT(rms, 0.3);
+}
+
+// Without --b0 the service refuses to start. With --b0 estimate it estimates
+// each sensor's B0 from its quiet stretches and says so. On the AUV fluxgate
+// pass (quiet start) that B0 is 1.1 nT off (the AUV's own field 111 m away),
+// and the window track, which leans on B at this noise level, degrades from
+// 0.11 m to 0.60 m RMS — measured and asserted here, stated in
+// tracker/README.md (joint estimation of B0 in the tracker is not done). On
+// the ship SQUID pass (never quiet) there is no B0, so no track — rather than
+// one made with B0 = 0.
+TEST(TrackerService, B0IsGivenOrEstimatedNeverAssumed) {
+  {
+    const auto [rc, out] = testing::RunCommand({MAGNAV_SERVICE_BIN, "--stats-period", "0"});
+    EXPECT_EQ(rc, 2);
+    EXPECT_NE(out.find("--b0 estimate"), std::string::npos) << out;
+  }
+  const GradiometerFile auv = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv"));
+  const std::vector<EpochEstimate> known = LibraryWindow(auv.samples, *auv.B0);
+  ASSERT_GT(known.size(), 500u);
+  {
+    const int domain = testing::TestDomainId();
+    testing::Subprocess service({MAGNAV_SERVICE_BIN, "--b0", "estimate", "--stats-period", "0"},
+                                {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}}, /*merge_stderr=*/true);
+    std::vector<msg::TrackEstimate> got;
+    {
+      TestPeer peer(domain);
+      ASSERT_TRUE(peer.writer->WaitForMatched(1, 20s));
+      ASSERT_TRUE(peer.reader->WaitForMatched(1, 20s));
+      got = peer.SendPassAndStop(auv, known.size() - 20, &service);
+    }
+    const std::string log = service.ReadAll();
+    EXPECT_NE(log.find("estimated per sensor"), std::string::npos) << log;
+    EXPECT_NE(log.find("B0 estimated"), std::string::npos) << log;
+    std::vector<msg::TrackEstimate> ref;
+    for (const auto& e : known) ref.push_back(ToMsg(e, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(), 0));
+    const auto [rms, n] = RmsWithin30m(got, "auv");
+    const auto [rms_known, n_known] = RmsWithin30m(ref, "auv");
+    std::printf("AUV fluxgate window, B0 estimated: RMS %.4f m over %d; true B0: %.4f m over %d\n", rms, n,
+                rms_known, n_known);
+    EXPECT_GE(n, n_known * 9 / 10);
+    EXPECT_LE(rms, 0.9);  // measured 0.60 m (0.107 m with the true B0)
+  }
+  {
+    const GradiometerFile ship = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_squid.csv"));
+    const int domain = testing::TestDomainId();
+    testing::Subprocess service({MAGNAV_SERVICE_BIN, "--b0", "estimate", "--stats-period", "0"},
+                                {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});
+    TestPeer peer(domain);
+    ASSERT_TRUE(peer.writer->WaitForMatched(1, 20s));
+    ASSERT_TRUE(peer.reader->WaitForMatched(1, 20s));
+    EXPECT_TRUE(peer.SendPassAndStop(ship, 0, &service).empty());
+  }
 }
 
 }  // namespace

@@ -18,14 +18,15 @@ int main(int argc, char** argv) {
   CLI::App app{"magnav-tracker: vessel tracks from gradiometer samples (magnav/gradiometer -> magnav/track)"};
   magnav::cli::ConfigureServiceApp(app);
   tracker::TrackerNodeOptions opt;
-  magnav::cli::Vec3Arg b0;
+  magnav::cli::B0Arg b0;
   std::string loss = tracker::LossTypeName(opt.tracker.measurement_loss);
   std::string init_from = tracker::InitSourceName(opt.tracker.init.source);
   double stats_period_s = 10.0;
   magnav::dds::DdsArgs dds_args;
-  magnav::cli::AddVec3Option(app, "--b0", &b0,
-                             "background field in T (NED); not given: estimated per sensor from quiet stretches of "
-                             "the stream (a sensor's samples are not used until then)");
+  magnav::cli::AddB0Option(app, &b0,
+                           "regional field: BX,BY,BZ in T (NED), or 'estimate': per sensor from quiet stretches of the stream (a "
+                           "sensor's samples are not used until then; the track is very sensitive to a B0 error, see "
+                           "tracker/README.md). Required");
   app.add_option("--window", opt.tracker.window_s, "sliding window length, s");
   app.add_option("--loss", loss, "robust loss on measurements: trivial, huber, cauchy")
       ->capture_default_str()
@@ -45,15 +46,8 @@ int main(int argc, char** argv) {
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-tracker", [&] {
-    std::unique_ptr<magnav::dds::RegionalFieldSource> b0_source;
-    if (b0.set) {
-      b0_source = std::make_unique<magnav::dds::RegionalFieldSource>("magnav-tracker", b0.value());
-    } else {
-      RegionalFieldOptions est;
-      est.sigma_B_fallback = opt.tracker.default_sigma_B_T;
-      est.sigma_T_fallback = opt.tracker.default_sigma_T_Tpm;
-      b0_source = std::make_unique<magnav::dds::RegionalFieldSource>("magnav-tracker", est);
-    }
+    std::unique_ptr<magnav::dds::RegionalFieldSource> b0_source =
+        magnav::dds::MakeRegionalFieldSource("magnav-tracker", magnav::cli::RequireB0(b0), opt.tracker.default_sigma_B_T, opt.tracker.default_sigma_T_Tpm);
     tracker::ParseLossType(loss, &opt.tracker.measurement_loss);
     tracker::ParseInitSource(init_from, &opt.tracker.init.source);
     magnav::dds::InstallShutdownHandlers();

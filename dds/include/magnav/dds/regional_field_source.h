@@ -10,6 +10,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -47,5 +48,11 @@ class RegionalFieldSource {
   std::set<std::uint32_t> unknown_sigma_logged_;
   std::atomic<std::uint64_t> waiting_{0};
 };
+
+// The given B0 for every sensor, or (nullopt) the per-sensor estimate with
+// these noise fallbacks for samples that carry no σ.
+std::unique_ptr<RegionalFieldSource> MakeRegionalFieldSource(const std::string& service,
+                                                             const std::optional<Eigen::Vector3d>& given,
+                                                             double sigma_B_fallback, double sigma_T_fallback);
 
 }  // namespace magnav::dds

@@ -3,6 +3,7 @@
 // line (options also from a TOML/INI file), and parsing with magnav's exit codes.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,45 @@ inline void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, 
          },
          help)
       ->type_name("X,Y,Z");
+}
+
+// The regional field B0 of a service: "--b0 BX,BY,BZ" (tesla, NED) or
+// "--b0 estimate" (per sensor, from quiet stretches of the stream). There is
+// no default: a service that is given neither refuses to start (a silent
+// B0 = 0 made fixes kilometres off).
+struct B0Arg {
+  enum class Mode { kUnset, kGiven, kEstimate };
+  Mode mode = Mode::kUnset;
+  Eigen::Vector3d value = Eigen::Vector3d::Zero();  // T, when kGiven
+};
+
+inline void AddB0Option(CLI::App& app, B0Arg* out, const std::string& help) {
+  app.add_option_function<std::string>(
+         "--b0",
+         [out](const std::string& s) {
+           if (s == "estimate") {
+             out->mode = B0Arg::Mode::kEstimate;
+             return;
+           }
+           const auto v = ParseNumberList(s);
+           if (!v || v->size() != 3) {
+             throw CLI::ValidationError("--b0", "expected BX,BY,BZ in tesla or 'estimate', got '" + s + "'");
+           }
+           out->value = {(*v)[0], (*v)[1], (*v)[2]};
+           out->mode = B0Arg::Mode::kGiven;
+         },
+         help)
+      ->type_name("BX,BY,BZ|estimate");
+}
+
+// The given B0 (nullopt: estimate it). Throws InputError when --b0 was not given.
+inline std::optional<Eigen::Vector3d> RequireB0(const B0Arg& arg) {
+  if (arg.mode == B0Arg::Mode::kUnset) {
+    throw InputError("the regional field is unknown: give --b0 BX,BY,BZ (tesla, NED) or --b0 estimate (per "
+                     "sensor, from quiet stretches of the stream)");
+  }
+  if (arg.mode == B0Arg::Mode::kEstimate) return std::nullopt;
+  return arg.value;
 }
 
 // Parses "X,Y,Z;X,Y,Z;..." (a list of points, e.g. sensor positions). Throws
