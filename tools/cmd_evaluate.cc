@@ -31,13 +31,16 @@ void Run(const EvaluateArgs& a) {
   const CsvTable truth = CsvTable::Read(a.truth);
   const Xyz pe = PositionColumns(est), pt = PositionColumns(truth);
   const std::size_t te = est.column("t"), tt = truth.column("t");
-  const auto valid_col = est.find_column("valid");
+  // A row marked not valid (fixes) or not usable (tracks) is not scored.
+  const auto valid_col = est.has_column("valid") ? est.find_column("valid") : est.find_column("usable");
   const bool has_sigma = est.has_column("sigma_x");
   const Xyz ps = has_sigma ? Xyz{est.column("sigma_x"), est.column("sigma_y"), est.column("sigma_z")} : Xyz{0, 0, 0};
   std::vector<Eigen::Vector3d> sensors;
   if (a.max_range_m > 0) {
     if (a.sensors.empty()) throw InputError("--max-range needs --sensors X,Y,Z[;X,Y,Z...]");
     sensors = cli::ParseVec3List("--sensors", a.sensors);
+  } else if (!a.sensors.empty()) {
+    throw InputError("--sensors is used only with --max-range");
   }
   // Truth by time, in ns to match exactly.
   std::map<long long, std::size_t> truth_at;
@@ -97,7 +100,8 @@ void AddEvaluateCommand(CLI::App& app) {
   sub->add_option("--estimate", args->estimate, "CSV with t and dipole_x..z or x..z (and optional valid, sigma_x..z)")
       ->required();
   sub->add_option("--truth", args->truth, "truth CSV with t,x,y,z (e.g. magnav simulate --truth)")->required();
-  sub->add_option("--max-range", args->max_range_m, "use only epochs within this horizontal range of a sensor, m");
+  sub->add_option("--max-range", args->max_range_m, "use only epochs within this horizontal range of a sensor, m")
+      ->check(CLI::PositiveNumber);
   sub->add_option("--sensors", args->sensors, "sensor positions X,Y,Z[;X,Y,Z...] for --max-range");
   sub->callback([args] { Run(*args); });
 }

@@ -51,13 +51,16 @@ void RunInvert(const InvertArgs& args) {
     if (args.sigma_T >= 0.0) s.sigma_T = args.sigma_T;
   }
   Eigen::Vector3d B0 = Eigen::Vector3d::Zero();
-  std::string b0_source = "zero";
+  std::string b0_source;
   if (args.b0.set) {
     B0 = {args.b0.v[0], args.b0.v[1], args.b0.v[2]};
     b0_source = "--b0";
   } else if (file.B0) {
     B0 = *file.B0;
     b0_source = "file";
+  } else {  // never a silent B0 = 0
+    throw InputError(args.input + ": no regional field: give --b0 BX,BY,BZ (0,0,0 if B holds the anomaly field "
+                                  "alone) or a '# B0_T:' line");
   }
 
   inversion::InverterOptions inv_options;
@@ -115,11 +118,16 @@ void RunInvert(const InvertArgs& args) {
   if (has_case) header.push_back("case_id");
   if (has_t) header.push_back("t");
   if (has_id) header.push_back("sensor_id");
-  for (const char* c : {"dipole_x", "dipole_y", "dipole_z", "valid", "reason", "cond"}) header.push_back(c);
+  for (const char* c : {"dipole_x", "dipole_y", "dipole_z", "valid", "reason", "cond", "sigma_x", "sigma_y", "sigma_z",
+                        "cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"}) {
+    header.push_back(c);
+  }
   params.emplace_back("columns",
                       "dipole_* = dipole position, world NED, m (a rejected row keeps the rejected solution when "
                       "one was computed, else empty); valid 0/1; reason empty when valid; cond = condition number "
-                      "of the method's system (mc: of T; inf when singular, empty when not computed)");
+                      "of the method's system (mc: of T; inf when singular, empty when not computed); sigma_* = "
+                      "1-sigma per axis (m) and cov_* the position covariance (m^2, NED), empty when sigma_B and "
+                      "sigma_T are unknown");
   CsvWriter out(args.output, header, params);
   std::vector<std::string> row;
   for (std::size_t i = 0; i < fixes.size(); ++i) {
@@ -132,6 +140,11 @@ void RunInvert(const InvertArgs& args) {
     row.push_back(f.valid ? "1" : "0");
     row.push_back(inversion::RejectReasonName(f.reason));
     row.push_back(Num(f.cond));
+    const bool has_cov = f.cov_p_DinW.allFinite();
+    for (int k = 0; k < 3; ++k) row.push_back(has_cov ? Num(std::sqrt(std::max(0.0, f.cov_p_DinW(k, k)))) : "");
+    for (const auto& [i, j] : {std::pair{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}}) {
+      row.push_back(has_cov ? Num(f.cov_p_DinW(i, j)) : "");
+    }
     out.WriteRow(row);
   }
   out.Close();
@@ -147,7 +160,7 @@ void AddInvertCommand(CLI::App& app) {
   cmd->add_option("--method", args->method, "ted | ted-egt | egt | mc")
       ->required()
       ->check(CLI::IsMember({"ted", "ted-egt", "egt", "mc"}));
-  AddVec3Option(*cmd, "--b0", &args->b0, "regional field B0 in T (default: the file's '# B0_T:', else 0)");
+  AddVec3Option(*cmd, "--b0", &args->b0, "regional field B0 in T (default: the file's '# B0_T:'; one of the two is required)");
   AddVec3Option(*cmd, "--moment-body", &args->moment_body,
                 "body moment in A·m² for mc (default: the file's '# moment_body_Am2:')");
   cmd->add_option("--sigma-b", args->sigma_B, "B noise σ in T (default: the file's '# sigma_B_T:')")

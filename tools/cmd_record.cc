@@ -1,6 +1,8 @@
 // magnav record: subscribe to a topic and write what arrives as CSV (to a
 // file, or '-' for standard output), until a count, a duration or SIGINT.
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -31,16 +33,45 @@ void Append(std::vector<std::string>& f, const std::array<double, K>& a) {
   for (double v : a) f.push_back(N(v));
 }
 
+// Every field of the message is written (covariances as 9 row-major columns,
+// with sigma_x..z = the roots of their diagonals for `magnav evaluate`).
+void AppendNamed(std::vector<std::string>& h, const std::string& prefix, const char* const* names, int n) {
+  for (int i = 0; i < n; ++i) h.push_back(prefix + names[i]);
+}
+const char* const kXyz[] = {"x", "y", "z"};
+const char* const kCov[] = {"xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"};
+
 std::vector<std::string> Header(const std::string& topic) {
+  std::vector<std::string> h;
   if (topic == "gradiometer") {
-    std::vector<std::string> h = {"t", "sensor_id", "seq"};
+    h = {"t", "sensor_id", "seq"};
     for (std::string& c : GradiometerDataColumns()) h.push_back(std::move(c));
+    h.push_back("sigma_B");
+    h.push_back("sigma_T");
     return h;
   }
   if (topic == "dipole_fix") {
-    return {"t", "sensor_id", "seq", "method", "dipole_x", "dipole_y", "dipole_z", "valid", "reason", "cond"};
+    h = {"t", "sensor_id", "seq", "method", "dipole_x", "dipole_y", "dipole_z", "valid", "reason", "cond",
+         "has_moment"};
+    AppendNamed(h, "m_", kXyz, 3);
+    AppendNamed(h, "sigma_", kXyz, 3);
+    AppendNamed(h, "cov_", kCov, 9);
+    return h;
   }
-  return {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "turn_rate", "sigma_x", "sigma_y", "sigma_z"};
+  h = {"t", "track_id", "x", "y", "z", "vx", "vy", "vz", "heading", "turn_rate", "sigma_x", "sigma_y", "sigma_z"};
+  AppendNamed(h, "cov_", kCov, 9);
+  AppendNamed(h, "moment_body_", kXyz, 3);
+  AppendNamed(h, "moment_cov_", kCov, 9);
+  h.push_back("num_sensors");
+  h.push_back("usable");
+  return h;
+}
+
+// Roots of a row-major 3×3 covariance's diagonal; empty when it is all zero
+// (unknown).
+void AppendSigmas(std::vector<std::string>& f, const std::array<double, 9>& cov) {
+  const bool known = std::any_of(cov.begin(), cov.end(), [](double v) { return v != 0.0; });
+  for (int i = 0; i < 3; ++i) f.push_back(known ? N(std::sqrt(std::max(0.0, cov[4 * i]))) : "");
 }
 
 std::vector<std::string> Row(const dds::msg::GradiometerSample& m) {
@@ -48,6 +79,8 @@ std::vector<std::string> Row(const dds::msg::GradiometerSample& m) {
   Append(f, m.sensor_position());
   Append(f, m.B());
   Append(f, m.T());
+  f.push_back(N(m.sigma_B()));
+  f.push_back(N(m.sigma_T()));
   return f;
 }
 
@@ -58,17 +91,25 @@ std::vector<std::string> Row(const dds::msg::DipoleFix& m) {
   f.push_back(m.valid() ? "1" : "0");
   f.push_back(m.reason().c_str());
   f.push_back(N(m.condition_number()));
+  f.push_back(m.has_moment() ? "1" : "0");
+  Append(f, m.moment());
+  AppendSigmas(f, m.covariance());
+  Append(f, m.covariance());
   return f;
 }
 
 std::vector<std::string> Row(const dds::msg::TrackEstimate& m) {
   std::vector<std::string> f = {FormatNanosAsSeconds(m.stamp_ns()), std::to_string(m.track_id())};
   Append(f, m.position());
-  f.push_back(N(m.velocity()[0]));
-  f.push_back(N(m.velocity()[1]));
+  Append(f, m.velocity());
   f.push_back(N(m.heading()));
   f.push_back(N(m.turn_rate()));
-  for (int i = 0; i < 3; ++i) f.push_back(N(std::sqrt(std::max(0.0, m.covariance()[4 * i]))));
+  AppendSigmas(f, m.covariance());
+  Append(f, m.covariance());
+  Append(f, m.moment_body());
+  Append(f, m.moment_covariance());
+  f.push_back(std::to_string(m.num_sensors()));
+  f.push_back(m.usable() ? "1" : "0");
   return f;
 }
 

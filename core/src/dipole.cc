@@ -115,11 +115,22 @@ bool FitDipoleMoment(const Vec3& r, const Vec3& B, const Mat3& T, double sigma_B
   Measurement8 z;
   z.head<3>() = B;
   z.tail<5>() = PackTensor5(T);
-  // Weights: 1/σ per row; with σ unknown (0) use the natural scale |r| so B
-  // and T rows count alike (T ~ B/r).
+  // Weights: 1/σ per row when both σ are known. Otherwise only their ratio
+  // matters, and an unknown σ is replaced by the known one scaled by the
+  // natural ratio of the rows (T ~ B/|r|, so σ_T ≈ σ_B/|r|): a known σ_B of
+  // 1e-9 T must not meet a weight 1 on the T rows (1e9 against 1).
   const double rn = r.norm();
-  const double wB = sigma_B > 0.0 ? 1.0 / sigma_B : 1.0;
-  const double wT = sigma_T > 0.0 ? 1.0 / sigma_T : rn;
+  double sB = sigma_B > 0.0 ? sigma_B : 0.0, sT = sigma_T > 0.0 ? sigma_T : 0.0;
+  if (sB == 0.0 && sT == 0.0) {
+    sB = 1.0;
+    sT = 1.0 / rn;
+  } else if (sB == 0.0) {
+    sB = sT * rn;
+  } else if (sT == 0.0) {
+    sT = sB / rn;
+  }
+  const double wB = 1.0 / sB;
+  const double wT = 1.0 / sT;
   A.topRows<3>() *= wB;
   z.head<3>() *= wB;
   A.bottomRows<5>() *= wT;

@@ -70,6 +70,8 @@ GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerCo
   const auto c_t = t.find_column("t");
   const auto c_id = t.find_column("sensor_id");
   const auto c_case = t.find_column("case_id");
+  // Per-row noise (magnav record writes it): overrides the file parameters.
+  const auto c_sigma_B = t.find_column("sigma_B"), c_sigma_T = t.find_column("sigma_T");
   f.has_time = c_t.has_value();
   f.has_sensor_id = c_id.has_value();
 
@@ -82,8 +84,11 @@ GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerCo
     s.p_SinW = {t.number(r, sx), t.number(r, sy), t.number(r, sz)};
     for (int i = 0; i < 3; ++i) s.B[i] = t.number(r, b[i]);
     for (int k = 0; k < 9; ++k) s.T(k / 3, k % 3) = t.number(r, tt[k]);
-    s.sigma_B = f.sigma_B.value_or(0.0);
-    s.sigma_T = f.sigma_T.value_or(0.0);
+    s.sigma_B = c_sigma_B ? t.number(r, *c_sigma_B) : f.sigma_B.value_or(0.0);
+    s.sigma_T = c_sigma_T ? t.number(r, *c_sigma_T) : f.sigma_T.value_or(0.0);
+    if (!(s.sigma_B >= 0.0) || !(s.sigma_T >= 0.0)) {
+      throw InputError(path + ":" + std::to_string(t.line_of(r)) + ": sigma_B and sigma_T must be >= 0");
+    }
     if (c_case) f.case_ids.push_back(t.integer(r, *c_case));
     f.samples.push_back(s);
     f.lines.push_back(t.line_of(r));

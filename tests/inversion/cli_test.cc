@@ -64,11 +64,13 @@ TEST(InvertCli, WritesOneRowPerCaseWithIdColumns) {
   const std::string in = WriteCases(dir, false);
   for (const char* method : {"ted", "ted-egt", "egt"}) {
     const std::string out = dir + "/out_" + method + ".csv";
-    const RunResult r = RunMagnav("invert --input " + in + " --method " + method + " --output " + out);
+    const RunResult r = RunMagnav("invert --input " + in + " --b0 0,0,0 --method " + method + " --output " + out);
     ASSERT_EQ(r.exit_code, 0) << r.output;
     const CsvTable t = CsvTable::Read(out);
-    const std::vector<std::string> expected = {"case_id", "dipole_x", "dipole_y", "dipole_z",
-                                               "valid",   "reason",   "cond"};
+    const std::vector<std::string> expected = {"case_id", "dipole_x", "dipole_y", "dipole_z", "valid",
+                                               "reason",  "cond",     "sigma_x",  "sigma_y",  "sigma_z",
+                                               "cov_xx",  "cov_xy",   "cov_xz",   "cov_yy",   "cov_yz",
+                                               "cov_zz"};
     EXPECT_EQ(t.header(), expected);
     ASSERT_EQ(t.num_rows(), 3u);
     const Vec3 dipoles[3] = {{3, 4, -5}, {12, -1, -6}, {-8, 9, -4}};
@@ -90,7 +92,7 @@ TEST(InvertCli, TrackFileGivesTimeAndSensorColumnsForMc) {
   const RunResult r = RunMagnav("invert --input " + in + " --method mc --output " + out);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const CsvTable t = CsvTable::Read(out);
-  ASSERT_EQ(t.header().size(), 8u);
+  ASSERT_EQ(t.header().size(), 17u);  // t, sensor_id, dipole_*, valid, reason, cond, sigma_*, cov_*
   EXPECT_EQ(t.header()[0], "t");
   EXPECT_EQ(t.header()[1], "sensor_id");
   EXPECT_EQ(t.num_rows(), 2001u);
@@ -106,7 +108,7 @@ TEST(InvertCli, TrackFileGivesTimeAndSensorColumnsForMc) {
 TEST(InvertCli, MalformedNumberNamesFileLineAndColumn) {
   const std::string dir = testing::TempDir();
   const std::string in = WriteCases(dir, true);
-  const RunResult r = RunMagnav("invert --input " + in + " --method ted --output " + dir + "/o.csv");
+  const RunResult r = RunMagnav("invert --input " + in + " --b0 0,0,0 --method ted --output " + dir + "/o.csv");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find(in + ":4"), std::string::npos) << r.output;  // line 4: the second data row
   EXPECT_NE(r.output.find("T11"), std::string::npos) << r.output;
@@ -116,7 +118,7 @@ TEST(InvertCli, MalformedNumberNamesFileLineAndColumn) {
 TEST(InvertCli, MissingInputsAreErrorsNotCrashes) {
   const std::string dir = testing::TempDir();
   const std::string in = WriteCases(dir, false);
-  RunResult r = RunMagnav("invert --input " + in + " --method mc --output " + dir + "/o.csv");
+  RunResult r = RunMagnav("invert --input " + in + " --b0 0,0,0 --method mc --output " + dir + "/o.csv");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--moment-body"), std::string::npos) << r.output;
   r = RunMagnav("invert --input " + dir + "/does_not_exist.csv --method ted --output " + dir + "/o.csv");
@@ -127,6 +129,10 @@ TEST(InvertCli, MissingInputsAreErrorsNotCrashes) {
   EXPECT_NE(r.output.find("--b0"), std::string::npos) << r.output;
   r = RunMagnav("invert --input " + in + " --method magic --output " + dir + "/o.csv");
   EXPECT_NE(r.exit_code, 0);
+  // No B0 in the file and no --b0: refused, never B0 = 0.
+  r = RunMagnav("invert --input " + in + " --method ted --output " + dir + "/o.csv");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("no regional field"), std::string::npos) << r.output;
   // A valid run with every option.
   r = RunMagnav("invert --input " + in + " --method mc --moment-body 2000,300,800 --b0 0,0,0 --sigma-b 1e-9 " +
           "--sigma-t 1.4e-9 --particles 100 --seed 3 --output " + dir + "/o.csv");
@@ -140,7 +146,7 @@ TEST(InvertCli, DegenerateRowsAreReportedNotFatal) {
                     << "0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0\n"               // all-zero tensor
                     << "1,0,0,0,1e-9,0,0,1e-9,0,0,0,-1e-9,0,0,0,0\n"     // singular tensor
                     << "2,0,0,0,1e-9,0,0,1e-9,5e-10,0,0,-1e-9,0,0,0,0\n";  // asymmetric
-  const RunResult r = RunMagnav("invert --input " + in + " --method ted --output " + dir + "/o.csv");
+  const RunResult r = RunMagnav("invert --input " + in + " --b0 0,0,0 --method ted --output " + dir + "/o.csv");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const CsvTable t = CsvTable::Read(dir + "/o.csv");
   ASSERT_EQ(t.num_rows(), 3u);

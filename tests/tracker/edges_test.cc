@@ -133,5 +133,22 @@ TEST(BatchEdges, BadSamplesAreLeftOutAndCounted) {
   EXPECT_LT(got.summary.final_cost, got.summary.initial_cost);
 }
 
+// Every tolerance is checked (before, the window's and the intermediate one
+// were not: a NaN tolerance made a solve that never stops on it).
+TEST(TrackerOptionsEdges, EveryToleranceIsChecked) {
+  const auto invalid = [](auto set) {
+    TrackerOptions o;
+    set(o);
+    std::string why;
+    return !o.IsValid(&why) && !why.empty();
+  };
+  EXPECT_TRUE(invalid([](TrackerOptions& o) { o.window_function_tolerance = -1.0; }));
+  EXPECT_TRUE(invalid([](TrackerOptions& o) { o.window_function_tolerance = kNaN; }));
+  EXPECT_TRUE(invalid([](TrackerOptions& o) { o.intermediate_function_tolerance = kNaN; }));
+  EXPECT_TRUE(invalid([](TrackerOptions& o) { o.function_tolerance = kInf; }));
+  EXPECT_TRUE(invalid([](TrackerOptions& o) { o.parameter_tolerance = -1e-3; }));
+  EXPECT_FALSE(invalid([](TrackerOptions&) {}));
+}
+
 }  // namespace
 }  // namespace magnav::tracker

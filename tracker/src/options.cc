@@ -103,9 +103,14 @@ bool TrackerOptions::IsValid(std::string* error) const {
   }
   if (max_num_iterations < 1) return Fail(error, "max_num_iterations must be >= 1");
   if (window_max_num_iterations < 1) return Fail(error, "window_max_num_iterations must be >= 1");
-  if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) || !(parameter_tolerance >= 0.0)) {
-    return Fail(error, "solver tolerances must be >= 0");
+  const auto tolerance_ok = [](double v) { return std::isfinite(v) && v >= 0.0; };
+  if (!tolerance_ok(function_tolerance) || !tolerance_ok(gradient_tolerance) || !tolerance_ok(parameter_tolerance)) {
+    return Fail(error, "solver tolerances must be finite and >= 0");
   }
+  if (!tolerance_ok(intermediate_function_tolerance)) {
+    return Fail(error, "intermediate_function_tolerance must be finite and >= 0");
+  }
+  if (!tolerance_ok(window_function_tolerance)) return Fail(error, "window_function_tolerance must be finite and >= 0");
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
   if (!(batch_growth_factor > 1.0) || !std::isfinite(batch_growth_factor)) {
     return Fail(error, "batch_growth_factor must be > 1");
@@ -120,8 +125,11 @@ std::string Summary::BriefReport() const {
     << num_samples << " samples, " << num_init_fixes
     << (init_from_external_fixes ? " external" : "") << " init fixes, " << iterations << " iterations, cost "
     << initial_cost << " -> " << final_cost << ", solve " << solve_time_s << " s, covariance "
-    << covariance_time_s << " s (" << (covariance_ok ? "ok" : "none") << "), total " << total_time_s << " s; "
-    << message;
+    << covariance_time_s << " s (" << (covariance_ok ? "ok" : "none") << "), total " << total_time_s << " s"
+    << (converged ? ", converged" : ", not converged");
+  if (num_rejected_samples > 0) o << ", " << num_rejected_samples << " bad samples left out";
+  if (num_dropped_factors > 0) o << ", " << num_dropped_factors << " factors left out of marginalisation";
+  o << "; " << message;
   return o.str();
 }
 

@@ -46,7 +46,9 @@ Measurement8 DipoleMeasurement(const Vec3& r_DtoS, const Vec3& m_W, Jacobian8x3*
 
 // Moment (A·m²) that best explains a measured B (T) and T (T/m) with a dipole at
 // offset r_DtoS, by linear least squares on the 8 measurement rows weighted by
-// 1/sigma_B and 1/sigma_T (the model is linear in m). Returns false if the
+// 1/sigma_B and 1/sigma_T (the model is linear in m; a sigma of 0 = unknown is
+// taken from the other as σ_T = σ_B/|r|, both unknown: that ratio with σ_B = 1).
+// Returns false if the
 // 8×3 system is rank deficient (r = 0 or non-finite input).
 bool FitDipoleMoment(const Vec3& r_DtoS, const Vec3& B, const Mat3& T, double sigma_B,
                      double sigma_T, Vec3* m_W);

@@ -67,8 +67,9 @@ std::string TensorColumnName(const std::string& prefix, int i, int j);
 std::vector<std::string> GradiometerDataColumns();
 
 // Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22 and, if
-// present, t, sensor_id and case_id. Sample sigmas come from the file's
-// sigma parameters (0 when absent). Throws InputError naming file, line and
+// present, t, sensor_id and case_id. Sample sigmas come from per-row
+// sigma_B, sigma_T columns if present (as magnav record writes them), else
+// the file's sigma parameters (0 = unknown when absent). Throws InputError naming file, line and
 // column on any problem.
 GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerColumns& cols = {});
 
