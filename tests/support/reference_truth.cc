@@ -54,6 +54,7 @@ std::vector<HeldOutPass> HeldOutPasses() {
   // (4 m / 11 m) nor noise draws; one turns left.
   return {
       {"auv-like, 5 m, left turn", {1500.0, -400.0, 1000.0}, -2.0, 5.0, -0.02, 7},
+      {"auv-like, 4 m", {1800.0, -1000.0, 900.0}, 2.0, -4.0, 0.02, 5},
       {"ship-like, 8 m", {300000.0, -80000.0, 150000.0}, 2.5, -8.0, 0.02, 11},
   };
 }
