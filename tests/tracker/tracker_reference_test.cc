@@ -3,7 +3,7 @@
 // Metrics over the epochs whose true position is within 30 m horizontal range
 // of a gradiometer: 3-D position RMS and max, moment error ‖m̂_B − m_B‖/‖m_B‖,
 // and the mean NEES eᵀ P⁻¹ e of the 3-D position with its 3×3 covariance
-// (honest covariance: within a chi-square band, NeesBandFor). Targets (batch):
+// (honest covariance: below its chi-square bound, testing::ExpectHonestNees). Targets (batch):
 // fluxgate 1 sensor ≤ 0.3 m, SQUID ≤ 0.01 m, 4 sensors no worse than 1,
 // moment within 2 %; with 2 % gross outliers the RMS stays within 20 % of the
 // clean run. Solutions are computed once per file and shared (fixture cache).
@@ -22,115 +22,25 @@
 #include "magnav/core/simulate.h"
 #include "magnav/tracker/tracker.h"
 #include "reference_truth.h"
+#include "track_metrics.h"
 #include "test_data.h"
 
 namespace magnav::tracker {
 namespace {
 
-constexpr double kEvalRangeM = 30.0;
-
-struct Metrics {
-  int n = 0;
-  double rms = 0.0, max = 0.0, nees = 0.0, moment_err = 0.0;
-  double time_s = 0.0;
-  // Integrated autocorrelation time of the per-epoch NEES (in epochs, sum of
-  // the autocorrelations up to their first negative value): n / tau is the
-  // effective number of independent epochs behind the mean NEES.
-  double nees_tau = 1.0;
-};
-
-double IntegratedAutocorrelationTime(const std::vector<double>& x) {
-  const std::size_t n = x.size();
-  double mean = 0.0;
-  for (double v : x) mean += v / static_cast<double>(n);
-  auto cov = [&](std::size_t lag) {
-    double c = 0.0;
-    for (std::size_t i = 0; i + lag < n; ++i) c += (x[i] - mean) * (x[i + lag] - mean);
-    return c / static_cast<double>(n);
-  };
-  const double c0 = cov(0);
-  double tau = 1.0;
-  for (std::size_t lag = 1; lag < n / 2; ++lag) {
-    const double rho = cov(lag) / c0;
-    if (rho <= 0.0) break;
-    tau += 2.0 * rho;
-  }
-  return tau;
-}
+using Metrics = testing::TrackMetrics;
+using testing::ExpectHonestNees;
+using testing::TruthTrack;
 
 std::string Vessel(const std::string& file) { return file.substr(0, file.find('_')); }
-
-using testing::TruthTrack;
 
 TruthTrack ReadTruth(const std::string& vessel) { return testing::LoadTruthTrack(vessel); }
 
 Metrics Evaluate(const std::vector<EpochEstimate>& est, const Eigen::Vector3d& m_B, const GradiometerFile& f,
                  const TruthTrack& truth) {
-  std::vector<Eigen::Vector3d> sensors;
-  for (const auto& s : f.samples) {
-    if (std::none_of(sensors.begin(), sensors.end(),
-                     [&](const Eigen::Vector3d& p) { return p == s.p_SinW; })) {
-      sensors.push_back(s.p_SinW);
-    }
-  }
-  Metrics m;
-  double se = 0.0, nees = 0.0;
-  std::vector<double> per_epoch;
-  for (const auto& e : est) {
-    const auto it = std::lower_bound(truth.t.begin(), truth.t.end(), e.t_s - 1e-6);
-    if (it == truth.t.end() || std::abs(*it - e.t_s) > 1e-6) continue;
-    const Eigen::Vector3d& p = truth.p[static_cast<std::size_t>(it - truth.t.begin())];
-    double range = 1e300;
-    for (const auto& s : sensors) range = std::min(range, (p - s).head<2>().norm());
-    if (range > kEvalRangeM) continue;
-    const Eigen::Vector3d d = e.p_VinW - p;
-    se += d.squaredNorm();
-    m.max = std::max(m.max, d.norm());
-    const double q = e.has_covariance ? d.dot(e.cov_p_W().ldlt().solve(d)) : std::numeric_limits<double>::infinity();
-    nees += q;
-    per_epoch.push_back(q);
-    ++m.n;
-  }
-  m.rms = std::sqrt(se / m.n);
-  m.nees = nees / m.n;
-  m.nees_tau = IntegratedAutocorrelationTime(per_epoch);
+  Metrics m = testing::ScoreTrack(est, f.samples, truth);
   m.moment_err = (m_B - *f.moment_body).norm() / f.moment_body->norm();
   return m;
-}
-
-// Chi-square quantile by the Wilson–Hilferty approximation (relative error
-// < 1 % for k ≥ 10 at these z), z the standard-normal quantile.
-double ChiSquareQuantile(double k, double z) {
-  const double a = 2.0 / (9.0 * k);
-  return k * std::pow(1.0 - a + z * std::sqrt(a), 3);
-}
-
-// Covariance honesty of one run. Per epoch eᵀP⁻¹e ~ χ²(3) if the covariance
-// is honest; the epochs are correlated, so the mean over n of them is treated
-// as χ²(3 n_eff)/n_eff with n_eff = n / τ, τ the run's integrated
-// autocorrelation time of the NEES sequence (1 epoch on the SQUID reference
-// passes, up to ~110 epochs = 11 s on the AUV fluxgate ones).
-//  - Overconfidence (the dangerous side): the mean NEES may not exceed the
-//    99.5 % quantile of χ²(3 n_eff)/n_eff.
-//  - The lower side is not a χ² bound: the covariance is conservative by
-//    design (random-walk process noise against a truth with exact
-//    kinematics; the Cauchy loss weights clean samples by ~0.93), so honest
-//    runs have mean NEES from 0.8 to 3 (held-out passes included). The
-//    documented NEES is held to within 1.5× either way instead.
-double NeesUpperBound(const Metrics& m) {
-  const double n_eff = m.n / std::max(1.0, m.nees_tau);
-  return ChiSquareQuantile(3.0 * n_eff, 2.576) / n_eff;
-}
-
-void ExpectHonestNees(const Metrics& m, double documented, const std::string& what) {
-  const double hi = NeesUpperBound(m);
-  std::cout << what << ": NEES " << m.nees << ", n_eff " << m.n / std::max(1.0, m.nees_tau) << ", chi-square bound "
-            << hi << "\n";
-  // Errors correlated over more than 15 s would make the bound meaningless.
-  EXPECT_LE(m.nees_tau, 150.0) << what;
-  EXPECT_LE(m.nees, hi) << what << ": covariance overconfident";
-  testing::ExpectErrorFigure(m.nees, documented, what + " NEES");
-  testing::ExpectCountFigure(m.nees, documented, what + " NEES");
 }
 
 // The documented figures of one run (docs/ACCURACY.md, "Tracker" table).
