@@ -20,6 +20,7 @@
 #include "magnav/inversion/particle_filter.h"
 #include "reference_truth.h"
 #include "test_data.h"
+#include "track_runs.h"
 
 namespace magnav::inversion {
 namespace {
@@ -29,7 +30,9 @@ using magnav::testing::ExpectCountFigure;
 using magnav::testing::ExpectErrorFigure;
 using magnav::testing::TruthTrack;
 
-constexpr double kMcHorizontalRange = 30.0;  // m, MC evaluation window
+using testing::kMcHorizontalRange;
+using testing::McRun;
+
 // MC coverage (epochs with an estimate / epochs in the window) is set by when
 // the first gated fixes arrive, not by the random draws: 10 % margin.
 constexpr double kCoverageMargin = 1.1;
@@ -47,41 +50,12 @@ void ExpectMethodFigure(const ErrorStats& st, const MethodFigure& doc, const std
   ExpectErrorFigure(st.max, doc.max, what + " max");
 }
 
-// MC over one pass: estimates within the 30 m horizontal window of `sensor`.
-struct McRun {
-  ErrorStats err;
-  int epochs = 0;  // epochs in the window
-  double coverage() const { return epochs ? static_cast<double>(err.count) / epochs : 0.0; }
-};
-
 McRun RunMc(const GradiometerFile& file, const TruthTrack& truth, std::uint64_t seed) {
-  MonteCarloTrackerOptions mc;
-  mc.filter.moment_body_Am2 = *file.moment_body;
-  mc.filter.seed = seed;
-  mc.init_inverter.B0_W = *file.B0;
-  MonteCarloTracker tracker(mc);
-  McRun r;
-  for (std::size_t i = 0; i < file.samples.size(); ++i) {
-    const DipoleFix f = tracker.Process(file.samples[i]);
-    const Vec3 d = truth.p[i] - file.samples[i].p_SinW;
-    if (std::hypot(d.x(), d.y()) > kMcHorizontalRange) continue;
-    ++r.epochs;
-    if (f.valid) r.err.Add((f.p_DinW - truth.p[i]).norm());
-  }
-  return r;
+  return testing::RunMonteCarlo(file.samples, truth, *file.B0, *file.moment_body, seed);
 }
 
 ErrorStats RunInverter(const GradiometerFile& file, const TruthTrack& truth, Method method) {
-  InverterOptions o;
-  o.method = method;
-  o.B0_W = *file.B0;
-  Inverter inv(o);
-  ErrorStats st;
-  for (std::size_t i = 0; i < file.samples.size(); ++i) {
-    const DipoleFix f = inv.Process(file.samples[i]);
-    if (f.valid) st.Add((f.p_DinW - truth.p[i]).norm());
-  }
-  return st;
+  return testing::RunInverter(file.samples, truth, *file.B0, method);
 }
 
 // The documented figures of one 1-sensor pass (docs/ACCURACY.md, "Track passes").
@@ -206,7 +180,9 @@ void RunFourSensors(const std::string& vessel, const SensorFigures (&doc)[4]) {
     std::printf("| %s, %d | %d | %.3f | %.3f | %d of %d | %.3f | %.3f |\n", vessel.c_str(), j, ted_egt[j].count,
                 ted_egt[j].rms(), ted_egt[j].max, mc_stats[j].count, epochs[j], mc_stats[j].rms(), mc_stats[j].max);
     ExpectMethodFigure(ted_egt[j], doc[j].ted_egt, what + " TED+EGT");
-    if (doc[j].ted_egt.count > 0) EXPECT_LE(ted_egt[j].max, 1.7) << what;  // paper, fluxgate
+    if (doc[j].ted_egt.count > 0) {
+      EXPECT_LE(ted_egt[j].max, 1.7) << what;  // paper, fluxgate
+    }
     EXPECT_EQ(epochs[j], doc[j].mc_epochs) << what;
     ExpectCountFigure(mc_stats[j].count, doc[j].mc_count, what + " MC epochs with an estimate", kCoverageMargin);
     if (doc[j].mc_count > 0) {
