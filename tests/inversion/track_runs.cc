@@ -12,7 +12,12 @@ magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& sa
   InverterOptions o;
   o.method = method;
   o.B0_W = B0;
-  Inverter inv(o);
+  return RunInverter(samples, truth, o);
+}
+
+magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& samples,
+                                        const magnav::testing::TruthTrack& truth, const InverterOptions& options) {
+  Inverter inv(options);
   magnav::testing::ErrorStats st;
   for (std::size_t i = 0; i < samples.size(); ++i) {
     const DipoleFix f = inv.Process(samples[i]);

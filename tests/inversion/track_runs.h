@@ -13,7 +13,10 @@ namespace magnav::inversion::testing {
 
 inline constexpr double kMcHorizontalRange = 30.0;  // m, MC evaluation window
 
-// Errors of every fix the default gates accept (`method`, B0 given).
+// Errors of every fix an Inverter with these options accepts.
+magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& samples,
+                                        const magnav::testing::TruthTrack& truth, const InverterOptions& options);
+// The same with the default gates (`method`, B0 given).
 magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& samples,
                                         const magnav::testing::TruthTrack& truth, const Eigen::Vector3d& B0,
                                         Method method);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -245,6 +246,42 @@ TEST(TrackPass, McTwentySeeds) {
     ExpectErrorFigure(rms[19], doc.max, what + " 20-seed worst RMS");
     ExpectCountFigure(min_count, doc.mc_count, what + " fewest epochs with an estimate", kCoverageMargin);
     EXPECT_LE(rms[19], doc.paper_mc_rms) << what;
+  }
+}
+
+// The predicted-σ gate sweep of docs/ACCURACY.md (TED+EGT, other gates at
+// default): accepted / RMS / max per gate and pass; ∞ = gate off.
+TEST(TrackPass, PredictedSigmaGateSweep) {
+  struct Row {
+    double max_sigma;
+    MethodFigure auv_squid, ship_squid, auv_fluxgate, ship_fluxgate;
+  };
+  const double inf = std::numeric_limits<double>::infinity();
+  const Row rows[] = {
+      {inf, {1741, 0.418, 3.935}, {2001, 0.0043, 0.035}, {148, 0.157, 0.635}, {648, 0.324, 1.452}},
+      {0.5, {1492, 0.146, 1.097}, {2001, 0.0043, 0.035}, {146, 0.155, 0.635}, {540, 0.164, 1.002}},
+      {0.2, {1222, 0.062, 0.519}, {2001, 0.0043, 0.035}, {122, 0.098, 0.343}, {427, 0.063, 0.263}},
+      {0.1, {1048, 0.029, 0.178}, {2001, 0.0043, 0.035}, {85, 0.057, 0.140}, {358, 0.034, 0.149}},
+      {0.05, {897, 0.015, 0.089}, {2001, 0.0043, 0.035}, {39, 0.046, 0.077}, {294, 0.020, 0.085}},
+      {0.03, {798, 0.009, 0.054}, {2001, 0.0043, 0.035}, {0, 0, 0}, {252, 0.012, 0.043}},
+  };
+  const char* passes[4][2] = {{"auv", "squid"}, {"ship", "squid"}, {"auv", "fluxgate"}, {"ship", "fluxgate"}};
+  for (int k = 0; k < 4; ++k) {
+    const std::string vessel = passes[k][0], sensor = passes[k][1];
+    const GradiometerFile file = ReadGradiometerFile(
+        magnav::testing::ReferencePath("track_pass_" + vessel + "_1sensor_" + sensor + ".csv"));
+    const TruthTrack truth = magnav::testing::LoadTruthTrack(vessel);
+    for (const Row& row : rows) {
+      InverterOptions o;
+      o.B0_W = *file.B0;
+      o.gates.max_position_sigma_m = row.max_sigma;
+      const ErrorStats st = testing::RunInverter(file.samples, truth, o);
+      const MethodFigure& doc = k == 0 ? row.auv_squid : k == 1 ? row.ship_squid : k == 2 ? row.auv_fluxgate
+                                                                                          : row.ship_fluxgate;
+      std::printf("| %g | %s %s | %d / %.4f / %.3f |\n", row.max_sigma, passes[k][0], passes[k][1], st.count,
+                  st.rms(), st.max);
+      ExpectMethodFigure(st, doc, vessel + " " + sensor + ", sigma gate " + std::to_string(row.max_sigma));
+    }
   }
 }
 
