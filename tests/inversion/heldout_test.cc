@@ -65,6 +65,12 @@ std::vector<StaticCase> FreshCases(int n, std::uint64_t seed) {
   return out;
 }
 
+// The fresh cases of both static tests (seed 77), drawn once.
+const std::vector<StaticCase>& Fresh() {
+  static const std::vector<StaticCase> cases = FreshCases(2000, 77);
+  return cases;
+}
+
 // Median and 90th percentile of the TED+EGT relative error for weight w over
 // the cases with ‖T‖_F > 100 σ_T (as in the reference comparison).
 std::pair<double, double> RelativeErrors(const std::vector<StaticCase>& cases, double w, int* used) {
@@ -83,7 +89,7 @@ std::pair<double, double> RelativeErrors(const std::vector<StaticCase>& cases, d
 // the sampling noise. On 2000 fresh draws it must still be within that band:
 // 90th percentile within 5 % of the best weight's, median within 5 %.
 TEST(HeldOut, EigenvectorRowWeightOnFreshCases) {
-  const std::vector<StaticCase> cases = FreshCases(2000, 77);
+  const std::vector<StaticCase>& cases = Fresh();
   const double w0 = InverterOptions{}.egt_row_weight;
   double best_median = 1e9, best_p90 = 1e9;
   int used = 0;
@@ -102,6 +108,28 @@ TEST(HeldOut, EigenvectorRowWeightOnFreshCases) {
   // The targets of the reference comparison (median ≤ 0.01, p90 ≤ 0.05).
   EXPECT_LE(median, 0.01);
   EXPECT_LE(p90, 0.05);
+}
+
+// The predicted 1-σ position error was checked on the 233 reference cases
+// (RMS of |e|/σ 1.00); on the 986 strong fresh cases the RMS of |e|/σ has a
+// standard error of ~0.013 (|e|²/σ² ~ χ²(3)/3): within ±0.05 is ~4 of them.
+TEST(HeldOut, PredictedSigmaCalibratedOnFreshCases) {
+  const std::vector<StaticCase>& cases = Fresh();
+  double sum = 0.0;
+  int n = 0;
+  for (const StaticCase& c : cases) {
+    if (c.noisy.T.norm() <= 100.0 * testing::kCaseSigmaT) continue;
+    AnalyticSolution s;
+    ASSERT_TRUE(SolveTedEgt(c.noisy.T, c.noisy.B, InverterOptions{}.egt_row_weight,
+                            {testing::kCaseSigmaB, testing::kCaseSigmaT}, &s));
+    const double z = (s.r_DtoS - c.r_DtoS).norm() / s.position_sigma_m;
+    sum += z * z;
+    ++n;
+  }
+  const double rms = std::sqrt(sum / n);
+  std::printf("fresh cases: RMS(error / predicted sigma) = %.3f over %d cases\n", rms, n);
+  EXPECT_GT(rms, 0.95);
+  EXPECT_LT(rms, 1.05);
 }
 
 // Documented figures of one held-out pass (docs/ACCURACY.md).
