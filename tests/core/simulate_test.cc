@@ -2,6 +2,8 @@
 // stated noise statistics.
 #include "magnav/core/simulate.h"
 
+#include <cstdio>
+
 #include <gtest/gtest.h>
 
 #include "magnav/core/csv.h"
@@ -39,10 +41,12 @@ TEST_P(ReferencePass, NoiseFreeSimulationMatchesReference) {
     worst_B = std::max(worst_B, (dB_sim - dB_ref).norm() / dB_ref.norm());
     worst_T = std::max(worst_T, (sim.samples[i].T - ref.samples[i].T).norm() / ref.samples[i].T.norm());
   }
-  // B − B0 in the file is exact to ~1e-16 |B0|; relative to the weakest
-  // dipole field (~1e-11 T far away) that is ~1e-10. T is exact to 3e-10.
-  EXPECT_LT(worst_B, 1e-8);
-  EXPECT_LT(worst_T, 1e-8);
+  std::printf("%s: worst relative difference B - B0 %.3g, T %.3g\n", GetParam(), worst_B, worst_T);
+  // docs/ACCURACY.md: B − B0 6.3e-13 (AUV, far from the sensor, where the
+  // subtraction of B0 costs the most digits), T 2.9e-10 (the reference T is
+  // accurate to 3.7e-10; bound 1.5× that).
+  EXPECT_LT(worst_B, 1e-12);
+  EXPECT_LT(worst_T, 5.6e-10);
   // Truth state too.
   const CsvTable truth = CsvTable::Read(testing::ReferencePath(std::string("track_truth_") + GetParam() + ".csv"));
   double worst_p = 0;
@@ -51,7 +55,9 @@ TEST_P(ReferencePass, NoiseFreeSimulationMatchesReference) {
                                            sim.truth[i].p_VinW.y() - truth.number(i, truth.column("y"))));
     EXPECT_EQ(sim.truth[i].turn_rate_rps, truth.number(i, truth.column("turn_rate"))) << i;
   }
-  EXPECT_LT(worst_p, 1e-9);
+  std::printf("%s: worst horizontal position difference %.3g m\n", GetParam(), worst_p);
+  // Exact kinematics on both sides: rounding of ~100 m coordinates (2.6e-14 m).
+  EXPECT_LT(worst_p, 1e-13);
 }
 
 INSTANTIATE_TEST_SUITE_P(Vessels, ReferencePass, ::testing::Values("auv", "ship"));

@@ -3,7 +3,7 @@
 // Metrics over the epochs whose true position is within 30 m horizontal range
 // of a gradiometer: 3-D position RMS and max, moment error ‖m̂_B − m_B‖/‖m_B‖,
 // and the mean NEES eᵀ P⁻¹ e of the 3-D position with its 3×3 covariance
-// (honest covariance: mean within [0.5, 2] × 3). Targets (batch):
+// (honest covariance: below its chi-square bound, testing::ExpectHonestNees). Targets (batch):
 // fluxgate 1 sensor ≤ 0.3 m, SQUID ≤ 0.01 m, 4 sensors no worse than 1,
 // moment within 2 %; with 2 % gross outliers the RMS stays within 20 % of the
 // clean run. Solutions are computed once per file and shared (fixture cache).
@@ -19,65 +19,71 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
+#include "magnav/core/simulate.h"
 #include "magnav/tracker/tracker.h"
+#include "reference_truth.h"
+#include "track_metrics.h"
 #include "test_data.h"
 
 namespace magnav::tracker {
 namespace {
 
-constexpr double kEvalRangeM = 30.0;
-
-struct Metrics {
-  int n = 0;
-  double rms = 0.0, max = 0.0, nees = 0.0, moment_err = 0.0;
-  double time_s = 0.0;
-};
-
-struct Truth {
-  std::vector<double> t;
-  std::vector<Eigen::Vector3d> p;
-};
-
-Truth ReadTruth(const std::string& vessel) {
-  const CsvTable c = CsvTable::Read(testing::ReferencePath("track_truth_" + vessel + ".csv"));
-  Truth tr;
-  for (std::size_t i = 0; i < c.num_rows(); ++i) {
-    tr.t.push_back(c.number(i, c.column("t")));
-    tr.p.emplace_back(c.number(i, c.column("x")), c.number(i, c.column("y")), c.number(i, c.column("z")));
-  }
-  return tr;
-}
+using Metrics = testing::TrackMetrics;
+using testing::ExpectHonestNees;
+using testing::TruthTrack;
 
 std::string Vessel(const std::string& file) { return file.substr(0, file.find('_')); }
 
+TruthTrack ReadTruth(const std::string& vessel) { return testing::LoadTruthTrack(vessel); }
+
 Metrics Evaluate(const std::vector<EpochEstimate>& est, const Eigen::Vector3d& m_B, const GradiometerFile& f,
-                 const Truth& truth) {
-  std::vector<Eigen::Vector3d> sensors;
-  for (const auto& s : f.samples) {
-    if (std::none_of(sensors.begin(), sensors.end(),
-                     [&](const Eigen::Vector3d& p) { return p == s.p_SinW; })) {
-      sensors.push_back(s.p_SinW);
-    }
-  }
-  Metrics m;
-  double se = 0.0, nees = 0.0;
-  for (const auto& e : est) {
-    const auto it = std::lower_bound(truth.t.begin(), truth.t.end(), e.t_s - 1e-6);
-    if (it == truth.t.end() || std::abs(*it - e.t_s) > 1e-6) continue;
-    const Eigen::Vector3d& p = truth.p[static_cast<std::size_t>(it - truth.t.begin())];
-    double range = 1e300;
-    for (const auto& s : sensors) range = std::min(range, (p - s).head<2>().norm());
-    if (range > kEvalRangeM) continue;
-    const Eigen::Vector3d d = e.p_VinW - p;
-    se += d.squaredNorm();
-    m.max = std::max(m.max, d.norm());
-    nees += e.has_covariance ? d.dot(e.cov_p_W().ldlt().solve(d)) : std::numeric_limits<double>::infinity();
-    ++m.n;
-  }
-  m.rms = std::sqrt(se / m.n);
-  m.nees = nees / m.n;
+                 const TruthTrack& truth) {
+  Metrics m = testing::ScoreTrack(est, f.samples, truth);
   m.moment_err = (m_B - *f.moment_body).norm() / f.moment_body->norm();
   return m;
+}
+
+// The documented figures of one run (docs/ACCURACY.md, "Tracker" table).
+struct TrackFigures {
+  double rms, max, moment_pct, nees;
+  int n;
+};
+
+const TrackFigures& Documented(const std::string& key, bool window) {
+  static const std::map<std::string, TrackFigures> batch = {
+      {"auv_1sensor_noisefree", {0.0438, 0.151, 0.0249, 0.0492, 608}},
+      {"auv_1sensor_fluxgate", {0.101, 0.248, 0.178, 1.7, 608}},
+      {"auv_1sensor_squid", {0.000661, 0.00337, 0.000198, 2.76, 608}},
+      {"auv_4sensor_fluxgate", {0.0488, 0.195, 0.041, 2.84, 1183}},
+      {"ship_1sensor_noisefree", {7.83e-05, 0.000273, 0.000917, 5.6e-05, 514}},
+      {"ship_1sensor_fluxgate", {0.0104, 0.0345, 0.0604, 2.51, 514}},
+      {"ship_1sensor_squid", {4.54e-06, 3.46e-05, 0.00141, 2.74, 514}},
+      {"ship_4sensor_fluxgate", {0.00202, 0.00836, 0.0171, 2.34, 1060}},
+      {"auv_1sensor_fluxgate+outliers", {0.11, 0.281, 0.205, 1.92, 608}},
+      {"ship_1sensor_fluxgate+outliers", {0.0106, 0.0346, 0.0657, 2.58, 514}},
+  };
+  static const std::map<std::string, TrackFigures> windowed = {
+      {"auv_1sensor_noisefree", {0.0655, 0.164, 0.0183, 0.149, 365}},
+      {"auv_1sensor_fluxgate", {0.107, 0.281, 0.181, 1.9, 365}},
+      {"auv_1sensor_squid", {0.000782, 0.00454, 0.0179, 2.9, 608}},
+      {"auv_4sensor_fluxgate", {0.0953, 0.437, 0.0382, 2.17, 946}},
+      {"ship_1sensor_noisefree", {0.000669, 0.00553, 0.00179, 0.00706, 514}},
+      {"ship_1sensor_fluxgate", {0.0118, 0.0388, 0.0601, 3.05, 514}},
+      {"ship_1sensor_squid", {4.66e-06, 3.46e-05, 0.0304, 2.53, 514}},
+      {"ship_4sensor_fluxgate", {0.00362, 0.0201, 0.00122, 2.5, 1060}},
+  };
+  return (window ? windowed : batch).at(key);
+}
+
+// Every figure of the row with the usual margin (testing::kFigureMargin); the
+// epoch count n (coverage of the 30 m window) may shrink by 10 % at most.
+void ExpectTrackFigures(const Metrics& m, const std::string& key, bool window) {
+  const TrackFigures& doc = Documented(key, window);
+  const std::string what = key + (window ? " window" : " batch");
+  testing::ExpectErrorFigure(m.rms, doc.rms, what + " RMS");
+  testing::ExpectErrorFigure(m.max, doc.max, what + " max");
+  testing::ExpectErrorFigure(100.0 * m.moment_err, doc.moment_pct, what + " moment error (%)");
+  testing::ExpectCountFigure(m.n, doc.n, what + " epochs with an estimate", 1.1);
 }
 
 // Replaces `fraction` of the samples by gross outliers: B − B0 and T drawn
@@ -122,7 +128,7 @@ const PassRun& BatchRun(const std::string& name, bool outliers = false) {
   r.m = Evaluate(r.batch.epochs, r.batch.m_B_Am2, r.file, ReadTruth(Vessel(name)));
   r.m.time_s = r.batch.summary.total_time_s;
   std::cout << "| " << key << " | batch | " << r.m.rms << " | " << r.m.max << " | " << 100.0 * r.m.moment_err
-            << " | " << r.m.nees << " | " << r.m.n << " | " << r.m.time_s << " |\n";
+            << " | " << r.m.nees << " | " << r.m.n << " | " << r.m.time_s << " | NEES tau " << r.m.nees_tau << " |\n";
   return cache.emplace(key, std::move(r)).first->second;
 }
 
@@ -150,14 +156,11 @@ TEST_P(BatchPass, MeetsTheAccuracyTargets) {
   // Requirement: fluxgate 1 sensor ≤ 0.3 m, SQUID ≤ 0.01 m. The noise-free
   // files are solved with the default (fluxgate) σ, so they get the fluxgate target.
   EXPECT_LE(r.m.rms, squid ? 0.01 : 0.3);
-  if (!noisefree) {
-    // Honest covariance: mean 3-D NEES within [0.5, 2] × 3. (Noise-free
-    // files have no noise to match the assumed σ, so their NEES is ≪ 3.)
-    EXPECT_GE(r.m.nees, 1.5);
-    EXPECT_LE(r.m.nees, 6.0);
-  }
+  // Honest covariance (noise-free files have no noise to match the assumed
+  // σ, so their NEES is ≪ 3 and not a covariance check).
+  if (!noisefree) ExpectHonestNees(r.m, Documented(name, false).nees, name + " batch");
+  ExpectTrackFigures(r.m, name, false);
   // Speed is measured by bench/tracker_bench.cc, not asserted here.
-  EXPECT_TRUE(r.batch.summary.usable) << r.batch.summary.BriefReport();
 }
 
 INSTANTIATE_TEST_SUITE_P(Reference, BatchPass,
@@ -179,6 +182,103 @@ TEST(BatchPass, TwoPercentGrossOutliersChangeTheRmsByAtMostTwentyPercent) {
     ASSERT_TRUE(bad.batch.summary.usable) << bad.batch.summary.BriefReport();
     EXPECT_LE(bad.m.rms, 1.2 * clean.m.rms) << v;
     EXPECT_LE(bad.m.moment_err, 0.02) << v;
+    ExpectTrackFigures(bad.m, v + "_1sensor_fluxgate+outliers", false);
+    ExpectHonestNees(bad.m, Documented(v + "_1sensor_fluxgate+outliers", false).nees, v + "_1sensor_fluxgate+outliers batch");
+  }
+}
+
+// Feeds samples one by one to a window tracker and returns every estimate
+// (including the flush); *m_B = its final body moment.
+std::vector<EpochEstimate> RunWindowTracker(const std::vector<GradiometerSample>& samples,
+                                            const Eigen::Vector3d& B0, Eigen::Vector3d* m_B) {
+  WindowTracker tr(B0, TrackerOptions{});
+  std::vector<EpochEstimate> est;
+  for (const auto& s : samples) {
+    const auto out = tr.AddSample(s);
+    // Once tracking, every completed epoch yields exactly one estimate.
+    if (tr.initialized()) {
+      EXPECT_LE(out.size(), 1u);
+    }
+    est.insert(est.end(), out.begin(), out.end());
+  }
+  const auto tail = tr.Flush();
+  est.insert(est.end(), tail.begin(), tail.end());
+  EXPECT_TRUE(tr.initialized());
+  *m_B = tr.m_B_Am2();
+  return est;
+}
+
+// Held-out passes (simulated; moments, headings, closest approaches, turn
+// direction and noise seeds the tracker's process noise and losses were not
+// tuned on), default options, against the same targets and the same NEES
+// check, and the measured figures of docs/ACCURACY.md.
+struct HeldOutRun {
+  std::string what;
+  GradiometerFile file;
+  TruthTrack truth;
+};
+
+HeldOutRun MakeHeldOutRun(const testing::HeldOutPass& pass, bool fluxgate) {
+  const PassScenario sc =
+      fluxgate ? testing::HeldOutScenario(pass, testing::kFluxgateSigmaB, testing::kFluxgateSigmaT)
+               : testing::HeldOutScenario(pass, testing::kSquidSigmaB, testing::kSquidSigmaT);
+  const SimulatedPass sim = SimulatePass(sc);
+  HeldOutRun r;
+  r.what = pass.name + (fluxgate ? ", fluxgate" : ", SQUID");
+  r.file.samples = sim.samples;
+  r.file.B0 = sc.B0;
+  r.file.moment_body = sc.moment_body;
+  r.truth = testing::TruthOf(sim);
+  return r;
+}
+
+void ExpectHeldOutFigures(const Metrics& m, const TrackFigures& d, bool fluxgate, const std::string& what) {
+  std::cout << "| " << what << " | " << m.rms << " | " << m.max << " | " << 100.0 * m.moment_err << " | " << m.nees
+            << " | " << m.n << " | NEES tau " << m.nees_tau << " |\n";
+  EXPECT_LE(m.rms, fluxgate ? 0.3 : 0.01) << what;
+  EXPECT_LE(m.moment_err, 0.02) << what;
+  ExpectHonestNees(m, d.nees, what);
+  testing::ExpectErrorFigure(m.rms, d.rms, what + " RMS");
+  testing::ExpectErrorFigure(m.max, d.max, what + " max");
+  testing::ExpectErrorFigure(100.0 * m.moment_err, d.moment_pct, what + " moment error (%)");
+  testing::ExpectCountFigure(m.n, d.n, what + " epochs", 1.1);
+}
+
+TEST(HeldOutPass, BatchMeetsTheTargetsOnPassesItWasNotTunedOn) {
+  // Measured {RMS, max, moment %, NEES, n} per pass, SQUID then fluxgate.
+  const std::vector<std::pair<TrackFigures, TrackFigures>> doc = {
+      {{0.000621, 0.00351, 0.0411, 2.68, 585}, {0.0469, 0.122, 0.155, 1.29, 585}},
+      {{0.000649, 0.00363, 0.0266, 2.78, 591}, {0.0416, 0.132, 0.0839, 0.831, 591}},
+      {{7.43e-06, 4.34e-05, 1.72e-06, 4.76, 567}, {0.00522, 0.0148, 0.0107, 4.55, 567}},
+  };
+  const auto passes = testing::HeldOutPasses();
+  ASSERT_EQ(passes.size(), doc.size());
+  for (std::size_t k = 0; k < passes.size(); ++k) {
+    for (const bool fluxgate : {false, true}) {
+      const HeldOutRun r = MakeHeldOutRun(passes[k], fluxgate);
+      const TrackerOptions opt;
+      const TrackEstimate est = SolveBatch(GroupEpochs(r.file.samples, opt.epoch_tolerance_s), *r.file.B0, opt);
+      ASSERT_TRUE(est.summary.usable) << r.what << ": " << est.summary.BriefReport();
+      EXPECT_TRUE(est.summary.converged) << r.what << ": " << est.summary.BriefReport();
+      const Metrics m = Evaluate(est.epochs, est.m_B_Am2, r.file, r.truth);
+      ExpectHeldOutFigures(m, fluxgate ? doc[k].second : doc[k].first, fluxgate, r.what + " batch");
+    }
+  }
+}
+
+// The window's turn-rate noise (3e-3 rad/s/√s) was chosen on the reference
+// AUV fluxgate pass: the fluxgate held-out passes (~2 s each).
+TEST(HeldOutPass, WindowMeetsTheTargetsOnPassesItWasNotTunedOn) {
+  const TrackFigures doc[] = {{0.104, 0.360, 0.0975, 1.81, 328},
+                              {0.131, 0.342, 0.0825, 1.36, 351},
+                              {0.0134, 0.0565, 0.0124, 3.96, 567}};
+  const auto passes = testing::HeldOutPasses();
+  ASSERT_EQ(passes.size(), 3u);
+  for (std::size_t k = 0; k < passes.size(); ++k) {
+    const HeldOutRun r = MakeHeldOutRun(passes[k], true);
+    Eigen::Vector3d m_B;
+    const std::vector<EpochEstimate> est = RunWindowTracker(r.file.samples, *r.file.B0, &m_B);
+    ExpectHeldOutFigures(Evaluate(est, m_B, r.file, r.truth), doc[k], true, r.what + " window");
   }
 }
 
@@ -191,32 +291,19 @@ class WindowPass : public ::testing::TestWithParam<const char*> {};
 TEST_P(WindowPass, TracksCausally) {
   const std::string name = GetParam();
   const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_" + name + ".csv"));
-  const TrackerOptions opt;
-  WindowTracker tr(*f.B0, opt);
-  std::vector<EpochEstimate> est;
-  for (const auto& s : f.samples) {
-    const auto out = tr.AddSample(s);
-    // Once tracking, every completed epoch yields exactly one estimate.
-    if (tr.initialized()) {
-      EXPECT_LE(out.size(), 1u);
-    }
-    est.insert(est.end(), out.begin(), out.end());
-  }
-  const auto tail = tr.Flush();
-  est.insert(est.end(), tail.begin(), tail.end());
-  ASSERT_TRUE(tr.initialized());
+  Eigen::Vector3d m_B;
+  const std::vector<EpochEstimate> est = RunWindowTracker(f.samples, *f.B0, &m_B);
+  ASSERT_FALSE(est.empty());
   EXPECT_EQ(est.back().t_s, f.samples.back().t_s);
-  const Metrics m = Evaluate(est, tr.m_B_Am2(), f, ReadTruth(Vessel(name)));
+  const Metrics m = Evaluate(est, m_B, f, ReadTruth(Vessel(name)));
   std::cout << "| " << name << " | window 20 s | " << m.rms << " | " << m.max << " | " << 100.0 * m.moment_err
-            << " | " << m.nees << " | " << m.n << " | - |\n";
+            << " | " << m.nees << " | " << m.n << " | - | NEES tau " << m.nees_tau << " |\n";
   EXPECT_LE(m.moment_err, 0.02);
   const bool squid = name.find("squid") != std::string::npos;
   const bool noisefree = name.find("noisefree") != std::string::npos;
   EXPECT_LE(m.rms, squid ? 0.01 : 0.3);
-  if (!noisefree) {
-    EXPECT_GE(m.nees, 1.5);
-    EXPECT_LE(m.nees, 6.0);
-  }
+  ExpectTrackFigures(m, name, true);
+  if (!noisefree) ExpectHonestNees(m, Documented(name, true).nees, name + " window");
 }
 
 INSTANTIATE_TEST_SUITE_P(Reference, WindowPass,
@@ -277,7 +364,7 @@ TEST_P(BatchSolverAgreement, ChainLevenbergMarquardtMatchesCeres) {
   std::cout << GetParam() << ": chain vs Ceres, worst position difference " << worst << " sigma, cost "
             << chain.summary.final_cost << " vs " << ceres.summary.final_cost << ", iterations "
             << chain.summary.iterations << " vs " << ceres.summary.iterations << "\n";
-  EXPECT_LT(worst, 0.01);
+  EXPECT_LT(worst, 1e-3);
   EXPECT_LT((chain.m_B_Am2 - ceres.m_B_Am2).norm() / ceres.m_B_Am2.norm(), 1e-3);
   // Both minimise the same cost: the chain solver's may not be higher.
   EXPECT_LE(chain.summary.final_cost, ceres.summary.final_cost * (1.0 + 1e-6));
