@@ -4,6 +4,7 @@
 // output of `magnav invert`, or `magnav record --topic dipole_fix`), as
 // magnav-tracker takes them from magnav/dipole_fix.
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -41,12 +42,11 @@ std::vector<tracker::DipoleFix> ReadFixes(const std::string& path) {
   const auto valid = c.find_column("valid");
   std::vector<tracker::DipoleFix> out;
   for (std::size_t i = 0; i < c.num_rows(); ++i) {
-    tracker::DipoleFix f;
-    f.t_s = c.number(i, t);
-    f.sensor_id = id ? c.uint32(i, *id) : 0;
-    f.valid = !valid || c.integer(i, *valid) != 0;
-    if (f.valid) f.p_DinW = {c.number(i, x), c.number(i, y), c.number(i, z)};
-    out.push_back(f);
+    const bool ok = !valid || c.integer(i, *valid) != 0;
+    out.push_back(tracker::MakeFix(c.number(i, t), id ? c.uint32(i, *id) : 0,
+                                   ok ? Eigen::Vector3d(c.number(i, x), c.number(i, y), c.number(i, z))
+                                      : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()),
+                                   ok));
   }
   std::stable_sort(out.begin(), out.end(),
                    [](const tracker::DipoleFix& a, const tracker::DipoleFix& b) { return a.t_s < b.t_s; });

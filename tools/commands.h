@@ -10,7 +10,7 @@
 #include "magnav/cli/options.h"
 
 #ifdef MAGNAV_WITH_DDS
-#include "magnav/dds/cli.h"
+#include "magnav/cli/dds_options.h"
 #endif
 
 namespace magnav::tools {
@@ -26,8 +26,8 @@ void AddInvertCommand(CLI::App& app);
 void AddTrackCommand(CLI::App& app);
 
 #ifdef MAGNAV_WITH_DDS
-using dds::AddDdsOptions;
-using dds::DdsArgs;
+using cli::AddDdsOptions;
+using cli::DdsArgs;
 void AddReplayCommand(CLI::App& app);
 void AddRecordCommand(CLI::App& app);
 #endif

@@ -11,7 +11,8 @@
 #include "inverter_node.h"
 #include "magnav/cli/options.h"
 #include "magnav/core/error.h"
-#include "magnav/dds/cli.h"
+#include "magnav/cli/dds_options.h"
+#include "magnav/dds/service.h"
 #include "magnav/dds/regional_field_source.h"
 #include "magnav/dds/shutdown.h"
 
@@ -25,7 +26,7 @@ int main(int argc, char** argv) {
   magnav::cli::B0Arg b0;
   magnav::cli::Vec3Arg moment_body;
   double stats_period_s = 10.0;
-  magnav::dds::DdsArgs dds_args;
+  magnav::cli::DdsArgs dds_args;
   app.add_option("--method", method, "ted, ted-egt, egt or mc")->check(CLI::IsMember({"ted", "ted-egt", "egt", "mc"}));
   magnav::cli::AddB0Option(app, &b0,
                            "regional field: BX,BY,BZ in T (NED), subtracted before TED, or 'estimate': per sensor from quiet stretches of "
@@ -40,7 +41,7 @@ int main(int argc, char** argv) {
   app.add_option("--particles", mc.filter.num_particles, "particles per sensor (mc)");
   app.add_option("--seed", mc.filter.seed, "random seed (mc)");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
-  magnav::dds::AddDdsOptions(app, &dds_args);
+  magnav::cli::AddDdsOptions(app, &dds_args);
   // Gate flags: for --method mc they override the initialising inverter's
   // gates only when given (its defaults differ from the single-sample ones).
   const std::vector<std::pair<std::string, std::pair<double*, double*>>> gate_flags = {

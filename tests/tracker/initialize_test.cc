@@ -46,7 +46,7 @@ std::vector<DipoleFix> InverterFixes(const Pass& p) {
   std::vector<DipoleFix> out;
   for (const auto& s : p.file.samples) {
     const inversion::DipoleFix f = inverter.Process(s);
-    out.push_back(DipoleFix{s.t_s, s.sensor_id, f.p_DinW, 0.0, f.valid});
+    out.push_back(MakeFix(s.t_s, s.sensor_id, f.p_DinW, f.valid));
   }
   return out;
 }
@@ -319,21 +319,21 @@ TEST(ExternalFixesMatching, KeepsOnlyFixesOfStrongSamplesInTheEpochs) {
   ASSERT_EQ(e.samples.size(), 4u);
   const Eigen::Vector3d p0(1.0, 2.0, 3.0);
   std::vector<DipoleFix> given = {
-      {e.t_s, e.samples[2].sensor_id, p0, 0.0},                         // kept
-      {e.t_s, e.samples[2].sensor_id, p0 + Eigen::Vector3d::Ones(), 0.0},  // same sample again: dropped
-      {e.t_s + 0.05, e.samples[0].sensor_id, p0, 0.0},                  // between epochs
-      {e.t_s, 99, p0, 0.0},                                             // no such sensor
-      {e.t_s, e.samples[1].sensor_id, Eigen::Vector3d(NAN, 0, 0), 0.0},  // not finite
-      {e.t_s, e.samples[3].sensor_id, p0, 0.0, false},                  // rejected by its producer
-      {p.epochs[5].t_s, p.epochs[5].samples[0].sensor_id, p0, 0.0},     // weak sample (vessel far away)
-      {e.t_s, e.samples[0].sensor_id, p0, 0.0},                         // kept, sorted before sensor 2
+      MakeFix(e.t_s, e.samples[2].sensor_id, p0),                         // kept
+      MakeFix(e.t_s, e.samples[2].sensor_id, p0 + Eigen::Vector3d::Ones()),  // same sample again: dropped
+      MakeFix(e.t_s + 0.05, e.samples[0].sensor_id, p0),                  // between epochs
+      MakeFix(e.t_s, 99, p0),                                             // no such sensor
+      MakeFix(e.t_s, e.samples[1].sensor_id, Eigen::Vector3d(NAN, 0, 0)),  // not finite
+      MakeFix(e.t_s, e.samples[3].sensor_id, p0, false),                  // rejected by its producer
+      MakeFix(p.epochs[5].t_s, p.epochs[5].samples[0].sensor_id, p0),     // weak sample (vessel far away)
+      MakeFix(e.t_s, e.samples[0].sensor_id, p0),                         // kept, sorted before sensor 2
   };
   const std::vector<DipoleFix> m = MatchFixes(p.epochs, given, opt);
   ASSERT_EQ(m.size(), 2u);
   EXPECT_EQ(m[0].sensor_id, e.samples[0].sensor_id);
   EXPECT_EQ(m[1].sensor_id, e.samples[2].sensor_id);
   EXPECT_EQ(m[1].p_DinW, p0);
-  EXPECT_NEAR(m[1].tensor_snr, e.samples[2].T.norm() / e.samples[2].sigma_T, 1e-9);
+  EXPECT_NEAR(m[1].snr, e.samples[2].T.norm() / e.samples[2].sigma_T, 1e-9);
 }
 
 TEST(ExternalFixesSource, SamplesIgnoresGivenFixesAndExternalNeedsThem) {
@@ -369,11 +369,11 @@ TEST(ExternalFixesSource, NamesParseBothWays) {
 
 TEST(ExternalFixesRobustness, NonFiniteFixIsAnInputError) {
   WindowTracker tr(Eigen::Vector3d::Zero(), TrackerOptions{});
-  EXPECT_THROW(tr.AddFix(DipoleFix{NAN, 0, Eigen::Vector3d::Zero(), 0.0}), InputError);
-  EXPECT_THROW(tr.AddFix(DipoleFix{1.0, 0, Eigen::Vector3d(0, INFINITY, 0), 0.0}), InputError);
-  EXPECT_NO_THROW(tr.AddFix(DipoleFix{1.0, 0, Eigen::Vector3d::Zero(), 0.0}));
+  EXPECT_THROW(tr.AddFix(MakeFix(NAN, 0, Eigen::Vector3d::Zero())), InputError);
+  EXPECT_THROW(tr.AddFix(MakeFix(1.0, 0, Eigen::Vector3d(0, INFINITY, 0))), InputError);
+  EXPECT_NO_THROW(tr.AddFix(MakeFix(1.0, 0, Eigen::Vector3d::Zero())));
   // A rejected fix carries no position (the inverter sends NaN): fine.
-  EXPECT_NO_THROW(tr.AddFix(DipoleFix{1.1, 0, Eigen::Vector3d::Constant(NAN), 0.0, false}));
+  EXPECT_NO_THROW(tr.AddFix(MakeFix(1.1, 0, Eigen::Vector3d::Constant(NAN), false)));
 }
 
 }  // namespace

@@ -9,7 +9,8 @@
 
 #include "magnav/cli/options.h"
 #include "magnav/core/error.h"
-#include "magnav/dds/cli.h"
+#include "magnav/cli/dds_options.h"
+#include "magnav/dds/service.h"
 #include "magnav/dds/shutdown.h"
 #include "tracker_node.h"
 
@@ -22,7 +23,7 @@ int main(int argc, char** argv) {
   std::string loss = tracker::LossTypeName(opt.tracker.measurement_loss);
   std::string init_from = tracker::InitSourceName(opt.tracker.init.source);
   double stats_period_s = 10.0;
-  magnav::dds::DdsArgs dds_args;
+  magnav::cli::DdsArgs dds_args;
   magnav::cli::AddB0Option(app, &b0,
                            "regional field: BX,BY,BZ in T (NED), or 'estimate': per sensor from quiet stretches of the stream (a "
                            "sensor's samples are not used until then; the track is very sensitive to a B0 error, see "
@@ -42,7 +43,7 @@ int main(int argc, char** argv) {
   app.add_option("--reorder-delay", opt.reorder_delay_s, "hold samples this long (sample time, s) to order streams");
   app.add_option("--track-id", opt.track_id, "track id published");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
-  magnav::dds::AddDdsOptions(app, &dds_args);
+  magnav::cli::AddDdsOptions(app, &dds_args);
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
 
   return magnav::dds::RunService("magnav-tracker", [&] {

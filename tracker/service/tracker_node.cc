@@ -43,12 +43,8 @@ dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B
 }
 
 DipoleFix FromMsg(const dds::msg::DipoleFix& m) {
-  DipoleFix f;
-  f.t_s = NanosToSeconds(m.stamp_ns());
-  f.sensor_id = m.sensor_id();
-  f.p_DinW = {m.position()[0], m.position()[1], m.position()[2]};
-  f.valid = m.valid();
-  return f;
+  return MakeFix(NanosToSeconds(m.stamp_ns()), m.sensor_id(), {m.position()[0], m.position()[1], m.position()[2]},
+                 m.valid());
 }
 
 namespace {

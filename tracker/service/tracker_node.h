@@ -37,7 +37,7 @@ struct TrackerNodeOptions {
 
 dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B, const Eigen::Matrix3d& cov_m_B,
                               std::uint32_t track_id);
-// A magnav/dipole_fix message as the initialiser takes it (tensor_snr is set
+// A magnav/dipole_fix message as the initialiser takes it (snr is set
 // by the tracker from the matching sample).
 DipoleFix FromMsg(const dds::msg::DipoleFix& m);
 

@@ -13,6 +13,16 @@
 
 namespace magnav::tracker {
 
+DipoleFix MakeFix(double t_s, std::uint32_t sensor_id, const Eigen::Vector3d& p_DinW, bool valid) {
+  DipoleFix f;
+  f.t_s = t_s;
+  f.sensor_id = sensor_id;
+  f.p_DinW = p_DinW;
+  f.valid = valid;
+  return f;
+}
+
+
 namespace {
 
 double Median(std::vector<double> v) {
@@ -100,7 +110,9 @@ std::vector<Candidate> StrongCandidates(const std::vector<Epoch>& epochs, const 
       if (!(snr >= options.init.min_tensor_snr)) continue;
       const auto r = SingleSampleOffset(s.B - B0_W, s.T);
       if (!r) continue;
-      out.push_back({DipoleFix{e.t_s, s.sensor_id, s.p_SinW - *r, snr}, &s});
+      DipoleFix fix = MakeFix(e.t_s, s.sensor_id, s.p_SinW - *r);
+      fix.snr = snr;
+      out.push_back({fix, &s});
     }
   }
   return out;
@@ -120,7 +132,9 @@ std::vector<Candidate> MatchCandidates(const std::vector<Epoch>& epochs, const s
     if (s == e->samples.end()) continue;
     const double snr = Snr(*s, options);
     if (!(snr >= options.init.min_tensor_snr)) continue;
-    out.push_back({DipoleFix{e->t_s, f.sensor_id, f.p_DinW, snr}, &*s});
+    DipoleFix fix = MakeFix(e->t_s, f.sensor_id, f.p_DinW);
+    fix.snr = snr;
+    out.push_back({fix, &*s});
   }
   std::stable_sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) {
     return a.fix.t_s != b.fix.t_s ? a.fix.t_s < b.fix.t_s : a.fix.sensor_id < b.fix.sensor_id;

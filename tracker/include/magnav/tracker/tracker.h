@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "magnav/core/gradiometer.h"
+#include "magnav/inversion/inverter.h"
 #include "magnav/tracker/options.h"
 
 namespace magnav::tracker {
@@ -37,17 +38,14 @@ struct Epoch {
 // InputError if the samples are not ordered by time.
 std::vector<Epoch> GroupEpochs(const std::vector<GradiometerSample>& samples, double tolerance_s);
 
-// A single-sample dipole fix: the dipole position computed from the sample
-// of gradiometer `sensor_id` taken at t_s. A fix rejected by its producer's
-// gates (valid = false) is never used for a track, but tells the tracker that
-// fixes are being produced (InitSource::kAuto).
-struct DipoleFix {
-  double t_s = 0.0;  // time of the sample, s
-  std::uint32_t sensor_id = 0;
-  Eigen::Vector3d p_DinW = Eigen::Vector3d::Zero();  // m
-  double tensor_snr = 0.0;                           // ‖T‖_F / σ_T of the sample
-  bool valid = true;
-};
+// A single-sample dipole fix is the inverter's (one struct for one meaning):
+// the tracker reads its t_s, sensor_id, valid and p_DinW, and sets snr from
+// the sample it matches. A fix rejected by its producer's gates (valid =
+// false) is never used for a track, but tells the tracker that fixes are
+// being produced (InitSource::kAuto).
+using DipoleFix = inversion::DipoleFix;
+// A fix as the tracker needs it (the inverter's defaults elsewhere).
+DipoleFix MakeFix(double t_s, std::uint32_t sensor_id, const Eigen::Vector3d& p_DinW, bool valid = true);
 
 // State vector layout of one epoch: [x, y, z, v, h, ω].
 using StateVector = Eigen::Matrix<double, 6, 1>;

@@ -1,43 +1,17 @@
-// Command-line options every DDS program shares (the magnav tool's replay and
-// record commands, and each service): domain id, extra XML profiles,
-// participant profile. Kept here so services and tools parse them alike.
+// The run loop of a service main: errors to exit codes, periodic work until
+// SIGINT/SIGTERM (no command line here: that is magnav::cli).
 #pragma once
 
+#include <chrono>
 #include <cstdio>
+#include <exception>
 #include <functional>
-#include <string>
-
-#include <CLI/CLI.hpp>
 
 #include "magnav/core/error.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
 
 namespace magnav::dds {
-
-struct DdsArgs {
-  int domain_id = -1;               // -1: $MAGNAV_DOMAIN_ID, else $ROS_DOMAIN_ID, else 0
-  std::string profiles_file;        // extra Fast DDS XML profiles
-  std::string participant_profile;  // "": $MAGNAV_DDS_PARTICIPANT or magnav_loopback
-
-  NodeOptions ToNodeOptions(const std::string& name) const {
-    NodeOptions o;
-    o.name = name;
-    if (domain_id >= 0) o.domain_id = domain_id;
-    o.profiles_file = profiles_file;
-    o.participant_profile = participant_profile;
-    return o;
-  }
-};
-
-inline void AddDdsOptions(CLI::App& app, DdsArgs* out) {
-  app.add_option("--domain", out->domain_id, "DDS domain id (default $MAGNAV_DOMAIN_ID, $ROS_DOMAIN_ID, 0)")
-      ->check(CLI::Range(0, 232));
-  app.add_option("--dds-profiles", out->profiles_file, "extra Fast DDS XML profiles file (e.g. config/magnav_multihost.xml)")
-      ->check(CLI::ExistingFile);
-  app.add_option("--dds-participant", out->participant_profile,
-                 "participant profile (default magnav_loopback: 127.0.0.1 + shared memory only)");
-}
 
 // Runs a service's body and turns its errors into a message and an exit code:
 // 2 for bad input or options (InputError), 4 for the middleware (DdsError),
