@@ -36,10 +36,6 @@ std::string Num(double v) {
   return FormatNumber(v);
 }
 
-std::string Vec3Text(const Eigen::Vector3d& v) {
-  return FormatNumber(v.x()) + ", " + FormatNumber(v.y()) + ", " + FormatNumber(v.z());
-}
-
 void RunInvert(const InvertArgs& args) {
   GradiometerFile file = ReadGradiometerFile(args.input);
   const bool has_case = !file.case_ids.empty();
@@ -71,7 +67,7 @@ void RunInvert(const InvertArgs& args) {
   std::vector<inversion::DipoleFix> fixes(file.samples.size());
   std::vector<std::pair<std::string, std::string>> params = {{"method", args.method},
                                                              {"input", args.input},
-                                                             {"B0_T", Vec3Text(B0)},
+                                                             {"B0_T", FormatVec3(B0)},
                                                              {"B0_source", b0_source}};
   if (args.method == "mc") {
     Eigen::Vector3d m_B;
@@ -101,7 +97,7 @@ void RunInvert(const InvertArgs& args) {
       return sa.sensor_id != sb.sensor_id ? sa.sensor_id < sb.sensor_id : sa.t_s < sb.t_s;
     });
     for (const std::size_t i : order) fixes[i] = tracker.Process(file.samples[i]);
-    params.emplace_back("moment_body_Am2", Vec3Text(m_B));
+    params.emplace_back("moment_body_Am2", FormatVec3(m_B));
     params.emplace_back("particles", std::to_string(args.particles));
     params.emplace_back("seed", std::to_string(args.seed));
   } else {

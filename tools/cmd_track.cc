@@ -56,15 +56,12 @@ std::vector<tracker::DipoleFix> ReadFixes(const std::string& path) {
 void WriteTrack(const std::string& path, const std::string& input, const std::string& mode,
                 const std::vector<tracker::EpochEstimate>& epochs, const Eigen::Vector3d& m_B,
                 const Eigen::Matrix3d& cov_m_B, const tracker::Summary& summary) {
-  const auto v3 = [](const Eigen::Vector3d& v) {
-    return FormatNumber(v.x()) + ", " + FormatNumber(v.y()) + ", " + FormatNumber(v.z());
-  };
   const Eigen::Vector3d sigma_m = cov_m_B.diagonal().cwiseMax(0.0).cwiseSqrt();
   CsvWriter w(path, {"t", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z"},
               {{"source", input},
                {"mode", mode},
-               {"moment_body_Am2", v3(m_B)},
-               {"sigma_moment_body_Am2", v3(sigma_m)},
+               {"moment_body_Am2", FormatVec3(m_B)},
+               {"sigma_moment_body_Am2", FormatVec3(sigma_m)},
                {"frame",
                 "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
                 "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "

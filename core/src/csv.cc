@@ -68,6 +68,10 @@ std::optional<std::vector<double>> ParseNumberList(std::string_view text) {
   return out;
 }
 
+std::string FormatVec3(const Eigen::Vector3d& v) {
+  return FormatNumber(v.x()) + ", " + FormatNumber(v.y()) + ", " + FormatNumber(v.z());
+}
+
 std::string FormatNumber(double value) {
   char buf[64];
   const auto [ptr, ec] = std::to_chars(buf, buf + sizeof(buf), value);

@@ -7,10 +7,6 @@
 namespace magnav {
 
 namespace {
-bool Fail(std::string* error, const char* message) {
-  if (error) *error = message;
-  return false;
-}
 bool FinitePositive(double v) { return std::isfinite(v) && v > 0.0; }
 }  // namespace
 

@@ -7,9 +7,6 @@
 namespace magnav::dds {
 
 namespace {
-std::string Vec3Text(const Eigen::Vector3d& v) {
-  return FormatNumber(v.x()) + "," + FormatNumber(v.y()) + "," + FormatNumber(v.z());
-}
 }  // namespace
 
 RegionalFieldSource::RegionalFieldSource(std::string service, const Eigen::Vector3d& B0_W)
@@ -24,7 +21,7 @@ std::optional<Eigen::Vector3d> RegionalFieldSource::For(const GradiometerSample&
   const auto status = estimator_->Add(s);
   if (status == RegionalFieldEstimator::Status::kBecameReady) {
     spdlog::info("{}: sensor {}: B0 estimated {} T from {} quiet samples up to t = {} s", service_, s.sensor_id,
-                 Vec3Text(*estimator_->B0(s.sensor_id)), estimator_->num_samples(s.sensor_id), s.t_s);
+                 FormatVec3(*estimator_->B0(s.sensor_id)), estimator_->num_samples(s.sensor_id), s.t_s);
   } else if (status == RegionalFieldEstimator::Status::kUnknownSigma &&
              unknown_sigma_logged_.insert(s.sensor_id).second) {
     spdlog::warn("{}: sensor {}: its samples carry no sigma_B/sigma_T and none was given (--sigma-b, --sigma-t): "
@@ -37,7 +34,7 @@ std::optional<Eigen::Vector3d> RegionalFieldSource::For(const GradiometerSample&
 }
 
 std::string RegionalFieldSource::Describe() const {
-  if (fixed_) return "B0 = " + Vec3Text(*fixed_) + " T (given)";
+  if (fixed_) return "B0 = " + FormatVec3(*fixed_) + " T (given)";
   return "B0 estimated per sensor from quiet stretches (" + FormatNumber(options_.window_s) +
          " s with the tensor at noise level and a steady field); until a sensor's B0 is known its samples "
          "are not used";

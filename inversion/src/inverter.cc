@@ -65,11 +65,6 @@ const char* RejectReasonName(RejectReason reason) {
 
 namespace {
 
-bool Fail(std::string* error, const std::string& message) {
-  if (error) *error = message;
-  return false;
-}
-
 bool PositiveOrInf(double v) { return v > 0.0; }  // false for NaN
 
 }  // namespace

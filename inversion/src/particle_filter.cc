@@ -1,5 +1,6 @@
 #include "magnav/inversion/particle_filter.h"
 
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -9,16 +10,12 @@
 
 #include "magnav/core/dipole.h"
 #include "magnav/core/error.h"
+#include "magnav/inversion/fix_line.h"
 #include "magnav/core/frames.h"
 #include "magnav/core/tensor.h"
 
 namespace magnav::inversion {
 namespace {
-
-bool Fail(std::string* error, const std::string& message) {
-  if (error) *error = message;
-  return false;
-}
 
 bool FiniteNonNegative(double v) { return v >= 0.0 && std::isfinite(v); }
 
@@ -330,22 +327,10 @@ bool MonteCarloTracker::TryInitialize(Track* track, double t_s) const {
   const auto& f = track->recent;
   if (static_cast<int>(f.size()) < options_.init_min_fixes) return false;
   if (f.back().t_s - f.front().t_s < 0.5 * options_.init_window_s) return false;
-  // Least-squares line p(t) = p̄ + v (t − t̄) through the fixes.
-  double t_mean = 0.0;
-  for (const auto& x : f) t_mean += x.t_s;
-  t_mean /= static_cast<double>(f.size());
-  Vec3 p_mean = Vec3::Zero();
-  for (const auto& x : f) p_mean += x.p_DinW;
-  p_mean /= static_cast<double>(f.size());
-  double stt = 0.0;
-  Vec3 stp = Vec3::Zero();
-  for (const auto& x : f) {
-    stt += (x.t_s - t_mean) * (x.t_s - t_mean);
-    stp += (x.t_s - t_mean) * (x.p_DinW - p_mean);
-  }
-  if (!(stt > 0.0)) return false;
-  const Vec3 v = stp / stt;
-  const Vec3 p_now = p_mean + v * (t_s - t_mean);
+  const FixLine line = FitFixLine(f);
+  if (!line.has_velocity) return false;
+  const Vec3& v = line.v;
+  const Vec3 p_now = line.At(t_s);
   // Prior σ per axis: the option, or the newest fix's 3-D RMS σ if larger
   // (deliberately wide: √3 × its per-axis σ for an isotropic error).
   const double sigma_fix = f.back().position_sigma_3d_m;

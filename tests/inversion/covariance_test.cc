@@ -15,6 +15,7 @@
 #include "magnav/core/gradiometer.h"
 #include "magnav/inversion/inverter.h"
 #include "magnav/inversion/particle_filter.h"
+#include "reference_truth.h"
 #include "test_data.h"
 
 namespace magnav::inversion {
@@ -33,14 +34,7 @@ struct Calibration {
   double nees() const { return sum_nees / n; }
 };
 
-std::vector<Vec3> TruthPositions(const std::string& vessel) {
-  const CsvTable t = CsvTable::Read(testing::ReferencePath("track_truth_" + vessel + ".csv"));
-  std::vector<Vec3> p;
-  for (std::size_t r = 0; r < t.num_rows(); ++r) {
-    p.emplace_back(t.number(r, t.column("x")), t.number(r, t.column("y")), t.number(r, t.column("z")));
-  }
-  return p;
-}
+std::vector<Vec3> TruthPositions(const std::string& vessel) { return testing::LoadTruthTrack(vessel).p; }
 
 class AnalyticCovariance : public ::testing::TestWithParam<const char*> {};
 

@@ -20,6 +20,7 @@
 #include "magnav/inversion/inverter.h"
 #include "magnav/inversion/particle_filter.h"
 #include "subprocess.h"
+#include "reference_truth.h"
 #include "test_data.h"
 
 namespace magnav::inversion {
@@ -62,14 +63,7 @@ std::vector<msg::DipoleFix> RunService(const std::vector<std::string>& args,
   return fixes;
 }
 
-std::vector<Vec3> TruthPositions(const std::string& vessel) {
-  const CsvTable t = CsvTable::Read(testing::ReferencePath("track_truth_" + vessel + ".csv"));
-  std::vector<Vec3> p;
-  for (std::size_t r = 0; r < t.num_rows(); ++r) {
-    p.emplace_back(t.number(r, t.column("x")), t.number(r, t.column("y")), t.number(r, t.column("z")));
-  }
-  return p;
-}
+std::vector<Vec3> TruthPositions(const std::string& vessel) { return testing::LoadTruthTrack(vessel).p; }
 
 Vec3 Position(const msg::DipoleFix& f) { return {f.position()[0], f.position()[1], f.position()[2]}; }
 

@@ -13,12 +13,6 @@
 
 namespace magnav::tracker {
 
-namespace {
-double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
-  return std::chrono::duration<double>(b - a).count();
-}
-}  // namespace
-
 TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
                          const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
   std::string why;

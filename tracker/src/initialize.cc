@@ -1,5 +1,6 @@
 #include "magnav/tracker/initialize.h"
 
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -9,6 +10,7 @@
 #include "magnav/core/frames.h"
 #include "magnav/core/tensor.h"
 #include "magnav/inversion/analytic.h"
+#include "magnav/inversion/fix_line.h"
 #include "magnav/inversion/inverter.h"
 
 namespace magnav::tracker {
@@ -31,7 +33,10 @@ double Median(std::vector<double> v) {
   return v[n];
 }
 
+// The inverter's least-squares line, flown at the fixes' mean depth (the
+// tracker's vessel keeps its depth).
 struct LineFit {
+  inversion::FixLine line;
   double t_ref = 0.0;
   Eigen::Vector3d p_ref = Eigen::Vector3d::Zero();  // z: mean depth
   Eigen::Vector2d v = Eigen::Vector2d::Zero();      // horizontal velocity
@@ -40,27 +45,12 @@ struct LineFit {
   }
 };
 
-// Least-squares x(t), y(t) lines and the mean depth over the selected fixes.
 LineFit FitLine(const std::vector<DipoleFix>& fixes, const std::vector<bool>& use) {
   LineFit f;
-  double n = 0.0;
-  for (std::size_t i = 0; i < fixes.size(); ++i) {
-    if (!use[i]) continue;
-    f.t_ref += fixes[i].t_s;
-    f.p_ref += fixes[i].p_DinW;
-    n += 1.0;
-  }
-  f.t_ref /= n;
-  f.p_ref /= n;
-  double stt = 0.0;
-  Eigen::Vector2d stp = Eigen::Vector2d::Zero();
-  for (std::size_t i = 0; i < fixes.size(); ++i) {
-    if (!use[i]) continue;
-    const double dt = fixes[i].t_s - f.t_ref;
-    stt += dt * dt;
-    stp += dt * (fixes[i].p_DinW - f.p_ref).head<2>();
-  }
-  if (stt > 0.0) f.v = stp / stt;
+  f.line = inversion::FitFixLine(fixes, use);
+  f.t_ref = f.line.t_ref_s;
+  f.p_ref = f.line.p_ref;
+  f.v = f.line.v.head<2>();
   return f;
 }
 

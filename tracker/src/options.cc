@@ -1,15 +1,12 @@
 #include "magnav/tracker/options.h"
 
+#include "magnav/core/error.h"
 #include <cmath>
 #include <sstream>
 
 namespace magnav::tracker {
 
 namespace {
-bool Fail(std::string* error, const std::string& what) {
-  if (error) *error = what;
-  return false;
-}
 bool PositiveFinite(double x) { return std::isfinite(x) && x > 0.0; }
 }  // namespace
 

@@ -38,10 +38,6 @@ void EliminateFirstState(const internal::LocalH& H, const internal::LocalG& g,
   *H_out = 0.5 * (*H_out + H_out->transpose());
 }
 
-double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
-  return std::chrono::duration<double>(b - a).count();
-}
-
 }  // namespace
 
 struct WindowTracker::Impl {

@@ -73,6 +73,9 @@ std::optional<std::vector<double>> ParseNumberList(std::string_view text);
 
 // Formats a double as the shortest string that reads back to the same value.
 std::string FormatNumber(double value);
+// "x, y, z" with FormatNumber (as the `# key: X, Y, Z` parameters are written;
+// ParseNumberList reads it back).
+std::string FormatVec3(const Eigen::Vector3d& v);
 
 // Writes a CSV file: parameter comments, header, rows. Fields are written as
 // given (numbers through FormatNumber). Throws InputError if the file cannot

@@ -3,6 +3,7 @@
 // the edges (files in nT or degrees, DDS time stamps in ns).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <numbers>
 #include <string>
@@ -30,5 +31,10 @@ std::string FormatNanosAsSeconds(std::uint64_t nanos);
 
 // Wraps an angle to (−π, π].
 double WrapAngle(double radians);
+
+// Wall-clock seconds from a to b (solve times in summaries).
+inline double Seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
 
 }  // namespace magnav
