@@ -1,0 +1,209 @@
+#include "magnav/localizer/ekf.h"
+
+#include <Eigen/Cholesky>
+#include <chrono>
+#include <cmath>
+
+#include "magnav/core/error.h"
+#include "magnav/localizer/crlb.h"
+#include "magnav/localizer/models.h"
+#include "timeline.h"
+
+namespace magnav::localizer {
+
+bool InitialVesselFromGnss(const std::vector<GnssFix>& fixes, double t0_s, const LocalizerOptions& options,
+                           VesselVector* x0, VesselCovariance* P0, double window_s) {
+  // Straight line p(t) = a + b (t − t0) by least squares over the window.
+  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+  Eigen::Matrix<double, 2, 2> rhs = Eigen::Matrix2d::Zero();  // columns x, y
+  double t_min = INFINITY, t_max = -INFINITY, var = 0.0;
+  int n = 0;
+  for (const GnssFix& f : fixes) {
+    if (f.t_s < t0_s - window_s || f.t_s > t0_s + window_s) continue;
+    const double dt = f.t_s - t0_s;
+    const double sigma = f.sigma_m > 0.0 ? f.sigma_m : options.gnss_sigma_m;
+    const double w = 1.0 / (sigma * sigma);
+    const Eigen::Vector2d phi(1.0, dt);
+    A += w * phi * phi.transpose();
+    rhs += w * phi * f.p_xy_m.transpose();
+    t_min = std::min(t_min, f.t_s);
+    t_max = std::max(t_max, f.t_s);
+    var = std::max(var, sigma * sigma);
+    ++n;
+  }
+  if (n < 2 || t_max - t_min < 2.0) return false;
+  const Eigen::LDLT<Eigen::Matrix2d> ldlt(A);
+  const Eigen::Matrix2d coef = ldlt.solve(rhs);  // row 0: position at t0, row 1: velocity
+  const Eigen::Matrix2d cov = ldlt.solve(Eigen::Matrix2d::Identity());
+  const Eigen::Vector2d vel = coef.row(1).transpose();
+  *x0 << coef(0, 0), coef(0, 1), vel.norm(), std::atan2(vel.y(), vel.x()), 0.0;
+  P0->setZero();
+  // Position: the fit's σ, but at least a third of a fix's (the straight
+  // line is only a model of the start).
+  const double var_p = std::max(cov(0, 0), var / 9.0);
+  (*P0)(kX, kX) = var_p;
+  (*P0)(kY, kY) = var_p;
+  (*P0)(kV, kV) = std::pow(options.initial.speed_mps, 2);
+  (*P0)(kHeading, kHeading) = std::pow(options.initial.heading_rad, 2);
+  (*P0)(kTurnRate, kTurnRate) = std::pow(options.initial.turn_rate_radps, 2);
+  return true;
+}
+
+LocalizerEkf::LocalizerEkf(const Vessel& vessel, const std::vector<SensorPrior>& sensors, double t0_s,
+                           const VesselVector& x0, const VesselCovariance& P0, const LocalizerOptions& options)
+    : vessel_(vessel), sensors_(sensors), options_(options), t_s_(t0_s) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InputError("localizer options: " + why);
+  const int n = 5 + 2 * static_cast<int>(sensors.size());
+  x_ = Eigen::VectorXd::Zero(n);
+  P_ = Eigen::MatrixXd::Zero(n, n);
+  x_.head<5>() = x0;
+  P_.topLeftCorner<5, 5>() = P0;
+  for (std::size_t j = 0; j < sensors.size(); ++j) {
+    const int c = 5 + 2 * static_cast<int>(j);
+    x_.segment<2>(c) = sensors[j].p_SinW_m.head<2>();
+    P_(c, c) = P_(c + 1, c + 1) = sensors[j].sigma_xy_m * sensors[j].sigma_xy_m;
+  }
+}
+
+int LocalizerEkf::Column(std::uint32_t sensor_id) const {
+  for (std::size_t j = 0; j < sensors_.size(); ++j) {
+    if (sensors_[j].sensor_id == sensor_id) return 5 + 2 * static_cast<int>(j);
+  }
+  return -1;
+}
+
+bool LocalizerEkf::Predict(double t_s) {
+  if (!std::isfinite(t_s) || t_s < t_s_) return false;
+  const double dt = t_s - t_s_;
+  if (dt == 0.0) return true;
+  VesselCovariance F;
+  x_.head<5>() = PropagateVessel(x_.head<5>(), dt, &F);
+  const int n = static_cast<int>(x_.size());
+  // Only the vessel rows and columns change: P_vv = F P_vv Fᵀ + Q, P_vs = F P_vs.
+  const VesselCovariance Pvv = P_.topLeftCorner<5, 5>();
+  P_.topLeftCorner<5, 5>() = F * Pvv * F.transpose() + ProcessCovariance(options_.process, dt);
+  if (n > 5) {
+    const Eigen::MatrixXd Pvs = F * P_.topRightCorner(5, n - 5);
+    P_.topRightCorner(5, n - 5) = Pvs;
+    P_.bottomLeftCorner(n - 5, 5) = Pvs.transpose();
+  }
+  t_s_ = t_s;
+  return true;
+}
+
+void LocalizerEkf::JosephUpdate(const Eigen::MatrixXd& U, const Eigen::MatrixXd& K, const Eigen::MatrixXd& S) {
+  // (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K Uᵀ − U Kᵀ + K S Kᵀ, U = P Hᵀ.
+  const Eigen::MatrixXd KS = K * S;
+  P_.noalias() -= K * U.transpose();
+  P_.noalias() -= U * K.transpose();
+  P_.noalias() += KS * K.transpose();
+  P_ = 0.5 * (P_ + P_.transpose()).eval();
+}
+
+bool LocalizerEkf::Update(const MagSample& sample) {
+  const int c = Column(sample.sensor_id);
+  if (c < 0 || !sample.B_T.allFinite() || !Predict(sample.t_s)) return false;
+  const int j = (c - 5) / 2;
+  const Eigen::Vector3d p_S(x_[c], x_[c + 1], sensors_[static_cast<std::size_t>(j)].p_SinW_m.z());
+  Jacobian3x5 Hv;
+  Jacobian3x2 Hs;
+  const Eigen::Vector3d predicted = VesselFieldAtSensor(x_.head<5>(), vessel_, p_S, &Hv, &Hs);
+  // U = P Hᵀ touches only the vessel and this sensor's columns of P.
+  const Eigen::MatrixXd U = P_.leftCols<5>() * Hv.transpose() + P_.middleCols<2>(c) * Hs.transpose();
+  Eigen::Matrix3d S = Hv * U.topRows<5>() + Hs * U.middleRows<2>(c);
+  S = 0.5 * (S + S.transpose()).eval();
+  S.diagonal().array() += options_.sigma_B_T * options_.sigma_B_T;
+  const Eigen::LLT<Eigen::Matrix3d> llt(S);
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::Vector3d innovation = sample.B_T - predicted;
+  const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
+  last_nis_ = innovation.dot(llt.solve(innovation));
+  x_.noalias() += K * innovation;
+  JosephUpdate(U, K, S);
+  return true;
+}
+
+bool LocalizerEkf::Update(const GnssFix& fix) {
+  if (!fix.p_xy_m.allFinite() || !Predict(fix.t_s)) return false;
+  const double sigma = fix.sigma_m > 0.0 ? fix.sigma_m : options_.gnss_sigma_m;
+  const Eigen::MatrixXd U = P_.leftCols<2>();  // H = [I2 0]
+  Eigen::Matrix2d S = U.topRows<2>();
+  S = 0.5 * (S + S.transpose()).eval();
+  S.diagonal().array() += sigma * sigma;
+  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::Vector2d innovation = fix.p_xy_m - x_.head<2>();
+  const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
+  x_.noalias() += K * innovation;
+  JosephUpdate(U, K, S);
+  return true;
+}
+
+std::vector<SensorEstimate> LocalizerEkf::SensorEstimates() const {
+  std::vector<SensorEstimate> out;
+  for (std::size_t j = 0; j < sensors_.size(); ++j) {
+    const int c = 5 + 2 * static_cast<int>(j);
+    SensorEstimate e;
+    e.sensor_id = sensors_[j].sensor_id;
+    e.p_SinW_m = {x_[c], x_[c + 1], sensors_[j].p_SinW_m.z()};
+    e.cov_xy_m2 = P_.block<2, 2>(c, c);
+    out.push_back(e);
+  }
+  return out;
+}
+
+Localization RunEkf(const Pass& pass, const LocalizerOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InputError("localizer options: " + why);
+  const auto t0 = std::chrono::steady_clock::now();
+  const internal::Timeline tl = internal::BuildTimeline(pass, options.epoch_tolerance_s);
+  if (tl.t.empty()) throw InputError("localizer: no sample");
+  VesselVector x0;
+  VesselCovariance P0;
+  if (!InitialVesselFromGnss(pass.gnss, tl.t.front(), options, &x0, &P0)) {
+    throw InputError("localizer: the vessel's start is unknown: the EKF needs at least two GNSS fixes spanning "
+                     "2 s within 10 s of the first sample");
+  }
+  LocalizerEkf ekf(pass.vessel, pass.sensors, tl.t.front(), x0, P0, options);
+  Localization out;
+  out.summary.method = "ekf";
+  int rejected = 0;
+  for (std::size_t k = 0; k < tl.t.size(); ++k) {
+    ekf.Predict(tl.t[k]);
+    for (int i : tl.gnss_at[k]) {
+      if (ekf.Update(pass.gnss[static_cast<std::size_t>(i)])) {
+        ++out.summary.gnss_updates;
+      } else {
+        ++rejected;
+      }
+    }
+    for (int i : tl.samples_at[k]) {
+      if (ekf.Update(pass.samples[static_cast<std::size_t>(i)])) {
+        ++out.summary.magnetometer_updates;
+      } else {
+        ++rejected;
+      }
+    }
+    out.trajectory_t_s.push_back(tl.t[k]);
+    out.trajectory.push_back(ekf.vessel_state());
+  }
+  out.sensors = ekf.SensorEstimates();
+  out.cov_sensors_m2 = ekf.covariance().bottomRightCorner(2 * ekf.num_sensors(), 2 * ekf.num_sensors());
+  out.summary.converged = rejected == 0 && ekf.covariance().allFinite();
+  out.summary.message = rejected == 0 ? "every sample used" : std::to_string(rejected) + " updates failed";
+  const auto t1 = std::chrono::steady_clock::now();
+  out.summary.solve_time_s = std::chrono::duration<double>(t1 - t0).count();
+  std::vector<Eigen::Vector2d> s_xy;
+  for (const auto& e : out.sensors) s_xy.push_back(e.p_SinW_m.head<2>());
+  const CrlbResult bound = ComputeCrlb(pass, options, out.trajectory, s_xy);
+  out.crlb_joint_m2 = bound.joint_full;
+  for (std::size_t j = 0; j < out.sensors.size(); ++j) {
+    out.sensors[j].crlb_joint_m2 = bound.joint[j];
+    out.sensors[j].crlb_known_trajectory_m2 = bound.known_trajectory[j];
+  }
+  out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  return out;
+}
+
+}  // namespace magnav::localizer
