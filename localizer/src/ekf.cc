@@ -3,11 +3,12 @@
 #include <Eigen/Cholesky>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "magnav/core/error.h"
 #include "magnav/localizer/crlb.h"
 #include "magnav/localizer/models.h"
-#include "timeline.h"
+#include "magnav/localizer/stream.h"
 
 namespace magnav::localizer {
 
@@ -154,55 +155,24 @@ std::vector<SensorEstimate> LocalizerEkf::SensorEstimates() const {
 }
 
 Localization RunEkf(const Pass& pass, const LocalizerOptions& options) {
-  std::string why;
-  if (!options.IsValid(&why)) throw InputError("localizer options: " + why);
   const auto t0 = std::chrono::steady_clock::now();
-  const internal::Timeline tl = internal::BuildTimeline(pass, options.epoch_tolerance_s);
-  if (tl.t.empty()) throw InputError("localizer: no sample");
-  VesselVector x0;
-  VesselCovariance P0;
-  if (!InitialVesselFromGnss(pass.gnss, tl.t.front(), options, &x0, &P0)) {
+  StreamOptions whole_file;
+  whole_file.reorder_delay_s = std::numeric_limits<double>::infinity();  // everything at Flush
+  StreamingLocalizer s(pass.vessel, pass.sensors, options, whole_file);
+  std::size_t g = 0;
+  for (const MagSample& m : pass.samples) {
+    while (g < pass.gnss.size() && pass.gnss[g].t_s <= m.t_s) s.Add(pass.gnss[g++]);
+    s.Add(m);
+  }
+  while (g < pass.gnss.size()) s.Add(pass.gnss[g++]);
+  s.Flush();
+  if (!s.initialized()) {
     throw InputError("localizer: the vessel's start is unknown: the EKF needs at least two GNSS fixes spanning "
                      "2 s within 10 s of the first sample");
   }
-  LocalizerEkf ekf(pass.vessel, pass.sensors, tl.t.front(), x0, P0, options);
-  Localization out;
-  out.summary.method = "ekf";
-  int rejected = 0;
-  for (std::size_t k = 0; k < tl.t.size(); ++k) {
-    ekf.Predict(tl.t[k]);
-    for (int i : tl.gnss_at[k]) {
-      if (ekf.Update(pass.gnss[static_cast<std::size_t>(i)])) {
-        ++out.summary.gnss_updates;
-      } else {
-        ++rejected;
-      }
-    }
-    for (int i : tl.samples_at[k]) {
-      if (ekf.Update(pass.samples[static_cast<std::size_t>(i)])) {
-        ++out.summary.magnetometer_updates;
-      } else {
-        ++rejected;
-      }
-    }
-    out.trajectory_t_s.push_back(tl.t[k]);
-    out.trajectory.push_back(ekf.vessel_state());
-  }
-  out.sensors = ekf.SensorEstimates();
-  out.cov_sensors_m2 = ekf.covariance().bottomRightCorner(2 * ekf.num_sensors(), 2 * ekf.num_sensors());
-  out.summary.converged = rejected == 0 && ekf.covariance().allFinite();
-  out.summary.message = rejected == 0 ? "every sample used" : std::to_string(rejected) + " updates failed";
-  const auto t1 = std::chrono::steady_clock::now();
-  out.summary.solve_time_s = std::chrono::duration<double>(t1 - t0).count();
-  std::vector<Eigen::Vector2d> s_xy;
-  for (const auto& e : out.sensors) s_xy.push_back(e.p_SinW_m.head<2>());
-  const CrlbResult bound = ComputeCrlb(pass, options, out.trajectory, s_xy);
-  out.crlb_joint_m2 = bound.joint_full;
-  for (std::size_t j = 0; j < out.sensors.size(); ++j) {
-    out.sensors[j].crlb_joint_m2 = bound.joint[j];
-    out.sensors[j].crlb_known_trajectory_m2 = bound.known_trajectory[j];
-  }
-  out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  Localization out = s.Result();
+  out.summary.solve_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - out.summary.crlb_time_s;
   return out;
 }
 

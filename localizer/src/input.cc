@@ -24,29 +24,33 @@ int Pass::SensorIndex(std::uint32_t sensor_id) const {
   return -1;
 }
 
+std::vector<SensorPrior> ReadDeploymentFile(const std::string& path) {
+  const CsvTable d = CsvTable::Read(path);
+  Pass pass;
+  const std::size_t id = d.column("sensor_id"), x = d.column("x"), y = d.column("y"), z = d.column("z"),
+                    s = d.column("sigma_xy");
+  for (std::size_t i = 0; i < d.num_rows(); ++i) {
+    SensorPrior p;
+    p.sensor_id = d.uint32(i, id);
+    p.p_SinW_m = {d.number(i, x), d.number(i, y), d.number(i, z)};
+    p.sigma_xy_m = d.number(i, s);
+    if (!(p.sigma_xy_m > 0.0)) throw InputError(Where(d, i, "sigma_xy") + "must be > 0");
+    if (pass.SensorIndex(p.sensor_id) >= 0) {
+      throw InputError(Where(d, i, "sensor_id") + "sensor " + std::to_string(p.sensor_id) + " listed twice");
+    }
+    pass.sensors.push_back(p);
+  }
+  if (pass.sensors.empty()) throw InputError(path + ": no sensor");
+  return pass.sensors;
+}
+
 PassFile ReadPassFiles(const std::string& measurements_path, const std::string& deployment_path,
                        const std::string& gnss_path, const std::optional<Eigen::Vector3d>& moment_body_Am2) {
   PassFile out;
   Pass& pass = out.pass;
 
-  // Deployment.
-  const CsvTable d = CsvTable::Read(deployment_path);
-  {
-    const std::size_t id = d.column("sensor_id"), x = d.column("x"), y = d.column("y"), z = d.column("z"),
-                      s = d.column("sigma_xy");
-    for (std::size_t i = 0; i < d.num_rows(); ++i) {
-      SensorPrior p;
-      p.sensor_id = d.uint32(i, id);
-      p.p_SinW_m = {d.number(i, x), d.number(i, y), d.number(i, z)};
-      p.sigma_xy_m = d.number(i, s);
-      if (!(p.sigma_xy_m > 0.0)) throw InputError(Where(d, i, "sigma_xy") + "must be > 0");
-      if (pass.SensorIndex(p.sensor_id) >= 0) {
-        throw InputError(Where(d, i, "sensor_id") + "sensor " + std::to_string(p.sensor_id) + " listed twice");
-      }
-      pass.sensors.push_back(p);
-    }
-    if (pass.sensors.empty()) throw InputError(deployment_path + ": no sensor");
-  }
+  pass.sensors = ReadDeploymentFile(deployment_path);
+  const CsvTable d = CsvTable::Read(deployment_path);  // for line numbers in errors below
 
   // Measurements.
   const CsvTable m = CsvTable::Read(measurements_path);

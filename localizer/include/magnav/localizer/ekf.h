@@ -71,9 +71,9 @@ class LocalizerEkf {
   double last_nis_ = 0.0;
 };
 
-// The whole pass through the EKF: epochs (samples and fixes grouped by time,
-// EpochTimes) in time order; at each epoch the fixes first, then the samples in
-// file order. The vessel starts from InitialVesselFromGnss at the first epoch
+// The whole pass through the EKF, as a stream (stream.h StreamingLocalizer,
+// the code magnav-localizer runs): in time order, fixes before samples at
+// equal times, samples in file order. The vessel starts from InitialVesselFromGnss at the first epoch
 // (throws InputError if that fails: the start of the vessel is unknown).
 // Result: the final sensor estimates with their covariance and the bounds
 // (crlb.h) evaluated along the filtered trajectory, and the filtered vessel

@@ -28,6 +28,9 @@ struct PassFile {
   std::optional<double> sigma_B_T;  // "# sigma_B_T:" of the measurements file
 };
 
+// Reads and checks a deployment file (the service takes only this one).
+std::vector<SensorPrior> ReadDeploymentFile(const std::string& path);
+
 // Reads and checks the files. `moment_body_Am2` overrides the measurements
 // file's "# moment_body_Am2:" line; without either the call refuses (no
 // default moment). `gnss_path` may be empty (no fixes). Checks: finite
