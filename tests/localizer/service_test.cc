@@ -1,0 +1,149 @@
+// magnav-localizer as a process on loopback DDS: fed the reference pass
+// (magnetometer samples and GNSS fixes, merged in time order as `magnav
+// replay --magnetometer --gnss` sends them) with bad samples mixed in, it
+// skips and counts the bad ones (one warning per sensor), publishes for every
+// sensor the estimates the library's EKF gives on the good stream, serves a
+// late joiner the last estimates, and stops cleanly.
+#include <signal.h>
+
+#include <cmath>
+#include <map>
+#include <mutex>
+
+#include <gtest/gtest.h>
+
+#include "localize_data.h"
+#include "localizer_node.h"
+#include "magnav/core/units.h"
+#include "magnav/dds/node.h"
+#include "magnav/localizer/ekf.h"
+#include "subprocess.h"
+#include "test_data.h"
+
+namespace magnav::localizer {
+namespace {
+
+using namespace std::chrono_literals;
+namespace msg = ::magnav::msg;
+
+dds::NodeOptions PeerOptions(int domain) {
+  dds::NodeOptions o;
+  o.name = "localizer_service_test";
+  o.domain_id = domain;
+  return o;
+}
+
+msg::MagnetometerSample SampleMsg(const MagSample& s) {
+  msg::MagnetometerSample m;
+  m.sensor_id(s.sensor_id);
+  m.stamp_ns(SecondsToNanos(s.t_s));
+  m.B({s.B_T.x(), s.B_T.y(), s.B_T.z()});
+  m.sigma_B(1e-9);
+  return m;
+}
+
+msg::VesselNav FixMsg(const GnssFix& f) {
+  msg::VesselNav m;
+  m.stamp_ns(SecondsToNanos(f.t_s));
+  m.source(msg::NAV_GNSS);
+  m.position({f.p_xy_m.x(), f.p_xy_m.y(), 0.0});
+  m.sigma_position({f.sigma_m, f.sigma_m, 0.0});
+  return m;
+}
+
+int Count(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (std::size_t p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
+  return n;
+}
+
+TEST(LocalizerService, SkipsBadSamplesAndPublishesTheLibrarysEkfEstimates) {
+  const int domain = testing::TestDomainId();
+  const PassFile file = test::ReferencePass();
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--deployment", testing::ReferencePath("localize_deployment.csv"),
+                               "--moment-body", "30000,2000,10000", "--vessel-z", "0", "--sigma-b", "1e-9",
+                               "--publish-period", "0.5", "--stats-period", "0"},
+                              {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}}, /*merge_stderr=*/true);
+
+  // The library on the good stream as the service sees it (times through ns).
+  Pass seen = file.pass;
+  for (auto& s : seen.samples) s.t_s = FromMsg(SampleMsg(s)).t_s;
+  for (auto& f : seen.gnss) f.t_s = FromMsg(FixMsg(f)).t_s;
+  const Localization want = RunEkf(seen, LocalizerOptions{});
+
+  std::mutex mu;
+  std::map<std::uint32_t, msg::SensorPositionEstimate> last;
+  std::size_t late_joiner_got = 0;
+  {
+    dds::Node peer(PeerOptions(domain));
+    auto reader = peer.CreateReader<msg::SensorPositionEstimate>([&](const msg::SensorPositionEstimate& e, const auto&) {
+      std::lock_guard<std::mutex> lk(mu);
+      last[e.sensor_id()] = e;
+    });
+    auto samples = peer.CreateWriter<msg::MagnetometerSample>();
+    auto fixes = peer.CreateWriter<msg::VesselNav>();
+    samples->SetFlowControl(500, 20s);
+    fixes->SetFlowControl(500, 20s);
+    ASSERT_TRUE(samples->WaitForMatched(1, 20s));
+    ASSERT_TRUE(fixes->WaitForMatched(1, 20s));
+    ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+    std::size_t g = 0;
+    const auto& gnss = file.pass.gnss;
+    for (std::size_t i = 0; i < file.pass.samples.size(); ++i) {
+      const MagSample& s = file.pass.samples[i];
+      while (g < gnss.size() && gnss[g].t_s <= s.t_s) ASSERT_TRUE(fixes->Write(FixMsg(gnss[g++])));
+      ASSERT_TRUE(samples->Write(SampleMsg(s)));
+      if (i == 4000) {  // bad samples mid-stream: each must be skipped, none may touch the state
+        MagSample nan = s;
+        nan.sensor_id = 3;
+        nan.B_T.y() = std::nan("");
+        ASSERT_TRUE(samples->Write(SampleMsg(nan)));
+        ASSERT_TRUE(samples->Write(SampleMsg(nan)));  // warned once, counted twice
+        MagSample unknown = s;
+        unknown.sensor_id = 42;
+        ASSERT_TRUE(samples->Write(SampleMsg(unknown)));
+        MagSample backwards = file.pass.samples[i - 80];  // sensor of row i−80, 2 s in the past
+        ASSERT_TRUE(samples->Write(SampleMsg(backwards)));
+        GnssFix bad_fix = gnss[g - 1];
+        bad_fix.sigma_m = 0.0;
+        ASSERT_TRUE(fixes->Write(FixMsg(bad_fix)));
+      }
+    }
+    while (g < gnss.size()) ASSERT_TRUE(fixes->Write(FixMsg(gnss[g++])));
+    ASSERT_TRUE(samples->WaitForAcknowledgments(60s));
+    ASSERT_TRUE(fixes->WaitForAcknowledgments(60s));
+    // A late joiner gets the last estimate of every sensor (TRANSIENT_LOCAL).
+    ASSERT_TRUE(reader->WaitForSamples(8, 60s));
+    {
+      dds::Node late(PeerOptions(domain));
+      std::atomic<std::size_t> n{0};
+      auto late_reader = late.CreateReader<msg::SensorPositionEstimate>(
+          [&](const msg::SensorPositionEstimate&, const auto&) { ++n; });
+      for (int k = 0; k < 100 && n < 8; ++k) std::this_thread::sleep_for(100ms);
+      late_joiner_got = n;
+    }
+    service.Signal(SIGTERM);
+    EXPECT_EQ(service.Wait(30s), 0);
+  }
+  const std::string log = service.ReadAll();
+  EXPECT_GE(late_joiner_got, 8u);
+  EXPECT_EQ(Count(log, "magnetometer 3 sample"), 1) << log;   // NaN: warned once
+  EXPECT_EQ(Count(log, "magnetometer 42 sample"), 1) << log;  // unknown sensor
+  EXPECT_EQ(Count(log, "time goes backwards"), 1) << log;
+  EXPECT_EQ(Count(log, "vessel_nav sample"), 1) << log;
+  EXPECT_NE(log.find("5 skipped"), std::string::npos) << log;  // the final line's count
+
+  ASSERT_EQ(last.size(), 8u) << log;
+  for (const SensorEstimate& e : want.sensors) {
+    SCOPED_TRACE(e.sensor_id);
+    const msg::SensorPositionEstimate& m = last.at(e.sensor_id);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(m.position()[k], e.p_SinW_m[k], 1e-9);
+    EXPECT_NEAR(m.covariance()[0], e.cov_xy_m2(0, 0), 1e-9 * e.cov_xy_m2(0, 0));
+    EXPECT_NEAR(m.covariance()[4], e.cov_xy_m2(1, 1), 1e-9 * e.cov_xy_m2(1, 1));
+    EXPECT_NEAR(m.crlb()[0], e.crlb_joint_m2(0, 0), 1e-6 * e.crlb_joint_m2(0, 0));
+    EXPECT_EQ(m.stamp_ns(), SecondsToNanos(want.trajectory_t_s.back()));
+  }
+}
+
+}  // namespace
+}  // namespace magnav::localizer
