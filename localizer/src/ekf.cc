@@ -81,26 +81,47 @@ bool LocalizerEkf::Predict(double t_s) {
   VesselCovariance F;
   x_.head<5>() = PropagateVessel(x_.head<5>(), dt, &F);
   const int n = static_cast<int>(x_.size());
-  // Only the vessel rows and columns change: P_vv = F P_vv Fᵀ + Q, P_vs = F P_vs.
-  const VesselCovariance Pvv = P_.topLeftCorner<5, 5>();
-  P_.topLeftCorner<5, 5>() = F * Pvv * F.transpose() + ProcessCovariance(options_.process, dt);
-  if (n > 5) {
-    const Eigen::MatrixXd Pvs = F * P_.topRightCorner(5, n - 5);
-    P_.topRightCorner(5, n - 5) = Pvs;
-    P_.bottomLeftCorner(n - 5, 5) = Pvs.transpose();
-  }
+  // Only the vessel rows and columns change: P_vv = F P_vv Fᵀ + Q, P_sv = P_sv Fᵀ
+  // (lower storage: the sensor-vessel block is below the vessel block).
+  const VesselCovariance Pvv = P_.topLeftCorner<5, 5>();  // kept full
+  const VesselCovariance Pvv_new = F * Pvv * F.transpose() + ProcessCovariance(options_.process, dt);
+  P_.topLeftCorner<5, 5>() = 0.5 * (Pvv_new + Pvv_new.transpose());
+  if (n > 5) P_.bottomLeftCorner(n - 5, 5) = P_.bottomLeftCorner(n - 5, 5) * F.transpose();
   t_s_ = t_s;
   return true;
 }
 
-void LocalizerEkf::JosephUpdate(const Eigen::MatrixXd& U, const Eigen::MatrixXd& K, const Eigen::MatrixXd& S) {
-  // (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K Uᵀ − U Kᵀ + K S Kᵀ, U = P Hᵀ.
-  const Eigen::MatrixXd KS = K * S;
-  P_.noalias() -= K * U.transpose();
-  P_.noalias() -= U * K.transpose();
-  P_.noalias() += KS * K.transpose();
-  P_ = 0.5 * (P_ + P_.transpose()).eval();
+void LocalizerEkf::JosephUpdate(const Eigen::MatrixXd& U, const Eigen::MatrixXd& K, const Eigen::MatrixXd& L_S) {
+  // (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K Uᵀ − U Kᵀ + K S Kᵀ, U = P Hᵀ,
+  // K S Kᵀ = W Wᵀ with W = K L_S (S = L_S L_Sᵀ). One pass over the lower
+  // triangle (the only part stored; see Columns), column by column so each
+  // column's tail stays in cache: O(n²) flops and one sweep of memory.
+  const Eigen::MatrixXd W = K * L_S;
+  const Eigen::Index n = P_.rows();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const Eigen::Index m = n - j;
+    auto col = P_.col(j).tail(m);
+    col.noalias() -= K.bottomRows(m) * U.row(j).transpose();
+    col.noalias() -= U.bottomRows(m) * K.row(j).transpose();
+    col.noalias() += W.bottomRows(m) * W.row(j).transpose();
+  }
+  // The vessel block is kept full (Predict and Columns read it whole).
+  P_.topLeftCorner<5, 5>().triangularView<Eigen::StrictlyUpper>() = P_.topLeftCorner<5, 5>().transpose();
 }
+
+Eigen::MatrixXd LocalizerEkf::Columns(int c, int w) const {
+  // Lower storage: rows < c of columns c.. are the transposed rows c.. left of c.
+  const int n = static_cast<int>(P_.rows());
+  Eigen::MatrixXd out(n, w);
+  out.topRows(c) = P_.block(c, 0, w, c).transpose();
+  out.bottomRows(n - c) = P_.block(c, c, n - c, w);
+  for (int a = 0; a < w; ++a) {
+    for (int b = a + 1; b < w; ++b) out(c + a, b) = out(c + b, a);
+  }
+  return out;
+}
+
+Eigen::MatrixXd LocalizerEkf::covariance() const { return P_.selfadjointView<Eigen::Lower>(); }
 
 bool LocalizerEkf::Update(const MagSample& sample) {
   const int c = Column(sample.sensor_id);
@@ -111,7 +132,7 @@ bool LocalizerEkf::Update(const MagSample& sample) {
   Jacobian3x2 Hs;
   const Eigen::Vector3d predicted = VesselFieldAtSensor(x_.head<5>(), vessel_, p_S, &Hv, &Hs);
   // U = P Hᵀ touches only the vessel and this sensor's columns of P.
-  const Eigen::MatrixXd U = P_.leftCols<5>() * Hv.transpose() + P_.middleCols<2>(c) * Hs.transpose();
+  const Eigen::MatrixXd U = Columns(0, 5) * Hv.transpose() + Columns(c, 2) * Hs.transpose();
   Eigen::Matrix3d S = Hv * U.topRows<5>() + Hs * U.middleRows<2>(c);
   S = 0.5 * (S + S.transpose()).eval();
   S.diagonal().array() += options_.sigma_B_T * options_.sigma_B_T;
@@ -121,14 +142,14 @@ bool LocalizerEkf::Update(const MagSample& sample) {
   const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
   last_nis_ = innovation.dot(llt.solve(innovation));
   x_.noalias() += K * innovation;
-  JosephUpdate(U, K, S);
+  JosephUpdate(U, K, llt.matrixL().toDenseMatrix());
   return true;
 }
 
 bool LocalizerEkf::Update(const GnssFix& fix) {
   if (!fix.p_xy_m.allFinite() || !Predict(fix.t_s)) return false;
   const double sigma = fix.sigma_m > 0.0 ? fix.sigma_m : options_.gnss_sigma_m;
-  const Eigen::MatrixXd U = P_.leftCols<2>();  // H = [I2 0]
+  const Eigen::MatrixXd U = Columns(0, 2);  // H = [I2 0]
   Eigen::Matrix2d S = U.topRows<2>();
   S = 0.5 * (S + S.transpose()).eval();
   S.diagonal().array() += sigma * sigma;
@@ -137,7 +158,7 @@ bool LocalizerEkf::Update(const GnssFix& fix) {
   const Eigen::Vector2d innovation = fix.p_xy_m - x_.head<2>();
   const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
   x_.noalias() += K * innovation;
-  JosephUpdate(U, K, S);
+  JosephUpdate(U, K, llt.matrixL().toDenseMatrix());
   return true;
 }
 
@@ -148,7 +169,7 @@ std::vector<SensorEstimate> LocalizerEkf::SensorEstimates() const {
     SensorEstimate e;
     e.sensor_id = sensors_[j].sensor_id;
     e.p_SinW_m = {x_[c], x_[c + 1], sensors_[j].p_SinW_m.z()};
-    e.cov_xy_m2 = P_.block<2, 2>(c, c);
+    e.cov_xy_m2 << P_(c, c), P_(c + 1, c), P_(c + 1, c), P_(c + 1, c + 1);
     out.push_back(e);
   }
   return out;

@@ -62,6 +62,9 @@ TEST(LocalizerReference, GnssFullBatchReachesTheBound) {
   ASSERT_TRUE(r.batch.summary.converged) << r.batch.summary.BriefReport();
   const auto s = ScoreSensors(r.batch.sensors, r.truth);
   RecordProperty("batch_rmse_m", std::to_string(s.rmse_m));
+  RecordProperty("batch_rms_crlb_m", std::to_string(s.rms_crlb_m));
+  RecordProperty("batch_rms_sigma_m", std::to_string(s.rms_sigma_m));
+  RecordProperty("deployment_rmse_m", std::to_string(DeploymentRmse(r.file.pass, r.truth)));
   // ACCURACY "gnss_full / batch": RMSE 0.107 m, RMS joint bound 0.165 m.
   EXPECT_LE(s.rmse_m, 2.0 * s.rms_crlb_m);
   EXPECT_LE(s.rmse_m, 0.16);  // measured 0.107; the ceiling is 0.35
@@ -72,6 +75,9 @@ TEST(LocalizerReference, GnssFullEkfWithinThreeTimesTheBound) {
   const Runs& r = Full();
   ASSERT_TRUE(r.ekf.summary.converged) << r.ekf.summary.BriefReport();
   const auto s = ScoreSensors(r.ekf.sensors, r.truth);
+  RecordProperty("ekf_rmse_m", std::to_string(s.rmse_m));
+  RecordProperty("ekf_rms_crlb_m", std::to_string(s.rms_crlb_m));
+  RecordProperty("ekf_rms_sigma_m", std::to_string(s.rms_sigma_m));
   // ACCURACY "gnss_full / ekf": RMSE 0.111 m.
   EXPECT_LE(s.rmse_m, 3.0 * s.rms_crlb_m);
   EXPECT_LE(s.rmse_m, 0.17);
@@ -85,6 +91,7 @@ TEST(LocalizerReference, GnssFullCovariancesAreConsistent) {
     // All 16 coordinates at once (the sensors' errors share a common shift):
     // ACCURACY "NEES (16 dof)": ekf 17.9, batch 17.5.
     const double nees = JointNees(l->sensors, r.truth, l->cov_sensors_m2);
+    RecordProperty(l->summary.method + "_nees16", std::to_string(nees));
     EXPECT_GT(nees, kChi2Lo16);
     EXPECT_LT(nees, kChi2Hi16);
     // Per sensor (2 dof each), averaged: 0.95 / 0.88 on this draw — just
@@ -92,6 +99,7 @@ TEST(LocalizerReference, GnssFullCovariancesAreConsistent) {
     // 2-dof common shift (docs/ACCURACY.md); asserted loosely here, and over
     // many draws in the held-out Monte-Carlo test.
     const auto s = ScoreSensors(l->sensors, r.truth);
+    RecordProperty(l->summary.method + "_mean_nees_per_sensor", std::to_string(s.mean_nees));
     EXPECT_GT(s.mean_nees, 0.5);
     EXPECT_LT(s.mean_nees, 4.0);
     // The reported σ is the bound's size (not 2× off it).
@@ -116,6 +124,7 @@ TEST(LocalizerReference, BoundAtTheTruth) {
   joint = std::sqrt(joint);
   known = std::sqrt(known);
   RecordProperty("crlb_joint_m", std::to_string(joint));
+  RecordProperty("crlb_known_m", std::to_string(known));
   // ACCURACY "bound": joint 0.165 m, known trajectory 0.0198 m (RMS over sensors).
   EXPECT_NEAR(joint, 0.165, 0.04);
   EXPECT_NEAR(known, 0.0198, 0.005);
@@ -125,6 +134,7 @@ TEST(LocalizerReference, BoundAtTheTruth) {
   Eigen::VectorXd a = Eigen::VectorXd::Zero(16);
   for (int j = 0; j < 8; ++j) a[2 * j] = 1.0 / 8.0;
   const double sigma_mean_x = std::sqrt(a.dot(b.joint_full * a));
+  RecordProperty("sigma_mean_x_m", std::to_string(sigma_mean_x));
   EXPECT_GE(sigma_mean_x, 3.0 / std::sqrt(1111.0));
   EXPECT_LT(sigma_mean_x, 2.0 * 3.0 / std::sqrt(1111.0));
 }
@@ -136,6 +146,8 @@ TEST(LocalizerReference, GnssFirstFifthOnlyAsGoodAsItsShorterAverage) {
     SCOPED_TRACE(l->summary.method);
     const auto s = ScoreSensors(l->sensors, r.truth);
     const auto s_full = ScoreSensors(full.batch.sensors, full.truth);
+    RecordProperty("first20_" + l->summary.method + "_rmse_m", std::to_string(s.rmse_m));
+    RecordProperty("first20_" + l->summary.method + "_rms_crlb_m", std::to_string(s.rms_crlb_m));
     // ACCURACY "gnss_first20pct": RMSE ekf 0.182, batch 0.187 m; bound 0.352 m
     // = 2.1× the full-GNSS bound (223 fixes instead of 1111: √5 = 2.2).
     EXPECT_LE(s.rmse_m, 0.28);
@@ -144,6 +156,7 @@ TEST(LocalizerReference, GnssFirstFifthOnlyAsGoodAsItsShorterAverage) {
     EXPECT_LT(s.rms_crlb_m / s_full.rms_crlb_m, 2.6);
     EXPECT_GE(DeploymentRmse(r.file.pass, r.truth) / s.rmse_m, 10.0);
     const double nees = JointNees(l->sensors, r.truth, l->cov_sensors_m2);
+    RecordProperty("first20_" + l->summary.method + "_nees16", std::to_string(nees));
     EXPECT_GT(nees, kChi2Lo16);
     EXPECT_LT(nees, kChi2Hi16);
   }

@@ -9,8 +9,9 @@
 // sensor columns), so an update costs O(n²) for n = 5 + 2M, and the
 // prediction O(n) (only the vessel rows change). The covariance is updated in
 // Joseph form, P⁺ = (I − KH) P (I − KH)ᵀ + K R Kᵀ, expanded so that it stays
-// O(n²) (P − K Uᵀ − U Kᵀ + K S Kᵀ with U = P Hᵀ, S = H P Hᵀ + R), and
-// symmetrised after every update.
+// O(n²) (P − K Uᵀ − U Kᵀ + K S Kᵀ with U = P Hᵀ, S = H P Hᵀ + R). Only the
+// lower triangle of P is stored and updated (symmetric by construction; one
+// sweep of memory per update, which is what an update costs at M = 1000).
 //
 // Frames and units: types.h (NED, m, s, T, rad).
 #pragma once
@@ -51,7 +52,8 @@ class LocalizerEkf {
   double time() const { return t_s_; }
   int num_sensors() const { return static_cast<int>(sensors_.size()); }
   const Eigen::VectorXd& state() const { return x_; }
-  const Eigen::MatrixXd& covariance() const { return P_; }
+  // Full covariance (n × n, a copy: only the lower triangle is stored).
+  Eigen::MatrixXd covariance() const;
   VesselVector vessel_state() const { return x_.head<5>(); }
   // Current estimate of every sensor (covariance; the bounds are left zero).
   std::vector<SensorEstimate> SensorEstimates() const;
@@ -60,7 +62,9 @@ class LocalizerEkf {
 
  private:
   int Column(std::uint32_t sensor_id) const;  // −1 if unknown
-  void JosephUpdate(const Eigen::MatrixXd& U, const Eigen::MatrixXd& K, const Eigen::MatrixXd& S);
+  // Columns c .. c+w−1 of the full covariance, from the lower triangle.
+  Eigen::MatrixXd Columns(int c, int w) const;
+  void JosephUpdate(const Eigen::MatrixXd& U, const Eigen::MatrixXd& K, const Eigen::MatrixXd& L_S);
 
   Vessel vessel_;
   std::vector<SensorPrior> sensors_;
