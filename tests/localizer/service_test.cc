@@ -9,11 +9,13 @@
 #include <cmath>
 #include <map>
 #include <mutex>
+#include <thread>
 
 #include <gtest/gtest.h>
 
 #include "localize_data.h"
 #include "localizer_node.h"
+#include "magnav/core/csv.h"
 #include "magnav/core/units.h"
 #include "magnav/dds/node.h"
 #include "magnav/localizer/ekf.h"
@@ -142,6 +144,63 @@ TEST(LocalizerService, SkipsBadSamplesAndPublishesTheLibrarysEkfEstimates) {
     EXPECT_NEAR(m.covariance()[4], e.cov_xy_m2(1, 1), 1e-9 * e.cov_xy_m2(1, 1));
     EXPECT_NEAR(m.crlb()[0], e.crlb_joint_m2(0, 0), 1e-6 * e.crlb_joint_m2(0, 0));
     EXPECT_EQ(m.stamp_ns(), SecondsToNanos(want.trajectory_t_s.back()));
+  }
+}
+
+}  // namespace
+}  // namespace magnav::localizer
+
+namespace magnav::localizer {
+namespace {
+
+// The whole run through the tools: `magnav replay --magnetometer --gnss` feeds
+// the service, `magnav record --topic sensor_position` keeps what it
+// publishes, and the last recorded row of every sensor equals the offline
+// `magnav localize --method ekf` row.
+TEST(LocalizerService, ReplayedAndRecordedRunEqualsTheOfflineCommand) {
+  const int domain = testing::TestDomainId();
+  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}};
+  const std::string dir = testing::TempDir();
+  const std::string m = testing::ReferencePath("localize_measurements.csv"),
+                    d = testing::ReferencePath("localize_deployment.csv"),
+                    g = testing::ReferencePath("localize_gnss_full.csv");
+  const auto [rc, out] = testing::RunCommand({MAGNAV_BIN, "localize", "--measurements", m, "--deployment", d, "--gnss",
+                                              g, "--method", "ekf", "--output", dir + "/offline.csv"},
+                                             {}, 120s);
+  ASSERT_EQ(rc, 0) << out;
+
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--deployment", d, "--moment-body", "30000,2000,10000",
+                               "--vessel-z", "0", "--sigma-b", "1e-9", "--stats-period", "0"},
+                              env, /*merge_stderr=*/true);
+  testing::Subprocess record({MAGNAV_BIN, "record", "--topic", "sensor_position", "--output", dir + "/live.csv"}, env,
+                             /*merge_stderr=*/true);
+  const auto [replay_rc, replay_out] = testing::RunCommand(
+      {MAGNAV_BIN, "replay", "--magnetometer", m, "--gnss", g, "--speed", "0", "--wait-readers", "1"}, env, 120s);
+  ASSERT_EQ(replay_rc, 0) << replay_out;
+  EXPECT_NE(replay_out.find("replayed 44432 magnetometer samples and 1111 vessel_nav fixes"), std::string::npos)
+      << replay_out;
+  service.Signal(SIGTERM);
+  ASSERT_EQ(service.Wait(30s), 0) << service.ReadAll();
+  std::this_thread::sleep_for(1s);  // the final estimates reach the recorder
+  record.Signal(SIGTERM);
+  ASSERT_EQ(record.Wait(30s), 0) << record.ReadAll();
+
+  const CsvTable offline = CsvTable::Read(dir + "/offline.csv");
+  const CsvTable live = CsvTable::Read(dir + "/live.csv");
+  std::map<std::uint32_t, std::size_t> last_row;
+  for (std::size_t i = 0; i < live.num_rows(); ++i) last_row[live.uint32(i, live.column("sensor_id"))] = i;
+  ASSERT_EQ(last_row.size(), offline.num_rows());
+  for (std::size_t j = 0; j < offline.num_rows(); ++j) {
+    const std::uint32_t id = offline.uint32(j, offline.column("sensor_id"));
+    SCOPED_TRACE(id);
+    ASSERT_TRUE(last_row.count(id));
+    const std::size_t r = last_row[id];
+    for (const char* c : {"x", "y", "z", "sigma_x", "sigma_y"}) {
+      EXPECT_NEAR(live.number(r, live.column(c)), offline.number(j, offline.column(c)), 1e-9) << c;
+    }
+    for (const char* c : {"crlb_x", "crlb_y"}) {
+      EXPECT_NEAR(live.number(r, live.column(c)), offline.number(j, offline.column(c)), 1e-6) << c;
+    }
   }
 }
 
