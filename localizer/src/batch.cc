@@ -6,6 +6,7 @@
 #include <chrono>
 
 #include "graph.h"
+#include "magnav/core/ceres_loss.h"
 #include "magnav/core/error.h"
 #include "magnav/localizer/crlb.h"
 #include "magnav/localizer/ekf.h"
@@ -33,7 +34,7 @@ Localization SolveBatch(const Pass& pass, const LocalizerOptions& options, const
   std::vector<double> params = internal::Pack(g, start->trajectory, s0);
 
   const std::unique_ptr<ceres::LossFunction> loss =
-      internal::MakeLoss(options.magnetometer_loss, options.magnetometer_loss_scale_sigma);
+      MakeCeresLoss(options.magnetometer_loss, options.magnetometer_loss_scale_sigma);
   ceres::Problem::Options po;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -70,14 +71,12 @@ Localization SolveBatch(const Pass& pass, const LocalizerOptions& options, const
   for (int k = 0; k < g.num_epochs; ++k) {
     out.trajectory.push_back(Eigen::Map<const VesselVector>(&params[static_cast<std::size_t>(5 * k)]));
   }
-  std::vector<Eigen::Vector2d> s_xy;
   for (int j = 0; j < g.num_sensors; ++j) {
     SensorEstimate e;
     const SensorPrior& p = pass.sensors[static_cast<std::size_t>(j)];
     e.sensor_id = p.sensor_id;
     const Eigen::Map<const Eigen::Vector2d> xy(&params[static_cast<std::size_t>(g.offset(g.num_epochs + j))]);
     e.p_SinW_m = {xy.x(), xy.y(), p.p_SinW_m.z()};
-    s_xy.push_back(xy);
     out.sensors.push_back(e);
   }
   // Covariance: Gauss-Newton information at the solution with the loss's
@@ -93,12 +92,7 @@ Localization SolveBatch(const Pass& pass, const LocalizerOptions& options, const
   }
   const auto t1 = std::chrono::steady_clock::now();
   out.summary.solve_time_s = std::chrono::duration<double>(t1 - t0).count();
-  const CrlbResult bound = ComputeCrlb(pass, options, out.trajectory, s_xy);
-  out.crlb_joint_m2 = bound.joint_full;
-  for (std::size_t j = 0; j < out.sensors.size(); ++j) {
-    out.sensors[j].crlb_joint_m2 = bound.joint[j];
-    out.sensors[j].crlb_known_trajectory_m2 = bound.known_trajectory[j];
-  }
+  out.crlb_joint_m2 = AttachCrlb(pass, options, out.trajectory, &out.sensors).joint_full;
   out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   return out;
 }

@@ -33,4 +33,16 @@ CrlbResult ComputeCrlb(const Pass& pass, const LocalizerOptions& options, const 
   return out;
 }
 
+CrlbResult AttachCrlb(const Pass& pass, const LocalizerOptions& options, const std::vector<VesselVector>& trajectory,
+                      std::vector<SensorEstimate>* sensors) {
+  std::vector<Eigen::Vector2d> s_xy;
+  for (const auto& e : *sensors) s_xy.push_back(e.p_SinW_m.head<2>());
+  CrlbResult b = ComputeCrlb(pass, options, trajectory, s_xy);
+  for (std::size_t j = 0; j < sensors->size(); ++j) {
+    (*sensors)[j].crlb_joint_m2 = b.joint[j];
+    (*sensors)[j].crlb_known_trajectory_m2 = b.known_trajectory[j];
+  }
+  return b;
+}
+
 }  // namespace magnav::localizer

@@ -130,16 +130,4 @@ bool KnownTrajectoryCovariances(const Graph& g, const Eigen::SparseMatrix<double
   return true;
 }
 
-std::unique_ptr<ceres::LossFunction> MakeLoss(LossType type, double scale_sigma) {
-  switch (type) {
-    case LossType::kTrivial:
-      return nullptr;
-    case LossType::kHuber:
-      return std::make_unique<ceres::HuberLoss>(scale_sigma);
-    case LossType::kCauchy:
-      return std::make_unique<ceres::CauchyLoss>(scale_sigma);
-  }
-  return nullptr;
-}
-
 }  // namespace magnav::localizer::internal

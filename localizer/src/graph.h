@@ -64,7 +64,4 @@ bool SensorMarginalCovariance(const Graph& g, const Eigen::SparseMatrix<double>&
 bool KnownTrajectoryCovariances(const Graph& g, const Eigen::SparseMatrix<double>& H,
                                 std::vector<Eigen::Matrix2d>* cov);
 
-// A Ceres loss of a type at a scale in σ (null for trivial).
-std::unique_ptr<ceres::LossFunction> MakeLoss(LossType type, double scale_sigma);
-
 }  // namespace magnav::localizer::internal

@@ -121,15 +121,7 @@ void StreamingLocalizer::Flush() { Release(true); }
 std::vector<SensorEstimate> StreamingLocalizer::Estimates(bool bounds) const {
   if (!ekf_) return {};
   std::vector<SensorEstimate> out = ekf_->SensorEstimates();
-  if (bounds && !trajectory_.empty()) {
-    std::vector<Eigen::Vector2d> s_xy;
-    for (const auto& e : out) s_xy.push_back(e.p_SinW_m.head<2>());
-    const CrlbResult b = ComputeCrlb(pass_, options_, trajectory_, s_xy);
-    for (std::size_t j = 0; j < out.size(); ++j) {
-      out[j].crlb_joint_m2 = b.joint[j];
-      out[j].crlb_known_trajectory_m2 = b.known_trajectory[j];
-    }
-  }
+  if (bounds && !trajectory_.empty()) AttachCrlb(pass_, options_, trajectory_, &out);
   return out;
 }
 
@@ -149,14 +141,7 @@ Localization StreamingLocalizer::Result() const {
   out.summary.gnss_updates = static_cast<int>(pass_.gnss.size());
   out.summary.converged = failed_ == 0 && ekf_->covariance().allFinite();
   out.summary.message = failed_ == 0 ? "every sample used" : std::to_string(failed_) + " updates failed";
-  std::vector<Eigen::Vector2d> s_xy;
-  for (const auto& e : out.sensors) s_xy.push_back(e.p_SinW_m.head<2>());
-  const CrlbResult b = ComputeCrlb(pass_, options_, trajectory_, s_xy);
-  out.crlb_joint_m2 = b.joint_full;
-  for (std::size_t j = 0; j < out.sensors.size(); ++j) {
-    out.sensors[j].crlb_joint_m2 = b.joint[j];
-    out.sensors[j].crlb_known_trajectory_m2 = b.known_trajectory[j];
-  }
+  out.crlb_joint_m2 = AttachCrlb(pass_, options_, trajectory_, &out.sensors).joint_full;
   out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

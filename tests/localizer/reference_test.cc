@@ -33,27 +33,23 @@ struct Runs {
   Localization ekf, batch;
 };
 
+// Both estimators on the reference pass with one GNSS file (computed once per process).
+Runs* Run(const std::string& gnss) {
+  auto* r = new Runs{ReferencePass(gnss), {}, {}, {}};
+  r->truth = TruthSensors(r->file.pass);
+  const LocalizerOptions opt;
+  r->ekf = RunEkf(r->file.pass, opt);
+  r->batch = SolveBatch(r->file.pass, opt, &r->ekf);
+  return r;
+}
+
 const Runs& Full() {
-  static const Runs* runs = [] {
-    auto* r = new Runs{ReferencePass("localize_gnss_full.csv"), {}, {}, {}};
-    r->truth = TruthSensors(r->file.pass);
-    const LocalizerOptions opt;
-    r->ekf = RunEkf(r->file.pass, opt);
-    r->batch = SolveBatch(r->file.pass, opt, &r->ekf);
-    return r;
-  }();
+  static const Runs* runs = Run("localize_gnss_full.csv");
   return *runs;
 }
 
 const Runs& First20() {
-  static const Runs* runs = [] {
-    auto* r = new Runs{ReferencePass("localize_gnss_first20pct.csv"), {}, {}, {}};
-    r->truth = TruthSensors(r->file.pass);
-    const LocalizerOptions opt;
-    r->ekf = RunEkf(r->file.pass, opt);
-    r->batch = SolveBatch(r->file.pass, opt, &r->ekf);
-    return r;
-  }();
+  static const Runs* runs = Run("localize_gnss_first20pct.csv");
   return *runs;
 }
 

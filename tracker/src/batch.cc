@@ -49,7 +49,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d
 
   // Factors grouped by their earliest epoch (measurements of k, process k→k+1).
   const auto turn_loss =
-      internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
+      MakeCeresLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
   std::vector<std::vector<internal::Factor>> factors(epochs.size());
   std::vector<internal::Factor> warm_turn;  // Gaussian warm-up turn-rate factors
   for (std::size_t k = 0; k < epochs.size(); ++k) {

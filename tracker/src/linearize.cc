@@ -12,18 +12,6 @@
 
 namespace magnav::tracker::internal {
 
-std::unique_ptr<ceres::LossFunction> MakeLoss(LossType type, double scale_sigma) {
-  switch (type) {
-    case LossType::kTrivial:
-      return nullptr;
-    case LossType::kHuber:
-      return std::make_unique<ceres::HuberLoss>(scale_sigma);
-    case LossType::kCauchy:
-      return std::make_unique<ceres::CauchyLoss>(scale_sigma);
-  }
-  return nullptr;
-}
-
 ceres::Problem::Options NonOwningProblemOptions() {
   ceres::Problem::Options o;
   o.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -163,7 +151,7 @@ PassResult SolveWithContinuation(const TrackerOptions& options, int max_iteratio
                                                                      options.intermediate_function_tolerance)
                                                           : options.function_tolerance;
     co.function_tolerance = so.function_tolerance;
-    out.final_loss = MakeLoss(options.measurement_loss, scale);
+    out.final_loss = MakeCeresLoss(options.measurement_loss, scale);
     for (Factor* f : measurements) f->loss = out.final_loss.get();
     const ChainProblem chain = build(warm);
     if (options.batch_solver == TrackerOptions::BatchSolver::kChainLevenbergMarquardt) {

@@ -1,7 +1,7 @@
 // Robust-loss choice shared by the estimators (tracker, localizer): the kind
 // of loss applied to a whitened residual block, and its name on command lines
-// and in config files. Each estimator turns it into a Ceres loss itself (core
-// does not depend on Ceres).
+// and in config files. The Ceres loss it stands for is in core/ceres_loss.h
+// (header-only: core itself does not link Ceres).
 #pragma once
 
 #include <string>

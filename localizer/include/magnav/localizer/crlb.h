@@ -41,4 +41,9 @@ struct CrlbResult {
 CrlbResult ComputeCrlb(const Pass& pass, const LocalizerOptions& options, const std::vector<VesselVector>& trajectory,
                        const std::vector<Eigen::Vector2d>& sensors_xy);
 
+// The bounds at a trajectory and at the sensors' estimated positions, written
+// into each estimate's crlb_* fields; returns the full result.
+CrlbResult AttachCrlb(const Pass& pass, const LocalizerOptions& options, const std::vector<VesselVector>& trajectory,
+                      std::vector<SensorEstimate>* sensors);
+
 }  // namespace magnav::localizer
