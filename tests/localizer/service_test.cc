@@ -174,8 +174,15 @@ TEST(LocalizerService, ReplayedAndRecordedRunEqualsTheOfflineCommand) {
                               env, /*merge_stderr=*/true);
   testing::Subprocess record({MAGNAV_BIN, "record", "--topic", "sensor_position", "--output", dir + "/live.csv"}, env,
                              /*merge_stderr=*/true);
+  // The input streams recorded too: the GNSS one in the file format `magnav localize --gnss` reads.
+  testing::Subprocess record_nav({MAGNAV_BIN, "record", "--topic", "vessel_nav", "--count", "1111", "--output",
+                                  dir + "/nav.csv"},
+                                 env, /*merge_stderr=*/true);
+  testing::Subprocess record_mag({MAGNAV_BIN, "record", "--topic", "magnetometer", "--count", "44432", "--output",
+                                  dir + "/mag.csv"},
+                                 env, /*merge_stderr=*/true);
   const auto [replay_rc, replay_out] = testing::RunCommand(
-      {MAGNAV_BIN, "replay", "--magnetometer", m, "--gnss", g, "--speed", "0", "--wait-readers", "1"}, env, 120s);
+      {MAGNAV_BIN, "replay", "--magnetometer", m, "--gnss", g, "--speed", "0", "--wait-readers", "2"}, env, 120s);
   ASSERT_EQ(replay_rc, 0) << replay_out;
   EXPECT_NE(replay_out.find("replayed 44432 magnetometer samples and 1111 vessel_nav fixes"), std::string::npos)
       << replay_out;
@@ -184,6 +191,27 @@ TEST(LocalizerService, ReplayedAndRecordedRunEqualsTheOfflineCommand) {
   std::this_thread::sleep_for(1s);  // the final estimates reach the recorder
   record.Signal(SIGTERM);
   ASSERT_EQ(record.Wait(30s), 0) << record.ReadAll();
+  ASSERT_EQ(record_nav.Wait(30s), 0) << record_nav.ReadAll();
+  ASSERT_EQ(record_mag.Wait(30s), 0) << record_mag.ReadAll();
+  {
+    const CsvTable a = CsvTable::Read(g), b = CsvTable::Read(dir + "/nav.csv");
+    ASSERT_EQ(b.num_rows(), a.num_rows());
+    for (std::size_t i = 0; i < a.num_rows(); i += 97) {
+      for (const char* c : {"t", "x", "y", "sigma"}) EXPECT_EQ(b.number(i, b.column(c)), a.number(i, a.column(c))) << c;
+    }
+    // Order is guaranteed per sensor only: match rows by (t, sensor_id).
+    const CsvTable ma = CsvTable::Read(m), mb = CsvTable::Read(dir + "/mag.csv");
+    ASSERT_EQ(mb.num_rows(), ma.num_rows());
+    std::map<std::pair<double, std::uint32_t>, std::size_t> row_of;
+    for (std::size_t i = 0; i < mb.num_rows(); ++i) {
+      row_of[{mb.number(i, mb.column("t")), mb.uint32(i, mb.column("sensor_id"))}] = i;
+    }
+    for (std::size_t i = 0; i < ma.num_rows(); i += 997) {
+      const auto it = row_of.find({ma.number(i, ma.column("t")), ma.uint32(i, ma.column("sensor_id"))});
+      ASSERT_NE(it, row_of.end()) << "row " << i;
+      for (const char* c : {"B_x", "B_y", "B_z"}) EXPECT_EQ(mb.number(it->second, mb.column(c)), ma.number(i, ma.column(c))) << c;
+    }
+  }
 
   const CsvTable offline = CsvTable::Read(dir + "/offline.csv");
   const CsvTable live = CsvTable::Read(dir + "/live.csv");
