@@ -12,6 +12,10 @@
 
 namespace magnav::localizer {
 
+double GnssSigma(const GnssFix& fix, const LocalizerOptions& options) {
+  return options.gnss_sigma_m > 0.0 ? options.gnss_sigma_m : fix.sigma_m;
+}
+
 bool InitialVesselFromGnss(const std::vector<GnssFix>& fixes, double t0_s, const LocalizerOptions& options,
                            VesselVector* x0, VesselCovariance* P0, double window_s) {
   // Straight line p(t) = a + b (t − t0) by least squares over the window.
@@ -22,7 +26,8 @@ bool InitialVesselFromGnss(const std::vector<GnssFix>& fixes, double t0_s, const
   for (const GnssFix& f : fixes) {
     if (f.t_s < t0_s - window_s || f.t_s > t0_s + window_s) continue;
     const double dt = f.t_s - t0_s;
-    const double sigma = f.sigma_m > 0.0 ? f.sigma_m : options.gnss_sigma_m;
+    const double sigma = GnssSigma(f, options);
+    if (!(sigma > 0.0)) continue;
     const double w = 1.0 / (sigma * sigma);
     const Eigen::Vector2d phi(1.0, dt);
     A += w * phi * phi.transpose();
@@ -147,8 +152,8 @@ bool LocalizerEkf::Update(const MagSample& sample) {
 }
 
 bool LocalizerEkf::Update(const GnssFix& fix) {
-  if (!fix.p_xy_m.allFinite() || !Predict(fix.t_s)) return false;
-  const double sigma = fix.sigma_m > 0.0 ? fix.sigma_m : options_.gnss_sigma_m;
+  const double sigma = GnssSigma(fix, options_);
+  if (!(sigma > 0.0) || !fix.p_xy_m.allFinite() || !Predict(fix.t_s)) return false;
   const Eigen::MatrixXd U = Columns(0, 2);  // H = [I2 0]
   Eigen::Matrix2d S = U.topRows<2>();
   S = 0.5 * (S + S.transpose()).eval();

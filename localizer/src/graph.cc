@@ -3,7 +3,9 @@
 #include <Eigen/Cholesky>
 #include <Eigen/SparseCholesky>
 
+#include "magnav/core/error.h"
 #include "magnav/localizer/cost_functions.h"
+#include "magnav/localizer/ekf.h"
 
 namespace magnav::localizer::internal {
 
@@ -25,7 +27,12 @@ Graph BuildGraph(const Pass& pass, const LocalizerOptions& options) {
     }
     for (int i : g.timeline.gnss_at[k]) {
       const GnssFix& f = pass.gnss[static_cast<std::size_t>(i)];
-      add(Factor::Kind::kGnss, new GnssCost(f.p_xy_m, f.sigma_m > 0.0 ? f.sigma_m : options.gnss_sigma_m), {k});
+      const double sigma = GnssSigma(f, options);
+      if (!(sigma > 0.0)) {
+        throw InputError("localizer: the GNSS fix at t = " + std::to_string(f.t_s) +
+                         " s has no sigma (give one per fix or LocalizerOptions::gnss_sigma_m)");
+      }
+      add(Factor::Kind::kGnss, new GnssCost(f.p_xy_m, sigma), {k});
     }
     for (int i : g.timeline.samples_at[k]) {
       const MagSample& s = pass.samples[static_cast<std::size_t>(i)];

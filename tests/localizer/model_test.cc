@@ -164,6 +164,7 @@ TEST(LocalizerEkf, BadSamplesLeaveTheStateUntouched) {
   EXPECT_FALSE(ekf.Update(MagSample{0.5, 3, Eigen::Vector3d(1e-9, 0, 0)}));  // before time()
   EXPECT_FALSE(ekf.Update(MagSample{1.0, 3, Eigen::Vector3d(std::nan(""), 0, 0)}));
   EXPECT_FALSE(ekf.Update(GnssFix{1.0, Eigen::Vector2d(std::nan(""), 0), 3.0}));
+  EXPECT_FALSE(ekf.Update(GnssFix{1.0, Eigen::Vector2d(1.0, 0), 0.0}));  // no sigma, no override: no guess
   EXPECT_FALSE(ekf.Predict(std::numeric_limits<double>::infinity()));
   EXPECT_EQ(ekf.state(), x);
   EXPECT_EQ(ekf.covariance(), P);
@@ -312,6 +313,10 @@ TEST(LocalizerOptions, DefaultsAreValidAndBadOnesNamed) {
   o.process.turn_rate_radps_per_sqrt_s = 0.0;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("turn_rate"), std::string::npos);
+  o = LocalizerOptions{};
+  o.gnss_sigma_m = -1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("gnss_sigma_m"), std::string::npos);
   o = LocalizerOptions{};
   o.sigma_B_T = std::nan("");
   EXPECT_FALSE(o.IsValid(&why));

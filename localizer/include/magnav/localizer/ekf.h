@@ -26,6 +26,9 @@
 
 namespace magnav::localizer {
 
+// The 1-σ (m) a fix is used with: options.gnss_sigma_m if set, else the fix's.
+double GnssSigma(const GnssFix& fix, const LocalizerOptions& options);
+
 // Initial vessel state at time t0_s from the GNSS fixes of the first
 // `window_s` seconds after t0 (straight-line least-squares fit: position,
 // speed, heading; turn rate 0) and its covariance (position σ from the fit,

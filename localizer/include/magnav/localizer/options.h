@@ -47,9 +47,10 @@ struct LocalizerOptions {
   // 1-σ noise of each magnetometer axis (T). Set from the file's
   // "# sigma_B_T:" line by `magnav localize` when present.
   double sigma_B_T = 1e-9;
-  // GNSS 1-σ per axis (m) used when a fix carries none (sigma ≤ 0); a fix's
-  // own sigma otherwise.
-  double gnss_sigma_m = 3.0;
+  // GNSS 1-σ per axis (m) for every fix, overriding the fixes' own sigma;
+  // 0 (default) = each fix's own sigma. A fix without a sigma (≤ 0) and no
+  // override is refused (EKF) or an error (batch, bounds): never a guess.
+  double gnss_sigma_m = 0.0;
   // Batch: robust loss on each magnetometer residual (3-vector, whitened) and
   // its scale in σ. Huber at 3σ leaves Gaussian residuals almost untouched and
   // bounds the pull of a spike.
