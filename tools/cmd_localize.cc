@@ -20,6 +20,7 @@ namespace {
 struct LocalizeArgs {
   std::string measurements, deployment, gnss, output, method;
   Vec3Arg moment;
+  std::string vessel_start;
   double sigma_B_T = 0.0;  // 0: from the file
   std::string loss = LossTypeName(localizer::LocalizerOptions{}.magnetometer_loss);
   localizer::LocalizerOptions options;
@@ -40,6 +41,15 @@ void RunLocalize(LocalizeArgs a) {
   }
   if (!ParseLossType(a.loss, &a.options.magnetometer_loss)) {
     throw InputError("--loss: expected huber, cauchy or trivial, got '" + a.loss + "'");
+  }
+  if (!a.vessel_start.empty()) {
+    const auto v = ParseNumberList(a.vessel_start);
+    if (!v || v->size() != 4) {
+      throw InputError("--vessel-start: expected X,Y,SPEED,HEADING (m, m, m/s, rad), got '" + a.vessel_start + "'");
+    }
+    localizer::VesselVector x0;
+    x0 << (*v)[0], (*v)[1], (*v)[2], (*v)[3], 0.0;
+    a.options.vessel_start = x0;
   }
   std::string why;
   if (!a.options.IsValid(&why)) throw InputError("options: " + why);
@@ -82,7 +92,13 @@ void AddLocalizeCommand(CLI::App& app) {
                   "magnetometer file: t,sensor_id,B_x,B_y,B_z (T) with '# moment_body_Am2:' and '# vessel_z_m:'")
       ->required();
   cmd->add_option("--deployment", args->deployment, "deployment guesses: sensor_id,x,y,z,sigma_xy (m)")->required();
-  cmd->add_option("--gnss", args->gnss, "vessel GNSS fixes: t,x,y,sigma (m); needed to start the vessel");
+  cmd->add_option("--gnss", args->gnss,
+                  "vessel GNSS fixes: t,x,y,sigma (m); the vessel starts from the first 10 s of them");
+  cmd->add_option("--vessel-start", args->vessel_start,
+                  "X,Y,SPEED,HEADING of the vessel at the first sample (m, m, m/s, rad), for a pass without GNSS at "
+                  "its start; 1-sigma --start-sigma-position, 0.5 m/s, 0.5 rad");
+  cmd->add_option("--start-sigma-position", args->options.initial.position_m,
+                  "1-sigma of --vessel-start's position, m");
   AddVec3Option(*cmd, "--moment-body", &args->moment,
                 "vessel body moment, A*m^2 (default: the measurements file's '# moment_body_Am2:')");
   cmd->add_option("--method", args->method, "ekf (EKF-SLAM) or batch (smoother over the whole pass)")

@@ -194,7 +194,7 @@ Localization RunEkf(const Pass& pass, const LocalizerOptions& options) {
   s.Flush();
   if (!s.initialized()) {
     throw InputError("localizer: the vessel's start is unknown: the EKF needs at least two GNSS fixes spanning "
-                     "2 s within 10 s of the first sample");
+                     "2 s within 10 s of the first sample, or a given start (--vessel-start X,Y,SPEED,HEADING)");
   }
   Localization out = s.Result();
   out.summary.solve_time_s =

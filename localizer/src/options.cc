@@ -32,6 +32,7 @@ bool InitialVesselSigma::IsValid(std::string* error) const {
 
 bool LocalizerOptions::IsValid(std::string* error) const {
   if (!process.IsValid(error) || !initial.IsValid(error)) return false;
+  if (vessel_start && !vessel_start->allFinite()) return Fail(error, "vessel_start must be finite");
   if (!PositiveFinite(sigma_B_T)) return Fail(error, "sigma_B_T must be > 0");
   if (!(gnss_sigma_m >= 0.0) || !std::isfinite(gnss_sigma_m)) return Fail(error, "gnss_sigma_m must be >= 0");
   if (magnetometer_loss != LossType::kTrivial && !PositiveFinite(magnetometer_loss_scale_sigma)) {

@@ -70,7 +70,16 @@ bool StreamingLocalizer::TryStart(bool final) {
   }
   VesselVector x0;
   VesselCovariance P0;
-  if (InitialVesselFromGnss(fixes, t0, options_, &x0, &P0, stream_.init_window_s)) {
+  bool started = InitialVesselFromGnss(fixes, t0, options_, &x0, &P0, stream_.init_window_s);
+  if (!started && options_.vessel_start) {
+    const InitialVesselSigma& s = options_.initial;
+    x0 = *options_.vessel_start;
+    P0 = VesselVector(s.position_m * s.position_m, s.position_m * s.position_m, s.speed_mps * s.speed_mps,
+                      s.heading_rad * s.heading_rad, s.turn_rate_radps * s.turn_rate_radps)
+             .asDiagonal();
+    started = true;
+  }
+  if (started) {
     ekf_ = std::make_unique<LocalizerEkf>(vessel_, sensors_, t0, x0, P0, options_);
     return true;
   }

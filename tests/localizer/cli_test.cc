@@ -132,6 +132,24 @@ TEST(LocalizeCli, BadInputExitsTwoNamingFileLineAndField) {
                                    dir + "/out.csv"});
   EXPECT_EQ(rc, 2) << out;
   EXPECT_NE(out.find("start is unknown"), std::string::npos) << out;
+  const auto [rc2, out2] = Localize({"--measurements", m, "--deployment", deploy, "--method", "ekf", "--output",
+                                     dir + "/out.csv", "--vessel-start", "1,2"});
+  EXPECT_EQ(rc2, 2) << out2;
+  EXPECT_NE(out2.find("--vessel-start: expected X,Y,SPEED,HEADING"), std::string::npos) << out2;
+}
+
+TEST(LocalizeCli, WithoutGnssAGivenStartIsUsed) {
+  const std::string dir = testing::TempDir();
+  const auto [rc, out] = Localize({"--measurements", testing::ReferencePath("localize_measurements.csv"),
+                                   "--deployment", testing::ReferencePath("localize_deployment.csv"), "--vessel-start",
+                                   "-125,-95,2,0.1", "--method", "ekf", "--output", dir + "/s.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  PassFile f = test::ReferencePass("");
+  LocalizerOptions opt;
+  VesselVector start;
+  start << -125.0, -95.0, 2.0, 0.1, 0.0;
+  opt.vessel_start = start;
+  ExpectFileEqualsLibrary(dir + "/s.csv", RunEkf(f.pass, opt));
 }
 
 }  // namespace

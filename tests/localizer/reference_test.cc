@@ -158,5 +158,44 @@ TEST(LocalizerReference, GnssFirstFifthOnlyAsGoodAsItsShorterAverage) {
   }
 }
 
+// No GNSS at all (the paper's first case): the vessel starts from a given
+// state 7 m and 0.1 rad off the truth. The shape of the constellation is still
+// found (errors minus their mean), but the common shift is only as good as the
+// deployment guesses' average (15 m / √8 = 5.3 m per axis), and the bound says so.
+TEST(LocalizerReference, WithoutGnssOnlyTheShapeIsFound) {
+  PassFile f = ReferencePass("");
+  ASSERT_TRUE(f.pass.gnss.empty());
+  const auto truth = TruthSensors(f.pass);
+  LocalizerOptions opt;
+  VesselVector start;
+  start << -125.0, -95.0, 2.0, 0.1, 0.0;  // truth: (-130, -100), 2 m/s, heading 0
+  opt.vessel_start = start;
+  const Localization ekf = RunEkf(f.pass, opt);
+  const Localization batch = SolveBatch(f.pass, opt, &ekf);
+  for (const Localization* l : {&ekf, &batch}) {
+    SCOPED_TRACE(l->summary.method);
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (std::size_t j = 0; j < 8; ++j) mean += (l->sensors[j].p_SinW_m.head<2>() - truth[j]) / 8.0;
+    double shape = 0.0;
+    for (std::size_t j = 0; j < 8; ++j) {
+      shape += (l->sensors[j].p_SinW_m.head<2>() - truth[j] - mean).squaredNorm() / 8.0;
+    }
+    shape = std::sqrt(shape);
+    Eigen::VectorXd ax = Eigen::VectorXd::Zero(16), ay = Eigen::VectorXd::Zero(16);
+    for (int j = 0; j < 8; ++j) {
+      ax[2 * j] = 1.0 / 8.0;
+      ay[2 * j + 1] = 1.0 / 8.0;
+    }
+    const double sx = std::sqrt(ax.dot(l->crlb_joint_m2 * ax)), sy = std::sqrt(ay.dot(l->crlb_joint_m2 * ay));
+    RecordProperty("nognss_" + l->summary.method + "_shape_rmse_m", std::to_string(shape));
+    RecordProperty("nognss_" + l->summary.method + "_shift_m", std::to_string(mean.norm()));
+    RecordProperty("nognss_" + l->summary.method + "_shift_sigma_m", std::to_string(sx));
+    EXPECT_LT(shape, 0.15);  // measured 0.085 m (ekf and batch)
+    EXPECT_NEAR(sx, 15.0 / std::sqrt(8.0), 1.0);
+    EXPECT_LT(std::abs(mean.x()), 3.0 * sx);
+    EXPECT_LT(std::abs(mean.y()), 3.0 * sy);
+  }
+}
+
 }  // namespace
 }  // namespace magnav::localizer

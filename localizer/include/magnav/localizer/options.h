@@ -6,9 +6,11 @@
 // docs/ACCURACY.md for what was tuned and what is held out.
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "magnav/core/loss.h"
+#include "magnav/localizer/types.h"
 
 namespace magnav::localizer {
 
@@ -31,9 +33,9 @@ struct LocalizerProcessNoise {
 };
 
 // Uncertainty of the vessel's initial state (EKF start; the batch is started
-// from the EKF). Position σ is the first GNSS fix's σ when there is one.
+// from the EKF). Position σ is the GNSS fit's when the start comes from GNSS.
 struct InitialVesselSigma {
-  double position_m = 10.0;  // used only without a GNSS fix at the start
+  double position_m = 10.0;  // used only with LocalizerOptions::vessel_start
   double speed_mps = 0.5;
   double heading_rad = 0.5;
   double turn_rate_radps = 0.05;
@@ -44,6 +46,11 @@ struct InitialVesselSigma {
 struct LocalizerOptions {
   LocalizerProcessNoise process;
   InitialVesselSigma initial;
+  // Where the vessel starts (state at the first sample: x, y, speed, heading,
+  // turn rate), for a pass without GNSS fixes at its start; σ from `initial`.
+  // Unset (default): the start comes from the first GNSS fixes, and without
+  // them the EKF refuses to start (no guessed start).
+  std::optional<VesselVector> vessel_start;
   // 1-σ noise of each magnetometer axis (T). Set from the file's
   // "# sigma_B_T:" line by `magnav localize` when present.
   double sigma_B_T = 1e-9;
