@@ -1,17 +1,11 @@
 #include "magnav/tracker/options.h"
 
 #include <cmath>
+
+#include "magnav/core/option_check.h"
 #include <sstream>
 
 namespace magnav::tracker {
-
-namespace {
-bool Fail(std::string* error, const std::string& what) {
-  if (error) *error = what;
-  return false;
-}
-bool PositiveFinite(double x) { return std::isfinite(x) && x > 0.0; }
-}  // namespace
 
 bool ParseInitSource(const std::string& name, InitSource* source) {
   if (name == "samples") {
@@ -39,53 +33,53 @@ const char* InitSourceName(InitSource source) {
 }
 
 bool ProcessNoise::IsValid(std::string* error) const {
-  if (!PositiveFinite(position_m_per_sqrt_s)) return Fail(error, "process.position_m_per_sqrt_s must be > 0");
-  if (!PositiveFinite(speed_mps_per_sqrt_s)) return Fail(error, "process.speed_mps_per_sqrt_s must be > 0");
+  if (!PositiveFinite(position_m_per_sqrt_s)) return FailOption(error, "process.position_m_per_sqrt_s must be > 0");
+  if (!PositiveFinite(speed_mps_per_sqrt_s)) return FailOption(error, "process.speed_mps_per_sqrt_s must be > 0");
   if (!PositiveFinite(heading_rad_per_sqrt_s))
-    return Fail(error, "process.heading_rad_per_sqrt_s must be > 0");
+    return FailOption(error, "process.heading_rad_per_sqrt_s must be > 0");
   if (!PositiveFinite(turn_rate_radps_per_sqrt_s)) {
-    return Fail(error, "process.turn_rate_radps_per_sqrt_s must be > 0");
+    return FailOption(error, "process.turn_rate_radps_per_sqrt_s must be > 0");
   }
   if (!PositiveFinite(turn_rate_loss_scale_sigma)) {
-    return Fail(error, "process.turn_rate_loss_scale_sigma must be > 0");
+    return FailOption(error, "process.turn_rate_loss_scale_sigma must be > 0");
   }
   if (!PositiveFinite(window_turn_rate_radps_per_sqrt_s)) {
-    return Fail(error, "process.window_turn_rate_radps_per_sqrt_s must be > 0");
+    return FailOption(error, "process.window_turn_rate_radps_per_sqrt_s must be > 0");
   }
   if (!std::isfinite(turn_rate_warmup_radps_per_sqrt_s) || turn_rate_warmup_radps_per_sqrt_s < 0.0) {
-    return Fail(error, "process.turn_rate_warmup_radps_per_sqrt_s must be >= 0");
+    return FailOption(error, "process.turn_rate_warmup_radps_per_sqrt_s must be >= 0");
   }
   return true;
 }
 
 bool InitOptions::IsValid(std::string* error) const {
-  if (!PositiveFinite(min_tensor_snr)) return Fail(error, "init.min_tensor_snr must be > 0");
-  if (min_fixes < 3) return Fail(error, "init.min_fixes must be >= 3");
-  if (!std::isfinite(min_span_s) || min_span_s < 0.0) return Fail(error, "init.min_span_s must be >= 0");
-  if (!PositiveFinite(span_s) || span_s < min_span_s) return Fail(error, "init.span_s must be >= min_span_s");
-  if (!PositiveFinite(outlier_threshold_mad)) return Fail(error, "init.outlier_threshold_mad must be > 0");
+  if (!PositiveFinite(min_tensor_snr)) return FailOption(error, "init.min_tensor_snr must be > 0");
+  if (min_fixes < 3) return FailOption(error, "init.min_fixes must be >= 3");
+  if (!std::isfinite(min_span_s) || min_span_s < 0.0) return FailOption(error, "init.min_span_s must be >= 0");
+  if (!PositiveFinite(span_s) || span_s < min_span_s) return FailOption(error, "init.span_s must be >= min_span_s");
+  if (!PositiveFinite(outlier_threshold_mad)) return FailOption(error, "init.outlier_threshold_mad must be > 0");
   return true;
 }
 
 bool TrackerOptions::IsValid(std::string* error) const {
-  if (!PositiveFinite(default_sigma_B_T)) return Fail(error, "default_sigma_B_T must be > 0");
-  if (!PositiveFinite(default_sigma_T_Tpm)) return Fail(error, "default_sigma_T_Tpm must be > 0");
+  if (!PositiveFinite(default_sigma_B_T)) return FailOption(error, "default_sigma_B_T must be > 0");
+  if (!PositiveFinite(default_sigma_T_Tpm)) return FailOption(error, "default_sigma_T_Tpm must be > 0");
   if (!PositiveFinite(measurement_loss_scale_sigma))
-    return Fail(error, "measurement_loss_scale_sigma must be > 0");
+    return FailOption(error, "measurement_loss_scale_sigma must be > 0");
   if (!process.IsValid(error) || !init.IsValid(error)) return false;
   if (!std::isfinite(epoch_tolerance_s) || epoch_tolerance_s < 0.0) {
-    return Fail(error, "epoch_tolerance_s must be >= 0");
+    return FailOption(error, "epoch_tolerance_s must be >= 0");
   }
-  if (max_num_iterations < 1) return Fail(error, "max_num_iterations must be >= 1");
-  if (window_max_num_iterations < 1) return Fail(error, "window_max_num_iterations must be >= 1");
+  if (max_num_iterations < 1) return FailOption(error, "max_num_iterations must be >= 1");
+  if (window_max_num_iterations < 1) return FailOption(error, "window_max_num_iterations must be >= 1");
   if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) || !(parameter_tolerance >= 0.0)) {
-    return Fail(error, "solver tolerances must be >= 0");
+    return FailOption(error, "solver tolerances must be >= 0");
   }
-  if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
+  if (num_threads < 1) return FailOption(error, "num_threads must be >= 1");
   if (!(batch_growth_factor > 1.0) || !std::isfinite(batch_growth_factor)) {
-    return Fail(error, "batch_growth_factor must be > 1");
+    return FailOption(error, "batch_growth_factor must be > 1");
   }
-  if (!PositiveFinite(window_s)) return Fail(error, "window_s must be > 0");
+  if (!PositiveFinite(window_s)) return FailOption(error, "window_s must be > 0");
   return true;
 }
 
