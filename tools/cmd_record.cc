@@ -58,6 +58,12 @@ std::vector<std::string> Header(const std::string& topic) {
     AppendNamed(h, "cov_", kCov, 9);
     return h;
   }
+  if (topic == "magnetometer") return {"t", "sensor_id", "seq", "B_x", "B_y", "B_z"};
+  if (topic == "vessel_nav") return {"t", "x", "y", "sigma"};
+  if (topic == "sensor_position") {
+    // The columns of `magnav localize`'s output, with the estimate's time first.
+    return {"t", "sensor_id", "x", "y", "z", "sigma_x", "sigma_y", "crlb_x", "crlb_y"};
+  }
   h = {"t", "track_id", "x", "y", "z", "vx", "vy", "vz", "heading", "turn_rate", "sigma_x", "sigma_y", "sigma_z"};
   AppendNamed(h, "cov_", kCov, 9);
   AppendNamed(h, "moment_body_", kXyz, 3);
@@ -72,6 +78,28 @@ std::vector<std::string> Header(const std::string& topic) {
 void AppendSigmas(std::vector<std::string>& f, const std::array<double, 9>& cov) {
   const bool known = std::any_of(cov.begin(), cov.end(), [](double v) { return v != 0.0; });
   for (int i = 0; i < 3; ++i) f.push_back(known ? N(std::sqrt(std::max(0.0, cov[4 * i]))) : "");
+}
+
+std::vector<std::string> Row(const dds::msg::MagnetometerSample& m) {
+  std::vector<std::string> f = {FormatNanosAsSeconds(m.stamp_ns()), std::to_string(m.sensor_id()), std::to_string(m.seq())};
+  Append(f, m.B());
+  return f;
+}
+
+// A GNSS file row (t,x,y,sigma) as `magnav localize --gnss` reads it.
+std::vector<std::string> Row(const dds::msg::VesselNav& m) {
+  return {FormatNanosAsSeconds(m.stamp_ns()), N(m.position()[0]), N(m.position()[1]),
+          N(std::max(m.sigma_position()[0], m.sigma_position()[1]))};
+}
+
+std::vector<std::string> Row(const dds::msg::SensorPositionEstimate& m) {
+  std::vector<std::string> f = {FormatNanosAsSeconds(m.stamp_ns()), std::to_string(m.sensor_id())};
+  Append(f, m.position());
+  f.push_back(N(std::sqrt(std::max(0.0, m.covariance()[0]))));
+  f.push_back(N(std::sqrt(std::max(0.0, m.covariance()[4]))));
+  f.push_back(N(std::sqrt(std::max(0.0, m.crlb()[0]))));
+  f.push_back(N(std::sqrt(std::max(0.0, m.crlb()[4]))));
+  return f;
 }
 
 std::vector<std::string> Row(const dds::msg::GradiometerSample& m) {
@@ -175,6 +203,12 @@ void Run(const RecordArgs& a) {
     Record<dds::msg::GradiometerSample>(node, sink, a);
   } else if (a.topic == "dipole_fix") {
     Record<dds::msg::DipoleFix>(node, sink, a);
+  } else if (a.topic == "magnetometer") {
+    Record<dds::msg::MagnetometerSample>(node, sink, a);
+  } else if (a.topic == "vessel_nav") {
+    Record<dds::msg::VesselNav>(node, sink, a);
+  } else if (a.topic == "sensor_position") {
+    Record<dds::msg::SensorPositionEstimate>(node, sink, a);
   } else {
     Record<dds::msg::TrackEstimate>(node, sink, a);
   }
@@ -188,8 +222,9 @@ void Run(const RecordArgs& a) {
 void AddRecordCommand(CLI::App& app) {
   auto args = std::make_shared<RecordArgs>();
   CLI::App* sub = app.add_subcommand("record", "Write what arrives on a magnav topic as CSV");
-  sub->add_option("--topic", args->topic, "gradiometer, dipole_fix or track")
-      ->check(CLI::IsMember({"gradiometer", "dipole_fix", "track"}));
+  sub->add_option("--topic", args->topic,
+                  "gradiometer, dipole_fix, track, magnetometer, vessel_nav or sensor_position")
+      ->check(CLI::IsMember({"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position"}));
   sub->add_option("--output", args->output, "CSV file, or - for standard output");
   sub->add_option("--count", args->count, "stop after this many samples (0 = no limit)");
   sub->add_option("--duration", args->duration_s, "stop after this many seconds (0 = until SIGINT/SIGTERM)");

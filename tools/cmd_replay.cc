@@ -1,6 +1,12 @@
-// magnav replay: publish a gradiometer file onto magnav/gradiometer, paced by
-// its time column (or as fast as the reliable stream allows).
+// magnav replay: publish a gradiometer file onto magnav/gradiometer, or a
+// localize measurements file onto magnav/magnetometer (one MagnetometerSample
+// per row) with, optionally, a GNSS file onto magnav/vessel_nav (one VesselNav
+// per row), paced by their time columns (or as fast as the reliable streams
+// allow). The two localize streams go out merged in time order, a fix before
+// the samples of the same time.
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <memory>
 #include <thread>
 #include <unordered_map>
@@ -9,6 +15,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
+#include "magnav/core/units.h"
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
@@ -17,14 +24,106 @@ namespace magnav::tools {
 namespace {
 
 struct ReplayArgs {
-  std::string input;
+  std::string input, magnetometer, gnss;
   double speed = 1.0;           // time factor; 0 = as fast as possible
   int wait_readers = 1;
   double wait_s = 10.0;
   DdsArgs dds;
 };
 
+// One timed message of the localize streams.
+struct LocalizeEvent {
+  double t_s;
+  bool is_fix;
+  dds::msg::MagnetometerSample sample;
+  dds::msg::VesselNav fix;
+};
+
+std::vector<LocalizeEvent> ReadLocalizeEvents(const std::string& measurements, const std::string& gnss) {
+  std::vector<LocalizeEvent> out;
+  const CsvTable m = CsvTable::Read(measurements);
+  const double sigma = m.param_number("sigma_B_T").value_or(0.0);  // 0 = not stated
+  const double z = m.param_number("vessel_z_m").value_or(std::nan(""));
+  const std::size_t t = m.column("t"), id = m.column("sensor_id"), bx = m.column("B_x"), by = m.column("B_y"),
+                    bz = m.column("B_z");
+  std::unordered_map<std::uint32_t, std::uint64_t> seq;
+  const double nan = std::nan("");
+  for (std::size_t i = 0; i < m.num_rows(); ++i) {
+    LocalizeEvent e{m.number(i, t), false, {}, {}};
+    e.sample.sensor_id(m.uint32(i, id));
+    e.sample.stamp_ns(SecondsToNanos(e.t_s));
+    e.sample.seq(seq[e.sample.sensor_id()]++);
+    e.sample.sensor_position({nan, nan, nan});  // not in the file: unknown
+    e.sample.B({m.number(i, bx), m.number(i, by), m.number(i, bz)});
+    e.sample.sigma_B(sigma);
+    out.push_back(e);
+  }
+  if (!gnss.empty()) {
+    const CsvTable g = CsvTable::Read(gnss);
+    const std::size_t gt = g.column("t"), x = g.column("x"), y = g.column("y"), s = g.column("sigma");
+    for (std::size_t i = 0; i < g.num_rows(); ++i) {
+      LocalizeEvent e{g.number(i, gt), true, {}, {}};
+      e.fix.vessel_id(0);
+      e.fix.stamp_ns(SecondsToNanos(e.t_s));
+      e.fix.source(dds::msg::NAV_GNSS);
+      e.fix.position({g.number(i, x), g.number(i, y), z});
+      e.fix.velocity({nan, nan, nan});
+      e.fix.heading(nan);
+      e.fix.sigma_position({g.number(i, s), g.number(i, s), nan});
+      e.fix.sigma_velocity(nan);
+      e.fix.sigma_heading(nan);
+      e.fix.geodetic({nan, nan, nan});
+      out.push_back(e);
+    }
+  }
+  // Time order; at equal times the fix first, else file order.
+  std::stable_sort(out.begin(), out.end(), [](const LocalizeEvent& a, const LocalizeEvent& b) {
+    return a.t_s < b.t_s || (a.t_s == b.t_s && a.is_fix && !b.is_fix);
+  });
+  return out;
+}
+
+void RunLocalizeStreams(const ReplayArgs& a) {
+  const std::vector<LocalizeEvent> events = ReadLocalizeEvents(a.magnetometer, a.gnss);
+  dds::InstallShutdownHandlers();
+  dds::Node node(a.dds.ToNodeOptions("magnav_replay"));
+  auto samples = node.CreateWriter<dds::msg::MagnetometerSample>();
+  auto fixes = node.CreateWriter<dds::msg::VesselNav>();
+  samples->SetFlowControl(500, std::chrono::seconds(10));
+  fixes->SetFlowControl(500, std::chrono::seconds(10));
+  const auto wait = std::chrono::milliseconds(static_cast<long>(a.wait_s * 1000));
+  if (a.wait_readers > 0 && (!samples->WaitForMatched(a.wait_readers, wait) ||
+                             (!a.gnss.empty() && !fixes->WaitForMatched(a.wait_readers, wait)))) {
+    throw InputError("replay: no reader of magnav/magnetometer (and magnav/vessel_nav) appeared within " +
+                     FormatNumber(a.wait_s) + " s (domain " + std::to_string(node.domain_id()) + ")");
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const double file_t0 = events.empty() ? 0.0 : events.front().t_s;
+  std::size_t sent = 0, sent_fixes = 0;
+  for (const LocalizeEvent& e : events) {
+    if (dds::ShutdownRequested()) break;
+    if (a.speed > 0) {
+      std::this_thread::sleep_until(t0 + std::chrono::duration<double>((e.t_s - file_t0) / a.speed));
+    }
+    if (!(e.is_fix ? fixes->Write(e.fix) : samples->Write(e.sample))) {
+      throw InputError("replay: a reader did not acknowledge samples within 10 s (too slow or gone)");
+    }
+    ++(e.is_fix ? sent_fixes : sent);
+  }
+  samples->WaitForAcknowledgments(std::chrono::seconds(10));
+  fixes->WaitForAcknowledgments(std::chrono::seconds(10));
+  std::printf("replayed %zu magnetometer samples and %zu vessel_nav fixes on domain %d\n", sent, sent_fixes,
+              node.domain_id());
+}
+
 void Run(const ReplayArgs& a) {
+  if (!a.magnetometer.empty()) {
+    if (!a.input.empty()) throw InputError("replay: give --input or --magnetometer, not both");
+    RunLocalizeStreams(a);
+    return;
+  }
+  if (!a.gnss.empty()) throw InputError("replay: --gnss goes with --magnetometer");
+  if (a.input.empty()) throw InputError("replay: give --input (gradiometer file) or --magnetometer");
   const GradiometerFile file = ReadGradiometerFile(a.input);
   dds::InstallShutdownHandlers();
   dds::Node node(a.dds.ToNodeOptions("magnav_replay"));
@@ -60,8 +159,12 @@ void Run(const ReplayArgs& a) {
 
 void AddReplayCommand(CLI::App& app) {
   auto args = std::make_shared<ReplayArgs>();
-  CLI::App* sub = app.add_subcommand("replay", "Publish a gradiometer CSV file on the magnav/gradiometer topic");
-  sub->add_option("--input", args->input, "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22)")->required();
+  CLI::App* sub = app.add_subcommand(
+      "replay", "Publish a gradiometer CSV on magnav/gradiometer, or localize files on magnav/magnetometer + magnav/vessel_nav");
+  sub->add_option("--input", args->input, "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22)");
+  sub->add_option("--magnetometer", args->magnetometer,
+                  "localize measurements CSV (t,sensor_id,B_x,B_y,B_z) -> magnav/magnetometer");
+  sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma) -> magnav/vessel_nav");
   sub->add_option("--speed", args->speed, "time factor (1 = real time, 10 = ten times faster, 0 = no pacing)")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--wait-readers", args->wait_readers, "wait for this many readers before sending");

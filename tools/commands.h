@@ -24,6 +24,8 @@ void AddEvaluateCommand(CLI::App& app);
 void AddInvertCommand(CLI::App& app);
 // `magnav track`: batch or sliding-window tracking of one dipole (vessel).
 void AddTrackCommand(CLI::App& app);
+// `magnav localize`: sensor positions from a friendly vessel's pass.
+void AddLocalizeCommand(CLI::App& app);
 
 #ifdef MAGNAV_WITH_DDS
 using cli::AddDdsOptions;

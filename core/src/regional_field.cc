@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "magnav/core/error.h"
+#include "magnav/core/option_check.h"
 
 namespace magnav {
 

@@ -6,6 +6,7 @@
 
 #include "magnav/core/dipole.h"
 #include "magnav/core/error.h"
+#include "magnav/core/option_check.h"
 
 namespace magnav::inversion {
 

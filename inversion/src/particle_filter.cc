@@ -10,6 +10,7 @@
 
 #include "magnav/core/dipole.h"
 #include "magnav/core/error.h"
+#include "magnav/core/option_check.h"
 #include "magnav/inversion/fix_line.h"
 #include "magnav/core/frames.h"
 #include "magnav/core/tensor.h"

@@ -58,7 +58,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
 
   // Factors grouped by their earliest epoch (measurements of k, process k→k+1).
   const auto turn_loss =
-      internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
+      MakeCeresLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
   std::vector<std::vector<internal::Factor>> factors(epochs.size());
   std::vector<internal::Factor> warm_turn;  // Gaussian warm-up turn-rate factors
   for (std::size_t k = 0; k < epochs.size(); ++k) {
@@ -82,7 +82,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
   // that Summary::initial_cost and final_cost are over the same factors.
   std::size_t i0 = 0, i1 = epochs.size() - 1;
   {
-    const auto nominal = internal::MakeLoss(options.measurement_loss, options.measurement_loss_scale_sigma);
+    const auto nominal = MakeCeresLoss(options.measurement_loss, options.measurement_loss_scale_sigma);
     internal::ChainProblem whole;
     for (std::size_t k = 0; k < epochs.size(); ++k) {
       whole.groups.emplace_back();

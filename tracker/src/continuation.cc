@@ -48,7 +48,7 @@ PassResult SolveWithContinuation(const TrackerOptions& options, int max_iteratio
                                                                      options.intermediate_function_tolerance)
                                                           : options.function_tolerance;
     co.function_tolerance = so.function_tolerance;
-    out.final_loss = MakeLoss(options.measurement_loss, scale);
+    out.final_loss = MakeCeresLoss(options.measurement_loss, scale);
     for (Factor* f : measurements) f->loss = out.final_loss.get();
     const ChainProblem chain = build(warm);
     if (options.batch_solver == TrackerOptions::BatchSolver::kChainLevenbergMarquardt) {

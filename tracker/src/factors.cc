@@ -1,4 +1,4 @@
-// The tracker's factors and their assembly: loss factory, measurement and
+// The tracker's factors and their assembly: measurement and
 // process factors of an epoch, and a chain problem as a ceres::Problem.
 #include "factors.h"
 
@@ -6,18 +6,6 @@
 #include "magnav/tracker/initialize.h"
 
 namespace magnav::tracker::internal {
-
-std::unique_ptr<ceres::LossFunction> MakeLoss(LossType type, double scale_sigma) {
-  switch (type) {
-    case LossType::kTrivial:
-      return nullptr;
-    case LossType::kHuber:
-      return std::make_unique<ceres::HuberLoss>(scale_sigma);
-    case LossType::kCauchy:
-      return std::make_unique<ceres::CauchyLoss>(scale_sigma);
-  }
-  return nullptr;
-}
 
 ceres::Problem::Options NonOwningProblemOptions() {
   ceres::Problem::Options o;

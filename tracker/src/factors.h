@@ -12,6 +12,7 @@
 #include <memory>
 #include <vector>
 
+#include "magnav/core/ceres_loss.h"
 #include "magnav/tracker/options.h"
 #include "magnav/tracker/tracker.h"
 
@@ -25,8 +26,7 @@ struct Factor {
   std::vector<double*> blocks;
 };
 
-// New loss of a type with scale a (in σ of the residual norm); null for trivial.
-std::unique_ptr<ceres::LossFunction> MakeLoss(LossType type, double scale_sigma);
+// Losses: MakeCeresLoss (core/ceres_loss.h), shared with the localizer.
 
 // Adds a factor to a problem that does not own costs or losses.
 void AddToProblem(const Factor& f, ceres::Problem* problem);

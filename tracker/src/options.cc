@@ -1,39 +1,11 @@
 #include "magnav/tracker/options.h"
 
-#include "magnav/core/error.h"
 #include <cmath>
 #include <sstream>
 
+#include "magnav/core/option_check.h"
+
 namespace magnav::tracker {
-
-namespace {
-bool PositiveFinite(double x) { return std::isfinite(x) && x > 0.0; }
-}  // namespace
-
-bool ParseLossType(const std::string& name, LossType* type) {
-  if (name == "trivial") {
-    *type = LossType::kTrivial;
-  } else if (name == "huber") {
-    *type = LossType::kHuber;
-  } else if (name == "cauchy") {
-    *type = LossType::kCauchy;
-  } else {
-    return false;
-  }
-  return true;
-}
-
-const char* LossTypeName(LossType type) {
-  switch (type) {
-    case LossType::kTrivial:
-      return "trivial";
-    case LossType::kHuber:
-      return "huber";
-    case LossType::kCauchy:
-      return "cauchy";
-  }
-  return "?";
-}
 
 bool ParseInitSource(const std::string& name, InitSource* source) {
   if (name == "samples") {

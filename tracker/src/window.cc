@@ -381,9 +381,9 @@ WindowTracker::WindowTracker(const Eigen::Vector3d& B0_W, const TrackerOptions& 
   if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
   impl_->B0_W = B0_W;
   impl_->options = options;
-  impl_->meas_loss = internal::MakeLoss(options.measurement_loss, options.measurement_loss_scale_sigma);
+  impl_->meas_loss = MakeCeresLoss(options.measurement_loss, options.measurement_loss_scale_sigma);
   impl_->turn_loss =
-      internal::MakeLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
+      MakeCeresLoss(options.process.turn_rate_loss, options.process.turn_rate_loss_scale_sigma);
 }
 
 WindowTracker::~WindowTracker() = default;

@@ -13,11 +13,4 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// For IsValid(std::string* error) functions: stores the message (if error is
-// not null) and returns false.
-inline bool Fail(std::string* error, const std::string& message) {
-  if (error != nullptr) *error = message;
-  return false;
-}
-
 }  // namespace magnav

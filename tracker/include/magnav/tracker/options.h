@@ -8,14 +8,15 @@
 
 #include <string>
 
+#include "magnav/core/loss.h"
+
 namespace magnav::tracker {
 
-// Robust loss applied to a whitened residual block (units of σ).
-enum class LossType { kTrivial, kHuber, kCauchy };
-
-// Parses "trivial" | "huber" | "cauchy"; false on anything else.
-bool ParseLossType(const std::string& name, LossType* type);
-const char* LossTypeName(LossType type);
+// Robust loss applied to a whitened residual block (units of σ); shared with
+// the localizer (core/loss.h).
+using magnav::LossType;
+using magnav::LossTypeName;
+using magnav::ParseLossType;
 
 // Coordinated-turn process model x_{k+1} = f(x_k, dt) + w, w ~ N(0, Q dt).
 struct ProcessNoise {

@@ -1,0 +1,78 @@
+// Options of the sensor localiser (EKF-SLAM and batch smoother).
+//
+// Units: SI (m, s, rad, T). Process noise is given as random-walk
+// intensities: the 1-σ change per √s, so over dt the added variance is σ² dt.
+// Defaults were tuned on the reference pass (`localize_*.csv`); see
+// docs/ACCURACY.md for what was tuned and what is held out.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "magnav/core/loss.h"
+#include "magnav/localizer/types.h"
+
+namespace magnav::localizer {
+
+using magnav::LossType;  // core/loss.h
+
+// Coordinated-turn process model x_{k+1} = f(x_k, dt) + w, w ~ N(0, Q dt),
+// Q = diag(σ_p², σ_p², σ_v², σ_h², σ_ω²).
+struct LocalizerProcessNoise {
+  // Position random walk on top of the coordinated-turn prediction (x, y).
+  double position_m_per_sqrt_s = 0.05;
+  // Speed random walk.
+  double speed_mps_per_sqrt_s = 0.01;
+  // Heading random walk added to h + ω dt.
+  double heading_rad_per_sqrt_s = 0.005;
+  // Turn-rate random walk: large enough to follow the onset of a turn
+  // (a step of 0.1 rad/s on the reference pass) within a few seconds.
+  double turn_rate_radps_per_sqrt_s = 0.01;
+
+  bool IsValid(std::string* error) const;
+};
+
+// Uncertainty of the vessel's initial state (EKF start; the batch is started
+// from the EKF). Position σ is the GNSS fit's when the start comes from GNSS.
+struct InitialVesselSigma {
+  double position_m = 10.0;  // used only with LocalizerOptions::vessel_start
+  double speed_mps = 0.5;
+  double heading_rad = 0.5;
+  double turn_rate_radps = 0.05;
+
+  bool IsValid(std::string* error) const;
+};
+
+struct LocalizerOptions {
+  LocalizerProcessNoise process;
+  InitialVesselSigma initial;
+  // Where the vessel starts (state at the first sample: x, y, speed, heading,
+  // turn rate), for a pass without GNSS fixes at its start; σ from `initial`.
+  // Unset (default): the start comes from the first GNSS fixes, and without
+  // them the EKF refuses to start (no guessed start).
+  std::optional<VesselVector> vessel_start;
+  // 1-σ noise of each magnetometer axis (T). Set from the file's
+  // "# sigma_B_T:" line by `magnav localize` when present.
+  double sigma_B_T = 1e-9;
+  // GNSS 1-σ per axis (m) for every fix, overriding the fixes' own sigma;
+  // 0 (default) = each fix's own sigma. A fix without a sigma (≤ 0) and no
+  // override is refused (EKF) or an error (batch, bounds): never a guess.
+  double gnss_sigma_m = 0.0;
+  // Batch: robust loss on each magnetometer residual (3-vector, whitened) and
+  // its scale in σ. Huber at 3σ leaves Gaussian residuals almost untouched and
+  // bounds the pull of a spike.
+  LossType magnetometer_loss = LossType::kHuber;
+  double magnetometer_loss_scale_sigma = 3.0;
+  // Batch: Ceres trust-region iterations and tolerances.
+  int max_num_iterations = 50;
+  double function_tolerance = 1e-10;
+  double gradient_tolerance = 1e-10;
+  double parameter_tolerance = 1e-10;
+  int num_threads = 1;
+  // Samples (and fixes) closer in time than this belong to one epoch (s).
+  double epoch_tolerance_s = 1e-6;
+
+  bool IsValid(std::string* error) const;
+};
+
+}  // namespace magnav::localizer

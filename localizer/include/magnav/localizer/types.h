@@ -1,0 +1,110 @@
+// Data of the sensor localiser: the vessel state, the measurements it takes,
+// the deployment priors and the estimates it returns.
+//
+// Frames and units: world frame = local NED (x north, y east, z down), metres;
+// time t in seconds from the scenario start; B in tesla, measured on sensor
+// axes aligned with NED; moment in A·m² (body frame: x forward, y starboard,
+// z down; world moment = Rz(heading) · body moment); heading in radians from
+// north, clockwise seen from above; turn rate in rad/s (positive = right).
+// Every sensor's depth z is known (from the deployment); its horizontal
+// position (x, y) is estimated. The vessel moves at a known constant depth.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace magnav::localizer {
+
+// Vessel state of the coordinated-turn model: [x (m), y (m), v (m/s),
+// heading (rad, not wrapped), turn rate (rad/s)].
+using VesselVector = Eigen::Matrix<double, 5, 1>;
+using VesselCovariance = Eigen::Matrix<double, 5, 5>;
+enum VesselIndex { kX = 0, kY = 1, kV = 2, kHeading = 3, kTurnRate = 4 };
+
+// One triaxial magnetometer sample: the vessel's dipole field (Earth field
+// removed) at sensor `sensor_id`, tesla, NED axes.
+struct MagSample {
+  double t_s = 0.0;
+  std::uint32_t sensor_id = 0;
+  Eigen::Vector3d B_T = Eigen::Vector3d::Zero();
+};
+
+// One GNSS fix of the vessel: horizontal position (m, NED) and its 1-σ per
+// axis (m).
+struct GnssFix {
+  double t_s = 0.0;
+  Eigen::Vector2d p_xy_m = Eigen::Vector2d::Zero();
+  double sigma_m = 0.0;
+};
+
+// Deployment guess of one sensor: position p_SinW (m, NED; z is taken as
+// known) and the 1-σ of the horizontal guess per axis (m).
+struct SensorPrior {
+  std::uint32_t sensor_id = 0;
+  Eigen::Vector3d p_SinW_m = Eigen::Vector3d::Zero();
+  double sigma_xy_m = 0.0;
+};
+
+// The known vessel: body moment (A·m²) and depth (m, NED z).
+struct Vessel {
+  Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
+  double z_m = 0.0;
+};
+
+// One pass: everything an estimator needs. Samples and fixes in time order.
+struct Pass {
+  Vessel vessel;
+  std::vector<SensorPrior> sensors;
+  std::vector<MagSample> samples;
+  std::vector<GnssFix> gnss;
+  // Index in `sensors` of a sensor id; -1 if unknown.
+  int SensorIndex(std::uint32_t sensor_id) const;
+};
+
+// Estimate of one sensor: position (z = the known depth), 2×2 covariance of
+// (x, y) in m², and the Cramér–Rao lower bounds of (x, y): `crlb_joint` with
+// the vessel trajectory unknown (estimated jointly), `crlb_known_trajectory`
+// for a perfectly known trajectory. Bounds are evaluated at the estimate
+// (trajectory and sensors) unless computed on a known truth.
+struct SensorEstimate {
+  std::uint32_t sensor_id = 0;
+  Eigen::Vector3d p_SinW_m = Eigen::Vector3d::Zero();
+  Eigen::Matrix2d cov_xy_m2 = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d crlb_joint_m2 = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d crlb_known_trajectory_m2 = Eigen::Matrix2d::Zero();
+};
+
+// What a solve did.
+struct Summary {
+  std::string method;  // "ekf" or "batch"
+  bool converged = false;
+  int iterations = 0;  // batch: solver iterations; ekf: 0
+  double initial_cost = 0.0;  // ½ Σ ρ(‖e‖²), batch only
+  double final_cost = 0.0;
+  double solve_time_s = 0.0;  // wall time of the estimator (and its covariance)
+  double crlb_time_s = 0.0;   // wall time of the bound
+  int magnetometer_updates = 0;
+  int gnss_updates = 0;
+  std::string message;
+  // One line: "method batch, converged, iterations 7, cost 1.2e+05 -> 6.6e+04, time 0.41 s, ...".
+  std::string BriefReport() const;
+};
+
+// Result of a localisation: one estimate per sensor (in the order of
+// Pass::sensors) and the vessel trajectory at the estimator's epochs.
+struct Localization {
+  std::vector<SensorEstimate> sensors;
+  // Full covariance and joint bound of all sensors' (x, y), 2M × 2M (m²),
+  // ordered [x₁, y₁, x₂, y₂, ...]: the sensors' errors are correlated (a
+  // common shift), which the per-sensor 2×2 blocks do not show.
+  Eigen::MatrixXd cov_sensors_m2;
+  Eigen::MatrixXd crlb_joint_m2;
+  std::vector<double> trajectory_t_s;
+  std::vector<VesselVector> trajectory;
+  Summary summary;
+};
+
+}  // namespace magnav::localizer

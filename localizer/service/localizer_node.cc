@@ -1,0 +1,123 @@
+#include "localizer_node.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+
+#include "magnav/core/error.h"
+#include "magnav/core/units.h"
+
+namespace magnav::localizer {
+
+bool LocalizerNodeOptions::IsValid(std::string* error) const {
+  if (!vessel.m_B_Am2.allFinite() || vessel.m_B_Am2.norm() == 0.0 || !std::isfinite(vessel.z_m)) {
+    if (error) *error = "the vessel moment must be finite and non-zero, its depth finite";
+    return false;
+  }
+  if (sensors.empty()) {
+    if (error) *error = "no sensor";
+    return false;
+  }
+  return localizer.IsValid(error) && stream.IsValid(error);
+}
+
+MagSample FromMsg(const dds::msg::MagnetometerSample& m) {
+  MagSample s;
+  s.t_s = NanosToSeconds(m.stamp_ns());
+  s.sensor_id = m.sensor_id();
+  s.B_T = {m.B()[0], m.B()[1], m.B()[2]};
+  return s;
+}
+
+GnssFix FromMsg(const dds::msg::VesselNav& m) {
+  GnssFix f;
+  f.t_s = NanosToSeconds(m.stamp_ns());
+  f.p_xy_m = {m.position()[0], m.position()[1]};
+  f.sigma_m = std::max(m.sigma_position()[0], m.sigma_position()[1]);
+  return f;
+}
+
+dds::msg::SensorPositionEstimate ToMsg(const SensorEstimate& e, double t_s) {
+  dds::msg::SensorPositionEstimate m;
+  m.sensor_id(e.sensor_id);
+  m.stamp_ns(SecondsToNanos(t_s));
+  m.position({e.p_SinW_m.x(), e.p_SinW_m.y(), e.p_SinW_m.z()});
+  std::array<double, 9> cov{}, crlb{};  // z is known: its row and column stay 0
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      cov[static_cast<std::size_t>(3 * i + j)] = e.cov_xy_m2(i, j);
+      crlb[static_cast<std::size_t>(3 * i + j)] = e.crlb_joint_m2(i, j);
+    }
+  }
+  m.covariance(cov);
+  m.crlb(crlb);
+  return m;
+}
+
+namespace {
+const LocalizerNodeOptions& Checked(const LocalizerNodeOptions& o) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("localizer options: " + err);
+  return o;
+}
+}  // namespace
+
+LocalizerNode::LocalizerNode(dds::Node& node, const LocalizerNodeOptions& options)
+    : localizer_(Checked(options).vessel, options.sensors, options.localizer, options.stream) {
+  writer_ = node.CreateWriter<dds::msg::SensorPositionEstimate>();
+  nav_reader_ =
+      node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto&) { OnNav(m); });
+  mag_reader_ = node.CreateReader<dds::msg::MagnetometerSample>(
+      [this](const dds::msg::MagnetometerSample& m, const auto&) { OnSample(m); });
+}
+
+std::uint64_t LocalizerNode::consumed() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return localizer_.consumed();
+}
+
+void LocalizerNode::Skip(SampleCheck why, const std::string& stream, std::uint32_t key, double t_s) {
+  ++skipped_;
+  const bool first = stream == "gnss" ? !std::exchange(warned_gnss_, true) : warned_sensors_.insert(key).second;
+  if (first) {
+    spdlog::warn("magnav-localizer: {} sample at t = {} s skipped: {} (further skips of this {} are only counted)",
+                 stream == "gnss" ? std::string("vessel_nav") : "magnetometer " + std::to_string(key), t_s,
+                 SampleCheckName(why), stream == "gnss" ? "stream" : "sensor");
+  }
+}
+
+void LocalizerNode::OnSample(const dds::msg::MagnetometerSample& m) {
+  const MagSample s = FromMsg(m);
+  std::lock_guard<std::mutex> lk(mu_);
+  const SampleCheck c = localizer_.Add(s);
+  if (c != SampleCheck::kOk) Skip(c, "magnetometer", s.sensor_id, s.t_s);
+}
+
+void LocalizerNode::OnNav(const dds::msg::VesselNav& m) {
+  const GnssFix f = FromMsg(m);
+  std::lock_guard<std::mutex> lk(mu_);
+  const SampleCheck c = localizer_.Add(f);
+  if (c != SampleCheck::kOk) Skip(c, "gnss", 0, f.t_s);
+}
+
+void LocalizerNode::Publish() {
+  std::vector<SensorEstimate> est;
+  double t = 0.0;
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    if (!localizer_.initialized()) return;
+    est = localizer_.Estimates(/*bounds=*/true);
+    t = localizer_.time();
+  }
+  for (const auto& e : est) writer_->Write(ToMsg(e, t));
+}
+
+void LocalizerNode::Flush() {
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    localizer_.Flush();
+  }
+  Publish();
+}
+
+}  // namespace magnav::localizer

@@ -1,0 +1,69 @@
+// The localizer's DDS node: MagnetometerSample (magnav/magnetometer) and
+// VesselNav (magnav/vessel_nav, the friendly vessel's GNSS) in,
+// SensorPositionEstimate (magnav/sensor_position) out for every sensor at
+// each Publish (the main calls it at a configurable period; late joiners get
+// the last estimate per sensor from the TRANSIENT_LOCAL estimate profile).
+// The EKF runs as localizer::StreamingLocalizer — the code `magnav localize
+// --method ekf` runs — so on the same stream its final estimates are the
+// offline ones. Every sample passes the library's checks at the door; one that
+// fails (non-finite, unknown sensor, time going backwards) is skipped,
+// counted, and warned about once per sensor (once for the GNSS), never fed.
+#pragma once
+
+#include <atomic>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+
+#include "magnav/dds/node.h"
+#include "magnav/localizer/stream.h"
+
+namespace magnav::localizer {
+
+struct LocalizerNodeOptions {
+  Vessel vessel;
+  std::vector<SensorPrior> sensors;
+  LocalizerOptions localizer;
+  StreamOptions stream;
+
+  bool IsValid(std::string* error) const;
+};
+
+MagSample FromMsg(const dds::msg::MagnetometerSample& m);
+// σ = the larger of the two horizontal sigma_position entries.
+GnssFix FromMsg(const dds::msg::VesselNav& m);
+dds::msg::SensorPositionEstimate ToMsg(const SensorEstimate& e, double t_s);
+
+class LocalizerNode {
+ public:
+  LocalizerNode(dds::Node& node, const LocalizerNodeOptions& options);
+  // Publishes the current estimate of every sensor (with the bounds); none
+  // before the EKF has started.
+  void Publish();
+  // End of stream: hands everything buffered to the EKF, then publishes.
+  void Flush();
+  bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
+
+  std::uint64_t samples_received() const { return mag_reader_->stats().samples.load(); }
+  std::uint64_t fixes_received() const { return nav_reader_->stats().samples.load(); }
+  std::uint64_t skipped() const { return skipped_; }
+  std::uint64_t consumed() const;
+  std::uint64_t published() const { return writer_->stats().samples.load(); }
+
+ private:
+  void OnSample(const dds::msg::MagnetometerSample& m);
+  void OnNav(const dds::msg::VesselNav& m);
+  void Skip(SampleCheck why, const std::string& stream, std::uint32_t key, double t_s);  // mu_ held
+
+  mutable std::mutex mu_;
+  StreamingLocalizer localizer_;
+  std::set<std::uint32_t> warned_sensors_;
+  bool warned_gnss_ = false;
+  std::atomic<std::uint64_t> skipped_{0};
+  std::unique_ptr<dds::Writer<dds::msg::SensorPositionEstimate>> writer_;
+  std::unique_ptr<dds::Reader<dds::msg::MagnetometerSample>> mag_reader_;
+  std::unique_ptr<dds::Reader<dds::msg::VesselNav>> nav_reader_;
+};
+
+}  // namespace magnav::localizer

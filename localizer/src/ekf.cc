@@ -1,0 +1,205 @@
+#include "magnav/localizer/ekf.h"
+
+#include <Eigen/Cholesky>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "magnav/core/error.h"
+#include "magnav/localizer/crlb.h"
+#include "magnav/localizer/models.h"
+#include "magnav/localizer/stream.h"
+
+namespace magnav::localizer {
+
+double GnssSigma(const GnssFix& fix, const LocalizerOptions& options) {
+  return options.gnss_sigma_m > 0.0 ? options.gnss_sigma_m : fix.sigma_m;
+}
+
+bool InitialVesselFromGnss(const std::vector<GnssFix>& fixes, double t0_s, const LocalizerOptions& options,
+                           VesselVector* x0, VesselCovariance* P0, double window_s) {
+  // Straight line p(t) = a + b (t − t0) by least squares over the window.
+  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+  Eigen::Matrix<double, 2, 2> rhs = Eigen::Matrix2d::Zero();  // columns x, y
+  double t_min = INFINITY, t_max = -INFINITY, var = 0.0;
+  int n = 0;
+  for (const GnssFix& f : fixes) {
+    if (f.t_s < t0_s - window_s || f.t_s > t0_s + window_s) continue;
+    const double dt = f.t_s - t0_s;
+    const double sigma = GnssSigma(f, options);
+    if (!(sigma > 0.0)) continue;
+    const double w = 1.0 / (sigma * sigma);
+    const Eigen::Vector2d phi(1.0, dt);
+    A += w * phi * phi.transpose();
+    rhs += w * phi * f.p_xy_m.transpose();
+    t_min = std::min(t_min, f.t_s);
+    t_max = std::max(t_max, f.t_s);
+    var = std::max(var, sigma * sigma);
+    ++n;
+  }
+  if (n < 2 || t_max - t_min < 2.0) return false;
+  const Eigen::LDLT<Eigen::Matrix2d> ldlt(A);
+  const Eigen::Matrix2d coef = ldlt.solve(rhs);  // row 0: position at t0, row 1: velocity
+  const Eigen::Matrix2d cov = ldlt.solve(Eigen::Matrix2d::Identity());
+  const Eigen::Vector2d vel = coef.row(1).transpose();
+  *x0 << coef(0, 0), coef(0, 1), vel.norm(), std::atan2(vel.y(), vel.x()), 0.0;
+  P0->setZero();
+  // Position: the fit's σ, but at least a third of a fix's (the straight
+  // line is only a model of the start).
+  const double var_p = std::max(cov(0, 0), var / 9.0);
+  (*P0)(kX, kX) = var_p;
+  (*P0)(kY, kY) = var_p;
+  (*P0)(kV, kV) = std::pow(options.initial.speed_mps, 2);
+  (*P0)(kHeading, kHeading) = std::pow(options.initial.heading_rad, 2);
+  (*P0)(kTurnRate, kTurnRate) = std::pow(options.initial.turn_rate_radps, 2);
+  return true;
+}
+
+LocalizerEkf::LocalizerEkf(const Vessel& vessel, const std::vector<SensorPrior>& sensors, double t0_s,
+                           const VesselVector& x0, const VesselCovariance& P0, const LocalizerOptions& options)
+    : vessel_(vessel), sensors_(sensors), options_(options), t_s_(t0_s) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InputError("localizer options: " + why);
+  const int n = 5 + 2 * static_cast<int>(sensors.size());
+  x_ = Eigen::VectorXd::Zero(n);
+  P_ = Eigen::MatrixXd::Zero(n, n);
+  x_.head<5>() = x0;
+  P_.topLeftCorner<5, 5>() = P0;
+  for (std::size_t j = 0; j < sensors.size(); ++j) {
+    const int c = 5 + 2 * static_cast<int>(j);
+    x_.segment<2>(c) = sensors[j].p_SinW_m.head<2>();
+    P_(c, c) = P_(c + 1, c + 1) = sensors[j].sigma_xy_m * sensors[j].sigma_xy_m;
+  }
+}
+
+int LocalizerEkf::Column(std::uint32_t sensor_id) const {
+  for (std::size_t j = 0; j < sensors_.size(); ++j) {
+    if (sensors_[j].sensor_id == sensor_id) return 5 + 2 * static_cast<int>(j);
+  }
+  return -1;
+}
+
+bool LocalizerEkf::Predict(double t_s) {
+  if (!std::isfinite(t_s) || t_s < t_s_) return false;
+  const double dt = t_s - t_s_;
+  if (dt == 0.0) return true;
+  VesselCovariance F;
+  x_.head<5>() = PropagateVessel(x_.head<5>(), dt, &F);
+  const int n = static_cast<int>(x_.size());
+  // Only the vessel rows and columns change: P_vv = F P_vv Fᵀ + Q, P_sv = P_sv Fᵀ
+  // (lower storage: the sensor-vessel block is below the vessel block).
+  const VesselCovariance Pvv = P_.topLeftCorner<5, 5>();  // kept full
+  const VesselCovariance Pvv_new = F * Pvv * F.transpose() + ProcessCovariance(options_.process, dt);
+  P_.topLeftCorner<5, 5>() = 0.5 * (Pvv_new + Pvv_new.transpose());
+  if (n > 5) P_.bottomLeftCorner(n - 5, 5) = P_.bottomLeftCorner(n - 5, 5) * F.transpose();
+  t_s_ = t_s;
+  return true;
+}
+
+void LocalizerEkf::JosephUpdate(const Eigen::MatrixXd& U, const Eigen::MatrixXd& K, const Eigen::MatrixXd& L_S) {
+  // (I − KH) P (I − KH)ᵀ + K R Kᵀ = P − K Uᵀ − U Kᵀ + K S Kᵀ, U = P Hᵀ,
+  // K S Kᵀ = W Wᵀ with W = K L_S (S = L_S L_Sᵀ). One pass over the lower
+  // triangle (the only part stored; see Columns), column by column so each
+  // column's tail stays in cache: O(n²) flops and one sweep of memory.
+  const Eigen::MatrixXd W = K * L_S;
+  const Eigen::Index n = P_.rows();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const Eigen::Index m = n - j;
+    auto col = P_.col(j).tail(m);
+    col.noalias() -= K.bottomRows(m) * U.row(j).transpose();
+    col.noalias() -= U.bottomRows(m) * K.row(j).transpose();
+    col.noalias() += W.bottomRows(m) * W.row(j).transpose();
+  }
+  // The vessel block is kept full (Predict and Columns read it whole).
+  P_.topLeftCorner<5, 5>().triangularView<Eigen::StrictlyUpper>() = P_.topLeftCorner<5, 5>().transpose();
+}
+
+Eigen::MatrixXd LocalizerEkf::Columns(int c, int w) const {
+  // Lower storage: rows < c of columns c.. are the transposed rows c.. left of c.
+  const int n = static_cast<int>(P_.rows());
+  Eigen::MatrixXd out(n, w);
+  out.topRows(c) = P_.block(c, 0, w, c).transpose();
+  out.bottomRows(n - c) = P_.block(c, c, n - c, w);
+  for (int a = 0; a < w; ++a) {
+    for (int b = a + 1; b < w; ++b) out(c + a, b) = out(c + b, a);
+  }
+  return out;
+}
+
+Eigen::MatrixXd LocalizerEkf::covariance() const { return P_.selfadjointView<Eigen::Lower>(); }
+
+bool LocalizerEkf::Update(const MagSample& sample) {
+  const int c = Column(sample.sensor_id);
+  if (c < 0 || !sample.B_T.allFinite() || !Predict(sample.t_s)) return false;
+  const int j = (c - 5) / 2;
+  const Eigen::Vector3d p_S(x_[c], x_[c + 1], sensors_[static_cast<std::size_t>(j)].p_SinW_m.z());
+  Jacobian3x5 Hv;
+  Jacobian3x2 Hs;
+  const Eigen::Vector3d predicted = VesselFieldAtSensor(x_.head<5>(), vessel_, p_S, &Hv, &Hs);
+  // U = P Hᵀ touches only the vessel and this sensor's columns of P.
+  const Eigen::MatrixXd U = Columns(0, 5) * Hv.transpose() + Columns(c, 2) * Hs.transpose();
+  Eigen::Matrix3d S = Hv * U.topRows<5>() + Hs * U.middleRows<2>(c);
+  S = 0.5 * (S + S.transpose()).eval();
+  S.diagonal().array() += options_.sigma_B_T * options_.sigma_B_T;
+  const Eigen::LLT<Eigen::Matrix3d> llt(S);
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::Vector3d innovation = sample.B_T - predicted;
+  const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
+  last_nis_ = innovation.dot(llt.solve(innovation));
+  x_.noalias() += K * innovation;
+  JosephUpdate(U, K, llt.matrixL().toDenseMatrix());
+  return true;
+}
+
+bool LocalizerEkf::Update(const GnssFix& fix) {
+  const double sigma = GnssSigma(fix, options_);
+  if (!(sigma > 0.0) || !fix.p_xy_m.allFinite() || !Predict(fix.t_s)) return false;
+  const Eigen::MatrixXd U = Columns(0, 2);  // H = [I2 0]
+  Eigen::Matrix2d S = U.topRows<2>();
+  S = 0.5 * (S + S.transpose()).eval();
+  S.diagonal().array() += sigma * sigma;
+  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::Vector2d innovation = fix.p_xy_m - x_.head<2>();
+  const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
+  x_.noalias() += K * innovation;
+  JosephUpdate(U, K, llt.matrixL().toDenseMatrix());
+  return true;
+}
+
+std::vector<SensorEstimate> LocalizerEkf::SensorEstimates() const {
+  std::vector<SensorEstimate> out;
+  for (std::size_t j = 0; j < sensors_.size(); ++j) {
+    const int c = 5 + 2 * static_cast<int>(j);
+    SensorEstimate e;
+    e.sensor_id = sensors_[j].sensor_id;
+    e.p_SinW_m = {x_[c], x_[c + 1], sensors_[j].p_SinW_m.z()};
+    e.cov_xy_m2 << P_(c, c), P_(c + 1, c), P_(c + 1, c), P_(c + 1, c + 1);
+    out.push_back(e);
+  }
+  return out;
+}
+
+Localization RunEkf(const Pass& pass, const LocalizerOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  StreamOptions whole_file;
+  whole_file.reorder_delay_s = std::numeric_limits<double>::infinity();  // everything at Flush
+  StreamingLocalizer s(pass.vessel, pass.sensors, options, whole_file);
+  std::size_t g = 0;
+  for (const MagSample& m : pass.samples) {
+    while (g < pass.gnss.size() && pass.gnss[g].t_s <= m.t_s) s.Add(pass.gnss[g++]);
+    s.Add(m);
+  }
+  while (g < pass.gnss.size()) s.Add(pass.gnss[g++]);
+  s.Flush();
+  if (!s.initialized()) {
+    throw InputError("localizer: the vessel's start is unknown: the EKF needs at least two GNSS fixes spanning "
+                     "2 s within 10 s of the first sample, or a given start (--vessel-start X,Y,SPEED,HEADING)");
+  }
+  Localization out = s.Result();
+  out.summary.solve_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - out.summary.crlb_time_s;
+  return out;
+}
+
+}  // namespace magnav::localizer

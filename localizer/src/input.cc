@@ -1,0 +1,168 @@
+#include "magnav/localizer/input.h"
+
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include "magnav/core/csv.h"
+#include "magnav/core/error.h"
+
+namespace magnav::localizer {
+
+namespace {
+
+std::string Where(const CsvTable& c, std::size_t row, const std::string& column) {
+  return c.source() + ":" + std::to_string(c.line_of(row)) + ": column '" + column + "': ";
+}
+
+}  // namespace
+
+int Pass::SensorIndex(std::uint32_t sensor_id) const {
+  for (std::size_t i = 0; i < sensors.size(); ++i) {
+    if (sensors[i].sensor_id == sensor_id) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+std::vector<SensorPrior> ReadDeploymentFile(const std::string& path) {
+  const CsvTable d = CsvTable::Read(path);
+  Pass pass;
+  const std::size_t id = d.column("sensor_id"), x = d.column("x"), y = d.column("y"), z = d.column("z"),
+                    s = d.column("sigma_xy");
+  for (std::size_t i = 0; i < d.num_rows(); ++i) {
+    SensorPrior p;
+    p.sensor_id = d.uint32(i, id);
+    p.p_SinW_m = {d.number(i, x), d.number(i, y), d.number(i, z)};
+    p.sigma_xy_m = d.number(i, s);
+    if (!(p.sigma_xy_m > 0.0)) throw InputError(Where(d, i, "sigma_xy") + "must be > 0");
+    if (pass.SensorIndex(p.sensor_id) >= 0) {
+      throw InputError(Where(d, i, "sensor_id") + "sensor " + std::to_string(p.sensor_id) + " listed twice");
+    }
+    pass.sensors.push_back(p);
+  }
+  if (pass.sensors.empty()) throw InputError(path + ": no sensor");
+  return pass.sensors;
+}
+
+PassFile ReadPassFiles(const std::string& measurements_path, const std::string& deployment_path,
+                       const std::string& gnss_path, const std::optional<Eigen::Vector3d>& moment_body_Am2) {
+  PassFile out;
+  Pass& pass = out.pass;
+
+  pass.sensors = ReadDeploymentFile(deployment_path);
+  const CsvTable d = CsvTable::Read(deployment_path);  // for line numbers in errors below
+
+  // Measurements.
+  const CsvTable m = CsvTable::Read(measurements_path);
+  if (moment_body_Am2) {
+    pass.vessel.m_B_Am2 = *moment_body_Am2;
+  } else if (const auto v = m.param_vec3("moment_body_Am2")) {
+    pass.vessel.m_B_Am2 = *v;
+  } else {
+    throw InputError(measurements_path +
+                     ": no vessel moment: give --moment-body MX,MY,MZ or a '# moment_body_Am2: MX, MY, MZ' line "
+                     "(A*m^2, body frame)");
+  }
+  if (!pass.vessel.m_B_Am2.allFinite() || pass.vessel.m_B_Am2.norm() == 0.0) {
+    throw InputError(measurements_path + ": the vessel moment must be finite and non-zero");
+  }
+  if (const auto z = m.param_number("vessel_z_m")) {
+    pass.vessel.z_m = *z;
+  } else {
+    throw InputError(measurements_path + ": no vessel depth: give a '# vessel_z_m: Z' line (m, NED z)");
+  }
+  out.sigma_B_T = m.param_number("sigma_B_T");
+  if (out.sigma_B_T && !(*out.sigma_B_T > 0.0)) {
+    throw InputError(measurements_path + ": parameter 'sigma_B_T' must be > 0");
+  }
+  {
+    const std::size_t t = m.column("t"), id = m.column("sensor_id"), bx = m.column("B_x"), by = m.column("B_y"),
+                      bz = m.column("B_z");
+    std::vector<char> seen(pass.sensors.size(), 0);
+    pass.samples.reserve(m.num_rows());
+    for (std::size_t i = 0; i < m.num_rows(); ++i) {
+      MagSample s;
+      s.t_s = m.number(i, t);
+      s.sensor_id = m.uint32(i, id);
+      s.B_T = {m.number(i, bx), m.number(i, by), m.number(i, bz)};
+      const int k = pass.SensorIndex(s.sensor_id);
+      if (k < 0) {
+        throw InputError(Where(m, i, "sensor_id") + "sensor " + std::to_string(s.sensor_id) +
+                         " is not in the deployment file " + deployment_path);
+      }
+      if (!pass.samples.empty() && s.t_s < pass.samples.back().t_s) {
+        throw InputError(Where(m, i, "t") + "time goes backwards (" + FormatNumber(s.t_s) + " s after " +
+                         FormatNumber(pass.samples.back().t_s) + " s; rows must be ordered by t)");
+      }
+      seen[static_cast<std::size_t>(k)] = 1;
+      pass.samples.push_back(s);
+    }
+    for (std::size_t k = 0; k < seen.size(); ++k) {
+      if (!seen[k]) {
+        throw InputError(Where(d, k, "sensor_id") + "sensor " + std::to_string(pass.sensors[k].sensor_id) +
+                         " has no sample in " + measurements_path);
+      }
+    }
+  }
+
+  // GNSS.
+  if (!gnss_path.empty()) {
+    const CsvTable g = CsvTable::Read(gnss_path);
+    const std::size_t t = g.column("t"), x = g.column("x"), y = g.column("y"), s = g.column("sigma");
+    for (std::size_t i = 0; i < g.num_rows(); ++i) {
+      GnssFix f;
+      f.t_s = g.number(i, t);
+      f.p_xy_m = {g.number(i, x), g.number(i, y)};
+      f.sigma_m = g.number(i, s);
+      if (!(f.sigma_m > 0.0)) throw InputError(Where(g, i, "sigma") + "must be > 0");
+      if (!pass.gnss.empty() && f.t_s < pass.gnss.back().t_s) {
+        throw InputError(Where(g, i, "t") + "time goes backwards (" + FormatNumber(f.t_s) + " s after " +
+                         FormatNumber(pass.gnss.back().t_s) + " s; rows must be ordered by t)");
+      }
+      pass.gnss.push_back(f);
+    }
+  }
+  return out;
+}
+
+const char* SampleCheckName(SampleCheck check) {
+  switch (check) {
+    case SampleCheck::kOk:
+      return "ok";
+    case SampleCheck::kNonFinite:
+      return "non-finite value";
+    case SampleCheck::kUnknownSensor:
+      return "unknown sensor id";
+    case SampleCheck::kTimeBackwards:
+      return "time goes backwards";
+    case SampleCheck::kBadSigma:
+      return "sigma not > 0";
+  }
+  return "?";
+}
+
+InputGate::InputGate(const std::vector<SensorPrior>& sensors)
+    : last_gnss_t_(-std::numeric_limits<double>::infinity()) {
+  for (const auto& s : sensors) last_t_[s.sensor_id] = -std::numeric_limits<double>::infinity();
+}
+
+SampleCheck InputGate::Check(const MagSample& sample) {
+  if (!std::isfinite(sample.t_s) || !sample.B_T.allFinite()) return SampleCheck::kNonFinite;
+  const auto it = last_t_.find(sample.sensor_id);
+  if (it == last_t_.end()) return SampleCheck::kUnknownSensor;
+  if (sample.t_s < it->second) return SampleCheck::kTimeBackwards;
+  it->second = sample.t_s;
+  return SampleCheck::kOk;
+}
+
+SampleCheck InputGate::Check(const GnssFix& fix) {
+  if (!std::isfinite(fix.t_s) || !fix.p_xy_m.allFinite() || !std::isfinite(fix.sigma_m)) {
+    return SampleCheck::kNonFinite;
+  }
+  if (!(fix.sigma_m > 0.0)) return SampleCheck::kBadSigma;
+  if (fix.t_s < last_gnss_t_) return SampleCheck::kTimeBackwards;
+  last_gnss_t_ = fix.t_s;
+  return SampleCheck::kOk;
+}
+
+}  // namespace magnav::localizer

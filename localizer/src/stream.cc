@@ -1,0 +1,158 @@
+#include "magnav/localizer/stream.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "magnav/core/error.h"
+#include "magnav/localizer/crlb.h"
+
+namespace magnav::localizer {
+
+bool StreamOptions::IsValid(std::string* error) const {
+  if (!(reorder_delay_s >= 0.0)) {
+    if (error) *error = "reorder_delay_s must be >= 0";
+    return false;
+  }
+  if (!(init_window_s > 0.0) || !std::isfinite(init_window_s)) {
+    if (error) *error = "init_window_s must be finite and > 0";
+    return false;
+  }
+  return true;
+}
+
+StreamingLocalizer::StreamingLocalizer(const Vessel& vessel, const std::vector<SensorPrior>& sensors,
+                                       const LocalizerOptions& options, const StreamOptions& stream)
+    : vessel_(vessel), sensors_(sensors), options_(options), stream_(stream), gate_(sensors) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InputError("localizer options: " + why);
+  if (!stream.IsValid(&why)) throw InputError("stream options: " + why);
+  if (sensors.empty()) throw InputError("localizer: no sensor");
+  pass_.vessel = vessel;
+  pass_.sensors = sensors;
+}
+
+StreamingLocalizer::~StreamingLocalizer() = default;
+
+double StreamingLocalizer::time() const {
+  return ekf_ ? ekf_->time() : -std::numeric_limits<double>::infinity();
+}
+
+SampleCheck StreamingLocalizer::Add(const MagSample& sample) {
+  const SampleCheck c = gate_.Check(sample);
+  if (c != SampleCheck::kOk) return c;
+  return Buffer(sample.t_s, 1, sample);
+}
+
+SampleCheck StreamingLocalizer::Add(const GnssFix& fix) {
+  const SampleCheck c = gate_.Check(fix);
+  if (c != SampleCheck::kOk) return c;
+  return Buffer(fix.t_s, 0, fix);
+}
+
+SampleCheck StreamingLocalizer::Buffer(double t_s, int kind, Item item) {
+  if (t_s < consumed_until_) {
+    ++late_;
+    return SampleCheck::kTimeBackwards;
+  }
+  pending_.emplace(Key{t_s, kind, arrivals_++}, std::move(item));
+  newest_t_ = std::max(newest_t_, t_s);
+  Release(false);
+  return SampleCheck::kOk;
+}
+
+bool StreamingLocalizer::TryStart(bool final) {
+  if (pending_.empty()) return false;
+  const double t0 = std::get<0>(pending_.begin()->first);
+  if (!final && newest_t_ - t0 < stream_.init_window_s + stream_.reorder_delay_s) return false;
+  std::vector<GnssFix> fixes;
+  for (const auto& [key, item] : pending_) {
+    if (const auto* f = std::get_if<GnssFix>(&item)) fixes.push_back(*f);
+  }
+  VesselVector x0;
+  VesselCovariance P0;
+  bool started = InitialVesselFromGnss(fixes, t0, options_, &x0, &P0, stream_.init_window_s);
+  if (!started && options_.vessel_start) {
+    const InitialVesselSigma& s = options_.initial;
+    x0 = *options_.vessel_start;
+    P0 = VesselVector(s.position_m * s.position_m, s.position_m * s.position_m, s.speed_mps * s.speed_mps,
+                      s.heading_rad * s.heading_rad, s.turn_rate_radps * s.turn_rate_radps)
+             .asDiagonal();
+    started = true;
+  }
+  if (started) {
+    ekf_ = std::make_unique<LocalizerEkf>(vessel_, sensors_, t0, x0, P0, options_);
+    return true;
+  }
+  // No usable fixes at the start: slide the start forward.
+  if (!final) {
+    while (!pending_.empty() && newest_t_ - std::get<0>(pending_.begin()->first) >=
+                                    stream_.init_window_s + stream_.reorder_delay_s) {
+      pending_.erase(pending_.begin());
+      ++dropped_before_start_;
+    }
+  }
+  return false;
+}
+
+void StreamingLocalizer::Release(bool all) {
+  if (!ekf_ && !TryStart(all)) return;
+  while (!pending_.empty() && (all || newest_t_ - std::get<0>(pending_.begin()->first) >= stream_.reorder_delay_s)) {
+    Consume(pending_.begin()->second);
+    pending_.erase(pending_.begin());
+  }
+}
+
+void StreamingLocalizer::Consume(const Item& item) {
+  const double t = std::visit([](const auto& x) { return x.t_s; }, item);
+  consumed_until_ = t;
+  const bool ok = std::visit([this](const auto& x) { return ekf_->Update(x); }, item);
+  if (!ok) {
+    ++failed_;
+    return;
+  }
+  ++consumed_;
+  if (const auto* s = std::get_if<MagSample>(&item)) {
+    pass_.samples.push_back(*s);
+  } else {
+    pass_.gnss.push_back(std::get<GnssFix>(item));
+  }
+  // Epochs as EpochTimes groups them: a new one when t is past the
+  // current epoch's start by more than the tolerance.
+  if (epoch_t_.empty() || t - epoch_t_.back() > options_.epoch_tolerance_s) {
+    epoch_t_.push_back(t);
+    trajectory_.emplace_back();
+  }
+  trajectory_.back() = ekf_->vessel_state();
+}
+
+void StreamingLocalizer::Flush() { Release(true); }
+
+std::vector<SensorEstimate> StreamingLocalizer::Estimates(bool bounds) const {
+  if (!ekf_) return {};
+  std::vector<SensorEstimate> out = ekf_->SensorEstimates();
+  if (bounds && !trajectory_.empty()) AttachCrlb(pass_, options_, trajectory_, &out);
+  return out;
+}
+
+Localization StreamingLocalizer::Result() const {
+  Localization out;
+  out.summary.method = "ekf";
+  if (!ekf_) {
+    out.summary.message = "not started: no GNSS fixes at the start";
+    return out;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  out.sensors = Estimates(false);
+  out.cov_sensors_m2 = ekf_->covariance().bottomRightCorner(2 * ekf_->num_sensors(), 2 * ekf_->num_sensors());
+  out.trajectory_t_s = epoch_t_;
+  out.trajectory = trajectory_;
+  out.summary.magnetometer_updates = static_cast<int>(pass_.samples.size());
+  out.summary.gnss_updates = static_cast<int>(pass_.gnss.size());
+  out.summary.converged = failed_ == 0 && ekf_->covariance().allFinite();
+  out.summary.message = failed_ == 0 ? "every sample used" : std::to_string(failed_) + " updates failed";
+  out.crlb_joint_m2 = AttachCrlb(pass_, options_, trajectory_, &out.sensors).joint_full;
+  out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace magnav::localizer

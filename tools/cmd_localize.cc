@@ -1,0 +1,122 @@
+// `magnav localize`: where the deployed sensors really are, from a friendly
+// vessel's pass (known body moment, GNSS): EKF-SLAM or batch smoother, with
+// each sensor's 1-σ and its Cramér–Rao bound (localizer/).
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "commands.h"
+#include "magnav/core/csv.h"
+#include "magnav/core/error.h"
+#include "magnav/localizer/batch.h"
+#include "magnav/localizer/ekf.h"
+#include "magnav/localizer/input.h"
+
+namespace magnav::tools {
+
+namespace {
+
+struct LocalizeArgs {
+  std::string measurements, deployment, gnss, output, method;
+  Vec3Arg moment;
+  std::string vessel_start;
+  double sigma_B_T = 0.0;  // 0: from the file
+  std::string loss = LossTypeName(localizer::LocalizerOptions{}.magnetometer_loss);
+  localizer::LocalizerOptions options;
+};
+
+std::string Sqrt(double variance) { return FormatNumber(std::sqrt(std::max(variance, 0.0))); }
+
+void RunLocalize(LocalizeArgs a) {
+  const localizer::PassFile f =
+      localizer::ReadPassFiles(a.measurements, a.deployment, a.gnss,
+                               a.moment.set ? std::optional<Eigen::Vector3d>(a.moment.value()) : std::nullopt);
+  if (a.sigma_B_T > 0.0) {
+    a.options.sigma_B_T = a.sigma_B_T;
+  } else if (f.sigma_B_T) {
+    a.options.sigma_B_T = *f.sigma_B_T;
+  } else {
+    throw InputError(a.measurements + ": no magnetometer noise level: give --sigma-b S or a '# sigma_B_T: S' line (T)");
+  }
+  if (!ParseLossType(a.loss, &a.options.magnetometer_loss)) {
+    throw InputError("--loss: expected huber, cauchy or trivial, got '" + a.loss + "'");
+  }
+  if (!a.vessel_start.empty()) {
+    const auto v = ParseNumberList(a.vessel_start);
+    if (!v || v->size() != 4) {
+      throw InputError("--vessel-start: expected X,Y,SPEED,HEADING (m, m, m/s, rad), got '" + a.vessel_start + "'");
+    }
+    localizer::VesselVector x0;
+    x0 << (*v)[0], (*v)[1], (*v)[2], (*v)[3], 0.0;
+    a.options.vessel_start = x0;
+  }
+  std::string why;
+  if (!a.options.IsValid(&why)) throw InputError("options: " + why);
+  localizer::Localization out;
+  if (a.method == "ekf") {
+    out = localizer::RunEkf(f.pass, a.options);
+  } else if (a.method == "batch") {
+    out = localizer::SolveBatch(f.pass, a.options);
+  } else {
+    throw InputError("--method: expected ekf or batch, got '" + a.method + "'");
+  }
+  double known = 0.0;
+  for (const auto& e : out.sensors) known += e.crlb_known_trajectory_m2.trace() / static_cast<double>(out.sensors.size());
+  const Eigen::Vector3d& m = f.pass.vessel.m_B_Am2;
+  CsvWriter w(a.output, {"sensor_id", "x", "y", "z", "sigma_x", "sigma_y", "crlb_x", "crlb_y"},
+              {{"source", a.measurements},
+               {"method", a.method},
+               {"moment_body_Am2", FormatNumber(m.x()) + ", " + FormatNumber(m.y()) + ", " + FormatNumber(m.z())},
+               {"frame",
+                "local NED (x north, y east, z down), m; z = the deployment depth (known); sigma_*: 1-sigma of the "
+                "estimate; crlb_*: 1-sigma Cramer-Rao bound with the trajectory unknown (joint), evaluated at the "
+                "estimate"},
+               {"crlb_known_trajectory_rms_m", FormatNumber(std::sqrt(known))},
+               {"summary", out.summary.BriefReport()}});
+  for (const auto& e : out.sensors) {
+    w.WriteRow({std::to_string(e.sensor_id), FormatNumber(e.p_SinW_m.x()), FormatNumber(e.p_SinW_m.y()),
+                FormatNumber(e.p_SinW_m.z()), Sqrt(e.cov_xy_m2(0, 0)), Sqrt(e.cov_xy_m2(1, 1)),
+                Sqrt(e.crlb_joint_m2(0, 0)), Sqrt(e.crlb_joint_m2(1, 1))});
+  }
+  w.Close();
+}
+
+}  // namespace
+
+void AddLocalizeCommand(CLI::App& app) {
+  auto args = std::make_shared<LocalizeArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "localize", "Estimate the deployed sensors' positions from a friendly vessel's pass (EKF-SLAM or batch)");
+  cmd->add_option("--measurements", args->measurements,
+                  "magnetometer file: t,sensor_id,B_x,B_y,B_z (T) with '# moment_body_Am2:' and '# vessel_z_m:'")
+      ->required();
+  cmd->add_option("--deployment", args->deployment, "deployment guesses: sensor_id,x,y,z,sigma_xy (m)")->required();
+  cmd->add_option("--gnss", args->gnss,
+                  "vessel GNSS fixes: t,x,y,sigma (m); the vessel starts from the first 10 s of them");
+  cmd->add_option("--vessel-start", args->vessel_start,
+                  "X,Y,SPEED,HEADING of the vessel at the first sample (m, m, m/s, rad), for a pass without GNSS at "
+                  "its start; 1-sigma --start-sigma-position, 0.5 m/s, 0.5 rad");
+  cmd->add_option("--start-sigma-position", args->options.initial.position_m,
+                  "1-sigma of --vessel-start's position, m");
+  AddVec3Option(*cmd, "--moment-body", &args->moment,
+                "vessel body moment, A*m^2 (default: the measurements file's '# moment_body_Am2:')");
+  cmd->add_option("--method", args->method, "ekf (EKF-SLAM) or batch (smoother over the whole pass)")
+      ->required()
+      ->check(CLI::IsMember({"ekf", "batch"}));
+  cmd->add_option("--output", args->output, "sensor_id,x,y,z,sigma_x,sigma_y,crlb_x,crlb_y (m)")->required();
+  cmd->add_option("--sigma-b", args->sigma_B_T,
+                  "magnetometer noise per axis, T (default: the measurements file's '# sigma_B_T:')");
+  cmd->add_option("--loss", args->loss, "batch: robust loss on each sample: huber, cauchy or trivial")
+      ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
+  cmd->add_option("--loss-scale", args->options.magnetometer_loss_scale_sigma,
+                  "batch: robust loss scale, in sigmas of the sample residual");
+  auto& q = args->options.process;
+  cmd->add_option("--q-position", q.position_m_per_sqrt_s, "position random walk, m/sqrt(s)");
+  cmd->add_option("--q-speed", q.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)");
+  cmd->add_option("--q-heading", q.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)");
+  cmd->add_option("--q-turn-rate", q.turn_rate_radps_per_sqrt_s, "turn-rate random walk, rad/s/sqrt(s)");
+  cmd->callback([args] { RunLocalize(*args); });
+}
+
+}  // namespace magnav::tools
