@@ -1,10 +1,13 @@
-// `magnav track`: follows one dipole (vessel) through a gradiometer pass file,
-// in batch (whole pass) or sliding-window mode, and writes one row per epoch.
+// `magnav track`: follows every dipole (vessel) of a gradiometer pass or
+// sensor field (tracker/multi_tracker.h), in batch (each track refined over
+// its own samples) or sliding-window (causal) mode, and writes one row per
+// track and epoch with its track_id.
 // --fixes hands the initialiser single-sample fixes computed elsewhere (the
 // output of `magnav invert`, or `magnav record --topic dipole_fix`), as
 // magnav-tracker takes them from magnav/dipole_fix.
 #include <algorithm>
 #include <limits>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -14,6 +17,7 @@
 #include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
 #include "magnav/tracker/initialize.h"
+#include "magnav/tracker/multi_tracker.h"
 #include "magnav/tracker/tracker.h"
 
 namespace magnav::tools {
@@ -31,6 +35,10 @@ struct TrackArgs {
   std::string solver = "chain";
   std::string fixes;
   std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
+  double solve_interval_s = tracker::TrackerOptions{}.window_solve_interval_s;
+  tracker::TrackManagementOptions management;
+  int batch_rounds = tracker::MultiTrackerOptions{}.batch_rounds;
+  double init_snr = tracker::MultiTrackerOptions{}.track.init.min_tensor_snr;
 };
 
 // A fix file: t, sensor_id (optional: 0), dipole_x..z, valid (optional: 1).
@@ -53,26 +61,51 @@ std::vector<tracker::DipoleFix> ReadFixes(const std::string& path) {
   return out;
 }
 
-void WriteTrack(const std::string& path, const std::string& input, const std::string& mode,
-                const std::vector<tracker::EpochEstimate>& epochs, const Eigen::Vector3d& m_B,
-                const Eigen::Matrix3d& cov_m_B, const tracker::Summary& summary) {
-  const Eigen::Vector3d sigma_m = cov_m_B.diagonal().cwiseMax(0.0).cwiseSqrt();
-  CsvWriter w(path, {"t", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z"},
-              {{"source", input},
-               {"mode", mode},
-               {"moment_body_Am2", FormatVec3(m_B)},
-               {"sigma_moment_body_Am2", FormatVec3(sigma_m)},
-               {"frame",
-                "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
-                "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
-                "unknown"},
-               {"summary", summary.BriefReport()}});
-  for (const auto& e : epochs) {
+// One output row: a track's estimate.
+struct Row {
+  std::uint32_t track_id = 0;
+  tracker::EpochEstimate e;
+};
+
+void WriteTracks(const std::string& path, const std::string& input, const std::string& mode, std::vector<Row> rows,
+                 const std::vector<tracker::TrackRecord>& tracks, const std::string& summary) {
+  std::stable_sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) {
+    return a.e.t_s != b.e.t_s ? a.e.t_s < b.e.t_s : a.track_id < b.track_id;
+  });
+  // The longest track's moment keeps the single-vessel header line.
+  std::map<std::uint32_t, int> count;
+  for (const auto& r : rows) ++count[r.track_id];
+  const tracker::TrackRecord* longest = nullptr;
+  for (const auto& t : tracks) {
+    if (longest == nullptr || count[t.track_id] > count[longest->track_id]) longest = &t;
+  }
+  std::vector<std::pair<std::string, std::string>> params = {{"source", input}, {"mode", mode}};
+  if (longest != nullptr) {
+    params.push_back({"moment_body_Am2", FormatVec3(longest->m_B_Am2)});
+    params.push_back({"sigma_moment_body_Am2", FormatVec3(longest->cov_m_B.diagonal().cwiseMax(0.0).cwiseSqrt())});
+  }
+  for (const auto& t : tracks) {
+    params.push_back({"track_moment_body_Am2", std::to_string(t.track_id) + ", " + FormatVec3(t.m_B_Am2)});
+  }
+  for (const auto& t : tracks) {
+    params.push_back({"track", std::to_string(t.track_id) + ": " + std::to_string(count[t.track_id]) + " rows, t " +
+                                   FormatNumber(t.t_start_s) + "-" + FormatNumber(t.t_end_s) + " s, ended: " +
+                                   (t.end_reason.empty() ? "no" : t.end_reason)});
+  }
+  params.push_back({"frame",
+                    "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
+                    "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
+                    "unknown; track_id: one per vessel, never reused"});
+  params.push_back({"summary", summary});
+  CsvWriter w(path, {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z"},
+              params);
+  for (const auto& r : rows) {
+    const auto& e = r.e;
     const Eigen::Vector3d v = e.v_VinW();
-    std::vector<std::string> row = {FormatNumber(e.t_s),        FormatNumber(e.p_VinW.x()),
-                                    FormatNumber(e.p_VinW.y()), FormatNumber(e.p_VinW.z()),
-                                    FormatNumber(v.x()),        FormatNumber(v.y()),
-                                    FormatNumber(e.heading_rad)};
+    std::vector<std::string> row = {FormatNumber(e.t_s),        std::to_string(r.track_id),
+                                    FormatNumber(e.p_VinW.x()), FormatNumber(e.p_VinW.y()),
+                                    FormatNumber(e.p_VinW.z()), FormatNumber(v.x()),
+                                    FormatNumber(v.y()),        FormatNumber(e.heading_rad)};
     for (int i = 0; i < 3; ++i) {
       row.push_back(e.has_covariance ? FormatNumber(std::sqrt(std::max(e.cov_state(i, i), 0.0))) : "");
     }
@@ -97,8 +130,13 @@ void RunTrack(const TrackArgs& a) {
                        ": column 't': time goes backwards (rows must be ordered by t)");
     }
   }
-  tracker::TrackerOptions opt;
+  tracker::MultiTrackerOptions mopt;
+  mopt.management = a.management;
+  mopt.batch_rounds = a.batch_rounds;
+  tracker::TrackerOptions& opt = mopt.track;
   opt.window_s = a.window_s;
+  opt.init.min_tensor_snr = a.init_snr;
+  opt.window_solve_interval_s = a.solve_interval_s;
   if (!tracker::ParseLossType(a.loss, &opt.measurement_loss)) {
     throw InputError("--loss: expected huber, cauchy or trivial, got '" + a.loss + "'");
   }
@@ -121,40 +159,59 @@ void RunTrack(const TrackArgs& a) {
     throw InputError("--init-from dipole_fix needs --fixes FILE (e.g. the output of magnav invert)");
   }
   std::string why;
-  if (!opt.IsValid(&why)) throw InputError("options: " + why);
+  if (!mopt.IsValid(&why)) throw InputError("options: " + why);
   std::optional<std::vector<tracker::DipoleFix>> fixes;
   if (!a.fixes.empty()) fixes = ReadFixes(a.fixes);
   const std::vector<tracker::DipoleFix>* given = fixes ? &*fixes : nullptr;
 
+  std::vector<Row> rows;
+  std::vector<tracker::TrackRecord> records;
+  std::string summary;
   if (a.mode == "batch") {
     const auto epochs = tracker::GroupEpochs(f.samples, opt.epoch_tolerance_s);
-    const tracker::TrackEstimate est = tracker::SolveBatch(epochs, B0, opt, given);
-    if (!est.summary.initialized) throw InputError(a.input + ": " + est.summary.message);
-    WriteTrack(a.output, a.input, a.mode, est.epochs, est.m_B_Am2, est.cov_m_B, est.summary);
+    const auto tracks = tracker::SolveBatchMulti(epochs, B0, mopt, given);
+    for (const auto& t : tracks) {
+      tracker::TrackRecord r;
+      r.track_id = t.track_id;
+      r.m_B_Am2 = t.track.m_B_Am2;
+      r.cov_m_B = t.track.cov_m_B;
+      r.live = false;
+      r.t_start_s = t.track.epochs.empty() ? 0.0 : t.track.epochs.front().t_s;
+      r.t_end_s = t.track.epochs.empty() ? 0.0 : t.track.epochs.back().t_s;
+      records.push_back(r);
+      for (const auto& e : t.track.epochs) {
+        if (e.usable) rows.push_back({t.track_id, e});
+      }
+      summary += "track " + std::to_string(t.track_id) + ": " + t.track.summary.BriefReport() + "; ";
+    }
   } else if (a.mode == "window") {
     // As magnav-tracker: each fix is handed in before the sample it came from.
-    tracker::WindowTracker tr(B0, opt);
-    std::vector<tracker::EpochEstimate> all;
+    tracker::MultiTracker tr(B0, mopt);
     std::size_t next_fix = 0;
+    const auto take = [&](const std::vector<tracker::TrackOutput>& out) {
+      for (const auto& o : out) rows.push_back({o.track_id, o.estimate});
+    };
     for (const auto& s : f.samples) {
       while (given && next_fix < given->size() && (*given)[next_fix].t_s <= s.t_s) tr.AddFix((*given)[next_fix++]);
-      for (auto& e : tr.AddSample(s)) all.push_back(e);
+      take(tr.AddSample(s));
     }
-    for (auto& e : tr.Flush()) all.push_back(e);
-    if (!tr.initialized()) throw InputError(a.input + ": " + tracker::NoTrackMessage(opt, given != nullptr));
-    WriteTrack(a.output, a.input, a.mode, all, tr.m_B_Am2(), tr.cov_m_B(), tr.last_summary());
+    take(tr.Flush());
+    records = tr.Tracks();
+    summary = tr.summary().BriefReport();
   } else {
     throw InputError("--mode: expected batch or window, got '" + a.mode + "'");
   }
+  if (records.empty()) throw InputError(a.input + ": " + tracker::NoTrackMessage(opt, given != nullptr));
+  WriteTracks(a.output, a.input, a.mode, rows, records, summary);
 }
 
 }  // namespace
 
 void AddTrackCommand(CLI::App& app) {
   auto args = std::make_shared<TrackArgs>();
-  CLI::App* cmd = app.add_subcommand("track", "Track one dipole (vessel) through a gradiometer pass");
+  CLI::App* cmd = app.add_subcommand("track", "Track every dipole (vessel) of a gradiometer pass or field");
   cmd->add_option("--input", args->input, "pass file: t,sensor_id,sensor_x..z,B_x..B_z,T00..T22")->required();
-  cmd->add_option("--output", args->output, "track file: t,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z")
+  cmd->add_option("--output", args->output, "track file: t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z")
       ->required();
   AddVec3Option(*cmd, "--b0", &args->b0, "background field B0 in tesla, NED (default: the file's '# B0_T:')");
   cmd->add_option("--mode", args->mode, "batch (whole pass) or window (fixed-lag, causal)")
@@ -189,6 +246,26 @@ void AddTrackCommand(CLI::App& app) {
       ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
   cmd->add_option("--turn-loss-scale", args->process.turn_rate_loss_scale_sigma,
                   "turn-rate loss scale, in sigmas of one step");
+  cmd->add_option("--solve-interval", args->solve_interval_s,
+                  "solve each track's window once per this much data, s (0 = every epoch)");
+  auto& m = args->management;
+  cmd->add_option("--gate-snr", m.gate_snr, "a track uses the sensors where its predicted signal SNR is at least this");
+  cmd->add_option("--detect-llr", m.detect_llr, "log-likelihood ratio of a detection (negated: of a miss) per epoch");
+  cmd->add_option("--confirm-m", m.confirm_m, "a new track is confirmed by M detections ...");
+  cmd->add_option("--confirm-n", m.confirm_n, "... among its first N epochs");
+  cmd->add_option("--max-miss", m.max_miss_s, "a track missed this long in a row ends, s");
+  cmd->add_option("--max-coast", m.max_coast_s, "a track not detected this long ends, s");
+  cmd->add_option("--max-sigma-h", m.max_sigma_horizontal_m, "a track whose horizontal 1-sigma exceeds this ends, m");
+  cmd->add_option("--min-separation", m.min_separation_m,
+                  "no new track this close to a live one; a track this close to an older one for --max-miss ends, m");
+  cmd->add_option("--init-snr", args->init_snr,
+                  "a sample gives an initiation fix if its tensor norm is at least this many sigma_T");
+  cmd->add_option("--max-chi2", m.max_chi2_per_dof,
+                  "poor fit (a miss): residual chi-square per residual above this ...");
+  cmd->add_option("--max-unexplained", m.max_unexplained, "... and residual energy above this share of the signal's");
+  cmd->add_option("--min-new-share", m.min_new_share,
+                  "residual below this share of a track's predicted tensor is not offered to the initiator");
+  cmd->add_option("--batch-rounds", args->batch_rounds, "batch: refinement rounds over every track");
   cmd->callback([args] { RunTrack(*args); });
 }
 

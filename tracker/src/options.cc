@@ -85,6 +85,9 @@ bool TrackerOptions::IsValid(std::string* error) const {
     return Fail(error, "batch_growth_factor must be > 1");
   }
   if (!PositiveFinite(window_s)) return Fail(error, "window_s must be > 0");
+  if (!(window_solve_interval_s >= 0.0) || !(window_solve_interval_s < window_s)) {
+    return Fail(error, "window_solve_interval_s must be >= 0 and < window_s");
+  }
   return true;
 }
 

@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <deque>
+#include <limits>
+#include <optional>
 
 #include "factors.h"
 #include "magnav/core/csv.h"
@@ -61,6 +63,8 @@ struct WindowTracker::Impl {
   std::deque<WindowEpoch> window;
   internal::Factor prior;  // on (window.front().x, moment); cost null = none
   Summary summary;
+  int unsolved = 0;  // epochs appended since the last window solve
+  double last_solve_t = -std::numeric_limits<double>::infinity();
   int rejected_samples = 0;  // refused at the door (CheckSample)
   int dropped_factors = 0;   // left out of a marginalisation
   // Factorisation of the window at the current estimate (chain solver).
@@ -150,15 +154,17 @@ struct WindowTracker::Impl {
     window.pop_front();
   }
 
-  // Marginal covariance of the newest state and of the moment (chain
-  // selected inversion over the window, prior included).
-  bool NewestCovariance(StateCovariance* P_state, Eigen::Matrix3d* P_moment) {
+  // Marginal covariances of the newest `count` states and of the moment
+  // (chain selected inversion over the window, prior included); P_states in
+  // window order.
+  bool NewestCovariances(std::size_t count, std::vector<StateCovariance>* P_states, Eigen::Matrix3d* P_moment) {
     if (!chain_fresh)
       chain_fresh = internal::FactorizeChain(Chain(), &chain);
     std::vector<StateCovariance> P;
     Eigen::Matrix3d Pm;
     if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
-    *P_state = P.back();
+    count = std::min(count, P.size());
+    P_states->assign(P.end() - static_cast<std::ptrdiff_t>(count), P.end());
     *P_moment = Pm * (moment_scale * moment_scale);
     return true;
   }
@@ -313,9 +319,33 @@ struct WindowTracker::Impl {
     summary.total_time_s = Seconds(t0, std::chrono::steady_clock::now());
   }
 
+  // Starts the track from `init` over the buffered `epochs` (the first window
+  // solve, with robust-loss continuation).
+  std::vector<EpochEstimate> Start(const InitialTrack& init, const std::vector<Epoch>& epochs) {
+    const auto t0 = std::chrono::steady_clock::now();
+    initialized = true;
+    fixes.clear();
+    buffer.clear();
+    moment_scale = std::max(init.m_B_Am2.norm(), 1.0);
+    moment = init.m_B_Am2 / moment_scale;
+    for (const Epoch& b : epochs) {
+      const CtState<double> s = PropagateCoordinatedTurn(init.state, b.t_s - init.t_ref_s);
+      StateVector x0;
+      x0 << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+      Append(b, x0);
+    }
+    Solve(true);
+    summary.num_init_fixes = static_cast<int>(init.fixes.size());
+    summary.init_from_external_fixes = init.from_external_fixes;
+    unsolved = 0;
+    last_solve_t = window.back().epoch.t_s;
+    return Emit(1, t0);
+  }
+
   std::vector<EpochEstimate> Process(const Epoch& e) {
     const auto t0 = std::chrono::steady_clock::now();
     if (!initialized) {
+      if (e.samples.empty()) return {};
       buffer.push_back(e);
       while (e.t_s - buffer.front().t_s > options.window_s + options.epoch_tolerance_s) buffer.pop_front();
       while (!fixes.empty() && fixes.front().t_s < buffer.front().t_s - options.epoch_tolerance_s) fixes.pop_front();
@@ -323,55 +353,80 @@ struct WindowTracker::Impl {
       const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
       const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options, any_fix ? &given : nullptr);
       if (!init) return {};
-      initialized = true;
-      fixes.clear();
-      moment_scale = std::max(init->m_B_Am2.norm(), 1.0);
-      moment = init->m_B_Am2 / moment_scale;
-      for (const Epoch& b : epochs) {
-        const CtState<double> s = PropagateCoordinatedTurn(init->state, b.t_s - init->t_ref_s);
-        StateVector x0;
-        x0 << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
-        Append(b, x0);
-      }
-      buffer.clear();
-      Solve(true);
-      summary.num_init_fixes = static_cast<int>(init->fixes.size());
-      summary.init_from_external_fixes = init->from_external_fixes;
-    } else {
-      const WindowEpoch& last = window.back();
-      const CtState<double> s0{last.x(0), last.x(1), last.x(2), last.x(3), last.x(4), last.x(5)};
-      const CtState<double> s = PropagateCoordinatedTurn(s0, e.t_s - last.epoch.t_s);
-      StateVector x0;
-      x0 << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
-      Append(e, x0);
-      while (window.size() > 2 &&
-             e.t_s - window.front().epoch.t_s > options.window_s + options.epoch_tolerance_s) {
-        MarginalizeFront();
-      }
-      Solve(false);
-      summary.num_init_fixes = 0;
-      summary.init_from_external_fixes = false;
+      return Start(*init, epochs);
     }
+    const WindowEpoch& last = window.back();
+    const CtState<double> s0{last.x(0), last.x(1), last.x(2), last.x(3), last.x(4), last.x(5)};
+    const CtState<double> s = PropagateCoordinatedTurn(s0, e.t_s - last.epoch.t_s);
+    StateVector x0;
+    x0 << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+    Append(e, x0);
+    while (window.size() > 2 &&
+           e.t_s - window.front().epoch.t_s > options.window_s + options.epoch_tolerance_s) {
+      MarginalizeFront();
+    }
+    ++unsolved;
+    // Solve every window_solve_interval_s of data (every epoch with 0); the
+    // epochs appended since the last solve get their estimates from this one.
+    if (e.t_s - last_solve_t < options.window_solve_interval_s - options.epoch_tolerance_s &&
+        static_cast<std::size_t>(unsolved) + 2 < window.size()) {
+      return {};
+    }
+    return SolvePending(t0);
+  }
+
+  // Solves the window and emits the epochs appended since the last solve.
+  std::vector<EpochEstimate> SolvePending(std::chrono::steady_clock::time_point t0) {
+    if (unsolved == 0) return {};
+    Solve(false);
+    summary.num_init_fixes = 0;
+    summary.init_from_external_fixes = false;
+    const std::size_t count = static_cast<std::size_t>(unsolved);
+    unsolved = 0;
+    last_solve_t = window.back().epoch.t_s;
+    return Emit(count, t0);
+  }
+
+  // Estimates of the newest `count` epochs after a solve.
+  std::vector<EpochEstimate> Emit(std::size_t count, std::chrono::steady_clock::time_point t0) {
     summary.num_rejected_samples = rejected_samples;
     summary.num_dropped_factors = dropped_factors;
-    EpochEstimate est = Estimate(window.back());
-    est.usable = summary.usable && window.back().x.allFinite() && moment.allFinite();
-    if (options.compute_covariance && est.usable) {
+    count = std::min(count, window.size());
+    std::vector<EpochEstimate> out;
+    const bool ok = summary.usable && moment.allFinite();
+    for (std::size_t k = window.size() - count; k < window.size(); ++k) {
+      EpochEstimate est = Estimate(window[k]);
+      est.usable = ok && window[k].x.allFinite();
+      out.push_back(est);
+    }
+    if (options.compute_covariance && ok) {
       const auto tc = std::chrono::steady_clock::now();
-      StateCovariance P;
+      std::vector<StateCovariance> P;
       Eigen::Matrix3d Pm;
-      if (NewestCovariance(&P, &Pm) && P.allFinite() && Pm.allFinite()) {
-        est.cov_state = P;
-        est.has_covariance = true;
+      const bool have = NewestCovariances(count, &P, &Pm) && Pm.allFinite();
+      if (have) {
         cov_m_B = Pm;
         summary.covariance_ok = true;
-      } else {
-        est.usable = false;  // a covariance was asked for and cannot be given
+      }
+      for (std::size_t i = 0; i < out.size(); ++i) {
+        if (have && P[i].allFinite()) {
+          out[i].cov_state = P[i];
+          out[i].has_covariance = true;
+        } else {
+          out[i].usable = false;  // a covariance was asked for and cannot be given
+        }
       }
       summary.covariance_time_s = Seconds(tc, std::chrono::steady_clock::now());
     }
     summary.total_time_s = Seconds(t0, std::chrono::steady_clock::now());
-    return {est};
+    return out;
+  }
+
+  std::optional<CtState<double>> PredictState(double t_s) const {
+    if (!initialized || window.empty()) return std::nullopt;
+    const WindowEpoch& last = window.back();
+    const CtState<double> s0{last.x(0), last.x(1), last.x(2), last.x(3), last.x(4), last.x(5)};
+    return PropagateCoordinatedTurn(s0, t_s - last.epoch.t_s);
   }
 };
 
@@ -412,9 +467,34 @@ std::vector<EpochEstimate> WindowTracker::AddSample(const GradiometerSample& sam
 
 std::vector<EpochEstimate> WindowTracker::Flush() {
   Impl& m = *impl_;
-  if (!m.has_pending) return {};
+  std::vector<EpochEstimate> out;
+  if (m.has_pending) {
+    m.has_pending = false;
+    out = AddEpoch(m.pending);
+  }
+  if (m.initialized) {
+    for (auto& e : m.SolvePending(std::chrono::steady_clock::now())) out.push_back(e);
+  }
+  return out;
+}
+
+std::vector<EpochEstimate> WindowTracker::Start(const InitialTrack& init, const std::vector<Epoch>& epochs) {
+  Impl& m = *impl_;
+  if (m.initialized) throw InputError("tracker: Start on a tracker that already has a track");
+  if (epochs.empty()) throw InputError("tracker: Start needs the epochs of its initial track");
+  for (std::size_t k = 1; k < epochs.size(); ++k) {
+    if (!(epochs[k].t_s > epochs[k - 1].t_s + m.options.epoch_tolerance_s)) {
+      throw InputError("tracker: Start: epochs are not in increasing time order");
+    }
+  }
   m.has_pending = false;
-  return AddEpoch(m.pending);
+  return m.Start(init, epochs);
+}
+
+std::optional<CtState<double>> WindowTracker::PredictState(double t_s) const { return impl_->PredictState(t_s); }
+
+double WindowTracker::last_epoch_time() const {
+  return impl_->initialized ? impl_->window.back().epoch.t_s : -std::numeric_limits<double>::infinity();
 }
 
 std::vector<EpochEstimate> WindowTracker::AddEpoch(const Epoch& raw) {
@@ -429,7 +509,9 @@ std::vector<EpochEstimate> WindowTracker::AddEpoch(const Epoch& raw) {
   }
   m.summary.num_rejected_samples = m.rejected_samples;
   if (!std::isfinite(epoch.t_s)) throw InputError("tracker: epoch time is not finite");
-  if (epoch.samples.empty()) return {};
+  // With no sample an epoch only carries the motion model: a track coasts
+  // through it; before a track exists it is ignored.
+  if (epoch.samples.empty() && !m.initialized) return {};
   const double last_t =
       m.initialized ? m.window.back().epoch.t_s
                     : (m.buffer.empty() ? -std::numeric_limits<double>::infinity() : m.buffer.back().t_s);

@@ -132,6 +132,10 @@ struct TrackerOptions {
   // Sliding window: fixed lag (s) and iterations per new epoch.
   double window_s = 20.0;
   int window_max_num_iterations = 4;
+  // The window is solved once per this much data (s); the epochs that came
+  // in between get their estimates from that solve (a lag of at most this
+  // long). 0 = after every epoch (the single-vessel default).
+  double window_solve_interval_s = 0.0;
   // Relative cost change that ends a window solve (the window starts from
   // the previous solution, so a loose tolerance loses nothing).
   double window_function_tolerance = 1e-4;

@@ -20,9 +20,11 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "magnav/core/gradiometer.h"
+#include "magnav/core/motion.h"
 #include "magnav/inversion/inverter.h"
 #include "magnav/tracker/options.h"
 
@@ -75,6 +77,8 @@ struct TrackEstimate {
   Summary summary;
 };
 
+struct InitialTrack;  // initialize.h
+
 // Batch solve over all epochs of a pass. If no track can be initialised the
 // result has summary.initialized == false and no epochs. `fixes`: single-sample
 // fixes computed elsewhere (e.g. `magnav invert`'s output) for the
@@ -100,10 +104,24 @@ class WindowTracker {
   // Summary::num_rejected_samples, never seen by the solver. Throws
   // InputError if the time goes back.
   std::vector<EpochEstimate> AddSample(const GradiometerSample& sample);
-  // Processes the pending epoch (end of stream).
+  // Processes the pending epoch and solves what is not solved yet (end of
+  // stream).
   std::vector<EpochEstimate> Flush();
   // Processes one complete epoch directly (later than every previous one).
+  // Once a track exists, an epoch with no sample is a coasting step: only the
+  // motion model links it, so the state's covariance grows.
   std::vector<EpochEstimate> AddEpoch(const Epoch& epoch);
+  // Starts the track from an initialisation made elsewhere (the multi-vessel
+  // tracker's initiator) over the epochs it came from (time-ordered; their
+  // samples become the first window), instead of waiting for the tracker's
+  // own initialiser. Returns the newest epoch's estimate. Throws InputError if
+  // a track exists already or the epochs are empty or out of order.
+  std::vector<EpochEstimate> Start(const InitialTrack& init, const std::vector<Epoch>& epochs);
+  // The newest window state propagated by the coordinated-turn model to
+  // t_s (prediction; no measurement). nullopt before a track exists.
+  std::optional<CtState<double>> PredictState(double t_s) const;
+  // Time of the newest epoch in the window (−inf before a track exists).
+  double last_epoch_time() const;
   // Hands the initialiser a fix computed elsewhere (every fix magnav-inverter
   // publishes, rejected ones included: with InitSource::kAuto the first fix,
   // valid or not, makes the initialiser try the fixes handed in first), used

@@ -1,0 +1,201 @@
+// Several vessels at once in a sensor field: track management (start,
+// confirmation, coasting, end) and association around the single-track
+// engines of tracker.h (WindowTracker per track; SolveBatch per track for the
+// batch refinement).
+//
+// Frames and units as tracker.h: world = local NED (x north, y east, z down),
+// metres, seconds, tesla, T/m, A·m² (body moment), radians.
+//
+// Per epoch (the samples of every sensor at one instant):
+//  1. Prediction: every live track's newest state is propagated to the epoch
+//     and its field (B̂, T̂) predicted at every sensor from its own body moment.
+//  2. Association: a track takes the sensors where its predicted signal
+//     SNR = √(‖B̂‖²/σ_B² + ‖T̂‖²/σ_T²) ≥ gate_snr ("its sensors"); it is
+//     given there the sample minus the predicted fields of the other live
+//     tracks (a joint multi-dipole model solved track by track, so two
+//     vessels seen by one sensor share it). A sensor no track reaches is not
+//     given to any track.
+//  3. Score: per track, the log-likelihood ratio of "this track's field is
+//     there" against "it is not", over its sensors, with m the whitened
+//     sample minus B0 and the other tracks and ẑ the whitened prediction:
+//     LLR = ½ Σ (‖m‖² − ‖m − ẑ‖²). LLR ≥ detect_llr: detected; LLR ≤
+//     −detect_llr: missed (the track predicts a field that is not there);
+//     otherwise (far from every sensor) unobserved.
+//  4. Update: each track's window gets its sensors' samples (none: it
+//     coasts, its covariance grows with the motion model).
+//  5. Start: the samples minus every track's prediction are buffered
+//     (window_s long); every init_interval_s the single-track initialiser
+//     (InitializeTrack: a robust line through strong single-sample TED+EGT
+//     fixes, or through fixes handed in by AddFix) looks for a new vessel
+//     there. A new track closer than min_separation_m to a live one is not
+//     started. New tracks are tentative until confirm_m of their first
+//     confirm_n epochs are detections (M-of-N); a tentative track that cannot
+//     reach that is dropped. Only confirmed tracks get a track_id (1, 2, …;
+//     never reused) and produce estimates.
+//  6. End: a confirmed track ends when it has been missed for max_miss_s in
+//     a row, or not detected for max_coast_s, or its horizontal 1-σ exceeds
+//     max_sigma_horizontal_m, or its window solve stays unusable for
+//     max_miss_s, or it runs within min_separation_m of an older track for
+//     max_miss_s (a duplicate; the younger ends).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "magnav/tracker/options.h"
+#include "magnav/tracker/tracker.h"
+
+namespace magnav::tracker {
+
+struct TrackManagementOptions {
+  // A sensor is a track's when the track's predicted signal there has at
+  // least this SNR (see above).
+  double gate_snr = 3.0;
+  // Per-epoch log-likelihood ratio of a detection (and, negated, of a miss).
+  double detect_llr = 12.5;
+  // Poor fit: an epoch whose whitened residual energy Σ‖m − ẑ‖² over the
+  // track's sensors exceeds max_chi2_per_dof per residual (8 per sample)
+  // and max_unexplained of the signal energy Σ‖m‖² counts as a miss: the
+  // track explains too little of what its sensors see (an untracked vessel
+  // dominates them, or it lost its own). On the reference field a tracked
+  // vessel gives ≤ 4.4 per residual, a disturbed one ≥ 300.
+  double max_chi2_per_dof = 25.0;
+  double max_unexplained = 0.01;
+  // The initiator is not offered a sample whose residual tensor (the sample
+  // minus every track's field) is below this share of the strongest track's
+  // predicted tensor there: that residual is mostly the track's model error,
+  // the seed of a ghost. (A new vessel that weak beside a tracked one waits
+  // until it is farther from it.)
+  double min_new_share = 0.2;
+  // Confirmation: confirm_m detections among a tentative track's first
+  // confirm_n epochs (with at least one sensor).
+  int confirm_m = 8;
+  int confirm_n = 10;
+  // End rules (s, m): see above.
+  double max_miss_s = 2.0;
+  double max_coast_s = 10.0;
+  double max_sigma_horizontal_m = 5.0;
+  double min_separation_m = 8.0;
+  // The initiator runs once per this much data (s).
+  double init_interval_s = 1.0;
+
+  bool IsValid(std::string* error) const;
+};
+
+struct MultiTrackerOptions {
+  MultiTrackerOptions();
+  // Each track's engine. Differs from TrackerOptions' defaults in one
+  // value: init.min_tensor_snr = kFieldInitSnr, so that a vessel crossing
+  // a field gets a track before it is right above a sensor.
+  TrackerOptions track;
+  static constexpr double kFieldInitSnr = 20.0;
+  TrackManagementOptions management;
+  // Batch (SolveBatchMulti): refinement rounds; each solves every track over
+  // its own samples with the others' fields (from the previous round)
+  // removed. ≥ 1.
+  int batch_rounds = 2;
+  // Batch: a track's samples are taken from this long before its first to
+  // this long after its last window estimate (s).
+  double batch_margin_s = 5.0;
+
+  bool IsValid(std::string* error) const;
+};
+
+// One estimate of one track.
+struct TrackOutput {
+  std::uint32_t track_id = 0;
+  EpochEstimate estimate;
+  Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();  // the track's body moment now
+  Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();
+};
+
+// A track's start or end, for logs.
+struct TrackEvent {
+  enum class Kind { kStarted, kEnded };
+  Kind kind = Kind::kStarted;
+  std::uint32_t track_id = 0;
+  double t_s = 0.0;
+  std::string reason;  // "confirmed", "missed", "lost", "uncertain", "unusable", "duplicate", "end of data"
+};
+
+// What became of one confirmed track (ended or still live).
+struct TrackRecord {
+  std::uint32_t track_id = 0;
+  bool live = true;
+  double t_start_s = 0.0;  // first estimate
+  double t_end_s = 0.0;    // last estimate
+  double t_last_detection_s = 0.0;
+  std::string end_reason;  // empty while live
+  int num_estimates = 0;
+  Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();
+};
+
+struct MultiSummary {
+  int num_epochs = 0;
+  int num_rejected_samples = 0;  // refused at the door (CheckSample)
+  int num_tentative_dropped = 0;  // tentative tracks never confirmed
+  int num_starts_refused = 0;     // initialisations too close to a live track
+  int num_confirmed = 0;
+  int num_ended = 0;
+  std::string BriefReport() const;
+};
+
+// Sliding-window tracking of every vessel of a field. Not thread-safe.
+class MultiTracker {
+ public:
+  // Throws InputError if options are invalid or B0 is not finite.
+  MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOptions& options);
+  ~MultiTracker();
+  MultiTracker(const MultiTracker&) = delete;
+  MultiTracker& operator=(const MultiTracker&) = delete;
+
+  // As WindowTracker::AddSample / AddEpoch / Flush: samples in time order,
+  // a later time closes the current epoch. Returns the confirmed tracks'
+  // estimates produced by it (in time order per track). A sample that fails
+  // CheckSample is counted and skipped. Throws InputError if time goes back.
+  std::vector<TrackOutput> AddSample(const GradiometerSample& sample);
+  std::vector<TrackOutput> AddEpoch(const Epoch& epoch);
+  // End of data: processes the pending epoch, solves what is pending, ends
+  // every live track ("end of data").
+  std::vector<TrackOutput> Flush();
+  // A single-sample fix from elsewhere (magnav/dipole_fix) for the
+  // initiator, as WindowTracker::AddFix.
+  void AddFix(const DipoleFix& fix);
+
+  // Starts and ends since the last call.
+  std::vector<TrackEvent> TakeEvents();
+  // Every confirmed track so far, in track_id order.
+  std::vector<TrackRecord> Tracks() const;
+  int num_live_tracks() const;  // confirmed + tentative
+  const MultiSummary& summary() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// One track of a batch solve.
+struct MultiTrackEstimate {
+  std::uint32_t track_id = 0;
+  TrackEstimate track;  // epochs, moment, summary (SolveBatch over the track's own samples)
+};
+
+// Every vessel of a pass: the window tracker finds the tracks, then each is
+// refined by SolveBatch over its own samples (its sensors, within
+// batch_margin_s of its span, the other tracks' fields removed), for
+// batch_rounds rounds. A track whose refinement fails keeps its window
+// estimates (its summary says so). Tracks in track_id order; none if no
+// vessel was found.
+std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                                const MultiTrackerOptions& options,
+                                                const std::vector<DipoleFix>* fixes = nullptr);
+
+// Predicted field of a dipole vessel at a sensor (T, T/m).
+void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2, const Eigen::Vector3d& p_SinW,
+                    Eigen::Vector3d* B, Eigen::Matrix3d* T);
+
+}  // namespace magnav::tracker

@@ -1,0 +1,141 @@
+// SolveBatchMulti: the window tracker finds the vessels, SolveBatch refines
+// each over its own samples.
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "magnav/core/error.h"
+#include "magnav/tracker/initialize.h"
+#include "magnav/tracker/multi_tracker.h"
+
+namespace magnav::tracker {
+
+namespace {
+
+// A track's estimates as a function of time (nearest estimate, propagated).
+struct TrackPath {
+  std::vector<EpochEstimate> epochs;  // time-ordered
+  Eigen::Vector3d m_B = Eigen::Vector3d::Zero();
+
+  // State at t_s, from the nearest estimate no farther than max_gap_s.
+  std::optional<CtState<double>> At(double t_s, double max_gap_s) const {
+    if (epochs.empty()) return std::nullopt;
+    auto it = std::lower_bound(epochs.begin(), epochs.end(), t_s,
+                               [](const EpochEstimate& e, double t) { return e.t_s < t; });
+    if (it == epochs.end() || (it != epochs.begin() && t_s - std::prev(it)->t_s < it->t_s - t_s)) --it;
+    if (std::abs(it->t_s - t_s) > max_gap_s) return std::nullopt;
+    const CtState<double> s{it->p_VinW.x(), it->p_VinW.y(), it->p_VinW.z(), it->speed_mps, it->heading_rad,
+                            it->turn_rate_radps};
+    return PropagateCoordinatedTurn(s, t_s - it->t_s);
+  }
+};
+
+}  // namespace
+
+std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                                const MultiTrackerOptions& options,
+                                                const std::vector<DipoleFix>* fixes) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InputError("multi-tracker options: " + why);
+  // 1. The causal pass finds the vessels.
+  MultiTracker finder(B0_W, options);
+  std::map<std::uint32_t, TrackPath> paths;
+  std::size_t next_fix = 0;
+  const auto take = [&](const std::vector<TrackOutput>& out) {
+    for (const auto& o : out) {
+      if (o.estimate.usable) paths[o.track_id].epochs.push_back(o.estimate);
+    }
+  };
+  for (const Epoch& e : epochs) {
+    while (fixes != nullptr && next_fix < fixes->size() && (*fixes)[next_fix].t_s <= e.t_s) {
+      finder.AddFix((*fixes)[next_fix++]);
+    }
+    take(finder.AddEpoch(e));
+  }
+  take(finder.Flush());
+  std::vector<MultiTrackEstimate> result;
+  // Each track's span: its window estimates' plus the margin, fixed over the
+  // rounds; a track that ended because its sensors stopped fitting it (an
+  // untracked vessel came, or it was lost) ends at its last detection.
+  std::vector<std::pair<double, double>> spans;
+  const double margin = options.batch_margin_s;
+  for (const TrackRecord& r : finder.Tracks()) {
+    auto it = paths.find(r.track_id);
+    if (it == paths.end() || it->second.epochs.empty()) continue;
+    it->second.m_B = r.m_B_Am2;
+    MultiTrackEstimate m;
+    m.track_id = r.track_id;
+    m.track.epochs = it->second.epochs;
+    m.track.m_B_Am2 = r.m_B_Am2;
+    m.track.cov_m_B = r.cov_m_B;
+    m.track.summary.initialized = true;
+    m.track.summary.usable = true;
+    m.track.summary.message = "window estimates (batch refinement not run)";
+    const bool cut = r.end_reason == "missed" || r.end_reason == "unusable" || r.end_reason == "duplicate";
+    spans.emplace_back(m.track.epochs.front().t_s - margin,
+                       cut ? r.t_last_detection_s : m.track.epochs.back().t_s + margin);
+    result.push_back(std::move(m));
+  }
+  // 2. Rounds of refinement, each track over its own samples with the other
+  // tracks' fields (from the previous round) removed.
+  const double max_gap = margin + options.track.window_s;
+  const double gate = options.management.gate_snr;
+  TrackerOptions topt = options.track;
+  if (topt.init.source == InitSource::kExternal) topt.init.source = InitSource::kAuto;
+  for (int round = 0; round < options.batch_rounds; ++round) {
+    std::vector<TrackPath> now(result.size());
+    for (std::size_t i = 0; i < result.size(); ++i) {
+      now[i].epochs = result[i].track.epochs;
+      now[i].m_B = result[i].track.m_B_Am2;
+    }
+    for (std::size_t i = 0; i < result.size(); ++i) {
+      const auto [t0, t1] = spans[i];
+      std::vector<Epoch> mine;
+      std::vector<DipoleFix> track_fixes;
+      for (const Epoch& e : epochs) {
+        if (e.t_s < t0 || e.t_s > t1) continue;
+        const auto s_i = now[i].At(e.t_s, max_gap);
+        if (!s_i) continue;
+        std::vector<std::optional<CtState<double>>> others(result.size());
+        for (std::size_t k = 0; k < result.size(); ++k) {
+          // Another track's field only within its own span: before its
+          // vessel came its extrapolation is no field at all.
+          if (k != i && e.t_s >= spans[k].first && e.t_s <= spans[k].second) others[k] = now[k].At(e.t_s, max_gap);
+        }
+        Epoch k_epoch{e.t_s, {}};
+        for (const auto& s0 : e.samples) {
+          if (CheckSample(s0) != SampleDefect::kNone) continue;
+          Eigen::Vector3d B;
+          Eigen::Matrix3d T;
+          PredictedField(*s_i, now[i].m_B, s0.p_SinW, &B, &T);
+          const double sb = SigmaB(s0, topt), st = SigmaT(s0, topt);
+          const double snr = std::sqrt(B.squaredNorm() / (sb * sb) + T.squaredNorm() / (st * st));
+          if (!(snr >= gate)) continue;
+          GradiometerSample s = s0;
+          for (std::size_t k = 0; k < result.size(); ++k) {
+            if (!others[k]) continue;
+            PredictedField(*others[k], now[k].m_B, s.p_SinW, &B, &T);
+            s.B -= B;
+            s.T -= T;
+          }
+          k_epoch.samples.push_back(s);
+          track_fixes.push_back(MakeFix(e.t_s, s.sensor_id, Eigen::Vector3d(s_i->x, s_i->y, s_i->z)));
+        }
+        if (!k_epoch.samples.empty()) mine.push_back(std::move(k_epoch));
+      }
+      if (mine.empty()) continue;
+      TrackEstimate est = SolveBatch(mine, B0_W, topt, &track_fixes);
+      const bool ok = est.summary.initialized && est.summary.usable &&
+                      std::any_of(est.epochs.begin(), est.epochs.end(), [](const EpochEstimate& e) { return e.usable; });
+      if (ok) {
+        result[i].track = std::move(est);
+      } else {
+        result[i].track.summary.message =
+            "window estimates: batch refinement failed (" + est.summary.message + ")";
+      }
+    }
+  }
+  return result;
+}
+
+}  // namespace magnav::tracker

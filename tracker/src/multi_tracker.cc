@@ -1,0 +1,520 @@
+#include "magnav/tracker/multi_tracker.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include "magnav/core/csv.h"
+#include "magnav/core/dipole.h"
+#include "magnav/core/error.h"
+#include "magnav/core/frames.h"
+#include "magnav/core/option_check.h"
+#include "magnav/tracker/initialize.h"
+
+namespace magnav::tracker {
+
+bool TrackManagementOptions::IsValid(std::string* error) const {
+  if (!PositiveFinite(gate_snr)) return Fail(error, "gate_snr must be > 0");
+  if (!PositiveFinite(detect_llr)) return Fail(error, "detect_llr must be > 0");
+  if (confirm_n < 1 || confirm_m < 1 || confirm_m > confirm_n) {
+    return Fail(error, "confirmation needs 1 <= confirm_m <= confirm_n");
+  }
+  if (!PositiveFinite(max_miss_s)) return Fail(error, "max_miss_s must be > 0");
+  if (!PositiveFinite(max_coast_s)) return Fail(error, "max_coast_s must be > 0");
+  if (!PositiveFinite(max_sigma_horizontal_m)) return Fail(error, "max_sigma_horizontal_m must be > 0");
+  if (!(min_separation_m >= 0.0) || !std::isfinite(min_separation_m)) {
+    return Fail(error, "min_separation_m must be finite and >= 0");
+  }
+  if (!PositiveFinite(init_interval_s)) return Fail(error, "init_interval_s must be > 0");
+  if (!PositiveFinite(max_chi2_per_dof)) return Fail(error, "max_chi2_per_dof must be > 0");
+  if (!(max_unexplained > 0.0 && max_unexplained <= 1.0)) return Fail(error, "max_unexplained must be in (0, 1]");
+  if (!(min_new_share >= 0.0 && min_new_share < 1.0)) return Fail(error, "min_new_share must be in [0, 1)");
+  return true;
+}
+
+MultiTrackerOptions::MultiTrackerOptions() { track.init.min_tensor_snr = kFieldInitSnr; }
+
+bool MultiTrackerOptions::IsValid(std::string* error) const {
+  if (!track.IsValid(error) || !management.IsValid(error)) return false;
+  if (batch_rounds < 1) return Fail(error, "batch_rounds must be >= 1");
+  if (!(batch_margin_s >= 0.0) || !std::isfinite(batch_margin_s)) {
+    return Fail(error, "batch_margin_s must be finite and >= 0");
+  }
+  return true;
+}
+
+std::string MultiSummary::BriefReport() const {
+  std::ostringstream o;
+  o << "multi-tracker: " << num_epochs << " epochs, " << num_confirmed << " tracks confirmed, " << num_ended
+    << " ended, " << num_tentative_dropped << " tentative dropped, " << num_starts_refused
+    << " starts refused (too close to a track)";
+  if (num_rejected_samples > 0) o << ", " << num_rejected_samples << " bad samples left out";
+  return o.str();
+}
+
+void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2, const Eigen::Vector3d& p_SinW,
+                    Eigen::Vector3d* B, Eigen::Matrix3d* T) {
+  const Eigen::Vector3d m_W = HeadingRotation(state.heading) * m_B_Am2;
+  DipoleBT(p_SinW - Eigen::Vector3d(state.x, state.y, state.z), m_W, B, T);
+}
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Track {
+  std::unique_ptr<WindowTracker> engine;
+  std::uint32_t id = 0;  // 0 while tentative
+  double t_created = 0.0;
+  int seen = 0, detections = 0;  // epochs with a sensor / detections, while tentative
+  double t_last_detection = 0.0;
+  double miss_since = kNaN, unusable_since = kNaN, duplicate_since = kNaN;
+  double sigma_h = 0.0;  // horizontal 1-σ of the newest estimate, m
+  TrackRecord record;
+  // This epoch's prediction.
+  bool has_pred = false;
+  CtState<double> pred{};
+  Eigen::Vector3d m_B = Eigen::Vector3d::Zero();
+  bool ended = false;
+  // While tentative: what was taken out of the initiator's buffer for it
+  // (given back if it is dropped).
+  struct Taken {
+    double t_s;
+    std::size_t index;  // sample index in that buffered epoch
+    Eigen::Vector3d B;
+    Eigen::Matrix3d T;
+  };
+  std::vector<Taken> taken;
+};
+
+// Per track and sample: the predicted field and its SNR.
+struct Prediction {
+  Eigen::Vector3d B = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+  double snr = 0.0;
+};
+
+double HorizontalSigma(const EpochEstimate& e) {
+  if (!e.has_covariance) return std::numeric_limits<double>::infinity();
+  const Eigen::Matrix2d P = e.cov_state.topLeftCorner<2, 2>();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(P);
+  return std::sqrt(std::max(es.eigenvalues().maxCoeff(), 0.0));
+}
+
+Eigen::Vector2d Horizontal(const CtState<double>& s) { return {s.x, s.y}; }
+
+}  // namespace
+
+struct MultiTracker::Impl {
+  Eigen::Vector3d B0_W;
+  MultiTrackerOptions options;
+  const TrackManagementOptions& mg() const { return options.management; }
+  std::vector<Track> tracks;  // live (confirmed and tentative)
+  std::vector<TrackRecord> records;  // confirmed, by id - 1
+  std::uint32_t next_id = 1;
+  std::vector<TrackEvent> events;
+  MultiSummary summary;
+  // Initiator: recent epochs with every track's predicted field removed.
+  std::deque<Epoch> buffer;
+  std::deque<DipoleFix> fixes;
+  bool any_fix = false;
+  double last_init_t = -std::numeric_limits<double>::infinity();
+  // Sample stream.
+  bool has_pending = false;
+  Epoch pending;
+  double last_t = -std::numeric_limits<double>::infinity();
+
+  double SigmaB(const GradiometerSample& s) const { return tracker::SigmaB(s, options.track); }
+  double SigmaT(const GradiometerSample& s) const { return tracker::SigmaT(s, options.track); }
+
+  Prediction Predict(const Track& tr, const GradiometerSample& s) const {
+    Prediction p;
+    PredictedField(tr.pred, tr.m_B, s.p_SinW, &p.B, &p.T);
+    const double sb = SigmaB(s), st = SigmaT(s);
+    p.snr = std::sqrt(p.B.squaredNorm() / (sb * sb) + p.T.squaredNorm() / (st * st));
+    if (!std::isfinite(p.snr)) p.snr = 0.0;
+    return p;
+  }
+
+  void End(Track& tr, double t_s, const std::string& reason) {
+    tr.ended = true;
+    if (tr.id == 0) {
+      ++summary.num_tentative_dropped;
+      GiveBack(tr);
+      return;
+    }
+    TrackRecord& r = records[tr.id - 1];
+    r.live = false;
+    r.end_reason = reason;
+    r.t_last_detection_s = tr.t_last_detection;
+    r.m_B_Am2 = tr.engine->m_B_Am2();
+    r.cov_m_B = tr.engine->cov_m_B();
+    ++summary.num_ended;
+    events.push_back({TrackEvent::Kind::kEnded, tr.id, t_s, reason});
+  }
+
+  // A dropped tentative track's field goes back into the buffer.
+  void GiveBack(Track& tr) {
+    for (const auto& k : tr.taken) {
+      const auto b = std::lower_bound(buffer.begin(), buffer.end(), k.t_s,
+                                      [](const Epoch& e, double t) { return e.t_s < t; });
+      if (b == buffer.end() || b->t_s != k.t_s || k.index >= b->samples.size()) continue;
+      GradiometerSample& s = b->samples[k.index];
+      if (s.T.isZero(0.0)) continue;  // masked
+      s.B += k.B;
+      s.T += k.T;
+    }
+    tr.taken.clear();
+  }
+
+  void Confirm(Track& tr, double t_s) {
+    tr.taken.clear();
+    tr.id = next_id++;
+    TrackRecord r;
+    r.track_id = tr.id;
+    r.t_start_s = t_s;
+    r.t_end_s = t_s;
+    r.t_last_detection_s = tr.t_last_detection;
+    records.push_back(r);
+    ++summary.num_confirmed;
+    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed"});
+  }
+
+  // The estimates of a track's engine, as outputs (confirmed tracks only).
+  void Collect(Track& tr, const std::vector<EpochEstimate>& est, std::vector<TrackOutput>* out) {
+    if (est.empty()) return;
+    tr.sigma_h = HorizontalSigma(est.back());
+    if (!est.back().usable) {
+      if (std::isnan(tr.unusable_since)) tr.unusable_since = est.back().t_s;
+    } else {
+      tr.unusable_since = kNaN;
+    }
+    if (tr.id == 0) return;
+    TrackRecord& r = records[tr.id - 1];
+    const Eigen::Vector3d m = tr.engine->m_B_Am2();
+    const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
+    for (const auto& e : est) {
+      out->push_back({tr.id, e, m, Pm});
+      r.t_end_s = e.t_s;
+      ++r.num_estimates;
+    }
+    r.m_B_Am2 = m;
+    r.cov_m_B = Pm;
+    r.t_last_detection_s = tr.t_last_detection;
+  }
+
+  std::vector<TrackOutput> Process(const Epoch& e) {
+    ++summary.num_epochs;
+    std::vector<TrackOutput> out;
+    const double t = e.t_s;
+    const std::size_t n = e.samples.size();
+    // 1. Prediction.
+    std::vector<std::vector<Prediction>> pred(tracks.size());
+    for (std::size_t i = 0; i < tracks.size(); ++i) {
+      Track& tr = tracks[i];
+      const auto s = tr.engine->PredictState(t);
+      tr.has_pred = s.has_value() && tr.engine->m_B_Am2().allFinite();
+      if (!tr.has_pred) continue;
+      tr.pred = *s;
+      tr.m_B = tr.engine->m_B_Am2();
+      pred[i].reserve(n);
+      for (const auto& smp : e.samples) pred[i].push_back(Predict(tr, smp));
+    }
+    // 2.–4. Association, score and update, track by track.
+    for (std::size_t i = 0; i < tracks.size(); ++i) {
+      Track& tr = tracks[i];
+      Epoch mine{t, {}};
+      double llr = 0.0, sum_m2 = 0.0, sum_r2 = 0.0;
+      if (tr.has_pred) {
+        for (std::size_t j = 0; j < n; ++j) {
+          if (!(pred[i][j].snr >= mg().gate_snr)) continue;
+          GradiometerSample s = e.samples[j];
+          for (std::size_t k = 0; k < tracks.size(); ++k) {
+            if (k == i || !tracks[k].has_pred) continue;
+            s.B -= pred[k][j].B;
+            s.T -= pred[k][j].T;
+          }
+          const double sb = SigmaB(s), st = SigmaT(s);
+          const Eigen::Vector3d dB = s.B - B0_W;
+          const double m2 = dB.squaredNorm() / (sb * sb) + s.T.squaredNorm() / (st * st);
+          const double r2 = (dB - pred[i][j].B).squaredNorm() / (sb * sb) + (s.T - pred[i][j].T).squaredNorm() / (st * st);
+          if (std::isfinite(m2) && std::isfinite(r2)) {
+            llr += 0.5 * (m2 - r2);
+            sum_m2 += m2;
+            sum_r2 += r2;
+          }
+          mine.samples.push_back(std::move(s));
+        }
+      }
+      // Explained share: a track whose prediction leaves most of a strong
+      // signal unexplained (another, untracked source dominates its sensors,
+      // or it has drifted off its vessel) is not detected but missed.
+      const double dof = 8.0 * static_cast<double>(mine.samples.size());
+      const bool poor_fit = dof > 0.0 && sum_r2 > mg().max_chi2_per_dof * dof && sum_r2 > mg().max_unexplained * sum_m2;
+      const bool detected = llr >= mg().detect_llr && !poor_fit;
+      const bool missed = llr <= -mg().detect_llr || poor_fit;
+      if (detected) tr.t_last_detection = t;
+      if (missed) {
+        if (std::isnan(tr.miss_since)) tr.miss_since = t;
+      } else {
+        tr.miss_since = kNaN;
+      }
+      Collect(tr, tr.engine->AddEpoch(mine), &out);
+      if (tr.id == 0 && !mine.samples.empty()) {
+        ++tr.seen;
+        tr.detections += detected ? 1 : 0;
+      }
+    }
+    // Track status: confirmation and end rules.
+    for (Track& tr : tracks) {
+      if (tr.id == 0) {
+        if (tr.detections >= mg().confirm_m) {
+          Confirm(tr, t);
+        } else if (tr.seen - tr.detections > mg().confirm_n - mg().confirm_m ||
+                   t - tr.t_created > mg().max_coast_s) {
+          End(tr, t, "not confirmed");
+        }
+        continue;
+      }
+      if (!std::isnan(tr.miss_since) && t - tr.miss_since >= mg().max_miss_s) {
+        End(tr, t, "missed");
+      } else if (t - tr.t_last_detection >= mg().max_coast_s) {
+        End(tr, t, "lost");
+      } else if (tr.sigma_h > mg().max_sigma_horizontal_m) {
+        End(tr, t, "uncertain");
+      } else if (!std::isnan(tr.unusable_since) && t - tr.unusable_since >= mg().max_miss_s) {
+        End(tr, t, "unusable");
+      }
+    }
+    // Duplicates: a track within min_separation_m of an older one.
+    for (std::size_t i = 0; i < tracks.size(); ++i) {
+      Track& young = tracks[i];
+      if (young.ended || !young.has_pred) continue;
+      bool close = false;
+      for (std::size_t k = 0; k < tracks.size() && !close; ++k) {
+        const Track& old = tracks[k];
+        if (k == i || old.ended || !old.has_pred) continue;
+        const bool older = old.id != 0 && (young.id == 0 || old.id < young.id);
+        close = older && (Horizontal(old.pred) - Horizontal(young.pred)).norm() < mg().min_separation_m;
+      }
+      if (!close) {
+        young.duplicate_since = kNaN;
+        continue;
+      }
+      if (young.id == 0) {
+        End(young, t, "duplicate");
+        continue;
+      }
+      if (std::isnan(young.duplicate_since)) young.duplicate_since = t;
+      if (t - young.duplicate_since >= mg().max_miss_s) End(young, t, "duplicate");
+    }
+    // 5. The initiator's buffer: this epoch with every track's field removed.
+    // Where a track's field dominates, what is left is mostly its model
+    // error (a ghost's seed): a residual tensor below min_new_share of that
+    // track's predicted tensor is not offered to the initiator.
+    Epoch residual{t, e.samples};
+    std::vector<double> strongest(n, 0.0);
+    for (std::size_t i = 0; i < tracks.size(); ++i) {
+      if (!tracks[i].has_pred || (tracks[i].ended && tracks[i].id == 0)) continue;  // dropped: given back
+      const bool tentative = tracks[i].id == 0;
+      for (std::size_t j = 0; j < n; ++j) {
+        residual.samples[j].B -= pred[i][j].B;
+        residual.samples[j].T -= pred[i][j].T;
+        if (tentative) {
+          tracks[i].taken.push_back({t, j, pred[i][j].B, pred[i][j].T});
+        } else if (tracks[i].id != 0) {
+          strongest[j] = std::max(strongest[j], pred[i][j].T.norm());
+        }
+      }
+    }
+    for (std::size_t j = 0; j < n; ++j) {
+      GradiometerSample& s = residual.samples[j];
+      if (s.T.norm() < mg().min_new_share * strongest[j]) {
+        s.B = B0_W;
+        s.T.setZero();
+      }
+    }
+    tracks.erase(std::remove_if(tracks.begin(), tracks.end(), [](const Track& tr) { return tr.ended; }),
+                 tracks.end());
+    buffer.push_back(std::move(residual));
+    const double span = options.track.window_s + options.track.epoch_tolerance_s;
+    while (t - buffer.front().t_s > span) buffer.pop_front();
+    while (!fixes.empty() && fixes.front().t_s < buffer.front().t_s - options.track.epoch_tolerance_s) {
+      fixes.pop_front();
+    }
+    if (t - last_init_t >= mg().init_interval_s - options.track.epoch_tolerance_s) {
+      last_init_t = t;
+      TryStart(t);
+    }
+    return out;
+  }
+
+  // Looks for a new vessel in the buffer; starts a tentative track.
+  void TryStart(double t) {
+    const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
+    const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
+    const std::optional<InitialTrack> init =
+        InitializeTrack(epochs, B0_W, options.track, any_fix ? &given : nullptr);
+    if (!init) return;
+    const CtState<double> now = PropagateCoordinatedTurn(init->state, t - init->t_ref_s);
+    for (const Track& tr : tracks) {
+      const auto p = tr.engine->PredictState(t);
+      if (p && (Horizontal(*p) - Horizontal(now)).norm() < mg().min_separation_m) {
+        ++summary.num_starts_refused;
+        return;
+      }
+    }
+    // The new track's sensors in the buffered epochs (gated by the
+    // initialiser's line and moment).
+    Track tr;
+    tr.t_created = t;
+    tr.t_last_detection = t;
+    std::vector<Epoch> mine;
+    for (const Epoch& b : epochs) {
+      Track probe;
+      probe.pred = PropagateCoordinatedTurn(init->state, b.t_s - init->t_ref_s);
+      probe.m_B = init->m_B_Am2;
+      Epoch k{b.t_s, {}};
+      for (const auto& s : b.samples) {
+        if (Predict(probe, s).snr >= mg().gate_snr) k.samples.push_back(s);
+      }
+      if (!k.samples.empty() || !mine.empty()) mine.push_back(std::move(k));
+    }
+    if (mine.empty()) return;
+    tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
+    tr.engine->Start(*init, mine);
+    // What the buffer holds of this vessel is now explained.
+    tr.m_B = tr.engine->m_B_Am2();
+    for (Epoch& b : buffer) {
+      const auto p = tr.engine->PredictState(b.t_s);
+      if (!p) continue;
+      tr.pred = *p;
+      for (std::size_t j = 0; j < b.samples.size(); ++j) {
+        GradiometerSample& s = b.samples[j];
+        if (s.T.isZero(0.0)) continue;  // masked
+        const Prediction pr = Predict(tr, s);
+        s.B -= pr.B;
+        s.T -= pr.T;
+        tr.taken.push_back({b.t_s, j, pr.B, pr.T});
+      }
+    }
+    fixes.clear();
+    tracks.push_back(std::move(tr));
+  }
+
+  std::vector<TrackOutput> Epochs(const Epoch& raw) {
+    Epoch epoch{raw.t_s, {}};
+    for (const auto& s : raw.samples) {
+      if (CheckSample(s) == SampleDefect::kNone) {
+        epoch.samples.push_back(s);
+      } else {
+        ++summary.num_rejected_samples;
+      }
+    }
+    if (!std::isfinite(epoch.t_s)) throw InputError("multi-tracker: epoch time is not finite");
+    if (!(epoch.t_s > last_t + options.track.epoch_tolerance_s)) {
+      throw InputError("multi-tracker: epoch at " + FormatNumber(epoch.t_s) + " s is not later than the previous one");
+    }
+    if (epoch.samples.empty()) return {};
+    last_t = epoch.t_s;
+    return Process(epoch);
+  }
+};
+
+MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InputError("multi-tracker options: " + why);
+  if (!B0_W.allFinite()) throw InputError("multi-tracker: B0 is not finite");
+  impl_->B0_W = B0_W;
+  impl_->options = options;
+}
+
+MultiTracker::~MultiTracker() = default;
+
+std::vector<TrackOutput> MultiTracker::AddSample(const GradiometerSample& sample) {
+  Impl& m = *impl_;
+  if (CheckSample(sample) != SampleDefect::kNone) {
+    ++m.summary.num_rejected_samples;
+    return {};
+  }
+  if (m.has_pending && std::abs(sample.t_s - m.pending.t_s) <= m.options.track.epoch_tolerance_s) {
+    m.pending.samples.push_back(sample);
+    return {};
+  }
+  if (m.has_pending && sample.t_s < m.pending.t_s) {
+    throw InputError("multi-tracker: sample time " + FormatNumber(sample.t_s) +
+                     " s is earlier than the current epoch " + FormatNumber(m.pending.t_s) + " s");
+  }
+  std::vector<TrackOutput> out;
+  if (m.has_pending) out = m.Epochs(m.pending);
+  m.pending = Epoch{sample.t_s, {sample}};
+  m.has_pending = true;
+  return out;
+}
+
+std::vector<TrackOutput> MultiTracker::AddEpoch(const Epoch& epoch) { return impl_->Epochs(epoch); }
+
+std::vector<TrackOutput> MultiTracker::Flush() {
+  Impl& m = *impl_;
+  std::vector<TrackOutput> out;
+  if (m.has_pending) {
+    m.has_pending = false;
+    out = m.Epochs(m.pending);
+  }
+  for (Track& tr : m.tracks) {
+    m.Collect(tr, tr.engine->Flush(), &out);
+    if (tr.id != 0) {
+      m.End(tr, m.last_t, "end of data");
+    } else {
+      tr.ended = true;  // never confirmed: nothing to say
+    }
+  }
+  m.tracks.clear();
+  return out;
+}
+
+void MultiTracker::AddFix(const DipoleFix& fix) {
+  Impl& m = *impl_;
+  if (!std::isfinite(fix.t_s) || (fix.valid && !fix.p_DinW.allFinite())) {
+    throw InputError("multi-tracker: fix of sensor " + std::to_string(fix.sensor_id) + " at t = " +
+                     FormatNumber(fix.t_s) + " s: time or position is not finite");
+  }
+  m.any_fix = true;
+  if (!fix.valid || m.options.track.init.source == InitSource::kSamples) return;
+  if (!m.buffer.empty() && fix.t_s < m.buffer.front().t_s - m.options.track.epoch_tolerance_s) return;
+  // A fix of a vessel that has a track is that track's, not a new vessel's.
+  for (const Track& tr : m.tracks) {
+    const auto p = tr.engine->PredictState(fix.t_s);
+    if (p && (Horizontal(*p) - fix.p_DinW.head<2>()).norm() < m.mg().min_separation_m) return;
+  }
+  m.fixes.push_back(fix);
+  if (m.fixes.size() > WindowTracker::kMaxPendingFixes) m.fixes.pop_front();
+}
+
+std::vector<TrackEvent> MultiTracker::TakeEvents() {
+  std::vector<TrackEvent> out;
+  out.swap(impl_->events);
+  return out;
+}
+
+std::vector<TrackRecord> MultiTracker::Tracks() const {
+  std::vector<TrackRecord> out = impl_->records;
+  for (const Track& tr : impl_->tracks) {
+    if (tr.id == 0) continue;
+    TrackRecord& r = out[tr.id - 1];
+    r.m_B_Am2 = tr.engine->m_B_Am2();
+    r.cov_m_B = tr.engine->cov_m_B();
+  }
+  return out;
+}
+
+int MultiTracker::num_live_tracks() const { return static_cast<int>(impl_->tracks.size()); }
+const MultiSummary& MultiTracker::summary() const { return impl_->summary; }
+
+}  // namespace magnav::tracker
