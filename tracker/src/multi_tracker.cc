@@ -75,7 +75,7 @@ struct Track {
   double t_last_detection = 0.0;
   double miss_since = kNaN, unusable_since = kNaN, duplicate_since = kNaN;
   double sigma_h = 0.0;  // horizontal 1-σ of the newest estimate, m
-  TrackRecord record;
+  std::string origin;    // what started it, for the start event
   // This epoch's prediction.
   bool has_pred = false;
   CtState<double> pred{};
@@ -182,7 +182,7 @@ struct MultiTracker::Impl {
     r.t_last_detection_s = tr.t_last_detection;
     records.push_back(r);
     ++summary.num_confirmed;
-    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed"});
+    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed; " + tr.origin});
   }
 
   // The estimates of a track's engine, as outputs (confirmed tracks only).
@@ -388,6 +388,8 @@ struct MultiTracker::Impl {
     if (mine.empty()) return;
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
     tr.engine->Start(*init, mine);
+    tr.origin = "from " + std::to_string(init->fixes.size()) +
+                (init->from_external_fixes ? " dipole_fix fixes" : " fixes of its own TED+EGT");
     // What the buffer holds of this vessel is now explained.
     tr.m_B = tr.engine->m_B_Am2();
     for (Epoch& b : buffer) {

@@ -118,7 +118,10 @@ struct TrackEvent {
   Kind kind = Kind::kStarted;
   std::uint32_t track_id = 0;
   double t_s = 0.0;
-  std::string reason;  // "confirmed", "missed", "lost", "uncertain", "unusable", "duplicate", "end of data"
+  // Start: "confirmed; from N dipole_fix fixes" (or "... fixes of its own
+  // TED+EGT"); end: "missed", "lost", "uncertain", "unusable", "duplicate",
+  // "end of data".
+  std::string reason;
 };
 
 // What became of one confirmed track (ended or still live).
