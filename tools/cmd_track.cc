@@ -200,6 +200,9 @@ void AddTrackCommand(CLI::App& app) {
   cli::AddTrackerOptions(*cmd, &args->flags, "--fixes");
   cmd->add_option("--batch-rounds", args->flags.options.batch_rounds, "batch: refinement rounds over every track")
       ->capture_default_str();
+  cmd->add_option("--batch-margin", args->flags.options.batch_margin_s,
+                  "batch: a track's samples are taken from this long before to this long after its window span, s")
+      ->capture_default_str();
   cmd->callback([args] { RunTrack(*args); });
 }
 

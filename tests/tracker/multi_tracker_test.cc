@@ -20,12 +20,6 @@ namespace {
 using testing::FieldScores;
 using testing::ScoreField;
 
-void Report(const char* mode, const FieldScores& s) {
-  std::printf("%s: %zu rows, %zu false; vessel A coverage %.3f RMS %.4f m ids %zu; vessel B coverage %.3f RMS %.4f m "
-              "ids %zu\n",
-              mode, s.rows, s.false_rows, s.coverage[0], s.rms[0], s.ids[0], s.coverage[1], s.rms[1], s.ids[1]);
-}
-
 TEST(MultiTracker, WindowFollowsTwoVesselsWithOneTrackEach) {
   const FieldScenario sc = testing::TwoVesselScenario();
   const SimulatedField f = SimulateField(sc);
@@ -37,13 +31,13 @@ TEST(MultiTracker, WindowFollowsTwoVesselsWithOneTrackEach) {
   for (const auto& s : f.samples) take(tracker.AddSample(s));
   take(tracker.Flush());
   const FieldScores s = ScoreField(sc, f, rows);
-  Report("window", s);
+  testing::PrintFieldScores("window", s);
   EXPECT_EQ(tracker.Tracks().size(), 2u);
   EXPECT_EQ(s.false_rows, 0u);
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v;
-    EXPECT_GE(s.coverage[v], 0.85) << "vessel " << v;  // measured 0.903, 0.903
-    EXPECT_LE(s.rms[v], 0.04) << "vessel " << v;       // measured 0.0136, 0.0245 m
+    EXPECT_GE(s.coverage[v], 0.85) << "vessel " << v;  // measured 0.908, 0.907
+    EXPECT_LE(s.rms[v], 0.04) << "vessel " << v;       // measured 0.0135, 0.0231 m
   }
 }
 
@@ -59,14 +53,76 @@ TEST(MultiTracker, BatchRefinesEveryVessel) {
     }
   }
   const FieldScores s = ScoreField(sc, f, rows);
-  Report("batch", s);
+  testing::PrintFieldScores("batch", s);
   ASSERT_EQ(tracks.size(), 2u);
   EXPECT_EQ(s.false_rows, 0u);
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v;
-    EXPECT_GE(s.coverage[v], 0.93) << "vessel " << v;  // measured 0.987, 0.970
-    EXPECT_LE(s.rms[v], 0.017) << "vessel " << v;      // measured 0.0090, 0.0109 m
+    EXPECT_GE(s.coverage[v], 0.93) << "vessel " << v;  // measured 0.992, 0.974
+    EXPECT_LE(s.rms[v], 0.017) << "vessel " << v;      // measured 0.0087, 0.0108 m
   }
+}
+
+// Held out, a known limit measured (docs/ACCURACY.md, "Several vessels"): an
+// AUV crosses a 3x3 field when a ship appears 190 m off. The ship's far B
+// (tens of nT at the AUV's sensors, little tensor) spoils the AUV's fit
+// before the ship has a track: the AUV's window track ends ("missed") and a
+// second one starts once the ship is tracked, with the ship's model error in
+// its B (0.3 m RMS where a lone AUV gets 0.02 m). The batch keeps the AUV
+// covered with no false rows. Detection on the tensor alone would keep one
+// id but, with B still used by the solver, costs accuracy on the reference
+// field (its vessel 2: 0.05 -> 0.35 m): not done; a per-sensor B bias
+// estimated with the tracks is the way, left open.
+TEST(MultiTracker, FarShipArrivingWhileAnAuvIsTracked) {
+  FieldScenario sc;
+  sc.sensors = SensorGrid(3, 3, 40.0);
+  FieldVessel auv;
+  auv.vessel_id = 1;
+  auv.moment_body = {2200.0, -200.0, 700.0};
+  auv.start_position = {-100.0, -38.0, -5.5};
+  auv.start_heading_rad = 0.0;
+  auv.speed_mps = 1.2;
+  auv.segments = {{170.0, 0.0}};
+  FieldVessel ship;
+  ship.vessel_id = 2;
+  ship.moment_body = {350000.0, 40000.0, 180000.0};
+  ship.start_position = {-62.0, 140.0, -12.0};
+  ship.start_heading_rad = -M_PI / 2;
+  ship.speed_mps = 2.5;
+  ship.segments = {{110.0, 0.0}};
+  ship.t_start_s = 90.0;
+  sc.vessels = {auv, ship};
+  sc.sigma_B = 1e-9;
+  sc.sigma_T = 1.4e-9;
+  sc.seed = 23;
+  const SimulatedField f = SimulateField(sc);
+  const MultiTrackerOptions opt;
+  MultiTracker window(sc.B0, opt);
+  std::vector<std::pair<std::uint32_t, EpochEstimate>> wrows;
+  for (const auto& smp : f.samples) {
+    for (const auto& o : window.AddSample(smp)) wrows.emplace_back(o.track_id, o.estimate);
+  }
+  for (const auto& o : window.Flush()) wrows.emplace_back(o.track_id, o.estimate);
+  const FieldScores w = ScoreField(sc, f, wrows);
+  testing::PrintFieldScores("ship arrives, window", w);
+  EXPECT_LE(w.ids[0], 2u);
+  EXPECT_GE(w.coverage[0], 0.75);  // measured 0.820
+  EXPECT_LE(w.rms[0], 0.44);       // measured 0.294 m
+  EXPECT_LE(w.false_rows, 263u);   // measured 172 (9.3 %): the second AUV track drifts as the AUV leaves
+  const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
+  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
+  for (const auto& t : tracks) {
+    for (const auto& e : t.track.epochs) {
+      if (e.usable) rows.emplace_back(t.track_id, e);
+    }
+  }
+  const FieldScores s = ScoreField(sc, f, rows);
+  testing::PrintFieldScores("ship arrives, batch", s);
+  EXPECT_EQ(tracks.size(), 3u);  // the AUV twice, the ship once
+  EXPECT_EQ(s.false_rows, 0u);
+  EXPECT_LE(s.ids[0], 2u);
+  EXPECT_GE(s.coverage[0], 0.90);  // measured 0.970
+  EXPECT_LE(s.rms[0], 0.48);       // measured 0.331 m
 }
 
 TEST(MultiTracker, OptionsAreChecked) {

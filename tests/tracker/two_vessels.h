@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <map>
 #include <utility>
@@ -103,6 +104,20 @@ inline FieldScores ScoreField(const FieldScenario& sc, const SimulatedField& f,
     s.ids.push_back(s.rows_by_id[v].size());
   }
   return s;
+}
+
+// One line per run: rows, false rows, and per vessel coverage, RMS (m; "-"
+// without rows near it) and track ids.
+inline void PrintFieldScores(const char* what, const FieldScores& s) {
+  std::printf("%s: %zu rows, %zu false;", what, s.rows, s.false_rows);
+  for (std::size_t v = 0; v < s.coverage.size(); ++v) {
+    if (s.rms[v] < 1e299) {
+      std::printf(" vessel %zu coverage %.3f RMS %.4f m ids %zu;", v + 1, s.coverage[v], s.rms[v], s.ids[v]);
+    } else {
+      std::printf(" vessel %zu coverage %.3f RMS - ids %zu;", v + 1, s.coverage[v], s.ids[v]);
+    }
+  }
+  std::printf("\n");
 }
 
 }  // namespace magnav::testing

@@ -1,4 +1,5 @@
 #include "magnav/tracker/multi_tracker.h"
+#include "other_fields.h"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -37,7 +38,10 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
   return true;
 }
 
-MultiTrackerOptions::MultiTrackerOptions() { track.init.min_tensor_snr = kFieldInitSnr; }
+MultiTrackerOptions::MultiTrackerOptions() {
+  track.init.min_tensor_snr = kFieldInitSnr;
+  track.window_solve_interval_s = kFieldSolveIntervalS;
+}
 
 bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (!track.IsValid(error) || !management.IsValid(error)) return false;
@@ -234,11 +238,16 @@ struct MultiTracker::Impl {
         for (std::size_t j = 0; j < n; ++j) {
           if (!(pred[i][j].snr >= mg().gate_snr)) continue;
           GradiometerSample s = e.samples[j];
+          Eigen::Vector3d B_others = Eigen::Vector3d::Zero();
+          Eigen::Matrix3d T_others = Eigen::Matrix3d::Zero();
+          bool any_other = false;
           for (std::size_t k = 0; k < tracks.size(); ++k) {
             if (k == i || !tracks[k].has_pred) continue;
-            s.B -= pred[k][j].B;
-            s.T -= pred[k][j].T;
+            B_others += pred[k][j].B;
+            T_others += pred[k][j].T;
+            any_other = true;
           }
+          if (any_other) RemoveOtherFields(B_others, T_others, SigmaB(s), SigmaT(s), &s);
           const double sb = SigmaB(s), st = SigmaT(s);
           const Eigen::Vector3d dB = s.B - B0_W;
           const double m2 = dB.squaredNorm() / (sb * sb) + s.T.squaredNorm() / (st * st);
