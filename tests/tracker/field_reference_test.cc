@@ -63,12 +63,7 @@ TEST(FieldReference, WindowTracksEveryVessel) {
   const ReferenceField* r = Load();
   if (r == nullptr) GTEST_SKIP() << kDir << " has no field_pass_9sensor_fluxgate.csv: not checked here";
   MultiTracker tracker(r->B0, MultiTrackerOptions{});
-  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
-  const auto take = [&](const std::vector<TrackOutput>& out) {
-    for (const auto& o : out) rows.emplace_back(o.track_id, o.estimate);
-  };
-  for (const auto& s : r->field.samples) take(tracker.AddSample(s));
-  take(tracker.Flush());
+  const testing::TrackRows rows = testing::WindowRows(&tracker, r->field.samples);
   const testing::FieldScores s = testing::ScoreField(r->scenario, r->field, rows);
   testing::PrintFieldScores("window", s);
   ASSERT_EQ(s.coverage.size(), 3u);
@@ -89,12 +84,7 @@ TEST(FieldReference, BatchTracksEveryVessel) {
   if (r == nullptr) GTEST_SKIP() << kDir << " has no field_pass_9sensor_fluxgate.csv: not checked here";
   const MultiTrackerOptions opt;
   const auto tracks = SolveBatchMulti(GroupEpochs(r->field.samples, opt.track.epoch_tolerance_s), r->B0, opt);
-  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
-  for (const auto& t : tracks) {
-    for (const auto& e : t.track.epochs) {
-      if (e.usable) rows.emplace_back(t.track_id, e);
-    }
-  }
+  const testing::TrackRows rows = testing::BatchRows(tracks);
   const testing::FieldScores s = testing::ScoreField(r->scenario, r->field, rows);
   testing::PrintFieldScores("batch", s);
   ASSERT_EQ(s.coverage.size(), 3u);

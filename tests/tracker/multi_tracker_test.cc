@@ -24,12 +24,7 @@ TEST(MultiTracker, WindowFollowsTwoVesselsWithOneTrackEach) {
   const FieldScenario sc = testing::TwoVesselScenario();
   const SimulatedField f = SimulateField(sc);
   MultiTracker tracker(sc.B0, MultiTrackerOptions{});
-  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
-  const auto take = [&](const std::vector<TrackOutput>& out) {
-    for (const auto& o : out) rows.emplace_back(o.track_id, o.estimate);
-  };
-  for (const auto& s : f.samples) take(tracker.AddSample(s));
-  take(tracker.Flush());
+  const testing::TrackRows rows = testing::WindowRows(&tracker, f.samples);
   const FieldScores s = ScoreField(sc, f, rows);
   testing::PrintFieldScores("window", s);
   EXPECT_EQ(tracker.Tracks().size(), 2u);
@@ -46,12 +41,7 @@ TEST(MultiTracker, BatchRefinesEveryVessel) {
   const SimulatedField f = SimulateField(sc);
   const MultiTrackerOptions opt;
   const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
-  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
-  for (const auto& t : tracks) {
-    for (const auto& e : t.track.epochs) {
-      if (e.usable) rows.emplace_back(t.track_id, e);
-    }
-  }
+  const testing::TrackRows rows = testing::BatchRows(tracks);
   const FieldScores s = ScoreField(sc, f, rows);
   testing::PrintFieldScores("batch", s);
   ASSERT_EQ(tracks.size(), 2u);
@@ -98,11 +88,7 @@ TEST(MultiTracker, FarShipArrivingWhileAnAuvIsTracked) {
   const SimulatedField f = SimulateField(sc);
   const MultiTrackerOptions opt;
   MultiTracker window(sc.B0, opt);
-  std::vector<std::pair<std::uint32_t, EpochEstimate>> wrows;
-  for (const auto& smp : f.samples) {
-    for (const auto& o : window.AddSample(smp)) wrows.emplace_back(o.track_id, o.estimate);
-  }
-  for (const auto& o : window.Flush()) wrows.emplace_back(o.track_id, o.estimate);
+  const testing::TrackRows wrows = testing::WindowRows(&window, f.samples);
   const FieldScores w = ScoreField(sc, f, wrows);
   testing::PrintFieldScores("ship arrives, window", w);
   EXPECT_LE(w.ids[0], 2u);
@@ -110,12 +96,7 @@ TEST(MultiTracker, FarShipArrivingWhileAnAuvIsTracked) {
   EXPECT_LE(w.rms[0], 0.44);       // measured 0.294 m
   EXPECT_LE(w.false_rows, 263u);   // measured 172 (9.3 %): the second AUV track drifts as the AUV leaves
   const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
-  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
-  for (const auto& t : tracks) {
-    for (const auto& e : t.track.epochs) {
-      if (e.usable) rows.emplace_back(t.track_id, e);
-    }
-  }
+  const testing::TrackRows rows = testing::BatchRows(tracks);
   const FieldScores s = ScoreField(sc, f, rows);
   testing::PrintFieldScores("ship arrives, batch", s);
   EXPECT_EQ(tracks.size(), 3u);  // the AUV twice, the ship once

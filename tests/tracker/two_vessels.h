@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "magnav/core/simulate.h"
-#include "magnav/tracker/tracker.h"
+#include "magnav/tracker/multi_tracker.h"
 
 namespace magnav::testing {
 
@@ -41,6 +41,31 @@ inline FieldScenario TwoVesselScenario() {
   return sc;
 }
 
+// (track_id, estimate) rows of a run.
+using TrackRows = std::vector<std::pair<std::uint32_t, tracker::EpochEstimate>>;
+
+// The usable estimates of a batch solve.
+inline TrackRows BatchRows(const std::vector<tracker::MultiTrackEstimate>& tracks) {
+  TrackRows rows;
+  for (const auto& t : tracks) {
+    for (const auto& e : t.track.epochs) {
+      if (e.usable) rows.emplace_back(t.track_id, e);
+    }
+  }
+  return rows;
+}
+
+// Every estimate of a window tracker fed `samples` (then flushed).
+inline TrackRows WindowRows(tracker::MultiTracker* tracker, const std::vector<GradiometerSample>& samples) {
+  TrackRows rows;
+  const auto take = [&](const std::vector<tracker::TrackOutput>& out) {
+    for (const auto& o : out) rows.emplace_back(o.track_id, o.estimate);
+  };
+  for (const auto& s : samples) take(tracker->AddSample(s));
+  take(tracker->Flush());
+  return rows;
+}
+
 // Scores of a multi-track output against a simulated field's truth (not the
 // tracker's helpers): each row goes to the nearest vessel present at its
 // instant (3-D) or, farther than 5 m from every one, counts as false;
@@ -54,7 +79,7 @@ struct FieldScores {
 };
 
 inline FieldScores ScoreField(const FieldScenario& sc, const SimulatedField& f,
-                              const std::vector<std::pair<std::uint32_t, tracker::EpochEstimate>>& rows) {
+                              const TrackRows& rows) {
   FieldScores s;
   const std::size_t nv = f.truth.size();
   const auto key = [&](double t) { return static_cast<long long>(std::llround(t * sc.rate_hz)); };
