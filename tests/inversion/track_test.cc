@@ -130,13 +130,12 @@ void RunPass(const PassFigures& doc) {
   // A closed form: to its printed precision.
   EXPECT_NEAR(crlb, doc.crlb, 0.05 * doc.crlb) << what;
   // The paper's targets (Table 2). TED+EGT max: fluxgate with the default
-  // gates (and at least 20 fixes); SQUID with the former absolute 5 cm gate,
+  // gates (the AUV's ≥ 20 fixes: heldout_test); SQUID with the former absolute 5 cm gate,
   // the paper's per-fix accuracy: the default relative gate also accepts far
   // SQUID fixes, within ≈ 2.5 % of their range but up to 2 m off (table in
   // docs/ACCURACY.md, "Uncertainty gate").
   if (sensor == "fluxgate") {
     EXPECT_LE(ted_egt.max, doc.paper_ted_egt_max) << what;
-    EXPECT_GE(ted_egt.count, 20) << what;
   } else {
     EXPECT_LE(RunSigmaGates(file, truth, 0.0, 0.05).max, doc.paper_ted_egt_max) << what << ", 5 cm gate";
   }
