@@ -108,7 +108,7 @@ struct GateOptions {
   // which every fluxgate pass and sensor keeps the paper's 1.7 m max error),
   // checked on held-out simulated geometries (docs/ACCURACY.md, "Uncertainty
   // gate"). It does not bound the absolute error: a SQUID passes it out to
-  // ~80 m with errors up to ~2 m.
+  // ~90 m with errors up to ~2 m.
   double max_relative_sigma = 0.015;
   // Absolute (default off): reject when σ_3d > max_position_sigma_3d_m (m).
   // Set it when each fix must be accurate on its own: 0.05 was the former
