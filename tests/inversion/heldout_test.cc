@@ -145,16 +145,6 @@ struct HeldOutFigures {
   bool mc_meets_paper;  // MC RMS within the paper's target for every seed
 };
 
-// TED+EGT with the uncertainty gates set (0 = off), every other gate at default.
-magnav::testing::ErrorStats RunSigmaGates(const SimulatedPass& pass, const TruthTrack& truth, const Vec3& B0,
-                                          double relative, double absolute) {
-  InverterOptions o;
-  o.B0_W = B0;
-  o.gates.max_relative_sigma = relative;
-  o.gates.max_position_sigma_3d_m = absolute;
-  return testing::RunInverter(pass.samples, truth, o);
-}
-
 // TED+EGT (default gates, and the former absolute 5 cm gate) and MC (default
 // options, seeds 1-5) on one simulated pass; MC window 30 m horizontal as on
 // the reference passes.
@@ -162,7 +152,7 @@ void RunHeldOutPass(const PassScenario& sc, bool fluxgate, const HeldOutFigures&
   const SimulatedPass pass = SimulatePass(sc);
   const TruthTrack truth = magnav::testing::TruthOf(pass);
   const ErrorStats ted_egt = testing::RunInverter(pass.samples, truth, sc.B0, Method::kTedEgt);
-  const ErrorStats abs = RunSigmaGates(pass, truth, sc.B0, 0.0, 0.05);
+  const ErrorStats abs = testing::RunInverter(pass.samples, truth, testing::SigmaGateOptions(sc.B0, 0.0, 0.05));
   double mc_worst_rms = 0.0;
   int min_count = 1 << 30, epochs = 0;
   for (std::uint64_t seed = 1; seed <= 5; ++seed) {
@@ -247,23 +237,16 @@ TEST(HeldOut, RelativeGateOnFartherFluxgatePasses) {
     sc.speed_mps = f.speed_mps;
     const SimulatedPass pass = SimulatePass(sc);
     const TruthTrack truth = magnav::testing::TruthOf(pass);
-    Inverter inv([&] {
-      InverterOptions o;
-      o.B0_W = sc.B0;
-      return o;
-    }());
-    ErrorStats st;
-    double max_rel = 0.0, closest = 1e9;
+    double closest = 1e9;
     for (std::size_t i = 0; i < pass.samples.size(); ++i) {
-      const Vec3 r = truth.p[i] - pass.samples[i].p_SinW;
-      closest = std::min(closest, r.norm());
-      const DipoleFix fix = inv.Process(pass.samples[i]);
-      if (!fix.valid) continue;
-      const double e = (fix.p_DinW - truth.p[i]).norm();
-      st.Add(e);
-      max_rel = std::max(max_rel, e / r.norm());
+      closest = std::min(closest, (truth.p[i] - pass.samples[i].p_SinW).norm());
     }
-    const ErrorStats former = RunSigmaGates(pass, truth, sc.B0, 0.0, 0.05);
+    InverterOptions defaults;
+    defaults.B0_W = sc.B0;
+    const testing::RangeErrors r = testing::RunInverterWithRange(pass.samples, truth, defaults);
+    const ErrorStats& st = r.err;
+    const double max_rel = r.max_relative;
+    const ErrorStats former = testing::RunInverter(pass.samples, truth, testing::SigmaGateOptions(sc.B0, 0.0, 0.05));
     std::printf("| %s (closest %.2f m) | 5 cm gate: %d fixes | default: %d fixes, RMS %.4f, max %.4f, max |e|/range "
                 "%.4f |\n",
                 f.pass.name.c_str(), closest, former.count, st.count, st.rms(), st.max, max_rel);

@@ -63,11 +63,7 @@ ErrorStats RunInverter(const GradiometerFile& file, const TruthTrack& truth, Met
 // TED+EGT with the uncertainty gates set: relative to range (`relative`) and
 // absolute (`absolute`, m); 0 = off.
 ErrorStats RunSigmaGates(const GradiometerFile& file, const TruthTrack& truth, double relative, double absolute) {
-  InverterOptions o;
-  o.B0_W = *file.B0;
-  o.gates.max_relative_sigma = relative;
-  o.gates.max_position_sigma_3d_m = absolute;
-  return testing::RunInverter(file.samples, truth, o);
+  return testing::RunInverter(file.samples, truth, testing::SigmaGateOptions(*file.B0, relative, absolute));
 }
 
 // The documented figures of one 1-sensor pass (docs/ACCURACY.md, "Track passes").
@@ -341,21 +337,10 @@ TEST(TrackPass, RelativeSigmaGateSweep) {
     const TruthTrack truth = magnav::testing::LoadTruthTrack(vessel);
     const std::size_t per = file.samples.size() / truth.p.size();  // rows per instant (sensors)
     for (const Row& row : rows) {
-      InverterOptions o;
-      o.B0_W = *file.B0;
-      o.gates.max_relative_sigma = row.rho;
-      o.gates.max_position_sigma_3d_m = 0.0;
-      Inverter inv(o);  // one speed-gate reference per sensor
-      ErrorStats st;
-      double max_rel = 0.0;
-      for (std::size_t i = 0; i < file.samples.size(); ++i) {
-        const DipoleFix f = inv.Process(file.samples[i]);
-        if (!f.valid) continue;
-        const Vec3& p = truth.p[i / per];
-        const double e = (f.p_DinW - p).norm();
-        st.Add(e);
-        max_rel = std::max(max_rel, e / (p - file.samples[i].p_SinW).norm());
-      }
+      const testing::RangeErrors r = testing::RunInverterWithRange(
+          file.samples, truth, testing::SigmaGateOptions(*file.B0, row.rho, 0.0), per);
+      const ErrorStats& st = r.err;
+      const double max_rel = r.max_relative;
       const Cell& doc = row.cells[k];
       const std::string what = vessel + " " + kind + ", relative gate " + std::to_string(row.rho);
       std::printf("| %g | %s %s | %d / %.4f / %.3f / %.4f |\n", row.rho, vessel.c_str(), kind.c_str(), st.count,
