@@ -81,6 +81,8 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--tolerance", o.point.tolerance_nT, "point: half-width of the value window, nT");
   cmd->add_option("--field-scale", o.icp.field_scale_deg_per_nT,
                   "icp, mma: deg per nT in the closest-point distance; 0 = 1/(rms map gradient)");
+  cmd->add_option("--subdivision", o.icp.closest_point_subdivision,
+                  "icp, mma: closest points on a grid this many times finer than the map (bilinear values)");
   cmd->add_option("--tau", o.icp.convergence_tau, "icp, iccp: convergence threshold on the transform increment");
   cmd->add_option("--max-iterations", o.icp.max_iterations, "icp, iccp: iteration cap");
   cmd->add_option("--min-on-map", o.correlation.min_on_map_fraction,
@@ -94,6 +96,7 @@ void AddMatchCommand(CLI::App& app) {
   cmd->callback([args] {
     MatchArgs a = *args;
     a.options.mma.field_scale_deg_per_nT = a.options.icp.field_scale_deg_per_nT;
+    a.options.mma.closest_point_subdivision = a.options.icp.closest_point_subdivision;
     a.options.iccp.convergence_tau = a.options.icp.convergence_tau;
     a.options.iccp.max_iterations = a.options.icp.max_iterations;
     RunMatch(a);

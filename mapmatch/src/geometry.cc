@@ -31,32 +31,57 @@ template void FitRigid<3>(const Eigen::Matrix<double, 3, Eigen::Dynamic>&,
                           Eigen::Matrix<double, 3, 1>*);
 
 NodeHit ClosestNode(const GeoGrid& grid, std::size_t layer, double lat_deg, double lon_deg, double scaled_field_deg,
-                    double scale_deg_per_nT) {
+                    double scale_deg_per_nT, int subdivision) {
   const GridAxis& la = grid.lat();
   const GridAxis& lo = grid.lon();
-  const int i0 = std::clamp(static_cast<int>(std::lround((lat_deg - la.first_deg) / la.step_deg)), 0, la.count - 1);
-  const int j0 = std::clamp(static_cast<int>(std::lround((lon_deg - lo.first_deg) / lo.step_deg)), 0, lo.count - 1);
+  const int sub = std::max(subdivision, 1);
+  // The searched nodes: the grid's, or a grid `sub` times finer whose values
+  // are the bilinear interpolant of the map.
+  const int n_lat = (la.count - 1) * sub + 1, n_lon = (lo.count - 1) * sub + 1;
+  const double step_lat = la.step_deg / sub, step_lon = lo.step_deg / sub;
+  const int i0 = std::clamp(static_cast<int>(std::lround((lat_deg - la.first_deg) / step_lat)), 0, n_lat - 1);
+  const int j0 = std::clamp(static_cast<int>(std::lround((lon_deg - lo.first_deg) / step_lon)), 0, n_lon - 1);
   const double* v = grid.values(layer).data();
+  const double inv_sub = 1.0 / sub;
+  auto value = [&](int i, int j) {
+    if (sub == 1) return v[static_cast<std::size_t>(i) * lo.count + j];
+    const int ci = std::min(i / sub, la.count - 2), cj = std::min(j / sub, lo.count - 2);
+    const double u = (i - ci * sub) * inv_sub, w = (j - cj * sub) * inv_sub;
+    const double* c = v + static_cast<std::size_t>(ci) * lo.count + cj;
+    return (1 - u) * ((1 - w) * c[0] + w * c[1]) + u * ((1 - w) * c[lo.count] + w * c[lo.count + 1]);
+  };
   NodeHit best;
   best.dist2 = std::numeric_limits<double>::infinity();
   auto visit = [&](int i, int j) {
-    const double a = la.at(i) - lat_deg, b = lo.at(j) - lon_deg;
-    const double f = scale_deg_per_nT * v[static_cast<std::size_t>(i) * lo.count + j] - scaled_field_deg;
-    const double d2 = a * a + b * b + f * f;
-    if (d2 < best.dist2) best = NodeHit{i, j, d2};
+    const double lat = la.first_deg + i * step_lat, lon = lo.first_deg + j * step_lon;
+    const double a = lat - lat_deg, b = lon - lon_deg;
+    const double d2_h = a * a + b * b;
+    if (d2_h >= best.dist2) return;
+    const double m = value(i, j);
+    const double f = scale_deg_per_nT * m - scaled_field_deg;
+    const double d2 = d2_h + f * f;
+    if (d2 < best.dist2) best = NodeHit{lat, lon, m, d2};
   };
-  const double step = std::min(la.step_deg, lo.step_deg);
-  const int r_max = std::max({i0, la.count - 1 - i0, j0, lo.count - 1 - j0});
+  const double step = std::min(step_lat, step_lon);
+  const int r_max = std::max({i0, n_lat - 1 - i0, j0, n_lon - 1 - j0});
   visit(i0, j0);
   for (int r = 1; r <= r_max; ++r) {
     const double bound = (r - 0.5) * step;  // every node of ring r is at least this far horizontally
     if (bound * bound > best.dist2) break;
-    const int ia = std::max(i0 - r, 0), ib = std::min(i0 + r, la.count - 1);
-    const int ja = std::max(j0 - r, 0), jb = std::min(j0 + r, lo.count - 1);
-    if (i0 - r >= 0) for (int j = ja; j <= jb; ++j) visit(i0 - r, j);
-    if (i0 + r < la.count) for (int j = ja; j <= jb; ++j) visit(i0 + r, j);
-    if (j0 - r >= 0) for (int i = std::max(ia, i0 - r + 1); i <= std::min(ib, i0 + r - 1); ++i) visit(i, j0 - r);
-    if (j0 + r < lo.count) for (int i = std::max(ia, i0 - r + 1); i <= std::min(ib, i0 + r - 1); ++i) visit(i, j0 + r);
+    const int ja = std::max(j0 - r, 0), jb = std::min(j0 + r, n_lon - 1);
+    if (i0 - r >= 0) {
+      for (int j = ja; j <= jb; ++j) visit(i0 - r, j);
+    }
+    if (i0 + r < n_lat) {
+      for (int j = ja; j <= jb; ++j) visit(i0 + r, j);
+    }
+    const int ia = std::max(i0 - r + 1, 0), ib = std::min(i0 + r - 1, n_lat - 1);
+    if (j0 - r >= 0) {
+      for (int i = ia; i <= ib; ++i) visit(i, j0 - r);
+    }
+    if (j0 + r < n_lon) {
+      for (int i = ia; i <= ib; ++i) visit(i, j0 + r);
+    }
   }
   return best;
 }

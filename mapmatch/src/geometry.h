@@ -19,14 +19,16 @@ template <int D>
 void FitRigid(const Eigen::Matrix<double, D, Eigen::Dynamic>& d, const Eigen::Matrix<double, D, Eigen::Dynamic>& c,
               Eigen::Matrix<double, D, D>* R, Eigen::Matrix<double, D, 1>* t);
 
-// Closest grid node to (lat, lon, field·scale) in the metric
-// Δlat² + Δlon² + (scale·Δfield)² (deg²). Exact (not approximate).
+// Closest node to (lat, lon, field·scale) in the metric
+// Δlat² + Δlon² + (scale·Δfield)² (deg²), exact, among the grid's nodes
+// (subdivision 1) or the nodes of a grid `subdivision` times finer carrying
+// the map's bilinear values.
 struct NodeHit {
-  int i_lat = 0, j_lon = 0;
+  double lat_deg = 0.0, lon_deg = 0.0, value_nT = 0.0;
   double dist2 = 0.0;
 };
 NodeHit ClosestNode(const GeoGrid& grid, std::size_t layer, double lat_deg, double lon_deg, double scaled_field_deg,
-                    double scale_deg_per_nT);
+                    double scale_deg_per_nT, int subdivision);
 
 // Closest point (lat, lon) to the query on the iso-contour value = level_nT
 // of the bilinear map, the contour taken piecewise linear in each cell

@@ -44,13 +44,21 @@ double FieldScale(const GeoGrid& grid, std::size_t layer, double given, MatchRes
 
 }  // namespace
 
+bool ValidSubdivision(int subdivision, std::string* error) {
+  if (subdivision < 1 || subdivision > 100) return Fail(error, "closest_point_subdivision must be in 1..100");
+  return true;
+}
+
 bool IcpOptions::IsValid(std::string* error) const {
-  return ValidScale(field_scale_deg_per_nT, error) && ValidIterations(convergence_tau, max_iterations, error);
+  return ValidScale(field_scale_deg_per_nT, error) && ValidIterations(convergence_tau, max_iterations, error) &&
+         ValidSubdivision(closest_point_subdivision, error);
 }
 bool IccpOptions::IsValid(std::string* error) const {
   return ValidIterations(convergence_tau, max_iterations, error);
 }
-bool MmaOptions::IsValid(std::string* error) const { return ValidScale(field_scale_deg_per_nT, error); }
+bool MmaOptions::IsValid(std::string* error) const {
+  return ValidScale(field_scale_deg_per_nT, error) && ValidSubdivision(closest_point_subdivision, error);
+}
 
 MatchResult MatchIcp(const GeoGrid& grid, std::size_t layer, const MatchPath& path, const IcpOptions& options) {
   internal::CheckInputs(grid, layer, path, options, "icp");
@@ -70,8 +78,9 @@ MatchResult MatchIcp(const GeoGrid& grid, std::size_t layer, const MatchPath& pa
     const Matrix3X X = (R * D).colwise() + t;
     double sum2 = 0.0;
     for (Eigen::Index c = 0; c < X.cols(); ++c) {
-      const internal::NodeHit h = internal::ClosestNode(grid, layer, X(0, c), X(1, c), X(2, c), s);
-      C.col(c) << grid.lat().at(h.i_lat), grid.lon().at(h.j_lon), s * grid.node(layer, h.i_lat, h.j_lon);
+      const internal::NodeHit h =
+          internal::ClosestNode(grid, layer, X(0, c), X(1, c), X(2, c), s, options.closest_point_subdivision);
+      C.col(c) << h.lat_deg, h.lon_deg, s * h.value_nT;
       sum2 += h.dist2;
     }
     r.score = std::sqrt(sum2 / static_cast<double>(X.cols()));
@@ -170,8 +179,9 @@ MatchResult MatchMma(const GeoGrid& grid, std::size_t layer, const MatchPath& pa
   for (std::size_t c = 0; c < used.size(); ++c) {
     const std::size_t p = used[c];
     D.col(c) << path.lat_deg[p], path.lon_deg[p], s * path.measured_nT[p], 1.0;
-    const internal::NodeHit h = internal::ClosestNode(grid, layer, D(0, c), D(1, c), D(2, c), s);
-    C.col(c) << grid.lat().at(h.i_lat), grid.lon().at(h.j_lon), s * grid.node(layer, h.i_lat, h.j_lon), 1.0;
+    const internal::NodeHit h =
+        internal::ClosestNode(grid, layer, D(0, c), D(1, c), D(2, c), s, options.closest_point_subdivision);
+    C.col(c) << h.lat_deg, h.lon_deg, s * h.value_nT, 1.0;
   }
   r.iterations = 1;
   // T = (C Dᵀ)(D Dᵀ)⁻¹ is the least-squares solution of T D ≈ C; solved as

@@ -2,6 +2,7 @@
 // motion exactly, ICCP closely, MMA an affine one exactly, correlation a
 // whole-cell shift exactly, fast MSD a smooth offset; bad measurements and
 // off-map points are counted and never poison the fit; options are checked.
+#include <array>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -127,6 +128,28 @@ TEST(FitRigid, CentredAndNeverAReflection) {
   internal::FitRigid<3>(d, mirrored, &R, &t);
   EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
   EXPECT_LT((R * R.transpose() - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+}
+
+TEST(ClosestNode, ExactAgainstAScanOnTheMapOrAFinerGrid) {
+  const GeoGrid g = GeoGrid::FromFunction({0.0, 0.1, 21}, {0.0, 0.1, 25}, "F", Quadratic);
+  const double s = 0.002;
+  for (const int sub : {1, 4}) {
+    for (const auto& q : {std::array<double, 3>{1.03, 1.17, 40500.0}, std::array<double, 3>{-0.3, 2.9, 41000.0},
+                          std::array<double, 3>{0.51, 0.77, 40210.0}}) {
+      const internal::NodeHit h = internal::ClosestNode(g, 0, q[0], q[1], s * q[2], s, sub);
+      // Scan every node of the (finer) grid.
+      double best = 1e300;
+      for (int i = 0; i <= 20 * sub; ++i) {
+        for (int j = 0; j <= 24 * sub; ++j) {
+          const double lat = 0.1 * i / sub, lon = 0.1 * j / sub;
+          const double f = s * (g.Sample(0, lat, lon)->value_nT - q[2]);
+          best = std::min(best, (lat - q[0]) * (lat - q[0]) + (lon - q[1]) * (lon - q[1]) + f * f);
+        }
+      }
+      EXPECT_NEAR(h.dist2, best, 1e-12) << sub;
+      EXPECT_NEAR(h.value_nT, g.Sample(0, h.lat_deg, h.lon_deg)->value_nT, 1e-9);
+    }
+  }
 }
 
 TEST(Iccp, RecoversARigidMotionOnCurvedContours) {

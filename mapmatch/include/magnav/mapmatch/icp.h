@@ -32,6 +32,9 @@ struct IcpOptions {
   // The thesis' τ = 1e-5 (on the increment, deg units).
   double convergence_tau = 1e-5;
   int max_iterations = 100;
+  // Closest points among the nodes of a grid this many times finer than the
+  // map (bilinear values); 1 = the map's own nodes, as in the thesis.
+  int closest_point_subdivision = 1;
 
   bool IsValid(std::string* error) const;
 };
@@ -60,6 +63,7 @@ MatchResult MatchIccp(const GeoGrid& grid, std::size_t layer, const MatchPath& p
 // iteration); the matched point is T d. Score: RMS residual |C − T D| (deg).
 struct MmaOptions {
   double field_scale_deg_per_nT = 0.0;  // as IcpOptions
+  int closest_point_subdivision = 1;    // as IcpOptions
 
   bool IsValid(std::string* error) const;
 };
