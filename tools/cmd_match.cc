@@ -17,6 +17,7 @@ namespace {
 
 struct MatchArgs {
   std::string map, value_column, path, meas_column, method, output;
+  std::string solver = "jacobi";
   double search_window_deg = 0.0;  // 0 = not given
   mapmatch::MatchOptions options;
 };
@@ -31,6 +32,7 @@ void RunMatch(MatchArgs a) {
   }
   a.options.correlation.search_window_deg = a.search_window_deg;
   a.options.fast_msd.search_window_deg = a.search_window_deg;  // 0: no coarse stage
+  a.options.fast_msd.solver = a.solver == "direct" ? mapmatch::FastMsdSolver::kDirect : mapmatch::FastMsdSolver::kJacobi;
   const mapmatch::GeoGrid grid = mapmatch::ReadGeoGridCsv(a.map, {a.value_column});
   const mapmatch::MatchPath path = mapmatch::ReadMatchPath(a.path, a.meas_column);
   const mapmatch::MatchResult r = mapmatch::Match(*method, grid, 0, path, a.options);
@@ -91,6 +93,10 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--lambda-first-factor", o.fast_msd.lambda_first_round_factor,
                   "fast-msd: the first round's lambda is this times --lambda, decreasing geometrically to it");
   cmd->add_option("--epsilon", o.fast_msd.epsilon_deg2, "fast-msd: Jacobi stop, mean squared change, deg^2");
+  cmd->add_option("--solver", args->solver,
+                  "fast-msd: jacobi (the paper's iteration) or direct (its fixed point by block-tridiagonal "
+                  "elimination)")
+      ->check(CLI::IsMember({"jacobi", "direct"}));
   cmd->add_option("--rounds", o.fast_msd.rounds, "fast-msd: re-linearisation rounds");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->callback([args] {

@@ -265,6 +265,25 @@ TEST(FastMsd, RecoversASmoothOffsetOnASmoothMap) {
   EXPECT_LT(MeanError(c, t), 0.05 * before) << c.BriefReport();
 }
 
+TEST(FastMsd, DirectSolverIsTheJacobiFixedPoint) {
+  const GeoGrid g = GeoGrid::FromFunction({0.0, 0.001, 91}, {0.0, 0.001, 91}, "a", Bumps);
+  Truth t = CurvedPath(g, 0.03, 0.02, 0.0008, 30, 0.002, -0.001);
+  t.path.measured_nT[4] = std::nan("");  // a point without a data term
+  FastMsdOptions o;
+  o.rounds = 1;
+  o.epsilon_deg2 = 1e-30;
+  o.max_iterations_per_round = 2000000;
+  const MatchResult jacobi = MatchFastMsd(g, 0, t.path, o);
+  o.solver = FastMsdSolver::kDirect;
+  const MatchResult direct = MatchFastMsd(g, 0, t.path, o);
+  EXPECT_EQ(direct.iterations, 1);
+  for (std::size_t k = 0; k < t.lat.size(); ++k) {
+    EXPECT_NEAR(direct.lat_deg[k], jacobi.lat_deg[k], 1e-10) << k;
+    EXPECT_NEAR(direct.lon_deg[k], jacobi.lon_deg[k], 1e-10) << k;
+  }
+  EXPECT_GT(std::abs(direct.lat_deg[0] - t.path.lat_deg[0]), 1e-4);  // it did move
+}
+
 TEST(Matchers, BadMeasurementsAreCountedAndDoNotPoisonTheFit) {
   const GeoGrid g = GeoGrid::FromFunction({0.0, 0.001, 91}, {0.0, 0.001, 91}, "a", Bumps);
   const Truth t = CurvedPath(g, 0.03, 0.02, 0.001, 40, 0.003, -0.002);

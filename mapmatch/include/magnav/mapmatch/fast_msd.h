@@ -28,7 +28,14 @@
 
 namespace magnav::mapmatch {
 
+// How each round's linear equations are solved: the paper's Jacobi iteration
+// (stops at epsilon_deg2), or directly (the same equations are block
+// tridiagonal in path order: block Thomas elimination, O(N), the exact fixed
+// point of the Jacobi iteration).
+enum class FastMsdSolver { kJacobi, kDirect };
+
 struct FastMsdOptions {
+  FastMsdSolver solver = FastMsdSolver::kJacobi;
   // Smoothness weight λ (nT²/deg²): ~1e7 suits the crustal reference map
   // (RMS gradient ≈ 1.2e4 nT/deg); larger = stiffer path.
   double lambda_nT2_per_deg2 = 1e7;
@@ -53,7 +60,7 @@ struct FastMsdOptions {
   bool IsValid(std::string* error) const;
 };
 
-// iterations = Jacobi iterations over all rounds; score = MSD (nT²) at the
+// iterations = Jacobi iterations over all rounds (direct solver: one per round); score = MSD (nT²) at the
 // matched points on the map; converged = every round's Jacobi met epsilon.
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                          const FastMsdOptions& options = {});
