@@ -24,23 +24,26 @@ const MatchPath& CrustalPath() {
   return p;
 }
 
-// A path of n points on the crustal map (100 m steps, gently turning), its
-// measurements the map at the truth, the INS offset by (0.004°, -0.003°).
-MatchPath SyntheticCrustalPath(int n) {
-  const GeoGrid& g = Crustal();
+// A gently turning path of n points from (lat, lon) with the given step (deg),
+// measured on the map at the truth; the INS offset by (dlat, dlon).
+MatchPath TurningPath(const GeoGrid& g, int n, double lat, double lon, double step, double turn, double dlat,
+                      double dlon) {
   MatchPath p;
-  double lat = 44.94, lon = 9.92, h = 0.4;
+  double h = 0.4;
   for (int k = 0; k < n; ++k) {
     p.k.push_back(k);
-    p.lat_deg.push_back(lat + 0.004);
-    p.lon_deg.push_back(lon - 0.003);
+    p.lat_deg.push_back(lat + dlat);
+    p.lon_deg.push_back(lon + dlon);
     p.measured_nT.push_back(g.Sample(0, lat, lon)->value_nT);
-    h += 0.02 * std::sin(0.05 * k);
-    lat += 0.0008 * std::cos(h);
-    lon += 0.0008 * std::sin(h);
+    h += turn * std::sin(0.05 * k);
+    lat += step * std::cos(h);
+    lon += step * std::sin(h);
   }
   return p;
 }
+
+// 200 points on the crustal map (~90 m steps), INS off by (0.004°, -0.003°).
+MatchPath SyntheticCrustalPath(int n) { return TurningPath(Crustal(), n, 44.94, 9.92, 0.0008, 0.02, 0.004, -0.003); }
 
 void BM_BilinearSample(benchmark::State& state) {
   const GeoGrid& g = Crustal();
@@ -84,17 +87,7 @@ void BM_IcpMillionCells(benchmark::State& state) {
   static const GeoGrid g = GeoGrid::FromFunction({10.0, 0.01, 1000}, {60.0, 0.01, 1000}, "F", [](double lat, double lon) {
     return 40000.0 + 450.0 * (lat - 10.0) - 60.0 * (lon - 60.0) + 40.0 * std::sin(0.9 * lat) * std::cos(1.1 * lon);
   });
-  MatchPath p;
-  double lat = 13.0, lon = 63.0, h = 0.5;
-  for (int k = 0; k < 60; ++k) {
-    p.k.push_back(k);
-    p.lat_deg.push_back(lat + 0.05);
-    p.lon_deg.push_back(lon - 0.04);
-    p.measured_nT.push_back(g.Sample(0, lat, lon)->value_nT);
-    h += 0.05 * std::sin(0.2 * k);
-    lat += 0.05 * std::cos(h);
-    lon += 0.05 * std::sin(h);
-  }
+  const MatchPath p = TurningPath(g, 60, 13.0, 63.0, 0.05, 0.05, 0.05, -0.04);
   int iterations = 0;
   for (auto _ : state) {
     const MatchResult r = MatchIcp(g, 0, p);

@@ -42,6 +42,36 @@ double FieldScale(const GeoGrid& grid, std::size_t layer, double given, MatchRes
   return 1.0 / g;
 }
 
+// The iteration ICP and ICCP share: the points P moved by (R, t), their
+// closest points Y = closest(X) (returns Σ |y − x|²), the rigid increment
+// fitted and composed, until ‖R_k − I‖_F + ‖t_k‖ < τ or the cap. Sets the
+// iterations, score (RMS closest distance), converged flag and reason.
+template <int D, typename Closest>
+void IterateRigid(const Eigen::Matrix<double, D, Eigen::Dynamic>& P, double tau, int max_iterations,
+                  const Closest& closest, Eigen::Matrix<double, D, D>* R, Eigen::Matrix<double, D, 1>* t,
+                  MatchResult* r) {
+  using MatD = Eigen::Matrix<double, D, D>;
+  using VecD = Eigen::Matrix<double, D, 1>;
+  *R = MatD::Identity();
+  *t = VecD::Zero();
+  Eigen::Matrix<double, D, Eigen::Dynamic> Y(D, P.cols());
+  for (r->iterations = 1; r->iterations <= max_iterations; ++r->iterations) {
+    const Eigen::Matrix<double, D, Eigen::Dynamic> X = (*R * P).colwise() + *t;
+    r->score = std::sqrt(closest(X, &Y) / static_cast<double>(X.cols()));
+    MatD Rk;
+    VecD tk;
+    internal::FitRigid<D>(X, Y, &Rk, &tk);
+    *R = Rk * *R;
+    *t = Rk * *t + tk;
+    if ((Rk - MatD::Identity()).norm() + tk.norm() < tau) {
+      r->converged = true;
+      return;
+    }
+  }
+  r->iterations = max_iterations;
+  r->reason = "transform increment still >= tau after " + std::to_string(max_iterations) + " iterations";
+}
+
 }  // namespace
 
 bool ValidSubdivision(int subdivision, std::string* error) {
@@ -71,33 +101,19 @@ MatchResult MatchIcp(const GeoGrid& grid, std::size_t layer, const MatchPath& pa
     const std::size_t p = used[c];
     D.col(c) << path.lat_deg[p], path.lon_deg[p], s * path.measured_nT[p];
   }
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  Matrix3X C(3, used.size());
-  for (r.iterations = 1; r.iterations <= options.max_iterations; ++r.iterations) {
-    const Matrix3X X = (R * D).colwise() + t;
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+  const auto closest = [&](const Matrix3X& X, Matrix3X* C) {
     double sum2 = 0.0;
     for (Eigen::Index c = 0; c < X.cols(); ++c) {
       const internal::NodeHit h =
           internal::ClosestNode(grid, layer, X(0, c), X(1, c), X(2, c), s, options.closest_point_subdivision);
-      C.col(c) << h.lat_deg, h.lon_deg, s * h.value_nT;
+      C->col(c) << h.lat_deg, h.lon_deg, s * h.value_nT;
       sum2 += h.dist2;
     }
-    r.score = std::sqrt(sum2 / static_cast<double>(X.cols()));
-    Eigen::Matrix3d Rk;
-    Eigen::Vector3d tk;
-    internal::FitRigid<3>(X, C, &Rk, &tk);
-    R = Rk * R;
-    t = Rk * t + tk;
-    if ((Rk - Eigen::Matrix3d::Identity()).norm() + tk.norm() < options.convergence_tau) {
-      r.converged = true;
-      break;
-    }
-  }
-  if (!r.converged) {
-    r.iterations = options.max_iterations;
-    r.reason = "transform increment still >= tau after " + std::to_string(options.max_iterations) + " iterations";
-  }
+    return sum2;
+  };
+  IterateRigid<3>(D, options.convergence_tau, options.max_iterations, closest, &R, &t, &r);
   // Points without a measurement are moved at the mean field of the others.
   const double mean_field = D.row(2).mean();
   for (std::size_t p = 0; p < path.size(); ++p) {
@@ -128,34 +144,18 @@ MatchResult MatchIccp(const GeoGrid& grid, std::size_t layer, const MatchPath& p
   if (!internal::EnoughPoints(used, 2, &r)) return r;
   Matrix2X P(2, used.size());
   for (std::size_t c = 0; c < used.size(); ++c) P.col(c) << path.lat_deg[used[c]], path.lon_deg[used[c]];
-  Eigen::Matrix2d R = Eigen::Matrix2d::Identity();
-  Eigen::Vector2d t = Eigen::Vector2d::Zero();
-  Matrix2X Y(2, used.size());
-  for (r.iterations = 1; r.iterations <= options.max_iterations; ++r.iterations) {
-    const Matrix2X X = (R * P).colwise() + t;
+  Eigen::Matrix2d R;
+  Eigen::Vector2d t;
+  const auto closest = [&](const Matrix2X& X, Matrix2X* Y) {
     double sum2 = 0.0;
     for (Eigen::Index c = 0; c < X.cols(); ++c) {
       // The level is within the layer's range, so a contour point exists.
-      const Eigen::Vector2d y =
-          *internal::ClosestOnContour(grid, layer, X(0, c), X(1, c), path.measured_nT[used[c]]);
-      Y.col(c) = y;
-      sum2 += (y - X.col(c)).squaredNorm();
+      Y->col(c) = *internal::ClosestOnContour(grid, layer, X(0, c), X(1, c), path.measured_nT[used[c]]);
+      sum2 += (Y->col(c) - X.col(c)).squaredNorm();
     }
-    r.score = std::sqrt(sum2 / static_cast<double>(X.cols()));
-    Eigen::Matrix2d Rk;
-    Eigen::Vector2d tk;
-    internal::FitRigid<2>(X, Y, &Rk, &tk);
-    R = Rk * R;
-    t = Rk * t + tk;
-    if ((Rk - Eigen::Matrix2d::Identity()).norm() + tk.norm() < options.convergence_tau) {
-      r.converged = true;
-      break;
-    }
-  }
-  if (!r.converged) {
-    r.iterations = options.max_iterations;
-    r.reason = "transform increment still >= tau after " + std::to_string(options.max_iterations) + " iterations";
-  }
+    return sum2;
+  };
+  IterateRigid<2>(P, options.convergence_tau, options.max_iterations, closest, &R, &t, &r);
   for (std::size_t p = 0; p < path.size(); ++p) {
     const Eigen::Vector2d x = R * Eigen::Vector2d(path.lat_deg[p], path.lon_deg[p]) + t;
     r.lat_deg[p] = x(0);

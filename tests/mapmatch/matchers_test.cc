@@ -4,6 +4,7 @@
 // off-map points are counted and never poison the fit; options are checked.
 #include <array>
 #include <cmath>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,33 @@ Truth CurvedPath(const GeoGrid& g, double lat0, double lon0, double step, int n,
   return t;
 }
 
+// A path through grid nodes (i, j) of a 0.1° grid, measured Quadratic there,
+// its INS positions ins(lat, lon).
+Truth OnNodes(const std::vector<std::array<int, 2>>& nodes,
+              const std::function<std::array<double, 2>(double, double)>& ins) {
+  Truth t;
+  int k = 0;
+  for (const auto& n : nodes) {
+    const double lat = 0.1 * n[0], lon = 0.1 * n[1];
+    const std::array<double, 2> p = ins(lat, lon);
+    t.lat.push_back(lat);
+    t.lon.push_back(lon);
+    t.path.k.push_back(k++);
+    t.path.lat_deg.push_back(p[0]);
+    t.path.lon_deg.push_back(p[1]);
+    t.path.measured_nT.push_back(Quadratic(lat, lon));
+  }
+  return t;
+}
+
+// Every matched point within tol (deg, per axis) of the truth.
+void ExpectOnTruth(const MatchResult& r, const Truth& t, double tol) {
+  for (std::size_t p = 0; p < t.lat.size(); ++p) {
+    EXPECT_NEAR(r.lat_deg[p], t.lat[p], tol) << p;
+    EXPECT_NEAR(r.lon_deg[p], t.lon[p], tol) << p;
+  }
+}
+
 MatchResult InsOnly(const MatchPath& p) {
   MatchResult r;
   r.lat_deg = p.lat_deg;
@@ -77,34 +105,24 @@ TEST(Icp, RecoversARigidMotionExactly) {
   // its centre and moved by (0.3, -0.2) cells. ICP (3-D, field unchanged by
   // the motion) finds the node correspondences and undoes the motion exactly.
   const GeoGrid g = GeoGrid::FromFunction({0.0, 0.1, 41}, {0.0, 0.1, 41}, "F", Quadratic);
-  Truth t;
   const double ang = 1.5 * M_PI / 180.0, ca = std::cos(ang), sa = std::sin(ang);
-  const int nodes[][2] = {{10, 12}, {11, 14}, {13, 15}, {15, 15}, {17, 16}, {18, 18}, {19, 21}, {21, 22}, {23, 22},
-                          {24, 20}, {26, 19}, {28, 19}};
+  const std::vector<std::array<int, 2>> nodes = {{10, 12}, {11, 14}, {13, 15}, {15, 15}, {17, 16}, {18, 18},
+                                                 {19, 21}, {21, 22}, {23, 22}, {24, 20}, {26, 19}, {28, 19}};
   double cl = 0, cn = 0;
   for (const auto& n : nodes) {
     cl += 0.1 * n[0] / 12.0;
     cn += 0.1 * n[1] / 12.0;
   }
-  int k = 0;
-  for (const auto& n : nodes) {
-    const double lat = 0.1 * n[0], lon = 0.1 * n[1];
-    t.lat.push_back(lat);
-    t.lon.push_back(lon);
-    t.path.k.push_back(k++);
-    t.path.lat_deg.push_back(cl + ca * (lat - cl) - sa * (lon - cn) + 0.03);
-    t.path.lon_deg.push_back(cn + sa * (lat - cl) + ca * (lon - cn) - 0.02);
-    t.path.measured_nT.push_back(Quadratic(lat, lon));
-  }
+  const Truth t = OnNodes(nodes, [&](double lat, double lon) {
+    return std::array<double, 2>{cl + ca * (lat - cl) - sa * (lon - cn) + 0.03,
+                                 cn + sa * (lat - cl) + ca * (lon - cn) - 0.02};
+  });
   IcpOptions o;
   o.field_scale_deg_per_nT = 0.01;  // field differences dominate: the right node is unambiguous
   const MatchResult r = MatchIcp(g, 0, t.path, o);
   ASSERT_TRUE(r.converged) << r.BriefReport();
   EXPECT_LT(r.iterations, 20);
-  for (std::size_t p = 0; p < t.lat.size(); ++p) {
-    EXPECT_NEAR(r.lat_deg[p], t.lat[p], 1e-9);
-    EXPECT_NEAR(r.lon_deg[p], t.lon[p], 1e-9);
-  }
+  ExpectOnTruth(r, t, 1e-9);
   EXPECT_NEAR(r.score, 0.0, 1e-9);
   EXPECT_NE(r.notes.find("(given)"), std::string::npos);
 }
@@ -176,27 +194,17 @@ TEST(Mma, RecoversAnAffineMotionExactly) {
   // shift within 0.4 cells); the closest nodes in field are the true ones, so
   // T = (C Dᵀ)(D Dᵀ)⁻¹ maps the path back exactly.
   const GeoGrid g = GeoGrid::FromFunction({0.0, 0.1, 41}, {0.0, 0.1, 41}, "F", Quadratic);
-  Truth t;
-  const int nodes[][2] = {{10, 12}, {11, 14}, {13, 15}, {15, 15}, {17, 16}, {18, 18}, {19, 21}, {21, 22}, {23, 22}};
-  int k = 0;
-  for (const auto& n : nodes) {
-    const double lat = 0.1 * n[0], lon = 0.1 * n[1];
-    t.lat.push_back(lat);
-    t.lon.push_back(lon);
-    t.path.k.push_back(k++);
-    t.path.lat_deg.push_back(1.01 * lat + 0.005 * lon + 0.01);
-    t.path.lon_deg.push_back(-0.004 * lat + 0.99 * lon + 0.02);
-    t.path.measured_nT.push_back(Quadratic(lat, lon));
-  }
+  const Truth t = OnNodes({{10, 12}, {11, 14}, {13, 15}, {15, 15}, {17, 16}, {18, 18}, {19, 21}, {21, 22}, {23, 22}},
+                          [](double lat, double lon) {
+                            return std::array<double, 2>{1.01 * lat + 0.005 * lon + 0.01,
+                                                         -0.004 * lat + 0.99 * lon + 0.02};
+                          });
   MmaOptions o;
   o.field_scale_deg_per_nT = 0.01;
   const MatchResult r = MatchMma(g, 0, t.path, o);
   ASSERT_TRUE(r.converged) << r.BriefReport();
   EXPECT_EQ(r.iterations, 1);
-  for (std::size_t p = 0; p < t.lat.size(); ++p) {
-    EXPECT_NEAR(r.lat_deg[p], t.lat[p], 1e-8);
-    EXPECT_NEAR(r.lon_deg[p], t.lon[p], 1e-8);
-  }
+  ExpectOnTruth(r, t, 1e-8);
 }
 
 TEST(Correlation, EveryMetricFindsAWholeCellShift) {
