@@ -33,7 +33,10 @@ void RunMatch(MatchArgs a) {
   a.options.correlation.search_window_deg = a.search_window_deg;
   a.options.fast_msd.search_window_deg = a.search_window_deg;  // 0: no coarse stage
   a.options.fast_msd.solver = a.solver == "direct" ? mapmatch::FastMsdSolver::kDirect : mapmatch::FastMsdSolver::kJacobi;
-  const mapmatch::GeoGrid grid = mapmatch::ReadGeoGridCsv(a.map, {a.value_column});
+  // NGDC-style whitespace text ("lon lat value") by its extension, else CSV.
+  const bool ngdc = a.map.ends_with(".xyz") || a.map.ends_with(".txt");
+  const mapmatch::GeoGrid grid = ngdc ? mapmatch::ReadGeoGridXyz(a.map, a.value_column)
+                                      : mapmatch::ReadGeoGridCsv(a.map, {a.value_column});
   const mapmatch::MatchPath path = mapmatch::ReadMatchPath(a.path, a.meas_column);
   const mapmatch::MatchResult r = mapmatch::Match(*method, grid, 0, path, a.options);
   // Written beside the output and renamed: a reader never sees half a file.
@@ -66,7 +69,10 @@ void AddMatchCommand(CLI::App& app) {
   auto args = std::make_shared<MatchArgs>();
   CLI::App* cmd = app.add_subcommand(
       "match", "Correct an INS path by matching its measured field against a geomagnetic map (mapmatch/)");
-  cmd->add_option("--map", args->map, "map CSV: lat,lon (deg) and value columns (nT), a complete regular grid")
+  cmd->option_defaults()->always_capture_default();  // --help shows the papers' values
+  cmd->add_option("--map", args->map,
+                  "map CSV: lat,lon (deg) and value columns (nT), a complete regular grid; or NGDC text "
+                  "'lon lat value' (*.xyz, *.txt; its one layer takes the --value-column name)")
       ->required();
   cmd->add_option("--value-column", args->value_column, "the map column to match, e.g. F_nT or anomaly_nT")
       ->required();

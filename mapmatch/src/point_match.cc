@@ -6,6 +6,7 @@
 
 #include "magnav/core/error.h"
 #include "magnav/core/option_check.h"
+#include "match_common.h"
 
 namespace magnav::mapmatch {
 
@@ -64,16 +65,10 @@ bool PointMatchOptions::IsValid(std::string* error) const {
 
 MatchResult MatchPoints(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                         const PointMatchOptions& options) {
-  path.Check();
-  std::string why;
-  if (!options.IsValid(&why)) throw InputError("point match options: " + why);
+  internal::CheckInputs(grid, layer, path, options, "point");
   const PointIndex index(grid, {layer});
-  MatchResult r;
-  r.method = "point";
-  r.score_name = "mean distance moved, deg";
+  MatchResult r = internal::StartResult("point", "mean distance moved, deg", path);
   r.iterations = 1;
-  r.lat_deg = path.lat_deg;
-  r.lon_deg = path.lon_deg;
   int no_hit = 0;
   double moved = 0.0;
   for (std::size_t p = 0; p < path.size(); ++p) {
@@ -98,7 +93,7 @@ MatchResult MatchPoints(const GeoGrid& grid, std::size_t layer, const MatchPath&
     ++r.points_used;
     moved += best;
   }
-  r.points_off_map = no_hit;  // no node of the map has the measured value
+  internal::CountOffMap(grid, &r);  // INS positions kept off the map
   r.score = r.points_used > 0 ? moved / r.points_used : std::numeric_limits<double>::quiet_NaN();
   r.converged = r.points_used > 0;
   if (!r.converged) r.reason = "no point has a map node within the tolerance";

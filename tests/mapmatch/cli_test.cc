@@ -104,6 +104,33 @@ TEST(MatchCli, BadInputExits2NamingFileLineAndField) {
   EXPECT_EQ(files, 0);
 }
 
+TEST(MatchCli, ReadsAnNgdcTextMapLikeItsCsv) {
+  // The WMM 0.5° F layer rewritten as "lon lat value" lines gives the same match.
+  const std::string dir = testing::TempDir();
+  const CsvTable m = CsvTable::Read(testing::ReferencePath("map_wmm_0p5deg.csv"));
+  {
+    std::ofstream xyz(dir + "/wmm.xyz");
+    xyz << "# lon lat F_nT\n";
+    for (std::size_t r = 0; r < m.num_rows(); ++r) {
+      xyz << m.text(r, m.column("lon")) << " " << m.text(r, m.column("lat")) << " " << m.text(r, m.column("F_nT"))
+          << "\n";
+    }
+  }
+  const std::string path = testing::ReferencePath("mappath_wmm_0p5deg_noise0nT.csv");
+  ASSERT_EQ(RunMatch(Args(dir + "/wmm.xyz", "F_nT", path, "meas_nT", "icp", dir + "/a.csv")).first, 0);
+  ASSERT_EQ(RunMatch(Args(testing::ReferencePath("map_wmm_0p5deg.csv"), "F_nT", path, "meas_nT", "icp",
+                          dir + "/b.csv"))
+                .first,
+            0);
+  const CsvTable a = CsvTable::Read(dir + "/a.csv"), b = CsvTable::Read(dir + "/b.csv");
+  ASSERT_EQ(a.num_rows(), b.num_rows());
+  for (std::size_t r = 0; r < a.num_rows(); ++r) {
+    EXPECT_EQ(a.text(r, 1), b.text(r, 1));
+    EXPECT_EQ(a.text(r, 2), b.text(r, 2));
+  }
+  EXPECT_EQ(a.params().at("summary"), b.params().at("summary"));
+}
+
 TEST(MatchCli, AnOffMapPathIsReportedNotHidden) {
   // Every INS point far outside the map: fast MSD leaves the path as it was
   // and the summary says why.

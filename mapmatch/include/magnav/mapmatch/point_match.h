@@ -48,8 +48,9 @@ struct PointMatchOptions {
 
 // Path matching from single points: each point goes to the hit nearest (in
 // degrees) to its INS position; a point without a hit (or with a bad
-// measurement) keeps its INS position and is counted. Score: mean distance
-// moved, deg. Never iterates (iterations = 1).
+// measurement) keeps its INS position and is counted (not in points_used; the
+// number without a hit is in the reason). Score: mean distance moved, deg.
+// Never iterates (iterations = 1).
 MatchResult MatchPoints(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                         const PointMatchOptions& options = {});
 
