@@ -18,6 +18,7 @@ namespace {
 struct MatchArgs {
   std::string map, value_column, path, meas_column, method, output;
   std::string solver = "jacobi";
+  bool icp_3d = false;
   double search_window_deg = 0.0;  // 0 = not given
   mapmatch::MatchOptions options;
 };
@@ -32,6 +33,7 @@ void RunMatch(MatchArgs a) {
   }
   a.options.correlation.search_window_deg = a.search_window_deg;
   a.options.fast_msd.search_window_deg = a.search_window_deg;  // 0: no coarse stage
+  a.options.icp.planar_motion = !a.icp_3d;
   a.options.fast_msd.solver = a.solver == "direct" ? mapmatch::FastMsdSolver::kDirect : mapmatch::FastMsdSolver::kJacobi;
   // NGDC-style whitespace text ("lon lat value") by its extension, else CSV.
   const bool ngdc = a.map.ends_with(".xyz") || a.map.ends_with(".txt");
@@ -91,6 +93,8 @@ void AddMatchCommand(CLI::App& app) {
                   "icp, mma: deg per nT in the closest-point distance; 0 = 1/(rms map gradient)");
   cmd->add_option("--subdivision", o.icp.closest_point_subdivision,
                   "icp, mma: closest points on a grid this many times finer than the map (bilinear values)");
+  cmd->add_flag("--icp-3d", args->icp_3d,
+               "icp: the thesis' rigid 3-D transform of (lat, lon, scale*field) instead of moving only (lat, lon)");
   cmd->add_option("--tau", o.icp.convergence_tau, "icp, iccp: convergence threshold on the transform increment");
   cmd->add_option("--max-iterations", o.icp.max_iterations, "icp, iccp: iteration cap");
   cmd->add_option("--min-on-map", o.correlation.min_on_map_fraction,

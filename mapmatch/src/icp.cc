@@ -113,7 +113,25 @@ MatchResult MatchIcp(const GeoGrid& grid, std::size_t layer, const MatchPath& pa
     }
     return sum2;
   };
-  IterateRigid<3>(D, options.convergence_tau, options.max_iterations, closest, &R, &t, &r);
+  if (options.planar_motion) {
+    // Only (lat, lon) move; each point keeps its measured field coordinate.
+    Eigen::Matrix2d R2;
+    Eigen::Vector2d t2;
+    const auto closest2 = [&](const Matrix2X& X, Matrix2X* Y) {
+      Matrix3X X3(3, X.cols()), C(3, X.cols());
+      X3.topRows<2>() = X;
+      X3.row(2) = D.row(2);
+      const double sum2 = closest(X3, &C);
+      *Y = C.topRows<2>();
+      return sum2;
+    };
+    IterateRigid<2>(Matrix2X(D.topRows<2>()), options.convergence_tau, options.max_iterations, closest2, &R2, &t2, &r);
+    R.setIdentity();
+    R.topLeftCorner<2, 2>() = R2;
+    t << t2, 0.0;
+  } else {
+    IterateRigid<3>(D, options.convergence_tau, options.max_iterations, closest, &R, &t, &r);
+  }
   // Points without a measurement are moved at the mean field of the others.
   const double mean_field = D.row(2).mean();
   for (std::size_t p = 0; p < path.size(); ++p) {

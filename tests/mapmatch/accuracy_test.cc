@@ -175,10 +175,10 @@ TEST(MapMatchAccuracy, DirectSolverMeetsTheSameTargets) {
   }
 }
 
-TEST(MapMatchAccuracy, ShapeMatchersNeverWorsenTheWmmFinalPoint) {
-  // WMM 0.5°, F, noise-free: none of ICP, ICCP, MMA makes the INS's final
-  // point worse. (The issue's ≥ 60 % reduction by the best of them is not
-  // met: 54 %, docs/ACCURACY.md.)
+TEST(MapMatchAccuracy, ShapeMatchersOnTheWmmFinalPoint) {
+  // WMM 0.5°, F, noise-free: the best of ICP, ICCP and MMA cuts the INS's
+  // final-point error by ≥ 60 % (the default planar ICP) and none of them
+  // makes it worse; the thesis' 3-D ICP (figure 0.802°) does not reach 60 %.
   MapCache maps;
   double best = 1e9, ins = 0.0;
   for (const std::string method : {"icp", "iccp", "mma"}) {
@@ -187,7 +187,15 @@ TEST(MapMatchAccuracy, ShapeMatchersNeverWorsenTheWmmFinalPoint) {
     best = std::min(best, e.final_deg);
     ins = e.ins_final_deg;
   }
-  EXPECT_LE(best, 0.5 * ins);  // the best halves it (54 % measured)
+  EXPECT_LE(best, 0.4 * ins);
+  const GeoGrid& g = maps.Get("map_wmm_0p5deg.csv", "F_nT");
+  const std::string path = "mappath_wmm_0p5deg_noise0nT.csv";
+  IcpOptions o;
+  o.planar_motion = false;
+  const MatchResult r3 = MatchIcp(g, 0, ReadMatchPath(testing::ReferencePath(path), "meas_nT"), o);
+  const Errors e3 = Measure(CsvTable::Read(testing::ReferencePath(path)), r3);
+  testing::ExpectErrorFigure(e3.final_deg, 0.802, "3-D ICP final error");
+  EXPECT_LT(e3.final_deg, e3.ins_final_deg);
 }
 
 }  // namespace

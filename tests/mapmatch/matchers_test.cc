@@ -117,14 +117,17 @@ TEST(Icp, RecoversARigidMotionExactly) {
     return std::array<double, 2>{cl + ca * (lat - cl) - sa * (lon - cn) + 0.03,
                                  cn + sa * (lat - cl) + ca * (lon - cn) - 0.02};
   });
-  IcpOptions o;
-  o.field_scale_deg_per_nT = 0.01;  // field differences dominate: the right node is unambiguous
-  const MatchResult r = MatchIcp(g, 0, t.path, o);
-  ASSERT_TRUE(r.converged) << r.BriefReport();
-  EXPECT_LT(r.iterations, 20);
-  ExpectOnTruth(r, t, 1e-9);
-  EXPECT_NEAR(r.score, 0.0, 1e-9);
-  EXPECT_NE(r.notes.find("(given)"), std::string::npos);
+  for (const bool planar : {true, false}) {  // 2-D motion (default) and the thesis' 3-D one
+    IcpOptions o;
+    o.field_scale_deg_per_nT = 0.01;  // field differences dominate: the right node is unambiguous
+    o.planar_motion = planar;
+    const MatchResult r = MatchIcp(g, 0, t.path, o);
+    ASSERT_TRUE(r.converged) << r.BriefReport();
+    EXPECT_LT(r.iterations, 20);
+    ExpectOnTruth(r, t, 1e-9);
+    EXPECT_NEAR(r.score, 0.0, 1e-9);
+    EXPECT_NE(r.notes.find("(given)"), std::string::npos);
+  }
 }
 
 TEST(FitRigid, CentredAndNeverAReflection) {
