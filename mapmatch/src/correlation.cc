@@ -140,8 +140,13 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
   }
   r.notes = "shift " + FormatNumber(best_a * la.step_deg) + ", " + FormatNumber(best_b * lo.step_deg) +
             " deg (lat, lon) in a window of +-" + FormatNumber(options.search_window_deg) + " deg";
-  r.converged = std::abs(best_a) < A && std::abs(best_b) < B;
-  if (!r.converged) r.reason = "best shift on the edge of the search window (the window may be too small)";
+  if (A == 0 || B == 0) {
+    r.reason = "the window is narrower than one grid step in lat or lon: that axis was not searched";
+  } else if (std::abs(best_a) == A || std::abs(best_b) == B) {
+    r.reason = "best shift on the edge of the search window (the window may be too small)";
+  } else {
+    r.converged = true;
+  }
   return r;
 }
 

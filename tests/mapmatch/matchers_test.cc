@@ -235,6 +235,11 @@ TEST(Correlation, EveryMetricFindsAWholeCellShift) {
   const MatchResult edge = MatchCorrelation(g, 0, t.path, o);
   EXPECT_FALSE(edge.converged);
   EXPECT_NE(edge.reason.find("edge of the search window"), std::string::npos);
+  o.search_window_deg = 0.0005;  // half a grid step: nothing searched
+  const MatchResult narrow = MatchCorrelation(g, 0, t.path, o);
+  EXPECT_FALSE(narrow.converged);
+  EXPECT_EQ(narrow.iterations, 1);
+  EXPECT_NE(narrow.reason.find("narrower than one grid step"), std::string::npos);
 }
 
 TEST(Correlation, OffMapPointsAreExcludedAndCounted) {
