@@ -99,6 +99,9 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--max-iterations", o.icp.max_iterations, "icp, iccp: iteration cap");
   cmd->add_option("--min-on-map", o.correlation.min_on_map_fraction,
                   "mad|msd|prod|nprod: fraction of the points a shift needs on the map");
+  cmd->add_option("--rotation-window", o.correlation.rotation_window_deg,
+                  "mad|msd|prod|nprod: also turn the path within +-this (deg) about its centroid; 0 = translations only");
+  cmd->add_option("--rotation-step", o.correlation.rotation_step_deg, "mad|msd|prod|nprod: rotation step, deg");
   cmd->add_option("--lambda", o.fast_msd.lambda_nT2_per_deg2, "fast-msd: smoothness weight, nT^2/deg^2");
   cmd->add_option("--lambda-first-factor", o.fast_msd.lambda_first_round_factor,
                   "fast-msd: the first round's lambda is this times --lambda, decreasing geometrically to it");

@@ -242,6 +242,34 @@ TEST(Correlation, EveryMetricFindsAWholeCellShift) {
   EXPECT_NE(narrow.reason.find("narrower than one grid step"), std::string::npos);
 }
 
+TEST(Correlation, RotationSearchRecoversATurnedPath) {
+  const GeoGrid g = GeoGrid::FromFunction({0.0, 0.001, 91}, {0.0, 0.001, 91}, "a", Bumps);
+  Truth t = CurvedPath(g, 0.03, 0.02, 0.001, 40, 0.0, 0.0);
+  // INS = the truth turned by 2° about its centroid and shifted by (3, -2) cells.
+  double cl = 0.0, cn = 0.0;
+  for (std::size_t k = 0; k < t.lat.size(); ++k) {
+    cl += t.lat[k] / 40.0;
+    cn += t.lon[k] / 40.0;
+  }
+  const double th = 2.0 * M_PI / 180.0;
+  for (std::size_t k = 0; k < t.lat.size(); ++k) {
+    const double a = t.lat[k] - cl, b = t.lon[k] - cn;
+    t.path.lat_deg[k] = cl + std::cos(th) * a - std::sin(th) * b + 0.003;
+    t.path.lon_deg[k] = cn + std::sin(th) * a + std::cos(th) * b - 0.002;
+  }
+  CorrelationOptions o;
+  o.search_window_deg = 0.01;
+  const double translation_only = MeanError(MatchCorrelation(g, 0, t.path, o), t);
+  o.rotation_window_deg = 4.0;
+  o.rotation_step_deg = 0.5;
+  const MatchResult r = MatchCorrelation(g, 0, t.path, o);
+  ASSERT_TRUE(r.converged) << r.BriefReport();
+  EXPECT_EQ(r.iterations, 21 * 21 * 17);
+  EXPECT_LT(MeanError(r, t), 1e-9) << r.BriefReport();
+  EXPECT_GT(translation_only, 1e-4);
+  EXPECT_NE(r.notes.find("rotation -2 deg"), std::string::npos) << r.notes;
+}
+
 TEST(Correlation, OffMapPointsAreExcludedAndCounted) {
   const GeoGrid g = GeoGrid::FromFunction({0.0, 0.001, 91}, {0.0, 0.001, 91}, "a", Bumps);
   // Half of the INS path lies beyond the map's northern edge; the true one inside.

@@ -36,15 +36,21 @@ struct CorrelationOptions {
   double search_window_deg = 0.0;
   // A shift counts only with at least this fraction of the usable points on the map.
   double min_on_map_fraction = 0.5;
+  // Rotation search (a plus, not in the paper): the INS path is also turned
+  // about the centroid of its usable points by every multiple of
+  // rotation_step_deg within ±rotation_window_deg, each with the full
+  // translation search. 0 = translations only.
+  double rotation_window_deg = 0.0;
+  double rotation_step_deg = 0.5;
 
   bool IsValid(std::string* error) const;
 };
 
-// The path shifted by the best translation. iterations = number of shifts
-// scored; score = the metric at the best shift (nT for MAD, nT² for MSD and
+// The path shifted (and turned) by the best translation (and rotation).
+// iterations = number of shifts (× rotations) scored; score = the metric at the best shift (nT for MAD, nT² for MSD and
 // PROD, 1 for NPROD). Not converged (with the reason) when no shift has
 // enough points on the map (path left as the INS gave it) or the best shift
-// lies on the window's edge (the window may be too small).
+// or rotation lies on the window's edge (the window may be too small).
 MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                              const CorrelationOptions& options);
 
