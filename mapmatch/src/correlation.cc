@@ -116,9 +116,7 @@ bool CorrelationOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(search_window_deg)) {
     return Fail(error, "search_window_deg must be finite and > 0 (it must cover the INS error; no default)");
   }
-  if (!(min_on_map_fraction > 0.0 && min_on_map_fraction <= 1.0)) {
-    return Fail(error, "min_on_map_fraction must be in (0, 1]");
-  }
+  if (!internal::ValidOnMapFraction(min_on_map_fraction, error)) return false;
   if (!(std::isfinite(rotation_window_deg) && rotation_window_deg >= 0.0 && rotation_window_deg <= 180.0)) {
     return Fail(error, "rotation_window_deg must be in [0, 180] (0 = no rotation search)");
   }

@@ -123,9 +123,7 @@ bool FastMsdOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(epsilon_deg2)) return Fail(error, "epsilon_deg2 must be finite and > 0");
   if (max_iterations_per_round < 1) return Fail(error, "max_iterations_per_round must be >= 1");
   if (rounds < 1) return Fail(error, "rounds must be >= 1");
-  if (!(min_on_map_fraction > 0.0 && min_on_map_fraction <= 1.0)) {
-    return Fail(error, "min_on_map_fraction must be in (0, 1]");
-  }
+  if (!internal::ValidOnMapFraction(min_on_map_fraction, error)) return false;
   if (!(std::isfinite(search_window_deg) && search_window_deg >= 0.0)) {
     return Fail(error, "search_window_deg must be finite and >= 0 (0 = no coarse stage)");
   }

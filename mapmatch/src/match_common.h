@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "magnav/core/error.h"
+#include "magnav/core/option_check.h"
 #include "magnav/mapmatch/geo_grid.h"
 #include "magnav/mapmatch/path.h"
 
@@ -54,6 +55,12 @@ inline bool EnoughPoints(const std::vector<std::size_t>& used, std::size_t neede
   r->reason = "only " + std::to_string(used.size()) + " usable points (needs " + std::to_string(needed) +
               "): path left as the INS gave it";
   return false;
+}
+
+// The options' "fraction of the points on the map" check.
+inline bool ValidOnMapFraction(double fraction, std::string* error) {
+  if (fraction > 0.0 && fraction <= 1.0) return true;
+  return Fail(error, "min_on_map_fraction must be in (0, 1]");
 }
 
 // Counts matched points that lie outside the map.
