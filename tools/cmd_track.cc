@@ -13,6 +13,7 @@
 #include <string>
 
 #include "commands.h"
+#include "magnav/cli/tracker_options.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
@@ -25,20 +26,11 @@ namespace magnav::tools {
 namespace {
 
 struct TrackArgs {
-  std::string input, output, mode = "batch",
-                             loss = tracker::LossTypeName(tracker::TrackerOptions{}.measurement_loss);
+  std::string input, output, mode = "batch";
   Vec3Arg b0;
-  double window_s = tracker::TrackerOptions{}.window_s;
-  double loss_scale_sigma = tracker::TrackerOptions{}.measurement_loss_scale_sigma;
-  tracker::ProcessNoise process;
-  std::string turn_loss = tracker::LossTypeName(tracker::ProcessNoise{}.turn_rate_loss);
   std::string solver = "chain";
   std::string fixes;
-  std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
-  double solve_interval_s = tracker::TrackerOptions{}.window_solve_interval_s;
-  tracker::TrackManagementOptions management;
-  int batch_rounds = tracker::MultiTrackerOptions{}.batch_rounds;
-  double init_snr = tracker::MultiTrackerOptions{}.track.init.min_tensor_snr;
+  cli::TrackerFlags flags;
 };
 
 // A fix file: t, sensor_id (optional: 0), dipole_x..z, valid (optional: 1).
@@ -130,21 +122,8 @@ void RunTrack(const TrackArgs& a) {
                        ": column 't': time goes backwards (rows must be ordered by t)");
     }
   }
-  tracker::MultiTrackerOptions mopt;
-  mopt.management = a.management;
-  mopt.batch_rounds = a.batch_rounds;
+  tracker::MultiTrackerOptions mopt = cli::ApplyTrackerFlags(a.flags);
   tracker::TrackerOptions& opt = mopt.track;
-  opt.window_s = a.window_s;
-  opt.init.min_tensor_snr = a.init_snr;
-  opt.window_solve_interval_s = a.solve_interval_s;
-  if (!tracker::ParseLossType(a.loss, &opt.measurement_loss)) {
-    throw InputError("--loss: expected huber, cauchy or trivial, got '" + a.loss + "'");
-  }
-  opt.measurement_loss_scale_sigma = a.loss_scale_sigma;
-  opt.process = a.process;
-  if (!tracker::ParseLossType(a.turn_loss, &opt.process.turn_rate_loss)) {
-    throw InputError("--turn-loss: expected huber, cauchy or trivial, got '" + a.turn_loss + "'");
-  }
   if (a.solver == "chain") {
     opt.batch_solver = tracker::TrackerOptions::BatchSolver::kChainLevenbergMarquardt;
   } else if (a.solver == "ceres") {
@@ -152,14 +131,9 @@ void RunTrack(const TrackArgs& a) {
   } else {
     throw InputError("--solver: expected chain or ceres, got '" + a.solver + "'");
   }
-  if (!tracker::ParseInitSource(a.init_from, &opt.init.source)) {
-    throw InputError("--init-from: expected auto, dipole_fix or samples, got '" + a.init_from + "'");
-  }
   if (opt.init.source == tracker::InitSource::kExternal && a.fixes.empty()) {
     throw InputError("--init-from dipole_fix needs --fixes FILE (e.g. the output of magnav invert)");
   }
-  std::string why;
-  if (!mopt.IsValid(&why)) throw InputError("options: " + why);
   std::optional<std::vector<tracker::DipoleFix>> fixes;
   if (!a.fixes.empty()) fixes = ReadFixes(a.fixes);
   const std::vector<tracker::DipoleFix>* given = fixes ? &*fixes : nullptr;
@@ -216,7 +190,6 @@ void AddTrackCommand(CLI::App& app) {
   AddVec3Option(*cmd, "--b0", &args->b0, "background field B0 in tesla, NED (default: the file's '# B0_T:')");
   cmd->add_option("--mode", args->mode, "batch (whole pass) or window (fixed-lag, causal)")
       ->check(CLI::IsMember({"batch", "window"}));
-  cmd->add_option("--window", args->window_s, "sliding-window length, s (window mode)");
   cmd->add_option("--solver", args->solver,
                   "batch solver: chain (Levenberg-Marquardt on the chain of states, O(N)) or ceres "
                   "(ceres::Solve, sparse Cholesky; same problem, slower)")
@@ -224,48 +197,12 @@ void AddTrackCommand(CLI::App& app) {
   cmd->add_option("--fixes", args->fixes,
                   "single-sample fixes to start the track from (magnav invert output or a recorded dipole_fix "
                   "topic: t,sensor_id,dipole_x..z,valid)");
-  cmd->add_option("--init-from", args->init_from,
-                  "fixes that start the track: auto (--fixes when they suffice, else its own TED+EGT on the "
-                  "samples), dipole_fix (--fixes only), samples (its own only)")
-      ->check(CLI::IsMember({"auto", "dipole_fix", "samples"}));
-  cmd->add_option("--loss", args->loss, "robust loss on each sample: huber, cauchy or trivial")
-      ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
-  cmd->add_option("--loss-scale", args->loss_scale_sigma,
-                  "robust loss scale, in sigmas of the sample residual");
-  cmd->add_option("--q-position", args->process.position_m_per_sqrt_s, "position random walk, m/sqrt(s)");
-  cmd->add_option("--q-speed", args->process.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)");
-  cmd->add_option("--q-heading", args->process.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)");
-  cmd->add_option("--q-turn-rate", args->process.turn_rate_radps_per_sqrt_s,
-                  "turn-rate random walk, rad/s/sqrt(s)");
-  cmd->add_option("--q-turn-rate-window", args->process.window_turn_rate_radps_per_sqrt_s,
-                  "turn-rate random walk of the sliding window, rad/s/sqrt(s)");
-  cmd->add_option("--q-turn-rate-warmup", args->process.turn_rate_warmup_radps_per_sqrt_s,
-                  "turn-rate random walk of the batch warm-up pass (0 = none), rad/s/sqrt(s)");
-  cmd->add_option("--turn-loss", args->turn_loss,
-                  "robust loss on turn-rate changes: huber, cauchy or trivial")
-      ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
-  cmd->add_option("--turn-loss-scale", args->process.turn_rate_loss_scale_sigma,
-                  "turn-rate loss scale, in sigmas of one step");
-  cmd->add_option("--solve-interval", args->solve_interval_s,
-                  "solve each track's window once per this much data, s (0 = every epoch)");
-  auto& m = args->management;
-  cmd->add_option("--gate-snr", m.gate_snr, "a track uses the sensors where its predicted signal SNR is at least this");
-  cmd->add_option("--detect-llr", m.detect_llr, "log-likelihood ratio of a detection (negated: of a miss) per epoch");
-  cmd->add_option("--confirm-m", m.confirm_m, "a new track is confirmed by M detections ...");
-  cmd->add_option("--confirm-n", m.confirm_n, "... among its first N epochs");
-  cmd->add_option("--max-miss", m.max_miss_s, "a track missed this long in a row ends, s");
-  cmd->add_option("--max-coast", m.max_coast_s, "a track not detected this long ends, s");
-  cmd->add_option("--max-sigma-h", m.max_sigma_horizontal_m, "a track whose horizontal 1-sigma exceeds this ends, m");
-  cmd->add_option("--min-separation", m.min_separation_m,
-                  "no new track this close to a live one; a track this close to an older one for --max-miss ends, m");
-  cmd->add_option("--init-snr", args->init_snr,
-                  "a sample gives an initiation fix if its tensor norm is at least this many sigma_T");
-  cmd->add_option("--max-chi2", m.max_chi2_per_dof,
-                  "poor fit (a miss): residual chi-square per residual above this ...");
-  cmd->add_option("--max-unexplained", m.max_unexplained, "... and residual energy above this share of the signal's");
-  cmd->add_option("--min-new-share", m.min_new_share,
-                  "residual below this share of a track's predicted tensor is not offered to the initiator");
-  cmd->add_option("--batch-rounds", args->batch_rounds, "batch: refinement rounds over every track");
+  cli::AddTrackerOptions(*cmd, &args->flags, "--fixes");
+  cmd->add_option("--batch-rounds", args->flags.options.batch_rounds, "batch: refinement rounds over every track")
+      ->capture_default_str();
+  cmd->add_option("--batch-margin", args->flags.options.batch_margin_s,
+                  "batch: a track's samples are taken from this long before to this long after its window span, s")
+      ->capture_default_str();
   cmd->callback([args] { RunTrack(*args); });
 }
 

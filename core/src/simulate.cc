@@ -1,6 +1,7 @@
 #include "magnav/core/simulate.h"
 
 #include <cmath>
+#include <algorithm>
 #include <random>
 
 #include "magnav/core/csv.h"
@@ -11,40 +12,6 @@
 #include "magnav/core/units.h"
 
 namespace magnav {
-
-bool PassScenario::IsValid(std::string* error) const {
-  auto fail = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (!moment_body.allFinite()) return fail("moment_body must be finite");
-  if (!start_position.allFinite() || !std::isfinite(start_heading_rad)) return fail("start state must be finite");
-  if (!(speed_mps >= 0.0) || !std::isfinite(speed_mps)) return fail("speed_mps must be finite and >= 0");
-  if (segments.empty()) return fail("at least one turn segment is needed");
-  for (std::size_t i = 0; i < segments.size(); ++i) {
-    if (!(segments[i].duration_s > 0.0) || !std::isfinite(segments[i].duration_s) ||
-        !std::isfinite(segments[i].turn_rate_rps)) {
-      return fail("segment " + std::to_string(i) + ": duration must be > 0 and values finite");
-    }
-  }
-  if (!(rate_hz > 0.0) || rate_hz > 1e4) return fail("rate_hz must be in (0, 10000]");
-  if (sensors.empty()) return fail("at least one sensor is needed");
-  for (const auto& s : sensors) {
-    if (!s.allFinite()) return fail("sensor positions must be finite");
-  }
-  if (!B0.allFinite()) return fail("B0 must be finite");
-  if (!(sigma_B >= 0.0) || !(sigma_T >= 0.0) || !std::isfinite(sigma_B) || !std::isfinite(sigma_T)) {
-    return fail("sigma_B and sigma_T must be finite and >= 0");
-  }
-  if (duration_s() * rate_hz > 1e7) return fail("more than 1e7 instants: shorten the scenario or lower the rate");
-  return true;
-}
-
-double PassScenario::duration_s() const {
-  double d = 0.0;
-  for (const auto& s : segments) d += s.duration_s;
-  return d;
-}
 
 namespace {
 
@@ -61,62 +28,219 @@ Eigen::Matrix3d TensorNoise(std::mt19937_64& rng, double sigma) {
 
 }  // namespace
 
-SimulatedPass SimulatePass(const PassScenario& sc) {
-  std::string err;
-  if (!sc.IsValid(&err)) throw InputError("scenario: " + err);
-  // State at the start of each segment (exact, no accumulation per sample).
-  std::vector<CtState<double>> seg_start;
-  std::vector<double> seg_t0;
-  CtState<double> s{sc.start_position.x(), sc.start_position.y(), sc.start_position.z(),
-                    sc.speed_mps,          sc.start_heading_rad,  sc.segments[0].turn_rate_rps};
-  double t0 = 0.0;
-  for (const auto& seg : sc.segments) {
-    s.turn_rate = seg.turn_rate_rps;
-    seg_start.push_back(s);
-    seg_t0.push_back(t0);
-    s = PropagateCoordinatedTurn(s, seg.duration_s);
-    t0 += seg.duration_s;
-  }
-  const double total = t0;
-  const auto n = static_cast<std::size_t>(std::floor(total * sc.rate_hz + 1e-9)) + 1;
+namespace {
 
-  SimulatedPass out;
-  out.truth.reserve(n);
-  out.samples.reserve(n * sc.sensors.size());
-  std::mt19937_64 rng(sc.seed);
-  std::normal_distribution<double> nB(0.0, 1.0);
-  for (std::size_t k = 0; k < n; ++k) {
-    const double t = static_cast<double>(k) / sc.rate_hz;
-    // A sample exactly at a boundary belongs to the later segment.
+// A vessel's exact coordinated-turn trajectory through its segments (state at
+// the start of each segment, no accumulation per sample).
+class SegmentedMotion {
+ public:
+  SegmentedMotion(const Eigen::Vector3d& p0, double speed, double heading, const std::vector<TurnSegment>& segments) {
+    CtState<double> s{p0.x(), p0.y(), p0.z(), speed, heading, segments[0].turn_rate_rps};
+    double t0 = 0.0;
+    for (const auto& seg : segments) {
+      s.turn_rate = seg.turn_rate_rps;
+      seg_start_.push_back(s);
+      seg_t0_.push_back(t0);
+      s = PropagateCoordinatedTurn(s, seg.duration_s);
+      t0 += seg.duration_s;
+    }
+  }
+  // The truth at time t (s since the vessel's start); a time exactly at a
+  // boundary belongs to the later segment.
+  VesselTruth At(double t, const Eigen::Vector3d& moment_body) const {
     std::size_t i = 0;
-    while (i + 1 < seg_t0.size() && t >= seg_t0[i + 1] - 1e-12) ++i;
-    const CtState<double> st = PropagateCoordinatedTurn(seg_start[i], t - seg_t0[i]);
+    while (i + 1 < seg_t0_.size() && t >= seg_t0_[i + 1] - 1e-12) ++i;
+    const CtState<double> st = PropagateCoordinatedTurn(seg_start_[i], t - seg_t0_[i]);
     VesselTruth tr;
     tr.t_s = t;
     tr.p_VinW = {st.x, st.y, st.z};
     tr.heading_rad = WrapAngle(st.heading);
     tr.v_VinW = {st.v * std::cos(st.heading), st.v * std::sin(st.heading)};
     tr.turn_rate_rps = st.turn_rate;
-    tr.m_W = WorldMoment(sc.moment_body, st.heading);
+    tr.m_W = WorldMoment(moment_body, st.heading);
+    return tr;
+  }
+
+ private:
+  std::vector<CtState<double>> seg_start_;
+  std::vector<double> seg_t0_;
+};
+
+double TotalDuration(const std::vector<TurnSegment>& segments) {
+  double d = 0.0;
+  for (const auto& s : segments) d += s.duration_s;
+  return d;
+}
+
+std::string CheckSegments(const std::vector<TurnSegment>& segments) {
+  if (segments.empty()) return "at least one turn segment is needed";
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    if (!(segments[i].duration_s > 0.0) || !std::isfinite(segments[i].duration_s) ||
+        !std::isfinite(segments[i].turn_rate_rps)) {
+      return "segment " + std::to_string(i) + ": duration must be > 0 and values finite";
+    }
+  }
+  return {};
+}
+
+// The sampling, sensors, background and noise of a scenario ("" if valid).
+std::string CheckSensing(double rate_hz, const std::vector<Eigen::Vector3d>& sensors, const Eigen::Vector3d& B0,
+                         double sigma_B, double sigma_T) {
+  if (!(rate_hz > 0.0) || rate_hz > 1e4) return "rate_hz must be in (0, 10000]";
+  if (sensors.empty()) return "at least one sensor is needed";
+  for (const auto& s : sensors) {
+    if (!s.allFinite()) return "sensor positions must be finite";
+  }
+  if (!B0.allFinite()) return "B0 must be finite";
+  if (!(sigma_B >= 0.0) || !(sigma_T >= 0.0) || !std::isfinite(sigma_B) || !std::isfinite(sigma_T)) {
+    return "sigma_B and sigma_T must be finite and >= 0";
+  }
+  return {};
+}
+
+// The field of a vessel at a sensor, added to g (throws within 0.5 m).
+void AddVesselField(const VesselTruth& tr, std::size_t sensor, double t, GradiometerSample* g) {
+  const Eigen::Vector3d r = g->p_SinW - tr.p_VinW;
+  if (r.norm() < 0.5) {
+    throw InputError("scenario: a vessel passes within 0.5 m of sensor " + std::to_string(sensor) +
+                     " at t = " + FormatNumber(t) + " s");
+  }
+  Eigen::Vector3d B;
+  Eigen::Matrix3d T;
+  DipoleBT(r, tr.m_W, &B, &T);
+  g->B += B;
+  g->T += T;
+}
+
+}  // namespace
+
+bool PassScenario::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!moment_body.allFinite()) return fail("moment_body must be finite");
+  if (!start_position.allFinite() || !std::isfinite(start_heading_rad)) return fail("start state must be finite");
+  if (!(speed_mps >= 0.0) || !std::isfinite(speed_mps)) return fail("speed_mps must be finite and >= 0");
+  if (const std::string e = CheckSegments(segments); !e.empty()) return fail(e);
+  if (const std::string e = CheckSensing(rate_hz, sensors, B0, sigma_B, sigma_T); !e.empty()) return fail(e);
+  if (duration_s() * rate_hz > 1e7) return fail("more than 1e7 instants: shorten the scenario or lower the rate");
+  return true;
+}
+
+double PassScenario::duration_s() const { return TotalDuration(segments); }
+
+SimulatedPass SimulatePass(const PassScenario& sc) {
+  std::string err;
+  if (!sc.IsValid(&err)) throw InputError("scenario: " + err);
+  FieldScenario field;
+  FieldVessel v;
+  v.moment_body = sc.moment_body;
+  v.start_position = sc.start_position;
+  v.speed_mps = sc.speed_mps;
+  v.start_heading_rad = sc.start_heading_rad;
+  v.segments = sc.segments;
+  field.vessels = {v};
+  field.rate_hz = sc.rate_hz;
+  field.sensors = sc.sensors;
+  field.B0 = sc.B0;
+  field.sigma_B = sc.sigma_B;
+  field.sigma_T = sc.sigma_T;
+  field.seed = sc.seed;
+  SimulatedField f = SimulateField(field);
+  return {std::move(f.truth[0]), std::move(f.samples)};
+}
+
+bool FieldVessel::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = "vessel " + std::to_string(vessel_id) + ": " + m;
+    return false;
+  };
+  if (vessel_id == 0) return fail("vessel_id must be > 0");
+  if (!moment_body.allFinite()) return fail("moment_body must be finite");
+  if (!start_position.allFinite() || !std::isfinite(start_heading_rad)) return fail("start state must be finite");
+  if (!(speed_mps >= 0.0) || !std::isfinite(speed_mps)) return fail("speed_mps must be finite and >= 0");
+  if (!(t_start_s >= 0.0) || !std::isfinite(t_start_s)) return fail("t_start_s must be finite and >= 0");
+  if (const std::string e = CheckSegments(segments); !e.empty()) return fail(e);
+  return true;
+}
+
+double FieldVessel::t_end_s() const { return t_start_s + TotalDuration(segments); }
+
+bool FieldScenario::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (vessels.empty()) return fail("at least one vessel is needed");
+  for (std::size_t i = 0; i < vessels.size(); ++i) {
+    if (!vessels[i].IsValid(error)) return false;
+    for (std::size_t j = 0; j < i; ++j) {
+      if (vessels[j].vessel_id == vessels[i].vessel_id) {
+        return fail("vessel ids must be unique (" + std::to_string(vessels[i].vessel_id) + " twice)");
+      }
+    }
+  }
+  if (const std::string e = CheckSensing(rate_hz, sensors, B0, sigma_B, sigma_T); !e.empty()) return fail(e);
+  if (duration_s() * rate_hz * static_cast<double>(sensors.size()) > 2e7) {
+    return fail("more than 2e7 samples: shorten the scenario, lower the rate or use fewer sensors");
+  }
+  return true;
+}
+
+double FieldScenario::duration_s() const {
+  double d = 0.0;
+  for (const auto& v : vessels) d = std::max(d, v.t_end_s());
+  return d;
+}
+
+std::vector<Eigen::Vector3d> SensorGrid(int nx, int ny, double spacing_m) {
+  std::vector<Eigen::Vector3d> out;
+  for (int ix = 0; ix < nx; ++ix) {
+    for (int iy = 0; iy < ny; ++iy) {
+      out.push_back({(ix - 0.5 * (nx - 1)) * spacing_m, (iy - 0.5 * (ny - 1)) * spacing_m, 0.0});
+    }
+  }
+  return out;
+}
+
+SimulatedField SimulateField(const FieldScenario& sc) {
+  std::string err;
+  if (!sc.IsValid(&err)) throw InputError("scenario: " + err);
+  std::vector<SegmentedMotion> motion;
+  for (const auto& v : sc.vessels) motion.emplace_back(v.start_position, v.speed_mps, v.start_heading_rad, v.segments);
+  const auto n = static_cast<std::size_t>(std::floor(sc.duration_s() * sc.rate_hz + 1e-9)) + 1;
+  SimulatedField out;
+  out.truth.resize(sc.vessels.size());
+  out.samples.reserve(n * sc.sensors.size());
+  std::mt19937_64 rng(sc.seed);
+  std::normal_distribution<double> nB(0.0, 1.0);
+  std::vector<VesselTruth> present;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double t = static_cast<double>(k) / sc.rate_hz;
+    present.clear();
+    for (std::size_t v = 0; v < sc.vessels.size(); ++v) {
+      const FieldVessel& fv = sc.vessels[v];
+      if (t < fv.t_start_s - 1e-9 || t > fv.t_end_s() + 1e-9) continue;
+      VesselTruth tr = motion[v].At(t - fv.t_start_s, fv.moment_body);
+      tr.t_s = t;
+      out.truth[v].push_back(tr);
+      present.push_back(tr);
+    }
     for (std::size_t j = 0; j < sc.sensors.size(); ++j) {
       GradiometerSample g;
       g.sensor_id = static_cast<std::uint32_t>(j);
       g.t_s = t;
       g.p_SinW = sc.sensors[j];
-      const Eigen::Vector3d r = g.p_SinW - tr.p_VinW;
-      if (r.norm() < 0.5) {
-        throw InputError("scenario: the vessel passes within 0.5 m of sensor " + std::to_string(j) +
-                         " at t = " + FormatNumber(t) + " s");
-      }
-      DipoleBT(r, tr.m_W, &g.B, &g.T);
-      g.B += sc.B0;
+      g.B = sc.B0;
+      g.T.setZero();
+      for (const auto& tr : present) AddVesselField(tr, j, t, &g);
       if (sc.sigma_B > 0.0) g.B += sc.sigma_B * Eigen::Vector3d(nB(rng), nB(rng), nB(rng));
       if (sc.sigma_T > 0.0) g.T += TensorNoise(rng, sc.sigma_T);
       g.sigma_B = sc.sigma_B;
       g.sigma_T = sc.sigma_T;
       out.samples.push_back(g);
     }
-    out.truth.push_back(tr);
   }
   return out;
 }
@@ -124,6 +248,29 @@ SimulatedPass SimulatePass(const PassScenario& sc) {
 namespace {
 std::string Vec3Param(const Eigen::Vector3d& v) {
   return FormatNumber(v.x()) + ", " + FormatNumber(v.y()) + ", " + FormatNumber(v.z());
+}
+
+void WriteSamples(CsvWriter* w, std::size_t num_columns, const std::vector<GradiometerSample>& samples) {
+  std::vector<std::string> f(num_columns);
+  for (const auto& g : samples) {
+    f[0] = FormatNumber(g.t_s);
+    f[1] = std::to_string(g.sensor_id);
+    for (int i = 0; i < 3; ++i) f[2 + i] = FormatNumber(g.p_SinW[i]);
+    for (int i = 0; i < 3; ++i) f[5 + i] = FormatNumber(g.B[i]);
+    for (int k = 0; k < 9; ++k) f[8 + k] = FormatNumber(g.T(k / 3, k % 3));
+    w->WriteRow(f);
+  }
+}
+
+// A truth row; `vessel_id` (non-empty) goes after t.
+std::vector<std::string> TruthRow(const VesselTruth& t, const std::string& vessel_id) {
+  std::vector<std::string> row = {FormatNumber(t.t_s)};
+  if (!vessel_id.empty()) row.push_back(vessel_id);
+  for (const double v : {t.p_VinW.x(), t.p_VinW.y(), t.p_VinW.z(), t.v_VinW.x(), t.v_VinW.y(), t.heading_rad,
+                         t.turn_rate_rps, t.m_W.x(), t.m_W.y(), t.m_W.z()}) {
+    row.push_back(FormatNumber(v));
+  }
+  return row;
 }
 }  // namespace
 
@@ -137,27 +284,55 @@ void WritePassCsv(const std::string& path, const PassScenario& sc, const Simulat
                {"sigma_T_Tpm", FormatNumber(sc.sigma_T)},
                {"seed", std::to_string(sc.seed)}});
   w.AddComment("simulated by magnav: vessel dipole pass over fixed gradiometers; NED m, s, T, T/m");
-  std::vector<std::string> f(header.size());
-  for (const auto& g : pass.samples) {
-    f[0] = FormatNumber(g.t_s);
-    f[1] = std::to_string(g.sensor_id);
-    for (int i = 0; i < 3; ++i) f[2 + i] = FormatNumber(g.p_SinW[i]);
-    for (int i = 0; i < 3; ++i) f[5 + i] = FormatNumber(g.B[i]);
-    for (int k = 0; k < 9; ++k) f[8 + k] = FormatNumber(g.T(k / 3, k % 3));
-    w.WriteRow(f);
-  }
+  WriteSamples(&w, header.size(), pass.samples);
   w.Close();
 }
 
 void WriteTruthCsv(const std::string& path, const PassScenario& sc, const SimulatedPass& pass) {
   CsvWriter w(path, {"t", "x", "y", "z", "vx", "vy", "heading", "turn_rate", "mw_x", "mw_y", "mw_z"},
               {{"moment_body_Am2", Vec3Param(sc.moment_body)}, {"B0_T", Vec3Param(sc.B0)}});
-  for (const auto& t : pass.truth) {
-    w.WriteRow({FormatNumber(t.t_s), FormatNumber(t.p_VinW.x()), FormatNumber(t.p_VinW.y()),
-                FormatNumber(t.p_VinW.z()), FormatNumber(t.v_VinW.x()), FormatNumber(t.v_VinW.y()),
-                FormatNumber(t.heading_rad), FormatNumber(t.turn_rate_rps), FormatNumber(t.m_W.x()),
-                FormatNumber(t.m_W.y()), FormatNumber(t.m_W.z())});
+  for (const auto& t : pass.truth) w.WriteRow(TruthRow(t, ""));
+  w.Close();
+}
+
+}  // namespace magnav
+
+namespace magnav {
+
+void WriteFieldPassCsv(const std::string& path, const FieldScenario& sc, const SimulatedField& field) {
+  std::vector<std::string> header = {"t", "sensor_id"};
+  for (std::string& c : GradiometerDataColumns()) header.push_back(std::move(c));
+  std::vector<std::pair<std::string, std::string>> params = {{"B0_T", Vec3Param(sc.B0)},
+                                                             {"sigma_B_T", FormatNumber(sc.sigma_B)},
+                                                             {"sigma_T_Tpm", FormatNumber(sc.sigma_T)},
+                                                             {"seed", std::to_string(sc.seed)}};
+  for (const auto& v : sc.vessels) {
+    params.push_back({"vessel", std::to_string(v.vessel_id) + ": t " + FormatNumber(v.t_start_s) + "-" +
+                                    FormatNumber(v.t_end_s()) + " s, moment_body_Am2 " + Vec3Param(v.moment_body)});
   }
+  CsvWriter w(path, header, params);
+  w.AddComment("simulated by magnav: several vessel dipoles cross fixed gradiometers; NED m, s, T, T/m");
+  WriteSamples(&w, header.size(), field.samples);
+  w.Close();
+}
+
+void WriteFieldTruthCsv(const std::string& path, const FieldScenario& sc, const SimulatedField& field) {
+  std::vector<std::pair<std::string, std::string>> params = {{"B0_T", Vec3Param(sc.B0)}};
+  for (const auto& v : sc.vessels) {
+    params.push_back({"vessel", std::to_string(v.vessel_id) + ": t " + FormatNumber(v.t_start_s) + "-" +
+                                    FormatNumber(v.t_end_s()) + " s, moment_body_Am2 " + Vec3Param(v.moment_body)});
+  }
+  CsvWriter w(path, {"t", "vessel_id", "x", "y", "z", "vx", "vy", "heading", "turn_rate", "mw_x", "mw_y", "mw_z"},
+              params);
+  // Rows by t, then vessel_id.
+  std::vector<std::pair<std::uint32_t, const VesselTruth*>> rows;
+  for (std::size_t v = 0; v < field.truth.size(); ++v) {
+    for (const auto& t : field.truth[v]) rows.push_back({sc.vessels[v].vessel_id, &t});
+  }
+  std::stable_sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) {
+    return a.second->t_s != b.second->t_s ? a.second->t_s < b.second->t_s : a.first < b.first;
+  });
+  for (const auto& [id, t] : rows) w.WriteRow(TruthRow(*t, std::to_string(id)));
   w.Close();
 }
 

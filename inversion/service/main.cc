@@ -35,6 +35,14 @@ int main(int argc, char** argv) {
   app.add_option("--min-snr", opt.gates.min_snr, "weak-signal gate: reject when |T|_F < min_snr * sigma_T");
   app.add_option("--max-cond-ted", opt.gates.max_cond_ted, "condition-number gate for TED");
   app.add_option("--max-cond-ted-egt", opt.gates.max_cond_ted_egt, "condition-number gate for TED+EGT");
+  app.add_option("--max-relative-sigma", opt.gates.max_relative_sigma,
+                 "uncertainty gate: reject a fix whose predicted 3-D 1-sigma position error exceeds this fraction of "
+                 "its range (0 = off)")
+      ->capture_default_str();
+  app.add_option("--max-position-sigma", opt.gates.max_position_sigma_3d_m,
+                 "uncertainty gate: reject a fix whose predicted 3-D 1-sigma position error exceeds this, m (0 = off; "
+                 "0.05 was the former default)")
+      ->capture_default_str();
   app.add_option("--max-speed", opt.gates.max_speed_mps, "speed gate: largest feasible target speed, m/s");
   app.add_option("--sigma-b", opt.sigma_B_fallback, "B noise, T, for samples that carry none");
   app.add_option("--sigma-t", opt.sigma_T_fallback, "tensor noise, T/m, for samples that carry none");
@@ -49,6 +57,8 @@ int main(int argc, char** argv) {
       {"--max-cond-ted", {&opt.gates.max_cond_ted, &mc.init_inverter.gates.max_cond_ted}},
       {"--max-cond-ted-egt", {&opt.gates.max_cond_ted_egt, &mc.init_inverter.gates.max_cond_ted_egt}},
       {"--max-speed", {&opt.gates.max_speed_mps, &mc.init_inverter.gates.max_speed_mps}},
+      {"--max-relative-sigma", {&opt.gates.max_relative_sigma, &mc.init_inverter.gates.max_relative_sigma}},
+      {"--max-position-sigma", {&opt.gates.max_position_sigma_3d_m, &mc.init_inverter.gates.max_position_sigma_3d_m}},
   };
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
 

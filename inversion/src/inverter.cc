@@ -67,6 +67,9 @@ const char* RejectReasonName(RejectReason reason) {
 namespace {
 
 bool PositiveOrInf(double v) { return v > 0.0; }  // false for NaN
+// A limit that 0 or ∞ switches off.
+bool LimitOrOff(double v) { return v >= 0.0; }  // false for NaN
+bool LimitOn(double v) { return v > 0.0 && std::isfinite(v); }
 
 }  // namespace
 
@@ -77,7 +80,10 @@ bool GateOptions::IsValid(std::string* error) const {
   if (!(max_cond_ted >= 1.0)) return Fail(error, "gates.max_cond_ted must be >= 1");
   if (!(max_cond_ted_egt >= 1.0)) return Fail(error, "gates.max_cond_ted_egt must be >= 1");
   if (!(max_cond_egt >= 1.0)) return Fail(error, "gates.max_cond_egt must be >= 1");
-  if (!PositiveOrInf(max_position_sigma_3d_m)) return Fail(error, "gates.max_position_sigma_3d_m must be > 0");
+  if (!LimitOrOff(max_relative_sigma)) return Fail(error, "gates.max_relative_sigma must be >= 0 (0 = off)");
+  if (!LimitOrOff(max_position_sigma_3d_m)) {
+    return Fail(error, "gates.max_position_sigma_3d_m must be >= 0 (0 = off)");
+  }
   if (!PositiveOrInf(max_speed_mps)) return Fail(error, "gates.max_speed_mps must be > 0");
   if (!(speed_slack_m >= 0.0) || !std::isfinite(speed_slack_m)) {
     return Fail(error, "gates.speed_slack_m must be finite and >= 0");
@@ -166,8 +172,12 @@ DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& o
   fix.position_sigma_3d_m = sol.position_sigma_3d_m;
   // 5. Condition number.
   if (!(sol.cond <= max_cond)) return reject(RejectReason::kIllConditioned);
-  // 6. Predicted position error (skipped when no sigma is known).
-  if (std::isfinite(g.max_position_sigma_3d_m) && sol.position_sigma_3d_m > g.max_position_sigma_3d_m) {
+  // 6. Predicted position error, relative to the range and absolute (a NaN
+  // σ — no noise known — passes both).
+  if (LimitOn(g.max_relative_sigma) && sol.position_sigma_3d_m > g.max_relative_sigma * sol.r_DtoS.norm()) {
+    return reject(RejectReason::kUncertain);
+  }
+  if (LimitOn(g.max_position_sigma_3d_m) && sol.position_sigma_3d_m > g.max_position_sigma_3d_m) {
     return reject(RejectReason::kUncertain);
   }
   // Moment of an accepted fix: closed form (EGT) or weighted least squares.

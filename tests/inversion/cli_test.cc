@@ -159,5 +159,33 @@ TEST(InvertCli, DegenerateRowsAreReportedNotFatal) {
   EXPECT_EQ(t.text(2, reason), "asymmetric");
 }
 
+// The uncertainty-gate flags: the default (relative to range) and the former
+// absolute 5 cm gate on the reference AUV fluxgate pass (docs/ACCURACY.md:
+// 93 and 39 accepted fixes), a too tight relative limit, a negative one.
+TEST(InvertCli, UncertaintyGateFlags) {
+  const std::string dir = testing::TempDir();
+  const std::string in = testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv");
+  auto accepted = [&](const std::string& flags) {
+    const RunResult r = RunMagnav("invert --input " + in + " --method ted-egt " + flags + " --output " + dir + "/g.csv");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    const CsvTable t = CsvTable::Read(dir + "/g.csv");
+    int n = 0, uncertain = 0;
+    for (std::size_t i = 0; i < t.num_rows(); ++i) {
+      n += t.text(i, t.column("valid")) == "1";
+      uncertain += t.text(i, t.column("reason")) == "uncertain";
+    }
+    return std::pair{n, uncertain};
+  };
+  EXPECT_EQ(accepted("").first, 93);
+  EXPECT_EQ(accepted("--max-relative-sigma 0 --max-position-sigma 0.05").first, 39);
+  const auto [n, uncertain] = accepted("--max-relative-sigma 0.001");
+  EXPECT_EQ(n, 0);
+  EXPECT_GT(uncertain, 93);
+  const RunResult r = RunMagnav("invert --input " + in + " --method ted-egt --max-relative-sigma -1 --output " + dir +
+                                "/g.csv");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--max-relative-sigma"), std::string::npos) << r.output;
+}
+
 }  // namespace
 }  // namespace magnav

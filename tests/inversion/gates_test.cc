@@ -173,6 +173,20 @@ TEST(Options, InvalidValuesAreNamed) {
   o = {};
   o.gates.max_position_sigma_3d_m = -1;
   expect_invalid(o, "max_position_sigma_3d_m");
+  o = {};
+  o.gates.max_relative_sigma = -0.01;
+  expect_invalid(o, "max_relative_sigma");
+  o = {};
+  o.gates.max_relative_sigma = std::nan("");
+  expect_invalid(o, "max_relative_sigma");
+  // 0 (and ∞) switch either uncertainty gate off.
+  for (const double off : {0.0, std::numeric_limits<double>::infinity()}) {
+    o = {};
+    o.gates.max_relative_sigma = off;
+    o.gates.max_position_sigma_3d_m = off;
+    std::string error;
+    EXPECT_TRUE(o.IsValid(&error)) << error;
+  }
 
   ParticleFilterOptions p;
   p.moment_body_Am2 = kMoment;
@@ -186,6 +200,89 @@ TEST(Options, InvalidValuesAreNamed) {
   EXPECT_FALSE(p.IsValid(&error));
   EXPECT_NE(error.find("resample_ess_fraction"), std::string::npos);
   EXPECT_THROW(DipoleParticleFilter{p}, InputError);
+}
+
+// A sample with the fluxgate noise level (σ only: the decisions below depend
+// on the predicted σ, not on a noise draw).
+GradiometerSample NoisySample(const Vec3& r_DtoS, const Vec3& m_W, double sigma_B, double sigma_T) {
+  GradiometerSample s;
+  s.p_SinW = Vec3(10.0, -20.0, 0.0);
+  DipoleBT(r_DtoS, m_W, &s.B, &s.T);
+  s.sigma_B = sigma_B;
+  s.sigma_T = sigma_T;
+  return s;
+}
+
+// The predicted σ_3d of a sample with every uncertainty gate off.
+DipoleFix UngatedFix(const GradiometerSample& s) {
+  InverterOptions o;
+  o.gates.max_relative_sigma = 0.0;
+  o.gates.max_position_sigma_3d_m = 0.0;
+  const DipoleFix f = InvertSample(s, o);
+  EXPECT_TRUE(f.valid) << RejectReasonName(f.reason);
+  return f;
+}
+
+// The relative gate compares σ_3d with the fix's range ‖r_DtoS‖, the
+// absolute one with a length; both reject with kUncertain, and a fix just
+// inside either limit passes.
+TEST(UncertaintyGate, RelativeAndAbsoluteLimitsRejectAsUncertain) {
+  const GradiometerSample s = NoisySample(Vec3(3.0, 4.0, 5.0), kMoment, 1e-9, 1.4e-9);
+  const DipoleFix free = UngatedFix(s);
+  const double range = free.r_DtoS.norm(), sigma = free.position_sigma_3d_m;
+  ASSERT_TRUE(std::isfinite(sigma) && sigma > 0.0);
+  const double rel = sigma / range;
+  InverterOptions o;
+  o.gates.max_position_sigma_3d_m = 0.0;
+  o.gates.max_relative_sigma = 0.99 * rel;
+  DipoleFix f = InvertSample(s, o);
+  EXPECT_FALSE(f.valid);
+  EXPECT_EQ(f.reason, RejectReason::kUncertain);
+  EXPECT_STREQ(RejectReasonName(f.reason), "uncertain");
+  EXPECT_NEAR(f.position_sigma_3d_m, sigma, 1e-12 * sigma);  // the rejected solution is kept
+  o.gates.max_relative_sigma = 1.01 * rel;
+  EXPECT_TRUE(InvertSample(s, o).valid);
+  // The absolute gate, relative off; then both on: either can reject.
+  o.gates.max_relative_sigma = 0.0;
+  o.gates.max_position_sigma_3d_m = 0.99 * sigma;
+  EXPECT_EQ(InvertSample(s, o).reason, RejectReason::kUncertain);
+  o.gates.max_position_sigma_3d_m = 1.01 * sigma;
+  EXPECT_TRUE(InvertSample(s, o).valid);
+  o.gates.max_relative_sigma = 0.99 * rel;
+  EXPECT_EQ(InvertSample(s, o).reason, RejectReason::kUncertain);
+  // Without σ_B and σ_T the predicted σ is unknown: neither gate judges.
+  GradiometerSample quiet = s;
+  quiet.sigma_B = quiet.sigma_T = 0.0;
+  o.gates.max_relative_sigma = 1e-9;
+  o.gates.max_position_sigma_3d_m = 1e-9;
+  EXPECT_TRUE(InvertSample(quiet, o).valid);
+}
+
+// What "holds on new geometry" means: scale the geometry by k with the same
+// tensor SNR (range ×k, moment ×k⁴: T unchanged, B and σ_B ×k). σ_3d grows
+// ×k with the range, so the default relative gate decides alike at every
+// scale, while the former absolute 5 cm gate accepts the nearest fix only.
+TEST(UncertaintyGate, DefaultRelativeGateIsScaleFree) {
+  const Vec3 r0(3.0, 3.5, 5.5);  // 7.2 m, a little farther than the reference AUV's closest approach
+  const double sB = 1e-9, sT = 1.4e-9;
+  const GradiometerSample near = NoisySample(r0, kMoment, sB, sT);
+  const double rel = UngatedFix(near).position_sigma_3d_m / r0.norm();
+  // The fluxgate default: a near fix of this SNR is accepted.
+  ASSERT_LT(rel, GateOptions{}.max_relative_sigma);
+  ASSERT_GT(rel, 0.3 * GateOptions{}.max_relative_sigma);  // not trivially far inside
+  InverterOptions former;
+  former.gates.max_relative_sigma = 0.0;
+  former.gates.max_position_sigma_3d_m = 0.05;
+  EXPECT_TRUE(InvertSample(NoisySample(0.5 * r0, 0.0625 * kMoment, 0.5 * sB, sT), former).valid);
+  for (const double k : {0.5, 1.0, 2.0, 5.0, 20.0}) {
+    const GradiometerSample s = NoisySample(k * r0, std::pow(k, 4) * kMoment, k * sB, sT);
+    const DipoleFix f = InvertSample(s, InverterOptions{});
+    EXPECT_TRUE(f.valid) << "k = " << k << ": " << RejectReasonName(f.reason);
+    EXPECT_NEAR(f.position_sigma_3d_m / f.r_DtoS.norm(), rel, 1e-6 * rel) << k;
+    const DipoleFix g = InvertSample(s, former);
+    EXPECT_EQ(g.valid, f.position_sigma_3d_m <= 0.05) << k;
+  }
+  EXPECT_FALSE(InvertSample(NoisySample(r0, kMoment, sB, sT), former).valid);
 }
 
 TEST(Crlb, BoundsTheEmpiricalErrorOfTedEgt) {

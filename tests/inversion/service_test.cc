@@ -140,6 +140,36 @@ TEST(InverterService, ReadsOptionsFromAConfigFile) {
   EXPECT_NE(out.find("max-speed"), std::string::npos) << out;
 }
 
+// The uncertainty gates from a config file, keys = flag names: relative to
+// range (default 0.015) and absolute (default off). The fluxgate AUV sample at
+// the closest approach (σ_3d ≈ 4 cm at 6.4 m, 0.6 %) passes the defaults and
+// fails a 0.1 % relative or a 1 cm absolute limit, with reason "uncertain".
+TEST(InverterService, UncertaintyGatesFromAConfigFile) {
+  const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv"));
+  const std::string cfg = testing::TempDir() + "/inverter_gates.toml";
+  for (const auto& [text, valid] : std::vector<std::pair<std::string, bool>>{
+           {"", true},
+           {"max-relative-sigma = 0.001\n", false},
+           {"max-relative-sigma = 0\nmax-position-sigma = 0.01\n", false}}) {
+    std::ofstream(cfg) << "b0 = \"2e-05,1e-06,4.5e-05\"\n" << text;
+    const int domain = testing::TestDomainId();
+    testing::Subprocess service({MAGNAV_SERVICE_BIN, "--config", cfg, "--stats-period", "0"},
+                                {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}});
+    const std::vector<msg::DipoleFix> fixes = Exchange(domain, {file.samples[750]});  // t = 75 s
+    service.Signal(SIGTERM);
+    EXPECT_EQ(service.Wait(10s), 0);
+    ASSERT_EQ(fixes.size(), 1u) << text;
+    EXPECT_EQ(fixes[0].valid(), valid) << text;
+    EXPECT_EQ(std::string(fixes[0].reason().c_str()), valid ? "" : "uncertain") << text;
+  }
+  // A negative limit is refused, naming the option.
+  std::ofstream(cfg) << "b0 = \"2e-05,1e-06,4.5e-05\"\nmax-relative-sigma = -1\n";
+  const auto [rc, out] = testing::RunCommand({MAGNAV_SERVICE_BIN, "--config", cfg, "--stats-period", "0"},
+                                             {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}});
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("max_relative_sigma"), std::string::npos) << out;
+}
+
 // Starts the service with `args` on a fresh domain, sends the samples,
 // collects one fix per sample (ordered by sample seq), stops it (exit 0).
 std::vector<msg::DipoleFix> RunService(const std::vector<std::string>& args,

@@ -1,5 +1,6 @@
 #include "track_runs.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "magnav/inversion/particle_filter.h"
@@ -17,13 +18,31 @@ magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& sa
 
 magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& samples,
                                         const magnav::testing::TruthTrack& truth, const InverterOptions& options) {
-  Inverter inv(options);
-  magnav::testing::ErrorStats st;
+  return RunInverterWithRange(samples, truth, options).err;
+}
+
+InverterOptions SigmaGateOptions(const Eigen::Vector3d& B0, double relative, double absolute) {
+  InverterOptions o;
+  o.B0_W = B0;
+  o.gates.max_relative_sigma = relative;
+  o.gates.max_position_sigma_3d_m = absolute;
+  return o;
+}
+
+RangeErrors RunInverterWithRange(const std::vector<GradiometerSample>& samples,
+                                 const magnav::testing::TruthTrack& truth, const InverterOptions& options,
+                                 std::size_t samples_per_instant) {
+  Inverter inv(options);  // one speed-gate reference per sensor
+  RangeErrors r;
   for (std::size_t i = 0; i < samples.size(); ++i) {
     const DipoleFix f = inv.Process(samples[i]);
-    if (f.valid) st.Add((f.p_DinW - truth.p[i]).norm());
+    if (!f.valid) continue;
+    const Eigen::Vector3d& p = truth.p[i / samples_per_instant];
+    const double e = (f.p_DinW - p).norm();
+    r.err.Add(e);
+    r.max_relative = std::max(r.max_relative, e / (p - samples[i].p_SinW).norm());
   }
-  return st;
+  return r;
 }
 
 McRun RunMonteCarlo(const std::vector<GradiometerSample>& samples, const magnav::testing::TruthTrack& truth,

@@ -16,6 +16,18 @@ inline constexpr double kMcHorizontalRange = 30.0;  // m, MC evaluation window
 // Errors of every fix an Inverter with these options accepts.
 magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& samples,
                                         const magnav::testing::TruthTrack& truth, const InverterOptions& options);
+// TED+EGT options with B0 and the uncertainty gates set (relative to range,
+// absolute in m; 0 = off), every other gate at default.
+InverterOptions SigmaGateOptions(const Eigen::Vector3d& B0, double relative, double absolute);
+// RunInverter's errors for `samples_per_instant` samples (sensors) per truth
+// row, and the largest |error| / range of an accepted fix.
+struct RangeErrors {
+  magnav::testing::ErrorStats err;
+  double max_relative = 0.0;
+};
+RangeErrors RunInverterWithRange(const std::vector<GradiometerSample>& samples,
+                                 const magnav::testing::TruthTrack& truth, const InverterOptions& options,
+                                 std::size_t samples_per_instant = 1);
 // The same with the default gates (`method`, B0 given).
 magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& samples,
                                         const magnav::testing::TruthTrack& truth, const Eigen::Vector3d& B0,

@@ -4,6 +4,7 @@
 // in the library, and bad input exits 2 naming the place.
 #include <cmath>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -211,6 +212,53 @@ TEST(TrackCli, BadInputExitsTwoAndNamesThePlace) {
   std::tie(rc, out) = Track({"--input", dir + "/quiet.csv", "--output", dir + "/o.csv"});
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("no track"), std::string::npos) << out;
+}
+
+// A user's field end to end: `magnav simulate --vessel` twice (the held-out
+// two-vessel field of two_vessels.h, written by the CLI), `magnav track
+// --mode window` and `magnav evaluate` against the vessel_id truth: one
+// track per vessel, no false rows, each vessel covered near the sensors.
+TEST(TrackCli, SimulatedTwoVesselFieldIsTrackedAndScoredPerVessel) {
+  const std::string dir = testing::TempDir();
+  const auto [rc, out] = testing::RunCommand(
+      {kMagnav, "simulate", "--noise", "fluxgate", "--seed", "11", "--grid", "3,3,40", "--vessel",
+       "id=1;start=-100,38,-5;heading=0;speed=1.5;moment=2500,300,900;turns=140:0", "--vessel",
+       "id=2;start=38,100,-6;heading=-1.5707963267948966;speed=1.2;moment=1800,-500,700;turns=140:0", "--output",
+       dir + "/field.csv", "--truth", dir + "/truth.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("wrote 12609 samples (9 sensors, 2 vessels, 140 s)"), std::string::npos) << out;
+  const CsvTable truth = CsvTable::Read(dir + "/truth.csv");
+  ASSERT_TRUE(truth.has_column("vessel_id"));
+  EXPECT_EQ(truth.num_rows(), 2u * 1401u);
+  const auto [rc2, out2] = Track({"--input", dir + "/field.csv", "--mode", "window", "--output", dir + "/t.csv"});
+  ASSERT_EQ(rc2, 0) << out2;
+  const CsvTable t = CsvTable::Read(dir + "/t.csv");
+  std::set<long long> ids;
+  for (std::size_t k = 0; k < t.num_rows(); ++k) ids.insert(t.integer(k, t.column("track_id")));
+  EXPECT_EQ(ids.size(), 2u);
+  const auto [rc3, out3] =
+      testing::RunCommand({kMagnav, "evaluate", "--estimate", dir + "/t.csv", "--truth", dir + "/truth.csv",
+                           "--max-range", "15", "--pass", dir + "/field.csv"});
+  ASSERT_EQ(rc3, 0) << out3;
+  EXPECT_NE(out3.find(": 0 false"), std::string::npos) << out3;
+  // Within 15 m of a sensor, coverage per vessel as the library's
+  // (tracker_multi_test: 0.903 each).
+  for (const char* v : {"vessel 1:", "vessel 2:"}) {
+    const std::size_t at = out3.find(v);
+    ASSERT_NE(at, std::string::npos) << out3;
+    const std::size_t c = out3.find("coverage ", at);
+    ASSERT_NE(c, std::string::npos) << out3;
+    EXPECT_GE(std::stod(out3.substr(c + 9)), 0.85) << out3;
+  }
+  // Bad vessel specs are refused with the flag named.
+  const auto [rc4, out4] = testing::RunCommand(
+      {kMagnav, "simulate", "--vessel", "id=1;speed=fast", "--output", dir + "/x.csv"});
+  EXPECT_EQ(rc4, 2);
+  EXPECT_NE(out4.find("--vessel 'id=1;speed=fast': speed: 'fast' is not a number"), std::string::npos) << out4;
+  const auto [rc5, out5] = testing::RunCommand(
+      {kMagnav, "simulate", "--vessel", "id=1", "--vessel", "id=1", "--output", dir + "/x.csv"});
+  EXPECT_EQ(rc5, 2);
+  EXPECT_NE(out5.find("vessel ids must be unique"), std::string::npos) << out5;
 }
 
 }  // namespace

@@ -59,7 +59,7 @@ TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options,
                          std::unique_ptr<dds::RegionalFieldSource> b0)
     : options_(Checked(options)), b0_(std::move(b0)), tracker_(Eigen::Vector3d::Zero(), options.tracker) {
   writer_ = node.CreateWriter<dds::msg::TrackEstimate>();
-  if (options_.tracker.init.source != InitSource::kSamples) {
+  if (options_.tracker.track.init.source != InitSource::kSamples) {
     fix_reader_ =
         node.CreateReader<dds::msg::DipoleFix>([this](const dds::msg::DipoleFix& m, const auto&) { OnFix(m); });
   }
@@ -88,7 +88,7 @@ void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
   if ((s.sigma_B == 0.0 || s.sigma_T == 0.0) && no_sigma_logged_.insert(s.sensor_id).second) {
     spdlog::warn("magnav-tracker: sensor {} sends no sigma_B/sigma_T: assuming sigma_B = {} T, sigma_T = {} T/m "
                  "(--sigma-b, --sigma-t); its covariances are only as right as that",
-                 s.sensor_id, options_.tracker.default_sigma_B_T, options_.tracker.default_sigma_T_Tpm);
+                 s.sensor_id, options_.tracker.track.default_sigma_B_T, options_.tracker.track.default_sigma_T_Tpm);
   }
   if (s.t_s < fed_until_s_) {
     ++dropped_late_;
@@ -105,13 +105,7 @@ void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
 void TrackerNode::Feed(const GradiometerSample& s) {
   fed_until_s_ = s.t_s;
   try {
-    const bool was_tracking = tracker_.initialized();
     Publish(tracker_.AddSample(s));
-    if (!was_tracking && tracker_.initialized()) {
-      const Summary& sum = tracker_.last_summary();
-      spdlog::info("magnav-tracker: track {} started from {} {} fixes", options_.track_id, sum.num_init_fixes,
-                   sum.init_from_external_fixes ? "dipole_fix" : "of its own TED+EGT");
-    }
   } catch (const InputError& e) {
     ++rejected_;
     spdlog::warn("magnav-tracker: sample of sensor {} at t = {} s rejected: {}", s.sensor_id, s.t_s, e.what());
@@ -125,11 +119,26 @@ void TrackerNode::Flush() {
   Publish(tracker_.Flush());
 }
 
-void TrackerNode::Publish(const std::vector<EpochEstimate>& estimates) {
-  if (estimates.empty()) return;
-  const Eigen::Vector3d m_B = tracker_.m_B_Am2();
-  const Eigen::Matrix3d cov_m = tracker_.cov_m_B();
-  for (const auto& e : estimates) writer_->Write(ToMsg(e, m_B, cov_m, options_.track_id));
+int TrackerNode::num_tracks() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return tracker_.summary().num_confirmed;
+}
+
+int TrackerNode::num_live_tracks() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return tracker_.num_live_tracks();
+}
+
+void TrackerNode::Publish(const std::vector<TrackOutput>& estimates) {
+  // A track's start is logged before its first estimate goes out.
+  for (const TrackEvent& ev : tracker_.TakeEvents()) {
+    if (ev.kind == TrackEvent::Kind::kStarted) {
+      spdlog::info("magnav-tracker: track {} started at t = {} s ({})", ev.track_id, ev.t_s, ev.reason);
+    } else {
+      spdlog::info("magnav-tracker: track {} ended at t = {} s ({})", ev.track_id, ev.t_s, ev.reason);
+    }
+  }
+  for (const auto& o : estimates) writer_->Write(ToMsg(o.estimate, o.m_B_Am2, o.cov_m_B, o.track_id));
 }
 
 }  // namespace magnav::tracker

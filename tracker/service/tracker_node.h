@@ -1,12 +1,15 @@
 // The tracker's DDS node: GradiometerSample in, TrackEstimate out (one per
-// epoch, from the fixed-lag sliding-window tracker of magnav::tracker). Samples
+// confirmed track and epoch, from the multi-vessel sliding-window tracker
+// magnav::tracker::MultiTracker: tracks start, are confirmed, coast and end;
+// each has its own track_id, never reused in a run, and its own body moment;
+// starts and ends are logged). Samples
 // of several gradiometers arrive on independent streams, so they pass a short
 // reorder buffer first: a sample is handed to the tracker once a sample at
 // least `reorder_delay_s` newer has arrived (or at shutdown); a sample older
 // than what the tracker has already consumed is counted and dropped.
 // Unless tracker.init.source is kSamples it also subscribes DipoleFix
 // (magnav-inverter's fixes, rejected ones included) and hands every fix to the
-// tracker's initialiser (WindowTracker::AddFix); a fix that cannot be used
+// tracker's initiator (MultiTracker::AddFix); a fix that cannot be used
 // (non-finite time or position) is counted, logged and skipped.
 // Each sample passes the door first (SampleDoor: a bad one is counted, logged
 // once per sensor and skipped) and gets its sensor's B0 from the
@@ -23,14 +26,13 @@
 #include "magnav/dds/node.h"
 #include "magnav/dds/regional_field_source.h"
 #include "magnav/dds/sample_door.h"
-#include "magnav/tracker/tracker.h"
+#include "magnav/tracker/multi_tracker.h"
 
 namespace magnav::tracker {
 
 struct TrackerNodeOptions {
-  TrackerOptions tracker;
-  double reorder_delay_s = 0.25;                    // s of sample time
-  std::uint32_t track_id = 0;
+  MultiTrackerOptions tracker;
+  double reorder_delay_s = 0.25;  // s of sample time
 
   bool IsValid(std::string* error) const;
 };
@@ -57,19 +59,21 @@ class TrackerNode {
   const dds::RegionalFieldSource& b0() const { return *b0_; }
   std::uint64_t fixes_received() const { return fix_reader_ ? fix_reader_->stats().samples.load() : 0; }
   std::uint64_t fixes_rejected() const { return fixes_rejected_; }
+  int num_tracks() const;  // confirmed so far
+  int num_live_tracks() const;  // confirmed or tentative now
 
  private:
   void OnSample(const dds::msg::GradiometerSample& m);
   void OnFix(const dds::msg::DipoleFix& m);
   void Feed(const GradiometerSample& s);  // mu_ held
-  void Publish(const std::vector<EpochEstimate>& estimates);
+  void Publish(const std::vector<TrackOutput>& estimates);  // mu_ held; logs starts and ends
 
   TrackerNodeOptions options_;
-  std::mutex mu_;
+  mutable std::mutex mu_;
   dds::SampleDoor door_{"magnav-tracker"};
   std::unique_ptr<dds::RegionalFieldSource> b0_;
   std::set<std::uint32_t> no_sigma_logged_;  // sensors whose missing σ was logged
-  WindowTracker tracker_;
+  MultiTracker tracker_;
   std::multimap<double, GradiometerSample> pending_;  // by time
   double fed_until_s_ = -1e300;
   std::uint64_t dropped_late_ = 0, rejected_ = 0, fixes_rejected_ = 0;

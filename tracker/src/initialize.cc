@@ -165,6 +165,33 @@ std::string NoTrackMessage(const TrackerOptions& options, bool have_external_fix
 
 namespace {
 
+// Robust line fit: refit without fixes far from the line (bad samples, or
+// ill-conditioned single-sample inversions) until the inlier set `use`
+// settles. False if fewer than min_fixes remain.
+bool RobustLine(const std::vector<DipoleFix>& fixes, const InitOptions& io, std::vector<bool>* use) {
+  LineFit line = FitLine(fixes, *use);
+  for (int iter = 0; iter < 10; ++iter) {
+    std::vector<double> d(fixes.size()), d_in;
+    for (std::size_t i = 0; i < fixes.size(); ++i) {
+      d[i] = (fixes[i].p_DinW - line.At(fixes[i].t_s)).norm();
+      if ((*use)[i]) d_in.push_back(d[i]);
+    }
+    const double sigma = 1.4826 * Median(d_in);
+    const double limit = std::max(io.outlier_threshold_mad * sigma, 1e-9);
+    std::vector<bool> next(fixes.size());
+    int n = 0;
+    for (std::size_t i = 0; i < fixes.size(); ++i) {
+      next[i] = d[i] <= limit;
+      n += next[i] ? 1 : 0;
+    }
+    if (n < io.min_fixes) return false;
+    if (next == *use) break;
+    *use = next;
+    line = FitLine(fixes, *use);
+  }
+  return true;
+}
+
 // The initial track from one set of fixes (see the header).
 std::optional<InitialTrack> InitializeFrom(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                            const TrackerOptions& options, const std::vector<Candidate>& all,
@@ -182,6 +209,7 @@ std::optional<InitialTrack> InitializeFrom(const std::vector<Epoch>& epochs, con
     }
   }
   double t_peak = all.front().fix.t_s, best = -1.0;
+  std::uint32_t peak_sensor = all.front().fix.sensor_id;
   for (const auto& [id, snr_t] : snr_by_sensor) {
     for (std::size_t i = 0, lo = 0, hi = 0; i < snr_t.size(); ++i) {
       while (snr_t[lo].first < snr_t[i].first - 1.0) ++lo;
@@ -192,6 +220,7 @@ std::optional<InitialTrack> InitializeFrom(const std::vector<Epoch>& epochs, con
       if (med > best) {
         best = med;
         t_peak = snr_t[i].first;
+        peak_sensor = id;
       }
     }
   }
@@ -199,32 +228,30 @@ std::optional<InitialTrack> InitializeFrom(const std::vector<Epoch>& epochs, con
   for (const Candidate& c : all) {
     if (std::abs(c.fix.t_s - t_peak) <= 0.5 * io.span_s) candidates.push_back(c);
   }
+  if (static_cast<int>(candidates.size()) < io.min_fixes) return std::nullopt;
+  // Several vessels: seed the line with the peak sensor's fixes and keep
+  // only the fixes near it.
+  if (io.cluster_gate_m > 0.0) {
+    std::vector<DipoleFix> seed;
+    for (const Candidate& c : candidates) {
+      if (c.fix.sensor_id == peak_sensor) seed.push_back(c.fix);
+    }
+    std::vector<bool> seed_use(seed.size(), true);
+    if (static_cast<int>(seed.size()) >= io.min_fixes && RobustLine(seed, io, &seed_use)) {
+      const LineFit seed_line = FitLine(seed, seed_use);
+      std::vector<Candidate> near;
+      for (const Candidate& c : candidates) {
+        if ((c.fix.p_DinW - seed_line.At(c.fix.t_s)).norm() <= io.cluster_gate_m) near.push_back(c);
+      }
+      candidates = std::move(near);
+    }
+  }
   const std::vector<DipoleFix> fixes = FixesOf(candidates);
   if (static_cast<int>(fixes.size()) < io.min_fixes) return std::nullopt;
 
-  // Robust line fit: refit without fixes far from the line (bad samples, or
-  // ill-conditioned single-sample inversions) until the inlier set settles.
   std::vector<bool> use(fixes.size(), true);
-  LineFit line = FitLine(fixes, use);
-  for (int iter = 0; iter < 10; ++iter) {
-    std::vector<double> d(fixes.size()), d_in;
-    for (std::size_t i = 0; i < fixes.size(); ++i) {
-      d[i] = (fixes[i].p_DinW - line.At(fixes[i].t_s)).norm();
-      if (use[i]) d_in.push_back(d[i]);
-    }
-    const double sigma = 1.4826 * Median(d_in);
-    const double limit = std::max(io.outlier_threshold_mad * sigma, 1e-9);
-    std::vector<bool> next(fixes.size());
-    int n = 0;
-    for (std::size_t i = 0; i < fixes.size(); ++i) {
-      next[i] = d[i] <= limit;
-      n += next[i] ? 1 : 0;
-    }
-    if (n < io.min_fixes) return std::nullopt;
-    if (next == use) break;
-    use = next;
-    line = FitLine(fixes, use);
-  }
+  if (!RobustLine(fixes, io, &use)) return std::nullopt;
+  const LineFit line = FitLine(fixes, use);
 
   InitialTrack init;
   init.from_external_fixes = external;

@@ -7,10 +7,14 @@
 #include "magnav/core/error.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/multi_tracker.h"
+#include "other_fields.h"
 
 namespace magnav::tracker {
 
 namespace {
+
+// σ_B of a sample whose B is not to be used (its weight 1e-12 of a normal one).
+constexpr double kUnusedSigmaFactor = 1e6;
 
 // A track's estimates as a function of time (nearest estimate, propagated).
 struct TrackPath {
@@ -54,10 +58,12 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   }
   take(finder.Flush());
   std::vector<MultiTrackEstimate> result;
-  // Each track's span: its window estimates' plus the margin, fixed over the
-  // rounds; a track that ended because its sensors stopped fitting it (an
-  // untracked vessel came, or it was lost) ends at its last detection.
+  // Each track's span: its window estimates' plus the margin; a track that
+  // ended because its sensors stopped fitting it (an untracked vessel came,
+  // or it was lost) ends at its last detection in the first round.
   std::vector<std::pair<double, double>> spans;
+  std::vector<double> extend;  // a missed track's end once the others are known
+  std::vector<double> b_only_until;  // past this, the extension: tensor only
   const double margin = options.batch_margin_s;
   for (const TrackRecord& r : finder.Tracks()) {
     auto it = paths.find(r.track_id);
@@ -74,6 +80,8 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     const bool cut = r.end_reason == "missed" || r.end_reason == "unusable" || r.end_reason == "duplicate";
     spans.emplace_back(m.track.epochs.front().t_s - margin,
                        cut ? r.t_last_detection_s : m.track.epochs.back().t_s + margin);
+    extend.push_back(r.end_reason == "missed" ? r.t_last_detection_s + margin : spans.back().second);
+    b_only_until.push_back(spans.back().second);
     result.push_back(std::move(m));
   }
   // 2. Rounds of refinement, each track over its own samples with the other
@@ -83,6 +91,13 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   TrackerOptions topt = options.track;
   if (topt.init.source == InitSource::kExternal) topt.init.source = InitSource::kAuto;
   for (int round = 0; round < options.batch_rounds; ++round) {
+    // From the second round on, the other tracks' fields are those of their
+    // own batch solves: a track ended by misses (most often an untracked
+    // vessel dominating its sensors before that vessel had a track) is taken
+    // on for the margin past its last detection, with those fields removed.
+    if (round > 0) {
+      for (std::size_t i = 0; i < spans.size(); ++i) spans[i].second = extend[i];
+    }
     std::vector<TrackPath> now(result.size());
     for (std::size_t i = 0; i < result.size(); ++i) {
       now[i].epochs = result[i].track.epochs;
@@ -112,12 +127,19 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           const double snr = std::sqrt(B.squaredNorm() / (sb * sb) + T.squaredNorm() / (st * st));
           if (!(snr >= gate)) continue;
           GradiometerSample s = s0;
+          Eigen::Vector3d B_others = Eigen::Vector3d::Zero();
+          Eigen::Matrix3d T_others = Eigen::Matrix3d::Zero();
           for (std::size_t k = 0; k < result.size(); ++k) {
             if (!others[k]) continue;
             PredictedField(*others[k], now[k].m_B, s.p_SinW, &B, &T);
-            s.B -= B;
-            s.T -= T;
+            B_others += B;
+            T_others += T;
           }
+          RemoveOtherFields(B_others, T_others, sb, st, &s);
+          // Past its last detection a missed track's B is an untracked
+          // vessel's far field as much as its own: only its tensor (which
+          // falls off faster) is used there.
+          if (e.t_s > b_only_until[i]) s.sigma_B = kUnusedSigmaFactor * sb;
           k_epoch.samples.push_back(s);
           track_fixes.push_back(MakeFix(e.t_s, s.sensor_id, Eigen::Vector3d(s_i->x, s_i->y, s_i->z)));
         }

@@ -1,4 +1,5 @@
 #include "magnav/tracker/multi_tracker.h"
+#include "other_fields.h"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -37,7 +38,10 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
   return true;
 }
 
-MultiTrackerOptions::MultiTrackerOptions() { track.init.min_tensor_snr = kFieldInitSnr; }
+MultiTrackerOptions::MultiTrackerOptions() {
+  track.init.min_tensor_snr = kFieldInitSnr;
+  track.window_solve_interval_s = kFieldSolveIntervalS;
+}
 
 bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (!track.IsValid(error) || !management.IsValid(error)) return false;
@@ -75,7 +79,7 @@ struct Track {
   double t_last_detection = 0.0;
   double miss_since = kNaN, unusable_since = kNaN, duplicate_since = kNaN;
   double sigma_h = 0.0;  // horizontal 1-σ of the newest estimate, m
-  TrackRecord record;
+  std::string origin;    // what started it, for the start event
   // This epoch's prediction.
   bool has_pred = false;
   CtState<double> pred{};
@@ -182,7 +186,7 @@ struct MultiTracker::Impl {
     r.t_last_detection_s = tr.t_last_detection;
     records.push_back(r);
     ++summary.num_confirmed;
-    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed"});
+    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed; " + tr.origin});
   }
 
   // The estimates of a track's engine, as outputs (confirmed tracks only).
@@ -234,11 +238,16 @@ struct MultiTracker::Impl {
         for (std::size_t j = 0; j < n; ++j) {
           if (!(pred[i][j].snr >= mg().gate_snr)) continue;
           GradiometerSample s = e.samples[j];
+          Eigen::Vector3d B_others = Eigen::Vector3d::Zero();
+          Eigen::Matrix3d T_others = Eigen::Matrix3d::Zero();
+          bool any_other = false;
           for (std::size_t k = 0; k < tracks.size(); ++k) {
             if (k == i || !tracks[k].has_pred) continue;
-            s.B -= pred[k][j].B;
-            s.T -= pred[k][j].T;
+            B_others += pred[k][j].B;
+            T_others += pred[k][j].T;
+            any_other = true;
           }
+          if (any_other) RemoveOtherFields(B_others, T_others, SigmaB(s), SigmaT(s), &s);
           const double sb = SigmaB(s), st = SigmaT(s);
           const Eigen::Vector3d dB = s.B - B0_W;
           const double m2 = dB.squaredNorm() / (sb * sb) + s.T.squaredNorm() / (st * st);
@@ -388,6 +397,8 @@ struct MultiTracker::Impl {
     if (mine.empty()) return;
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
     tr.engine->Start(*init, mine);
+    tr.origin = "from " + std::to_string(init->fixes.size()) +
+                (init->from_external_fixes ? " dipole_fix fixes" : " fixes of its own TED+EGT");
     // What the buffer holds of this vessel is now explained.
     tr.m_B = tr.engine->m_B_Am2();
     for (Epoch& b : buffer) {

@@ -58,6 +58,9 @@ bool InitOptions::IsValid(std::string* error) const {
   if (!std::isfinite(min_span_s) || min_span_s < 0.0) return Fail(error, "init.min_span_s must be >= 0");
   if (!PositiveFinite(span_s) || span_s < min_span_s) return Fail(error, "init.span_s must be >= min_span_s");
   if (!PositiveFinite(outlier_threshold_mad)) return Fail(error, "init.outlier_threshold_mad must be > 0");
+  if (!(cluster_gate_m >= 0.0) || !std::isfinite(cluster_gate_m)) {
+    return Fail(error, "init.cluster_gate_m must be finite and >= 0");
+  }
   return true;
 }
 

@@ -59,10 +59,58 @@ struct SimulatedPass {
 // vessel must never come within 0.5 m of a sensor.
 SimulatedPass SimulatePass(const PassScenario& scenario);
 
+// A sensor field crossed by several vessels, each with its own moment,
+// motion and time span (the reference field_pass_9sensor_fluxgate.csv is of
+// this kind). B and T at a sensor are B0 plus the sum of the fields of the
+// vessels present at that instant, plus the noise model above.
+struct FieldVessel {
+  std::uint32_t vessel_id = 1;                           // > 0, unique in the scenario
+  Eigen::Vector3d moment_body = {2000.0, 300.0, 800.0};  // A·m²
+  Eigen::Vector3d start_position = Eigen::Vector3d::Zero();  // NED, m, at t_start_s
+  double speed_mps = 1.0;
+  double start_heading_rad = 0.0;
+  std::vector<TurnSegment> segments = {{200.0, 0.0}};  // the vessel exists for their total duration
+  double t_start_s = 0.0;                               // s from scenario start, >= 0
+
+  bool IsValid(std::string* error) const;
+  double t_end_s() const;
+};
+
+struct FieldScenario {
+  std::vector<FieldVessel> vessels;  // at least one
+  double rate_hz = 10.0;
+  std::vector<Eigen::Vector3d> sensors;  // NED, m; at least one
+  Eigen::Vector3d B0 = {2e-05, 1e-06, 4.5e-05};
+  double sigma_B = 0.0;
+  double sigma_T = 0.0;
+  std::uint64_t seed = 1;
+
+  bool IsValid(std::string* error) const;
+  double duration_s() const;  // until the last vessel's end
+};
+
+struct SimulatedField {
+  std::vector<std::vector<VesselTruth>> truth;  // per vessel (scenario order), per instant while it exists
+  std::vector<GradiometerSample> samples;       // every sensor at every instant, ordered by t then sensor id
+};
+
+// Throws InputError if the scenario is invalid or a vessel comes within
+// 0.5 m of a sensor.
+SimulatedField SimulateField(const FieldScenario& scenario);
+
+// A regular grid of nx × ny sensors at z = 0, `spacing_m` apart, centred on
+// the origin, ids row by row (id = ny·ix + iy, x north) as the reference field.
+std::vector<Eigen::Vector3d> SensorGrid(int nx, int ny, double spacing_m);
+
 // Files in the reference formats (pass: t,sensor_id,sensor_*,B_*,T00..T22 with
 // B0_T, moment_body_Am2, sigma_B_T, sigma_T_Tpm parameters; truth: t,x,y,z,
 // vx,vy,heading,turn_rate,mw_x,mw_y,mw_z).
 void WritePassCsv(const std::string& path, const PassScenario& scenario, const SimulatedPass& pass);
 void WriteTruthCsv(const std::string& path, const PassScenario& scenario, const SimulatedPass& pass);
+// A field: the pass file as above (no moment line: each vessel has its own;
+// a `# vessel:` line per vessel), the truth with `vessel_id` after `t`, rows
+// ordered by t then vessel_id (as field_truth.csv).
+void WriteFieldPassCsv(const std::string& path, const FieldScenario& scenario, const SimulatedField& field);
+void WriteFieldTruthCsv(const std::string& path, const FieldScenario& scenario, const SimulatedField& field);
 
 }  // namespace magnav

@@ -132,10 +132,12 @@ class DipoleParticleFilter {
 struct MonteCarloTrackerOptions {
   ParticleFilterOptions filter;
   // Method and gates for the initialising fixes. The prior σ follows each
-  // fix's predicted σ, so coarser fixes than the inverter's default (5 cm)
-  // are accepted here (1 m).
+  // fix's predicted σ, so these take an absolute 1 m σ gate of their own
+  // instead of the inverter's default relative one (tuned with the MC noise
+  // settings on the reference passes).
   InverterOptions init_inverter = [] {
     InverterOptions o;
+    o.gates.max_relative_sigma = 0.0;
     o.gates.max_position_sigma_3d_m = 1.0;
     return o;
   }();

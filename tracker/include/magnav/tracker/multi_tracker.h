@@ -87,11 +87,16 @@ struct TrackManagementOptions {
 
 struct MultiTrackerOptions {
   MultiTrackerOptions();
-  // Each track's engine. Differs from TrackerOptions' defaults in one
-  // value: init.min_tensor_snr = kFieldInitSnr, so that a vessel crossing
-  // a field gets a track before it is right above a sensor.
+  // Each track's engine. Differs from TrackerOptions' defaults in two
+  // values: init.min_tensor_snr = kFieldInitSnr, so that a vessel crossing
+  // a field gets a track before it is right above a sensor; and
+  // window_solve_interval_s = kFieldSolveIntervalS: each track's window is
+  // solved twice a second, not every epoch (on the reference field as
+  // accurate, 3x cheaper; 100 sensors and 10 vessels need it to run in
+  // 0.1 s of CPU per second of data: docs/BENCHMARKS.md).
   TrackerOptions track;
   static constexpr double kFieldInitSnr = 20.0;
+  static constexpr double kFieldSolveIntervalS = 0.5;
   TrackManagementOptions management;
   // Batch (SolveBatchMulti): refinement rounds; each solves every track over
   // its own samples with the others' fields (from the previous round)
@@ -100,6 +105,11 @@ struct MultiTrackerOptions {
   // Batch: a track's samples are taken from this long before its first to
   // this long after its last window estimate (s).
   double batch_margin_s = 5.0;
+  // Window and batch: the fields of the other tracks removed from a sample
+  // are models, taken as uncertain by this share of their norm (per
+  // element: the norm over √3 for B, over 3 for T), added in quadrature to
+  // the sample's σ.
+  static constexpr double kOtherFieldRelativeError = 0.05;
 
   bool IsValid(std::string* error) const;
 };
@@ -118,7 +128,10 @@ struct TrackEvent {
   Kind kind = Kind::kStarted;
   std::uint32_t track_id = 0;
   double t_s = 0.0;
-  std::string reason;  // "confirmed", "missed", "lost", "uncertain", "unusable", "duplicate", "end of data"
+  // Start: "confirmed; from N dipole_fix fixes" (or "... fixes of its own
+  // TED+EGT"); end: "missed", "lost", "uncertain", "unusable", "duplicate",
+  // "end of data".
+  std::string reason;
 };
 
 // What became of one confirmed track (ended or still live).

@@ -78,6 +78,12 @@ struct InitOptions {
   // Fixes farther than this many robust σ (1.4826·MAD) from the fitted line
   // are rejected; the line is refitted a few times.
   double outlier_threshold_mad = 4.0;
+  // Several vessels at once: the line is first fitted to the fixes of the
+  // sensor with the strongest signal only, and only fixes within this
+  // distance (m) of that line are kept for the fit over every sensor, so
+  // that fixes of other vessels elsewhere in the field do not enter it.
+  // 0 = off (every fix in the span enters the fit).
+  double cluster_gate_m = 10.0;
 
   bool IsValid(std::string* error) const;
 };

@@ -1,0 +1,107 @@
+// The tracker's flags, shared by `magnav track` and `magnav-tracker`: the
+// sliding window, the robust losses, the process noise, track initiation and
+// the multi-vessel track management (tracker/multi_tracker.h). Each flag's
+// default is the option's documented default; a config file's keys are the
+// flag names. Header-only: the program that includes it links
+// magnav::tracker.
+#pragma once
+
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "magnav/core/error.h"
+#include "magnav/tracker/multi_tracker.h"
+
+namespace magnav::cli {
+
+// What the flags fill; ApplyTrackerFlags turns it into options.
+struct TrackerFlags {
+  tracker::MultiTrackerOptions options;
+  std::string loss = tracker::LossTypeName(tracker::TrackerOptions{}.measurement_loss);
+  std::string turn_loss = tracker::LossTypeName(tracker::ProcessNoise{}.turn_rate_loss);
+  std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
+};
+
+// `fixes_help` says where this program's single-sample fixes come from.
+inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string& fixes_help) {
+  tracker::TrackerOptions& t = f->options.track;
+  tracker::TrackManagementOptions& m = f->options.management;
+  app.add_option("--window", t.window_s, "sliding-window length, s")->capture_default_str();
+  app.add_option("--solve-interval", t.window_solve_interval_s,
+                 "solve each track's window once per this much data, s (0 = every epoch)")
+      ->capture_default_str();
+  app.add_option("--loss", f->loss, "robust loss on each sample: huber, cauchy or trivial")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
+  app.add_option("--loss-scale", t.measurement_loss_scale_sigma, "robust loss scale, in sigmas of the sample residual")
+      ->capture_default_str();
+  app.add_option("--q-position", t.process.position_m_per_sqrt_s, "position random walk, m/sqrt(s)")
+      ->capture_default_str();
+  app.add_option("--q-speed", t.process.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)")->capture_default_str();
+  app.add_option("--q-heading", t.process.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)")
+      ->capture_default_str();
+  app.add_option("--q-turn-rate", t.process.turn_rate_radps_per_sqrt_s, "turn-rate random walk, rad/s/sqrt(s)")
+      ->capture_default_str();
+  app.add_option("--q-turn-rate-window", t.process.window_turn_rate_radps_per_sqrt_s,
+                 "turn-rate random walk of the sliding window, rad/s/sqrt(s)")
+      ->capture_default_str();
+  app.add_option("--q-turn-rate-warmup", t.process.turn_rate_warmup_radps_per_sqrt_s,
+                 "turn-rate random walk of the batch warm-up pass (0 = none), rad/s/sqrt(s)")
+      ->capture_default_str();
+  app.add_option("--turn-loss", f->turn_loss, "robust loss on turn-rate changes: huber, cauchy or trivial")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
+  app.add_option("--turn-loss-scale", t.process.turn_rate_loss_scale_sigma, "turn-rate loss scale, in sigmas of one step")
+      ->capture_default_str();
+  app.add_option("--init-from", f->init_from,
+                 "fixes that start a track: auto (" + fixes_help +
+                     " when they suffice, else its own TED+EGT on the samples), dipole_fix (" + fixes_help +
+                     " only), samples (its own only)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "dipole_fix", "samples"}));
+  app.add_option("--init-snr", t.init.min_tensor_snr,
+                 "a sample gives an initiation fix if its tensor norm is at least this many sigma_T")
+      ->capture_default_str();
+  app.add_option("--gate-snr", m.gate_snr, "a track uses the sensors where its predicted signal SNR is at least this")
+      ->capture_default_str();
+  app.add_option("--detect-llr", m.detect_llr, "log-likelihood ratio of a detection (negated: of a miss) per epoch")
+      ->capture_default_str();
+  app.add_option("--confirm-m", m.confirm_m, "a new track is confirmed by M detections ...")->capture_default_str();
+  app.add_option("--confirm-n", m.confirm_n, "... among its first N epochs")->capture_default_str();
+  app.add_option("--max-miss", m.max_miss_s, "a track missed this long in a row ends, s")->capture_default_str();
+  app.add_option("--max-coast", m.max_coast_s, "a track not detected this long ends, s")->capture_default_str();
+  app.add_option("--max-sigma-h", m.max_sigma_horizontal_m, "a track whose horizontal 1-sigma exceeds this ends, m")
+      ->capture_default_str();
+  app.add_option("--min-separation", m.min_separation_m,
+                 "no new track this close to a live one; a track this close to an older one for --max-miss ends, m")
+      ->capture_default_str();
+  app.add_option("--max-chi2", m.max_chi2_per_dof, "poor fit (a miss): residual chi-square per residual above this ...")
+      ->capture_default_str();
+  app.add_option("--max-unexplained", m.max_unexplained,
+                 "... and residual energy above this share of the signal's")
+      ->capture_default_str();
+  app.add_option("--min-new-share", m.min_new_share,
+                 "residual below this share of a track's predicted tensor is not offered to the initiator")
+      ->capture_default_str();
+}
+
+// The options the flags give. Throws InputError naming the flag for a bad
+// choice, and the option for an inconsistent set (IsValid).
+inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
+  tracker::MultiTrackerOptions o = f.options;
+  if (!tracker::ParseLossType(f.loss, &o.track.measurement_loss)) {
+    throw InputError("--loss: expected huber, cauchy or trivial, got '" + f.loss + "'");
+  }
+  if (!tracker::ParseLossType(f.turn_loss, &o.track.process.turn_rate_loss)) {
+    throw InputError("--turn-loss: expected huber, cauchy or trivial, got '" + f.turn_loss + "'");
+  }
+  if (!tracker::ParseInitSource(f.init_from, &o.track.init.source)) {
+    throw InputError("--init-from: expected auto, dipole_fix or samples, got '" + f.init_from + "'");
+  }
+  std::string why;
+  if (!o.IsValid(&why)) throw InputError("tracker options: " + why);
+  return o;
+}
+
+}  // namespace magnav::cli
