@@ -26,6 +26,8 @@ void AddInvertCommand(CLI::App& app);
 void AddTrackCommand(CLI::App& app);
 // `magnav localize`: sensor positions from a friendly vessel's pass.
 void AddLocalizeCommand(CLI::App& app);
+// `magnav match`: an INS path matched against a geomagnetic map.
+void AddMatchCommand(CLI::App& app);
 
 #ifdef MAGNAV_WITH_DDS
 using cli::AddDdsOptions;
