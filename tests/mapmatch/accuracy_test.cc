@@ -153,24 +153,26 @@ TEST(MapMatchAccuracy, IssueTargetsOnTheCrustalMap) {
   }
 }
 
-TEST(MapMatchAccuracy, DirectSolverMeetsTheSameTargets) {
-  // docs/ACCURACY.md "Fast MSD, direct solver" (figures) and the issue's targets.
+TEST(MapMatchAccuracy, JacobiSolverMeetsTheSameTargets) {
+  // docs/ACCURACY.md "Fast MSD: direct solver (default) and the paper's Jacobi
+  // iteration" (the Jacobi columns; the table above is the default's) and the
+  // issue's targets.
   MapCache maps;
   const GeoGrid& g = maps.Get("map_crustal_anomaly.csv", "anomaly_nT");
   struct Case {
     std::string path;
     double documented_deg, target_deg;
   };
-  for (const Case& c : {Case{"mappath_crustal_off0p01deg_noise0p5nT.csv", 0.00070, 0.001},
-                        Case{"mappath_crustal_off0p01deg_noise3nT.csv", 0.00160, 0.002},
+  for (const Case& c : {Case{"mappath_crustal_off0p01deg_noise0p5nT.csv", 0.00072, 0.001},
+                        Case{"mappath_crustal_off0p01deg_noise3nT.csv", 0.00153, 0.002},
                         Case{"mappath_crustal_off0p1deg_noise0p5nT.csv", 0.00072, 0.001},
-                        Case{"mappath_crustal_off0p1deg_noise3nT.csv", 0.00122, 0.002}}) {
+                        Case{"mappath_crustal_off0p1deg_noise3nT.csv", 0.00140, 0.002}}) {
     FastMsdOptions o;
-    o.solver = FastMsdSolver::kDirect;
+    o.solver = FastMsdSolver::kJacobi;
     o.search_window_deg = 0.15;
     const MatchResult r = MatchFastMsd(g, 0, ReadMatchPath(testing::ReferencePath(c.path), "meas_nT"), o);
     const Errors e = Measure(CsvTable::Read(testing::ReferencePath(c.path)), r);
-    testing::ExpectErrorFigure(e.mean_deg, c.documented_deg, c.path + " direct");
+    testing::ExpectErrorFigure(e.mean_deg, c.documented_deg, c.path + " jacobi");
     EXPECT_LE(e.mean_deg, c.target_deg) << c.path;
   }
 }
