@@ -36,9 +36,7 @@ void RunMatch(MatchArgs a) {
   a.options.icp.planar_motion = !a.icp_3d;
   a.options.fast_msd.solver = a.solver == "direct" ? mapmatch::FastMsdSolver::kDirect : mapmatch::FastMsdSolver::kJacobi;
   // NGDC-style whitespace text ("lon lat value") by its extension, else CSV.
-  const bool ngdc = a.map.ends_with(".xyz") || a.map.ends_with(".txt");
-  const mapmatch::GeoGrid grid = ngdc ? mapmatch::ReadGeoGridXyz(a.map, a.value_column)
-                                      : mapmatch::ReadGeoGridCsv(a.map, {a.value_column});
+  const mapmatch::GeoGrid grid = mapmatch::ReadGeoGridFile(a.map, {a.value_column});
   const mapmatch::MatchPath path = mapmatch::ReadMatchPath(a.path, a.meas_column);
   const mapmatch::MatchResult r = mapmatch::Match(*method, grid, 0, path, a.options);
   // Written beside the output and renamed: a reader never sees half a file.
@@ -74,7 +72,9 @@ void AddMatchCommand(CLI::App& app) {
   cmd->option_defaults()->always_capture_default();  // --help shows the papers' values
   cmd->add_option("--map", args->map,
                   "map CSV: lat,lon (deg) and value columns (nT), a complete regular grid; or NGDC text "
-                  "'lon lat value' (*.xyz, *.txt; its one layer takes the --value-column name)")
+                  "'lon lat value' (*.xyz, *.txt; its one layer takes the --value-column name); or a raster "
+                  "through GDAL (GeoTIFF, NetCDF, ...: a north-up lat/lon grid; the layer is the NetCDF variable "
+                  "or band description named by --value-column, or the only band)")
       ->required();
   cmd->add_option("--value-column", args->value_column, "the map column to match, e.g. F_nT or anomaly_nT")
       ->required();

@@ -91,4 +91,21 @@ GeoGrid ReadGeoGridCsv(const std::string& path, const std::vector<std::string>& 
 // `layer_name`. Same checks and errors as ReadGeoGridCsv.
 GeoGrid ReadGeoGridXyz(const std::string& path, const std::string& layer_name);
 
+// Whether this build reads raster maps (built with GDAL: MAGNAV_WITH_GDAL).
+bool RasterMapsSupported();
+
+// Reads a raster map through GDAL: GeoTIFF, NetCDF (CF lat/lon grids) and the
+// other raster formats GDAL knows. Each layer is a NetCDF variable
+// (subdataset ...:NAME), or a band whose description is NAME, or the only band
+// of a one-band file. The raster must be north-up on a latitude/longitude grid
+// (no rotation, no projection); its pixel centres are the nodes; a no-data or
+// NaN pixel is a hole (InputError naming layer, row, column and position);
+// all layers must share one grid. Values are taken as nT. Without GDAL it
+// throws InputError saying so.
+GeoGrid ReadGeoGridRaster(const std::string& path, const std::vector<std::string>& layers);
+
+// By the file's ending: *.csv (ReadGeoGridCsv, columns lat, lon), *.xyz and
+// *.txt (ReadGeoGridXyz, one layer), anything else a raster (ReadGeoGridRaster).
+GeoGrid ReadGeoGridFile(const std::string& path, const std::vector<std::string>& layers);
+
 }  // namespace magnav::mapmatch
