@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   magnav::tools::AddTrackCommand(app);
   magnav::tools::AddLocalizeCommand(app);
   magnav::tools::AddMatchCommand(app);
+  magnav::tools::AddPlotCommand(app);
   try {
     if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
   } catch (const magnav::InputError& e) {
