@@ -1,9 +1,11 @@
 // `magnav match`: correct an INS / dead-reckoning path by matching its
 // measured field against a geomagnetic map (mapmatch/): single points, ICP,
-// ICCP, MMA, MAD/MSD/PROD/NPROD correlation, fast MSD.
+// ICCP, MMA, MAD/MSD/PROD/NPROD correlation, fast MSD, and the sequential
+// particle filters (pf, afpf) run over the path.
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 #include <unistd.h>
 
 #include "commands.h"
@@ -18,10 +20,41 @@ namespace {
 struct MatchArgs {
   std::string map, value_column, path, meas_column, method, output;
   std::string solver = "direct";
+  std::string diagnostics;  // pf, afpf: per-step CSV
   bool icp_3d = false;
   double search_window_deg = 0.0;  // 0 = not given
   mapmatch::MatchOptions options;
 };
+
+const char* UpdateName(mapmatch::StepUpdate u) {
+  switch (u) {
+    case mapmatch::StepUpdate::kUpdated:
+      return "updated";
+    case mapmatch::StepUpdate::kBadMeasurement:
+      return "bad_measurement";
+    case mapmatch::StepUpdate::kAllOffMap:
+      return "all_off_map";
+  }
+  return "?";
+}
+
+// One row per step of a particle filter (particle_filter.h StepDiagnostics).
+void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
+                      const std::vector<mapmatch::StepDiagnostics>& steps) {
+  CsvWriter w(file,
+              {"k", "lat", "lon", "cov_lat_lat", "cov_lat_lon", "cov_lon_lon", "ess", "particles", "unique_particles",
+               "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost"},
+              {{"frame", "estimate lat/lon deg, covariance deg^2 (particle_filter.h StepDiagnostics)"}});
+  for (std::size_t p = 0; p < steps.size(); ++p) {
+    const mapmatch::StepDiagnostics& d = steps[p];
+    w.WriteRow({std::to_string(path.k[p]), FormatNumber(d.lat_deg), FormatNumber(d.lon_deg),
+                FormatNumber(d.cov_lat_lat), FormatNumber(d.cov_lat_lon), FormatNumber(d.cov_lon_lon),
+                FormatNumber(d.ess), std::to_string(d.particles), std::to_string(d.unique_particles),
+                std::to_string(d.occupied_cells), FormatNumber(d.nis), d.resampled ? "1" : "0",
+                d.ins_jump ? "1" : "0", UpdateName(d.update), d.lost ? "1" : "0"});
+  }
+  w.Close();
+}
 
 void RunMatch(MatchArgs a) {
   const auto method = mapmatch::ParseMethod(a.method);
@@ -40,7 +73,15 @@ void RunMatch(MatchArgs a) {
   const mapmatch::GeoGrid grid = ngdc ? mapmatch::ReadGeoGridXyz(a.map, a.value_column)
                                       : mapmatch::ReadGeoGridCsv(a.map, {a.value_column});
   const mapmatch::MatchPath path = mapmatch::ReadMatchPath(a.path, a.meas_column);
-  const mapmatch::MatchResult r = mapmatch::Match(*method, grid, 0, path, a.options);
+  const bool filter = *method == mapmatch::Method::kPf || *method == mapmatch::Method::kAfpf;
+  if (!a.diagnostics.empty() && !filter) throw InputError("--diagnostics: only for pf and afpf");
+  std::vector<mapmatch::StepDiagnostics> steps;
+  const mapmatch::MatchResult r =
+      filter ? mapmatch::MatchParticleFilter(*method == mapmatch::Method::kPf ? mapmatch::ParticleFilterKind::kPf
+                                                                              : mapmatch::ParticleFilterKind::kAfpf,
+                                             grid, 0, path, a.options.particle_filter, &steps)
+             : mapmatch::Match(*method, grid, 0, path, a.options);
+  if (!a.diagnostics.empty()) WriteDiagnostics(a.diagnostics, path, steps);
   // Written beside the output and renamed: a reader never sees half a file.
   const std::string tmp = a.output + ".tmp." + std::to_string(::getpid());
   try {
@@ -112,6 +153,31 @@ void AddMatchCommand(CLI::App& app) {
       ->check(CLI::IsMember({"jacobi", "direct"}));
   cmd->add_option("--rounds", o.fast_msd.rounds, "fast-msd: re-linearisation rounds");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
+  mapmatch::ParticleFilterOptions& f = o.particle_filter;
+  cmd->add_option("--diagnostics", args->diagnostics,
+                  "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "
+                  "occupied map cells, NIS, resampled, INS jump, update and lost flags to this CSV");
+  cmd->add_option("--particles", f.num_particles, "pf: particles; afpf: the fewest it adapts down to (the paper: 3000)");
+  cmd->add_option("--max-particles", f.max_particles, "afpf: particles at the start and at most (adaptive count)");
+  cmd->add_option("--particles-per-cell", f.particles_per_cell,
+                  "afpf: adaptive count = this x map cells holding a particle (clamped to --particles..--max-particles)");
+  cmd->add_option("--seed", f.seed, "pf, afpf: random seed (std::mt19937_64)");
+  cmd->add_option("--sigma", f.measurement_sigma_nT,
+                  "pf, afpf: likelihood sigma, nT (sensor + map + particle spacing; the paper's tau = sigma^2)");
+  cmd->add_option("--drift-sigma", f.drift_sigma_deg, "pf, afpf: INS drift noise per step and axis, deg");
+  cmd->add_option("--prior-half-width", f.prior_half_width_deg,
+                  "pf, afpf: uniform prior square around the first INS point (clipped to the map), deg");
+  cmd->add_option("--resample-ess", f.resample_ess_fraction, "pf: resample when ESS < this fraction of N");
+  cmd->add_option("--off-map-sigmas", f.off_map_sigmas, "pf, afpf: an off-map particle's likelihood is that of this many sigma");
+  cmd->add_option("--max-step", f.max_step_deg, "pf, afpf: a longer INS increment is a jump (not applied), deg");
+  cmd->add_option("--divergence-window", f.divergence_window, "pf, afpf: updates in the divergence test");
+  cmd->add_option("--divergence-nis", f.divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
+  cmd->add_flag("--reinitialize-when-lost", f.reinitialize_when_lost,
+                "pf, afpf: spread the prior again around the INS position when lost");
+  cmd->add_option("--fission-lambda", f.fission_lambda, "afpf: offspring variance scale lambda (the paper: 0.001)");
+  cmd->add_option("--fission-penalty", f.fission_motion_penalty,
+                  "afpf: an offspring's weight pays its fission move as drift (1) or not, as the paper (0)");
+  cmd->add_option("--fission-mu", f.fission_mu_deg2, "afpf: parents' sampling variance mu, deg^2 (the paper: 1.6454e-4)");
   cmd->callback([args] {
     MatchArgs a = *args;
     a.options.mma.field_scale_deg_per_nT = a.options.icp.field_scale_deg_per_nT;
