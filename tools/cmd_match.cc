@@ -172,8 +172,8 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--max-step", f.max_step_deg, "pf, afpf: a longer INS increment is a jump (not applied), deg");
   cmd->add_option("--divergence-window", f.divergence_window, "pf, afpf: updates in the divergence test");
   cmd->add_option("--divergence-nis", f.divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
-  cmd->add_flag("--reinitialize-when-lost", f.reinitialize_when_lost,
-                "pf, afpf: spread the prior again around the INS position when lost");
+  cmd->add_option("--reinitialize-when-lost", f.reinitialize_when_lost,
+                  "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   cmd->add_option("--fission-lambda", f.fission_lambda, "afpf: offspring variance scale lambda (the paper: 0.001)");
   cmd->add_option("--fission-penalty", f.fission_motion_penalty,
                   "afpf: an offspring's weight pays its fission move as drift (1) or not, as the paper (0)");

@@ -402,7 +402,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   r.notes = "particles " + std::to_string(filter->particles().size()) + " at the end, seed " +
             std::to_string(options.seed) + ", sigma " + FormatNumber(options.measurement_sigma_nT) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
-            ", lost steps " + std::to_string(c.lost_steps);
+            ", lost steps " + std::to_string(c.lost_steps) +
+            ", reinitialisations " + std::to_string(c.reinitialisations);
   return r;
 }
 

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "magnav/core/error.h"
+#include "magnav/mapmatch/fix_schedule.h"
 #include "magnav/mapmatch/match.h"
 #include "magnav/mapmatch/particle_filter.h"
 
@@ -133,6 +134,7 @@ TEST_P(BothFilters, ALostFilterSaysSoAndRecoversWhenReinitialised) {
   MatchPath bad = t.path;
   for (double& m : bad.measured_nT) m += 300.0;
   ParticleFilterOptions o = TestOptions();
+  o.reinitialize_when_lost = false;
   const MatchResult r = MatchParticleFilter(GetParam(), SyntheticMap(), 0, bad, o);
   EXPECT_FALSE(r.converged);
   EXPECT_NE(r.reason.find("lost"), std::string::npos) << r.reason;
@@ -283,6 +285,35 @@ TEST(ParticleFilter, MatchDispatchesPfAndAfpf) {
   const MatchResult viaMatch = Match(Method::kAfpf, SyntheticMap(), 0, t.path, o);
   const MatchResult direct = MatchParticleFilter(ParticleFilterKind::kAfpf, SyntheticMap(), 0, t.path, o.particle_filter);
   EXPECT_EQ(viaMatch.lat_deg, direct.lat_deg);
+}
+
+TEST(FixSchedule, EveryNMetresTravelledOrEveryStep) {
+  // At 45° N: 111132 m per degree of latitude (WGS84), 78847 m per degree of longitude.
+  EXPECT_NEAR(MetresPerDegreeLat(45.0), 111132.0, 1.0);
+  EXPECT_NEAR(MetresPerDegreeLon(45.0), 78847.0, 1.0);
+  FixSchedule every_km(1000.0);
+  std::vector<int> due;
+  for (int k = 0; k < 40; ++k) {  // 101 m north per step
+    if (every_km.Step(45.0 + k * 101.0 / 111132.0, 10.0)) due.push_back(k);
+  }
+  EXPECT_EQ(due, (std::vector<int>{10, 20, 30}));
+  FixSchedule jumpy(1000.0);
+  EXPECT_FALSE(jumpy.Step(45.0, 10.0));
+  EXPECT_FALSE(jumpy.Step(46.0, 10.0));  // a jump adds nothing
+  EXPECT_FALSE(jumpy.Step(std::numeric_limits<double>::quiet_NaN(), 10.0));
+  EXPECT_EQ(jumpy.travelled_m(), 0.0);
+  FixSchedule always(0.0);
+  EXPECT_TRUE(always.Step(45.0, 10.0));
+  EXPECT_TRUE(always.Step(45.0, 10.0));
+  EXPECT_THROW(FixSchedule(-1.0), InputError);
+  StepDiagnostics d;
+  d.lat_deg = 45.0;
+  d.cov_lat_lat = 1e-6;
+  d.cov_lon_lon = 4e-6;
+  const auto c = CovarianceNorthEast_m2(d);
+  EXPECT_NEAR(std::sqrt(c[0]), 111.132, 0.01);
+  EXPECT_NEAR(std::sqrt(c[3]), 2 * 78.847, 0.01);
+  EXPECT_EQ(c[1], 0.0);
 }
 
 }  // namespace

@@ -108,7 +108,10 @@ struct ParticleFilterOptions {
   // Divergence rule (see above).
   int divergence_window = 10;
   double divergence_nis = 9.0;
-  bool reinitialize_when_lost = false;
+  // On by default: on the crustal 0.01°/3 nT path 1 of 20 AFPF seeds locks
+  // onto a wrong basin early; the rule flags it and a fresh prior finds the
+  // track (docs/ACCURACY.md).
+  bool reinitialize_when_lost = true;
   // AFPF: λ (the paper: 0.001) and μ, the parents' sampling variance per axis
   // (the paper: 1.6454e-4 deg²).
   double fission_lambda = 0.001;
