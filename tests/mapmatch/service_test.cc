@@ -6,7 +6,9 @@
 // the same stream with the same seed, at the steps the schedule names.
 #include <signal.h>
 
+#include <atomic>
 #include <cmath>
+#include <functional>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -22,6 +24,7 @@ namespace magnav::mapmatch {
 namespace {
 
 using namespace std::chrono_literals;
+namespace msg = ::magnav::msg;
 
 // |F0| of the crustal map (tests/data/reference/README.md §4b).
 const double kReferenceField_nT =
@@ -97,6 +100,61 @@ TEST(MatcherService, ReplayedRunsFixesEqualTheOfflineFilters) {
     EXPECT_EQ(t.number(r, t.column("score")), d.ess);
     EXPECT_EQ(t.number(r, t.column("cov_nn")), CovarianceNorthEast_m2(d)[0]);
   }
+}
+
+// The door, in process: what the node ignores (other vehicle, other sensor,
+// GNSS), skips and counts (no geodetic position, a reading before the first
+// INS fix or not later than the last step), and what it hands the filter (a
+// NaN reading: predicted through, counted by the filter).
+TEST(MatcherService, TheDoorIgnoresSkipsAndCounts) {
+  const int domain = testing::TestDomainId();
+  dds::NodeOptions no;
+  no.name = "matcher_door_test";
+  no.domain_id = domain;
+  const GeoGrid g = ReadGeoGridCsv(testing::ReferencePath("map_crustal_anomaly.csv"), {"anomaly_nT"});
+  MatcherNodeOptions o;
+  o.kind = ParticleFilterKind::kPf;
+  o.filter.num_particles = 500;
+  o.fix_every_m = 0.0;  // a fix every step
+  o.reference_field_nT = kReferenceField_nT;
+  dds::Node service_node(no), peer(no);
+  MatcherNode matcher(service_node, g, 0, o);
+  std::atomic<int> fixes{0};
+  auto reader = peer.CreateReader<msg::MapFix>([&](const msg::MapFix&, const auto&) { ++fixes; });
+  auto navs = peer.CreateWriter<msg::VesselNav>();
+  auto samples = peer.CreateWriter<msg::MagnetometerSample>();
+  ASSERT_TRUE(navs->WaitForMatched(1, 20s));
+  ASSERT_TRUE(samples->WaitForMatched(1, 20s));
+  ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+  auto until = [](const std::function<bool()>& done) {
+    for (int i = 0; i < 200 && !done(); ++i) std::this_thread::sleep_for(25ms);
+    return done();
+  };
+  const std::uint64_t s = 1000000000ULL;
+  const double lat = 45.0, lon = 10.0, v = g.Sample(0, lat, lon)->value_nT;
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 1 * s, 0, v, kReferenceField_nT)));  // before any INS fix
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 2 * s, lat, lon)));
+  msg::VesselNav gnss = InsNavMsg(0, 3 * s, lat, lon);
+  gnss.source(msg::NAV_GNSS);
+  ASSERT_TRUE(navs->Write(gnss));                                         // ignored
+  ASSERT_TRUE(navs->Write(InsNavMsg(5, 3 * s, lat, lon)));                // another vehicle: ignored
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 3 * s, std::nan(""), lon)));      // skipped
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 4 * s, lat, lon)));
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 4 * s, 1, v, kReferenceField_nT)));
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(7, 5 * s, 0, v, kReferenceField_nT)));  // another sensor: ignored
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 5 * s, 2, std::nan(""), kReferenceField_nT)));  // NaN reading
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 5 * s, lat + 0.0009, lon)));
+  ASSERT_TRUE(until([&] { return matcher.steps() == 2; })) << matcher.steps();
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 4 * s, 3, v, kReferenceField_nT)));  // not later: skipped
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 6 * s, lat + 0.0018, lon)));
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 6 * s, 4, g.Sample(0, lat + 0.0018, lon)->value_nT, kReferenceField_nT)));
+  ASSERT_TRUE(until([&] { return matcher.steps() == 3 && fixes == 3; })) << matcher.steps() << " " << fixes;
+  EXPECT_EQ(matcher.skipped(), 3u);  // before the first fix, no geodetic, not later
+  const FilterCounters c = matcher.filter_counters();
+  EXPECT_EQ(c.steps, 3);
+  EXPECT_EQ(c.bad_measurements, 1);
+  EXPECT_EQ(c.updates, 2);
+  EXPECT_EQ(matcher.published(), 3u);
 }
 
 }  // namespace
