@@ -157,5 +157,32 @@ TEST(MatcherService, TheDoorIgnoresSkipsAndCounts) {
   EXPECT_EQ(matcher.published(), 3u);
 }
 
+TEST(MatcherService, BadArgumentsExit2) {
+  const std::string path = testing::ReferencePath("mappath_crustal_off0p1deg_noise3nT.csv");
+  const std::string map = testing::ReferencePath("map_crustal_anomaly.csv");
+  struct Case {
+    std::vector<std::string> argv;
+    std::string expected;
+  };
+  for (const Case& c : {Case{{MAGNAV_BIN, "replay", "--map-path", path, "--wait", "1"}, "--reference-field"},
+                        Case{{MAGNAV_BIN, "replay", "--map-path", path, "--reference-field", "47693", "--step-period",
+                              "0", "--wait", "1"},
+                             "--step-period"},
+                        Case{{MAGNAV_BIN, "replay", "--map-path", path, "--reference-field", "47693", "--input", path},
+                             "--map-path goes alone"},
+                        Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "anomaly_nT", "--reference-field",
+                              "-5"},
+                             "reference_field_nT"},
+                        Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "anomaly_nT", "--reference-field",
+                              "47693", "--particles", "0"},
+                             "num_particles"},
+                        Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "F_nT", "--reference-field", "47693"},
+                             "F_nT"}}) {
+    const auto [rc, out] = testing::RunCommand(c.argv, {}, 30s);
+    EXPECT_EQ(rc, 2) << out;
+    EXPECT_NE(out.find(c.expected), std::string::npos) << out;
+  }
+}
+
 }  // namespace
 }  // namespace magnav::mapmatch
