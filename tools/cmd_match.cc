@@ -43,7 +43,7 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                       const std::vector<mapmatch::StepDiagnostics>& steps) {
   CsvWriter w(file,
               {"k", "lat", "lon", "cov_lat_lat", "cov_lat_lon", "cov_lon_lon", "ess", "particles", "unique_particles",
-               "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost"},
+               "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost", "bias_nT", "bias_sigma_nT"},
               {{"frame", "estimate lat/lon deg, covariance deg^2 (particle_filter.h StepDiagnostics)"}});
   for (std::size_t p = 0; p < steps.size(); ++p) {
     const mapmatch::StepDiagnostics& d = steps[p];
@@ -51,7 +51,8 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                 FormatNumber(d.cov_lat_lat), FormatNumber(d.cov_lat_lon), FormatNumber(d.cov_lon_lon),
                 FormatNumber(d.ess), std::to_string(d.particles), std::to_string(d.unique_particles),
                 std::to_string(d.occupied_cells), FormatNumber(d.nis), d.resampled ? "1" : "0",
-                d.ins_jump ? "1" : "0", UpdateName(d.update), d.lost ? "1" : "0"});
+                d.ins_jump ? "1" : "0", UpdateName(d.update), d.lost ? "1" : "0", FormatNumber(d.bias_nT),
+                FormatNumber(d.bias_sigma_nT)});
   }
   w.Close();
 }
@@ -174,6 +175,10 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--divergence-nis", f.divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
   cmd->add_option("--reinitialize-when-lost", f.reinitialize_when_lost,
                   "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
+  cmd->add_flag("--estimate-bias", f.estimate_bias, "pf, afpf: a map bias per particle (reading - bias vs the map)");
+  cmd->add_option("--bias-prior-sigma", f.bias_prior_sigma_nT, "pf, afpf with --estimate-bias: prior sigma of the bias, nT");
+  cmd->add_option("--bias-drift-sigma", f.bias_drift_sigma_nT,
+                  "pf, afpf with --estimate-bias: random walk of the bias per step, nT");
   cmd->add_option("--fission-lambda", f.fission_lambda, "afpf: offspring variance scale lambda (the paper: 0.001)");
   cmd->add_option("--fission-penalty", f.fission_motion_penalty,
                   "afpf: an offspring's weight pays its fission move as drift (1) or not, as the paper (0)");

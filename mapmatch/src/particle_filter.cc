@@ -39,6 +39,12 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(fission_mu_deg2)) return Fail(error, "fission_mu_deg2 must be finite and > 0");
   if (max_particles < num_particles) return Fail(error, "max_particles must be >= num_particles");
   if (!PositiveFinite(particles_per_cell)) return Fail(error, "particles_per_cell must be finite and > 0");
+  if (!(std::isfinite(bias_prior_sigma_nT) && bias_prior_sigma_nT >= 0.0)) {
+    return Fail(error, "bias_prior_sigma_nT must be finite and >= 0");
+  }
+  if (!(std::isfinite(bias_drift_sigma_nT) && bias_drift_sigma_nT >= 0.0)) {
+    return Fail(error, "bias_drift_sigma_nT must be finite and >= 0");
+  }
   return true;
 }
 
@@ -120,6 +126,10 @@ class Filter final : public SequentialMatcher {
       q.lon_deg = ulon(rng_);
       q.weight = 1.0 / n;
     }
+    if (o_.estimate_bias) {
+      std::normal_distribution<double> b(0.0, o_.bias_prior_sigma_nT);
+      for (Particle& q : p_) q.bias_nT = b(rng_);
+    }
   }
 
   // Moves every particle by the INS increment plus drift noise; true if the
@@ -142,6 +152,10 @@ class Filter final : public SequentialMatcher {
     for (Particle& q : p_) {
       q.lat_deg += dlat + n(rng_);
       q.lon_deg += dlon + n(rng_);
+    }
+    if (o_.estimate_bias) {
+      std::normal_distribution<double> b(0.0, o_.bias_drift_sigma_nT);
+      for (Particle& q : p_) q.bias_nT += b(rng_);
     }
     return jump;
   }
@@ -176,7 +190,7 @@ class Filter final : public SequentialMatcher {
     double evidence = 0.0;  // Σ w_(k−1) p(z|x)
     for (std::size_t i = 0; i < n; ++i) {
       bool on = false;
-      loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, z, &on);
+      loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, z - p_[i].bias_nT, &on);
       any_on = any_on || on;
       evidence += p_[i].weight * std::exp(loglik_[i]);
     }
@@ -253,6 +267,7 @@ class Filter final : public SequentialMatcher {
     const double penalty = o_.fission_motion_penalty && o_.drift_sigma_deg > 0.0
                                ? 0.5 / (o_.drift_sigma_deg * o_.drift_sigma_deg)
                                : 0.0;
+    std::normal_distribution<double> bias_spread(0.0, o_.bias_drift_sigma_nT);
     for (std::size_t i = 0; i < n; ++i) {
       const double wi = p_[i].weight;
       const double a = spread > 1e-15 * w_avg ? 1.0 / (1.0 + std::exp((wi - w_avg) / spread)) : 0.5;
@@ -262,10 +277,11 @@ class Filter final : public SequentialMatcher {
         Particle c;
         c.lat_deg = p_[i].lat_deg + sd * unit(rng_);
         c.lon_deg = p_[i].lon_deg + sd * unit(rng_);
+        c.bias_nT = p_[i].bias_nT + (o_.estimate_bias ? bias_spread(rng_) : 0.0);
         bool on = false;
         // The parent's prior weight times the offspring's likelihood, with the
         // parents' normaliser: logw_i − loglik_i + loglik(offspring).
-        double lw = logw_[i] - loglik_[i] + LogLik(c.lat_deg, c.lon_deg, z, &on);
+        double lw = logw_[i] - loglik_[i] + LogLik(c.lat_deg, c.lon_deg, z - c.bias_nT, &on);
         if (penalty > 0.0) {
           const double dl = c.lat_deg - p_[i].lat_deg, dn = c.lon_deg - p_[i].lon_deg;
           lw -= penalty * (dl * dl + dn * dn);
@@ -298,11 +314,16 @@ class Filter final : public SequentialMatcher {
   }
 
   void Estimate(StepDiagnostics* d) {
-    double lat = 0.0, lon = 0.0;
+    double lat = 0.0, lon = 0.0, bias = 0.0;
     for (const Particle& q : p_) {
       lat += q.weight * q.lat_deg;
       lon += q.weight * q.lon_deg;
+      bias += q.weight * q.bias_nT;
     }
+    double bias_var = 0.0;
+    for (const Particle& q : p_) bias_var += q.weight * (q.bias_nT - bias) * (q.bias_nT - bias);
+    d->bias_nT = bias;
+    d->bias_sigma_nT = std::sqrt(bias_var);
     double cll = 0.0, cln = 0.0, cnn = 0.0;
     for (const Particle& q : p_) {
       const double a = q.lat_deg - lat, b = q.lon_deg - lon;

@@ -214,6 +214,26 @@ TEST_P(BothFilters, AllOffTheMapDeadReckonsAndReturns) {
   EXPECT_LT(std::hypot(f->last().lat_deg - t.true_lat.back(), f->last().lon_deg - t.true_lon.back()), 0.003);
 }
 
+TEST_P(BothFilters, AMapBiasIsEstimatedWhenAsked) {
+  // Every reading 25 nT above the map: with the bias state the filter finds
+  // both the track and the bias.
+  Truth t = SyntheticRun(0.012, -0.008);
+  for (double& m : t.path.measured_nT) m += 25.0;
+  ParticleFilterOptions o = TestOptions();
+  o.estimate_bias = true;
+  o.num_particles = 4000;
+  std::vector<StepDiagnostics> steps;
+  const MatchResult r = MatchParticleFilter(GetParam(), SyntheticMap(), 0, t.path, o, &steps);
+  const double ins = SecondHalfMeanError(t, t.path.lat_deg, t.path.lon_deg);
+  EXPECT_LT(SecondHalfMeanError(t, r.lat_deg, r.lon_deg), 0.15 * ins) << r.BriefReport();
+  EXPECT_NEAR(steps.back().bias_nT, 25.0, 3.0);
+  EXPECT_GT(steps.back().bias_sigma_nT, 0.0);
+  // Without it the bias is 0 and the run is the one without the option's draws.
+  o.estimate_bias = false;
+  MatchParticleFilter(GetParam(), SyntheticMap(), 0, t.path, o, &steps);
+  EXPECT_EQ(steps.back().bias_nT, 0.0);
+}
+
 INSTANTIATE_TEST_SUITE_P(Filters, BothFilters,
                          ::testing::Values(ParticleFilterKind::kPf, ParticleFilterKind::kAfpf),
                          [](const auto& info) { return std::string(ParticleFilterKindName(info.param)); });

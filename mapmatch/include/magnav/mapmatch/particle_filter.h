@@ -119,6 +119,14 @@ struct ParticleFilterOptions {
   // AFPF: an offspring's weight also pays its fission move as drift,
   // exp(−|x̃ − x|²/(2 drift_sigma_deg²)) (not in the paper; see above).
   bool fission_motion_penalty = true;
+  // Map bias (optional third state): every particle carries a bias b (nT),
+  // the likelihood compares z − b with the map; prior N(0, bias_prior_sigma²),
+  // random walk bias_drift_sigma per step; AFPF offspring draw theirs from
+  // N(parent's b, bias_drift_sigma²). Off by default (no extra random draws: runs without it are
+  // unchanged).
+  bool estimate_bias = false;
+  double bias_prior_sigma_nT = 30.0;
+  double bias_drift_sigma_nT = 0.2;
   // AFPF adaptive count: start (and cap), and particles per occupied map cell.
   int max_particles = 30000;
   double particles_per_cell = 30.0;
@@ -129,6 +137,7 @@ struct ParticleFilterOptions {
 // One particle (deg) and its normalised weight.
 struct Particle {
   double lat_deg = 0.0, lon_deg = 0.0;
+  double bias_nT = 0.0;  // map bias (0 unless estimate_bias)
   double weight = 0.0;
 };
 
@@ -139,6 +148,7 @@ enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap };
 struct StepDiagnostics {
   double lat_deg = 0.0, lon_deg = 0.0;                    // weighted mean
   double cov_lat_lat = 0.0, cov_lat_lon = 0.0, cov_lon_lon = 0.0;  // weighted covariance, deg²
+  double bias_nT = 0.0, bias_sigma_nT = 0.0;                       // weighted mean and sd of the map bias
   double ess = 0.0;              // 1/Σw² after the update (before resampling)
   int particles = 0;             // after the step
   int unique_particles = 0;      // distinct particles after the step (resampling copies)
