@@ -47,6 +47,10 @@ int main(int argc, char** argv) {
   app.add_option("--resample-ess", f.resample_ess_fraction, "pf: resample when ESS < this fraction of N");
   app.add_option("--max-step", f.max_step_deg, "a longer INS increment is a jump (not applied), deg");
   app.add_option("--reinitialize-when-lost", f.reinitialize_when_lost, "spread the prior again when lost (1/0)");
+  app.add_flag("--estimate-bias", f.estimate_bias, "a map bias per particle (off by default)");
+  app.add_option("--bias-prior-sigma", f.bias_prior_sigma_nT, "with --estimate-bias: prior sigma of the bias, nT");
+  app.add_option("--bias-drift-sigma", f.bias_drift_sigma_nT, "with --estimate-bias: bias random walk per step, nT");
+  app.add_option("--fission-penalty", f.fission_motion_penalty, "afpf: offspring pay their move as drift (1) or not (0)");
   app.add_option("--fission-lambda", f.fission_lambda, "afpf: lambda");
   app.add_option("--fission-mu", f.fission_mu_deg2, "afpf: mu, deg^2");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
