@@ -10,6 +10,7 @@
 
 #include "commands.h"
 #include "magnav/core/csv.h"
+#include "magnav/cli/particle_filter_options.h"
 #include "magnav/core/error.h"
 #include "magnav/mapmatch/match.h"
 
@@ -154,35 +155,10 @@ void AddMatchCommand(CLI::App& app) {
       ->check(CLI::IsMember({"jacobi", "direct"}));
   cmd->add_option("--rounds", o.fast_msd.rounds, "fast-msd: re-linearisation rounds");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
-  mapmatch::ParticleFilterOptions& f = o.particle_filter;
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "
                   "occupied map cells, NIS, resampled, INS jump, update and lost flags to this CSV");
-  cmd->add_option("--particles", f.num_particles, "pf: particles; afpf: the fewest it adapts down to (the paper: 3000)");
-  cmd->add_option("--max-particles", f.max_particles, "afpf: particles at the start and at most (adaptive count)");
-  cmd->add_option("--particles-per-cell", f.particles_per_cell,
-                  "afpf: adaptive count = this x map cells holding a particle (clamped to --particles..--max-particles)");
-  cmd->add_option("--seed", f.seed, "pf, afpf: random seed (std::mt19937_64)");
-  cmd->add_option("--sigma", f.measurement_sigma_nT,
-                  "pf, afpf: likelihood sigma, nT (sensor + map + particle spacing; the paper's tau = sigma^2)");
-  cmd->add_option("--drift-sigma", f.drift_sigma_deg, "pf, afpf: INS drift noise per step and axis, deg");
-  cmd->add_option("--prior-half-width", f.prior_half_width_deg,
-                  "pf, afpf: uniform prior square around the first INS point (clipped to the map), deg");
-  cmd->add_option("--resample-ess", f.resample_ess_fraction, "pf: resample when ESS < this fraction of N");
-  cmd->add_option("--off-map-sigmas", f.off_map_sigmas, "pf, afpf: an off-map particle's likelihood is that of this many sigma");
-  cmd->add_option("--max-step", f.max_step_deg, "pf, afpf: a longer INS increment is a jump (not applied), deg");
-  cmd->add_option("--divergence-window", f.divergence_window, "pf, afpf: updates in the divergence test");
-  cmd->add_option("--divergence-nis", f.divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
-  cmd->add_option("--reinitialize-when-lost", f.reinitialize_when_lost,
-                  "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
-  cmd->add_flag("--estimate-bias", f.estimate_bias, "pf, afpf: a map bias per particle (reading - bias vs the map)");
-  cmd->add_option("--bias-prior-sigma", f.bias_prior_sigma_nT, "pf, afpf with --estimate-bias: prior sigma of the bias, nT");
-  cmd->add_option("--bias-drift-sigma", f.bias_drift_sigma_nT,
-                  "pf, afpf with --estimate-bias: random walk of the bias per step, nT");
-  cmd->add_option("--fission-lambda", f.fission_lambda, "afpf: offspring variance scale lambda (the paper: 0.001)");
-  cmd->add_option("--fission-penalty", f.fission_motion_penalty,
-                  "afpf: an offspring's weight pays its fission move as drift (1) or not, as the paper (0)");
-  cmd->add_option("--fission-mu", f.fission_mu_deg2, "afpf: parents' sampling variance mu, deg^2 (the paper: 1.6454e-4)");
+  cli::AddParticleFilterOptions(*cmd, &o.particle_filter);
   cmd->callback([args] {
     MatchArgs a = *args;
     a.options.mma.field_scale_deg_per_nT = a.options.icp.field_scale_deg_per_nT;

@@ -12,6 +12,7 @@
 
 #include "magnav/cli/dds_options.h"
 #include "magnav/cli/options.h"
+#include "magnav/cli/particle_filter_options.h"
 #include "magnav/core/error.h"
 #include "magnav/dds/service.h"
 #include "magnav/dds/shutdown.h"
@@ -37,22 +38,7 @@ int main(int argc, char** argv) {
   app.add_option("--fix-every", opt.fix_every_m, "publish a MapFix every N metres travelled (0 = every step)");
   app.add_option("--vehicle-id", opt.vehicle_id, "VesselNav vessel_id followed (and MapFix vehicle_id)");
   app.add_option("--sensor-id", opt.sensor_id, "MagnetometerSample sensor_id used");
-  app.add_option("--particles", f.num_particles, "pf: particles; afpf: the fewest it adapts down to");
-  app.add_option("--max-particles", f.max_particles, "afpf: particles at the start and at most");
-  app.add_option("--particles-per-cell", f.particles_per_cell, "afpf: adaptive count per occupied map cell");
-  app.add_option("--seed", f.seed, "random seed");
-  app.add_option("--sigma", f.measurement_sigma_nT, "likelihood sigma, nT");
-  app.add_option("--drift-sigma", f.drift_sigma_deg, "INS drift noise per step and axis, deg");
-  app.add_option("--prior-half-width", f.prior_half_width_deg, "uniform prior square around the first INS point, deg");
-  app.add_option("--resample-ess", f.resample_ess_fraction, "pf: resample when ESS < this fraction of N");
-  app.add_option("--max-step", f.max_step_deg, "a longer INS increment is a jump (not applied), deg");
-  app.add_option("--reinitialize-when-lost", f.reinitialize_when_lost, "spread the prior again when lost (1/0)");
-  app.add_flag("--estimate-bias", f.estimate_bias, "a map bias per particle (off by default)");
-  app.add_option("--bias-prior-sigma", f.bias_prior_sigma_nT, "with --estimate-bias: prior sigma of the bias, nT");
-  app.add_option("--bias-drift-sigma", f.bias_drift_sigma_nT, "with --estimate-bias: bias random walk per step, nT");
-  app.add_option("--fission-penalty", f.fission_motion_penalty, "afpf: offspring pay their move as drift (1) or not (0)");
-  app.add_option("--fission-lambda", f.fission_lambda, "afpf: lambda");
-  app.add_option("--fission-mu", f.fission_mu_deg2, "afpf: mu, deg^2");
+  magnav::cli::AddParticleFilterOptions(app, &f);
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::cli::AddDdsOptions(app, &dds_args);
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
