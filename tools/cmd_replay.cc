@@ -3,7 +3,11 @@
 // per row) with, optionally, a GNSS file onto magnav/vessel_nav (one VesselNav
 // per row), paced by their time columns (or as fast as the reliable streams
 // allow). The two localize streams go out merged in time order, a fix before
-// the samples of the same time.
+// the samples of the same time. Or a map-matching run (`--map-path`, the
+// k,ins_lat,ins_lon,meas_nT files of `magnav match`): per point a VesselNav
+// (NAV_INS, geodetic = the INS lat/lon) and a MagnetometerSample whose |B| is
+// the map's reference field plus the measured anomaly, with the same stamp
+// (docs/PROTOCOL.md), one point every --step-period seconds.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -19,12 +23,17 @@
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
+#include "magnav/mapmatch/path.h"
+#include "matcher_node.h"
 
 namespace magnav::tools {
 namespace {
 
 struct ReplayArgs {
-  std::string input, magnetometer, gnss;
+  std::string input, magnetometer, gnss, map_path, meas_column = "meas_nT";
+  double reference_field_nT = std::nan("");
+  double step_period_s = 1.0;
+  std::uint32_t vehicle_id = 0;
   double speed = 1.0;           // time factor; 0 = as fast as possible
   int wait_readers = 1;
   double wait_s = 10.0;
@@ -83,8 +92,7 @@ std::vector<LocalizeEvent> ReadLocalizeEvents(const std::string& measurements, c
   return out;
 }
 
-void RunLocalizeStreams(const ReplayArgs& a) {
-  const std::vector<LocalizeEvent> events = ReadLocalizeEvents(a.magnetometer, a.gnss);
+void RunLocalizeStreams(const ReplayArgs& a, const std::vector<LocalizeEvent>& events, bool with_nav) {
   dds::InstallShutdownHandlers();
   dds::Node node(a.dds.ToNodeOptions("magnav_replay"));
   auto samples = node.CreateWriter<dds::msg::MagnetometerSample>();
@@ -93,7 +101,7 @@ void RunLocalizeStreams(const ReplayArgs& a) {
   fixes->SetFlowControl(500, std::chrono::seconds(10));
   const auto wait = std::chrono::milliseconds(static_cast<long>(a.wait_s * 1000));
   if (a.wait_readers > 0 && (!samples->WaitForMatched(a.wait_readers, wait) ||
-                             (!a.gnss.empty() && !fixes->WaitForMatched(a.wait_readers, wait)))) {
+                             (with_nav && !fixes->WaitForMatched(a.wait_readers, wait)))) {
     throw InputError("replay: no reader of magnav/magnetometer (and magnav/vessel_nav) appeared within " +
                      FormatNumber(a.wait_s) + " s (domain " + std::to_string(node.domain_id()) + ")");
   }
@@ -116,10 +124,34 @@ void RunLocalizeStreams(const ReplayArgs& a) {
               node.domain_id());
 }
 
+// A map-matching run: events in path order, the VesselNav before the sample.
+std::vector<LocalizeEvent> ReadMapRunEvents(const ReplayArgs& a) {
+  if (!(std::isfinite(a.reference_field_nT) && a.reference_field_nT > 0.0)) {
+    throw InputError("replay: --map-path needs --reference-field (the map's reference field, nT)");
+  }
+  if (!(a.step_period_s > 0.0)) throw InputError("replay: --step-period must be > 0");
+  const mapmatch::MatchPath p = mapmatch::ReadMatchPath(a.map_path, a.meas_column);
+  std::vector<LocalizeEvent> out;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double t = static_cast<double>(i) * a.step_period_s;
+    const std::uint64_t stamp = SecondsToNanos(t);
+    LocalizeEvent fix{t, true, {}, mapmatch::InsNavMsg(a.vehicle_id, stamp, p.lat_deg[i], p.lon_deg[i])};
+    LocalizeEvent sample{t, false, mapmatch::AnomalySampleMsg(a.vehicle_id, stamp, i, p.measured_nT[i], a.reference_field_nT), {}};
+    out.push_back(fix);
+    out.push_back(sample);
+  }
+  return out;
+}
+
 void Run(const ReplayArgs& a) {
+  if (!a.map_path.empty()) {
+    if (!a.input.empty() || !a.magnetometer.empty()) throw InputError("replay: --map-path goes alone");
+    RunLocalizeStreams(a, ReadMapRunEvents(a), true);
+    return;
+  }
   if (!a.magnetometer.empty()) {
     if (!a.input.empty()) throw InputError("replay: give --input or --magnetometer, not both");
-    RunLocalizeStreams(a);
+    RunLocalizeStreams(a, ReadLocalizeEvents(a.magnetometer, a.gnss), !a.gnss.empty());
     return;
   }
   if (!a.gnss.empty()) throw InputError("replay: --gnss goes with --magnetometer");
@@ -160,11 +192,21 @@ void Run(const ReplayArgs& a) {
 void AddReplayCommand(CLI::App& app) {
   auto args = std::make_shared<ReplayArgs>();
   CLI::App* sub = app.add_subcommand(
-      "replay", "Publish a gradiometer CSV on magnav/gradiometer, or localize files on magnav/magnetometer + magnav/vessel_nav");
+      "replay",
+      "Publish a gradiometer CSV on magnav/gradiometer, localize files or a map-matching run on magnav/magnetometer + "
+      "magnav/vessel_nav");
   sub->add_option("--input", args->input, "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22)");
   sub->add_option("--magnetometer", args->magnetometer,
                   "localize measurements CSV (t,sensor_id,B_x,B_y,B_z) -> magnav/magnetometer");
   sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma) -> magnav/vessel_nav");
+  sub->add_option("--map-path", args->map_path,
+                  "map-matching run (k,ins_lat,ins_lon and --meas-column, as `magnav match` reads) -> magnav/vessel_nav "
+                  "(INS, geodetic) + magnav/magnetometer (|B| = --reference-field + anomaly)");
+  sub->add_option("--meas-column", args->meas_column, "with --map-path: the measured anomaly column, nT");
+  sub->add_option("--reference-field", args->reference_field_nT,
+                  "with --map-path: the map's reference field |F0|, nT (required with it)");
+  sub->add_option("--step-period", args->step_period_s, "with --map-path: seconds between path points");
+  sub->add_option("--vehicle-id", args->vehicle_id, "with --map-path: vessel_id and sensor_id of the messages");
   sub->add_option("--speed", args->speed, "time factor (1 = real time, 10 = ten times faster, 0 = no pacing)")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--wait-readers", args->wait_readers, "wait for this many readers before sending");
