@@ -24,7 +24,6 @@
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
 #include "magnav/mapmatch/path.h"
-#include "matcher_node.h"
 
 namespace magnav::tools {
 namespace {
@@ -135,8 +134,8 @@ std::vector<LocalizeEvent> ReadMapRunEvents(const ReplayArgs& a) {
   for (std::size_t i = 0; i < p.size(); ++i) {
     const double t = static_cast<double>(i) * a.step_period_s;
     const std::uint64_t stamp = SecondsToNanos(t);
-    LocalizeEvent fix{t, true, {}, mapmatch::InsNavMsg(a.vehicle_id, stamp, p.lat_deg[i], p.lon_deg[i])};
-    LocalizeEvent sample{t, false, mapmatch::AnomalySampleMsg(a.vehicle_id, stamp, i, p.measured_nT[i], a.reference_field_nT), {}};
+    LocalizeEvent fix{t, true, {}, dds::InsNavMsg(a.vehicle_id, stamp, p.lat_deg[i], p.lon_deg[i])};
+    LocalizeEvent sample{t, false, dds::AnomalySampleMsg(a.vehicle_id, stamp, i, p.measured_nT[i], a.reference_field_nT), {}};
     out.push_back(fix);
     out.push_back(sample);
   }

@@ -25,6 +25,7 @@
 #include <set>
 #include <string>
 
+#include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
 #include "magnav/mapmatch/fix_schedule.h"
 #include "magnav/mapmatch/geo_grid.h"
@@ -45,15 +46,13 @@ struct MatcherNodeOptions {
   bool IsValid(std::string* error) const;
 };
 
-// The conventions of docs/PROTOCOL.md, shared by the service, `magnav replay`
-// and the tests: the anomaly a sample carries (NaN if B is not finite), the
-// INS fix of a map-matching run, a sample whose |B| is the reference field
-// plus the anomaly (B along +z, down; only |B| is used), and the fix.
-double AnomalyOf(const dds::msg::MagnetometerSample& m, double reference_field_nT);
-dds::msg::VesselNav InsNavMsg(std::uint32_t vehicle_id, std::uint64_t stamp_ns, double lat_deg, double lon_deg);
-dds::msg::MagnetometerSample AnomalySampleMsg(std::uint32_t sensor_id, std::uint64_t stamp_ns, std::uint64_t seq,
-                                              double anomaly_nT, double reference_field_nT);
-// method METHOD_MC, method_name "pf"/"afpf", score = ESS, covariance (north, east) m².
+// The map-matching messages (anomaly, INS fix, anomaly sample) are in
+// dds/convert.h, shared with `magnav replay`.
+using dds::AnomalyOf;
+using dds::AnomalySampleMsg;
+using dds::InsNavMsg;
+
+// The fix: method METHOD_MC, method_name "pf"/"afpf", score = ESS, covariance (north, east) m².
 dds::msg::MapFix ToMsg(const StepDiagnostics& d, ParticleFilterKind kind, std::uint32_t vehicle_id,
                        std::uint64_t stamp_ns);
 
