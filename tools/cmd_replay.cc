@@ -8,8 +8,11 @@
 // (NAV_INS, geodetic = the INS lat/lon) and a MagnetometerSample whose |B| is
 // the map's reference field plus the measured anomaly, with the same stamp
 // (docs/PROTOCOL.md), one point every --step-period seconds.
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <memory>
 #include <thread>
@@ -34,9 +37,40 @@ struct ReplayArgs {
   double step_period_s = 1.0;
   std::uint32_t vehicle_id = 0;
   double speed = 1.0;           // time factor; 0 = as fast as possible
+  bool loop = false;            // gradiometer file: over and over until stopped
   int wait_readers = 1;
   double wait_s = 10.0;
   DdsArgs dds;
+};
+
+// Progress of a replay: on a terminal one line redrawn four times a second
+// (samples sent of the total, rate, time left); otherwise a plain line every
+// 10 s (none for a replay shorter than that).
+class Progress {
+ public:
+  Progress(std::size_t total, bool loop) : total_(total), loop_(loop), tty_(isatty(fileno(stdout)) != 0) {}
+  void Sent(std::size_t n) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now < next_) return;
+    next_ = now + (tty_ ? std::chrono::milliseconds(250) : std::chrono::milliseconds(10000));
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    if (elapsed < 0.25) return;  // no rate from the first samples (and no line at all before 10 s off a terminal)
+    const double rate = elapsed > 0 ? static_cast<double>(n) / elapsed : 0.0;
+    std::string line = "replay: " + std::to_string(n) + (loop_ ? "" : " of " + std::to_string(total_)) +
+                       " samples, " + FormatNumber(std::round(rate)) + "/s";
+    if (!loop_ && rate > 0 && n <= total_) line += ", " + FormatNumber(std::round((total_ - n) / rate)) + " s left";
+    std::printf(tty_ ? "\r%-70s" : "%s\n", line.c_str());
+    std::fflush(stdout);
+    shown_ = true;
+  }
+  void Done() {
+    if (tty_ && shown_) std::printf("\r%-70s\r", "");
+  }
+
+ private:
+  std::size_t total_;
+  bool loop_, tty_, shown_ = false;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), next_ = start_;
 };
 
 // One timed message of the localize streams.
@@ -143,6 +177,7 @@ std::vector<LocalizeEvent> ReadMapRunEvents(const ReplayArgs& a) {
 }
 
 void Run(const ReplayArgs& a) {
+  if (a.loop && a.input.empty()) throw InputError("replay: --loop goes with --input (a gradiometer file)");
   if (!a.map_path.empty()) {
     if (!a.input.empty() || !a.magnetometer.empty()) throw InputError("replay: --map-path goes alone");
     RunLocalizeStreams(a, ReadMapRunEvents(a), true);
@@ -170,18 +205,32 @@ void Run(const ReplayArgs& a) {
   std::unordered_map<std::uint32_t, std::uint64_t> seq;
   const auto t0 = std::chrono::steady_clock::now();
   const double file_t0 = file.samples.empty() ? 0.0 : file.samples.front().t_s;
-  std::size_t sent = 0;
-  for (const GradiometerSample& s : file.samples) {
-    if (dds::ShutdownRequested()) break;
-    if (a.speed > 0) {
-      const auto due = t0 + std::chrono::duration<double>((s.t_s - file_t0) / a.speed);
-      std::this_thread::sleep_until(due);
-    }
-    if (!writer->Write(dds::ToMsg(s, seq[s.sensor_id]++))) {
-      throw InputError("replay: a reader did not acknowledge samples within 10 s (too slow or gone)");
-    }
-    ++sent;
+  // With --loop each pass is shifted by the file's span plus one sample
+  // interval, so time keeps going forward for the consumers.
+  double span_s = 0.0;
+  if (file.samples.size() > 1) {
+    const double last = file.samples.back().t_s;
+    double step = 0.0;
+    for (std::size_t i = 1; i < file.samples.size() && step == 0.0; ++i) step = file.samples[i].t_s - file_t0;
+    span_s = last - file_t0 + step;
   }
+  Progress progress(file.samples.size(), a.loop);
+  std::size_t sent = 0;
+  for (int pass = 0; pass == 0 || (a.loop && !dds::ShutdownRequested()); ++pass) {
+    for (GradiometerSample s : file.samples) {
+      if (dds::ShutdownRequested()) break;
+      s.t_s += pass * span_s;
+      if (a.speed > 0) {
+        const auto due = t0 + std::chrono::duration<double>((s.t_s - file_t0) / a.speed);
+        std::this_thread::sleep_until(due);
+      }
+      if (!writer->Write(dds::ToMsg(s, seq[s.sensor_id]++))) {
+        throw InputError("replay: a reader did not acknowledge samples within 10 s (too slow or gone)");
+      }
+      progress.Sent(++sent);
+    }
+  }
+  progress.Done();
   writer->WaitForAcknowledgments(std::chrono::seconds(10));
   std::printf("replayed %zu samples from %s on domain %d\n", sent, a.input.c_str(), node.domain_id());
 }
@@ -208,6 +257,9 @@ void AddReplayCommand(CLI::App& app) {
   sub->add_option("--vehicle-id", args->vehicle_id, "with --map-path: vessel_id and sensor_id of the messages");
   sub->add_option("--speed", args->speed, "time factor (1 = real time, 10 = ten times faster, 0 = no pacing)")
       ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--loop", args->loop,
+               "with --input: replay the file over and over until stopped (SIGINT/SIGTERM), each pass shifted in time "
+               "by the file's span so that time keeps going forward");
   sub->add_option("--wait-readers", args->wait_readers, "wait for this many readers before sending");
   sub->add_option("--wait", args->wait_s, "how long to wait for readers, s");
   AddDdsOptions(*sub, &args->dds);
