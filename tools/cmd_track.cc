@@ -107,6 +107,7 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
 }
 
 void RunTrack(const TrackArgs& a) {
+  RefuseOutputOverInput(a.output, {a.input, a.fixes});
   const GradiometerFile f = ReadGradiometerFile(a.input);
   Eigen::Vector3d B0;
   if (a.b0.set) {

@@ -77,9 +77,19 @@ std::string FormatNumber(double value);
 // ParseNumberList reads it back).
 std::string FormatVec3(const Eigen::Vector3d& v);
 
+// Throws InputError if `output` is the same file as one of `inputs` (after
+// resolving links and "..", or a hard link to it): every command that writes
+// a file calls it first, so that --output equal to --input is refused.
+void RefuseOutputOverInput(const std::string& output, const std::vector<std::string>& inputs);
+
 // Writes a CSV file: parameter comments, header, rows. Fields are written as
-// given (numbers through FormatNumber). Throws InputError if the file cannot
-// be opened or a row has the wrong number of fields.
+// given (numbers through FormatNumber). Safe for the file it replaces: rows go
+// to a temporary "PATH.tmp-PID-N" in the same directory, renamed to PATH by
+// Close(); a writer destroyed without Close() (an error part-way) removes it,
+// and so does SIGINT/SIGTERM in a program without its own handler for them.
+// So an output file is either complete or absent, and an existing one is
+// untouched until the new one is complete. Throws InputError if the file
+// cannot be created or a row has the wrong number of fields.
 class CsvWriter {
  public:
   CsvWriter(const std::string& path, std::vector<std::string> header,
@@ -90,7 +100,8 @@ class CsvWriter {
 
   void AddComment(const std::string& text);
   void WriteRow(const std::vector<std::string>& fields);
-  // Flushes and closes; throws if the write failed (disk full, ...).
+  // Flushes, closes and renames the temporary to the path; throws if the
+  // write failed (disk full, ...).
   void Close();
 
  private:
