@@ -10,10 +10,10 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
-#include <sstream>
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "magnav/core/error.h"
@@ -90,12 +90,36 @@ std::string FormatNumber(double value) {
 }
 
 CsvTable CsvTable::Read(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw InputError(path + ": is a directory, not a file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open file for reading");
-  std::ostringstream ss;
-  ss << in.rdbuf();
+  // Read in chunks, never holding a line longer than kMaxLineBytes: a device
+  // or a binary file without newlines (/dev/zero) fails after 1 MiB instead of
+  // growing memory until the machine gives out.
+  std::string text;
+  std::vector<char> chunk(1 << 16);
+  std::size_t line_start = 0;  // offset of the current (unfinished) line
+  std::size_t lines = 1;
+  while (in) {
+    in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    const std::size_t n = static_cast<std::size_t>(in.gcount());
+    if (n == 0) break;
+    const std::size_t old_size = text.size();
+    text.append(chunk.data(), n);
+    for (std::size_t i = old_size; i < text.size(); ++i) {
+      if (text[i] == '\n') {
+        line_start = i + 1;
+        ++lines;
+      }
+    }
+    if (text.size() - line_start > kMaxLineBytes) {
+      throw InputError(path + ":" + std::to_string(lines) + ": line longer than " +
+                       std::to_string(kMaxLineBytes >> 20) + " MiB (no newline): not a CSV file");
+    }
+  }
   if (in.bad()) throw InputError(path + ": read error");
-  return Parse(ss.str(), path);
+  return Parse(text, path);
 }
 
 CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
@@ -105,6 +129,10 @@ CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
   std::size_t pos = 0;
   bool have_header = false;
   bool ends_with_newline = text.empty() || text.back() == '\n';
+  // A UTF-8 byte-order mark (as some editors and spreadsheets write) is not
+  // part of the first column's name.
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+  int header_line = 0;
   while (pos < text.size()) {
     std::size_t nl = text.find('\n', pos);
     const bool last = nl == std::string_view::npos;
@@ -141,6 +169,7 @@ CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
       }
       t.header_ = std::move(fields);
       have_header = true;
+      header_line = line_no;
       continue;
     }
     if (fields.size() != t.header_.size()) {
@@ -158,6 +187,9 @@ CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
   if (!have_header) {
     throw InputError(source + ": empty file: no header row" +
                      std::string(line_no > 0 ? " (only comments or blank lines)" : ""));
+  }
+  if (t.rows_.empty()) {
+    throw InputError(source + ":" + std::to_string(header_line) + ": no data rows (the file ends after its header)");
   }
   return t;
 }

@@ -228,5 +228,21 @@ TEST(CsvWriter, RefusesOutputOverInput) {
   EXPECT_EQ(ErrorOf([&] { RefuseOutputOverInput("", {in}); }), "");
 }
 
+// Reading is bounded: a file without newlines fails after 1 MiB, naming the
+// limit; a BOM and CRLF line ends are read as a plain file.
+TEST(CsvErrors, LongLineBomAndCrlf) {
+  const std::string msg = ErrorOf([] { CsvTable::Read("/dev/zero"); });
+  EXPECT_NE(msg.find("/dev/zero:1: line longer than 1 MiB (no newline)"), std::string::npos) << msg;
+  const std::string p = WriteTemp("long.csv", "a\n" + std::string(CsvTable::kMaxLineBytes + 10, '1'));
+  EXPECT_NE(ErrorOf([&] { CsvTable::Read(p); }).find(p + ":2: line longer than"), std::string::npos);
+  const std::string q = WriteTemp("bom.csv", "\xEF\xBB\xBF# k: 1\r\nt,b\r\n1,2\r\n");
+  const CsvTable t = CsvTable::Read(q);
+  EXPECT_EQ(t.header(), (std::vector<std::string>{"t", "b"}));
+  EXPECT_EQ(t.number(0, t.column("b")), 2.0);
+  EXPECT_EQ(*t.param_number("k"), 1.0);
+  EXPECT_NE(ErrorOf([&] { CsvTable::Read(WriteTemp("h.csv", "# c\nt,b\n\n")); }).find(":2: no data rows"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace magnav

@@ -22,8 +22,14 @@ namespace magnav {
 
 class CsvTable {
  public:
-  // Reads a file; throws InputError (missing file, empty file, no header,
-  // duplicate column names, a row with the wrong number of fields).
+  // Longest line Read accepts (1 MiB): a file without newlines (a device such
+  // as /dev/zero, a binary file) is refused after that much, not read whole.
+  static constexpr std::size_t kMaxLineBytes = std::size_t{1} << 20;
+
+  // Reads a file; throws InputError (missing file, a directory, empty file, no
+  // header, no data row after the header, duplicate column names, a row with
+  // the wrong number of fields, a line longer than kMaxLineBytes). A UTF-8
+  // byte-order mark is skipped and CRLF line ends are read as LF.
   static CsvTable Read(const std::string& path);
   // Parses text already in memory; `source` names it in errors.
   static CsvTable Parse(std::string_view text, const std::string& source);

@@ -66,8 +66,17 @@ std::string TensorColumnName(const std::string& prefix, int i, int j);
 // sensor_x,sensor_y,sensor_z, B_x,B_y,B_z, T00..T22.
 std::vector<std::string> GradiometerDataColumns();
 
-// Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22 and, if
-// present, t, sensor_id and case_id. Sample sigmas come from per-row
+// Largest magnitudes a gradiometer file may hold, in its units: beyond them a
+// value is not a reading (1e308, or nT/µT/km written where T/m are meant).
+// B up to 1 T (a dipole 1 m away gives 1e-2 T: the reference cases reach
+// 5e-3 T), a gradient up to 10 T/m, positions up to 10 000 km.
+inline constexpr double kMaxAbsPosition_m = 1e7;
+inline constexpr double kMaxAbsB_T = 1.0;
+inline constexpr double kMaxAbsT_Tpm = 10.0;
+
+// Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22, t (or, for
+// rows that are independent cases, case_id) and, if present, sensor_id.
+// Every value must be within the kMaxAbs* limits above. Sample sigmas come from per-row
 // sigma_B, sigma_T columns if present (as magnav record writes them), else
 // the file's sigma parameters (0 = unknown when absent). Throws InputError naming file, line and
 // column on any problem.
