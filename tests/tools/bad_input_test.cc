@@ -1,9 +1,9 @@
 // The bad-input corpus (tests/data/bad/, see its README): every offline
-// command on every malformed file of the kind it reads exits 2 with a message
-// naming the file and, where one applies, the line and the column, and leaves
-// no output file (nor a temporary) behind. Also: an existing output is
-// untouched by a failed run, --output equal to an input is refused, a UTF-8
-// BOM and CRLF line ends are read like plain files.
+// command (and, in DDS builds, replay) on every malformed file of the kind it
+// reads exits 2 with a message naming the file and, where one applies, the
+// line and the column, and leaves no output file (nor a temporary) behind.
+// Also: an existing output is untouched by a failed run, --output equal to an
+// input is refused, a UTF-8 BOM and CRLF line ends are read like plain files.
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -24,7 +24,10 @@ const std::string kMagnav = MAGNAV_BIN;
 std::string Bad(const std::string& name) { return testing::TestDataDir() + "/bad/" + name; }
 
 // How a command is run on one bad file of one kind; `out` is the output path.
-enum class Kind { kInvert, kTrack, kTrackFixes, kEstimate, kTruth, kMeasurements, kDeployment, kGnss };
+enum class Kind {
+  kInvert, kTrack, kTrackFixes, kEstimate, kTruth, kMeasurements, kDeployment, kGnss,
+  kReplay, kReplayMeasurements, kReplayGnss  // DDS builds: the file is read before any DDS entity is made
+};
 
 std::vector<std::string> Command(Kind kind, const std::string& file, const std::string& out) {
   switch (kind) {
@@ -47,6 +50,12 @@ std::vector<std::string> Command(Kind kind, const std::string& file, const std::
     case Kind::kGnss:
       return {kMagnav, "localize", "--method", "ekf", "--measurements", Bad("measurements_ok.csv"), "--deployment",
               Bad("deployment_ok.csv"), "--gnss", file, "--output", out};
+    case Kind::kReplay:
+      return {kMagnav, "replay", "--input", file, "--wait-readers", "0"};
+    case Kind::kReplayMeasurements:
+      return {kMagnav, "replay", "--magnetometer", file, "--wait-readers", "0"};
+    case Kind::kReplayGnss:
+      return {kMagnav, "replay", "--magnetometer", Bad("measurements_ok.csv"), "--gnss", file, "--wait-readers", "0"};
   }
   return {};
 }
@@ -88,7 +97,19 @@ std::vector<BadInput> Corpus() {
   for (const auto& [file, expected] : kBadPasses) {
     c.push_back({Kind::kInvert, file, expected});
     c.push_back({Kind::kTrack, file, expected});
+#ifdef MAGNAV_WITH_DDS
+    c.push_back({Kind::kReplay, file, expected});
+#endif
   }
+#ifdef MAGNAV_WITH_DDS
+  // Replay passes samples on as they are (the consumers' door judges them):
+  // it refuses what it cannot read.
+  c.push_back({Kind::kReplayMeasurements, "measurements_header_only.csv", ":4: no data rows"});
+  c.push_back({Kind::kReplayMeasurements, "measurements_missing_column.csv", ": missing column 'B_z'"});
+  c.push_back({Kind::kReplayMeasurements, "measurements_duplicate_column.csv", ":4: duplicate column 'B_y' in header"});
+  c.push_back({Kind::kReplayGnss, "gnss_header_only.csv", ":1: no data rows"});
+  c.push_back({Kind::kReplayGnss, "gnss_inf.csv", ":3: column 'x': 'inf' is not a finite number"});
+#endif
   c.push_back({Kind::kTrack, "pass_time_backwards.csv", ":7: column 't': time goes backwards"});
   for (const Kind k : {Kind::kTrackFixes, Kind::kEstimate}) {
     c.push_back({k, "fixes_empty.csv", ": empty file: no header row"});
@@ -141,7 +162,8 @@ TEST(BadInput, EveryCommandOnEveryBadFileGivesACleanError) {
     const std::string file = b.file.front() == '/' ? b.file : Bad(b.file);
     const std::string dir = testing::TempDir();  // a fresh one per case
     const auto argv = Command(b.kind, file, dir + "/out.csv");
-    const auto [rc, out] = testing::RunCommand(argv, {}, std::chrono::seconds(30));
+    const auto [rc, out] = testing::RunCommand(
+        argv, {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}}, std::chrono::seconds(30));
     const bool named = out.find(file + b.expected) != std::string::npos;
     const bool nothing_left = Listing(dir).empty();
     EXPECT_EQ(rc, 2) << b.file << " (" << argv[1] << "): " << out;
