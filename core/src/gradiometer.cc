@@ -19,6 +19,8 @@ const char* SampleDefectName(SampleDefect defect) {
       return "bad_sigma";
     case SampleDefect::kZeroTensor:
       return "zero_tensor";
+    case SampleDefect::kOutOfRange:
+      return "out_of_range";
   }
   return "unknown";
 }
@@ -30,6 +32,10 @@ SampleDefect CheckSample(const GradiometerSample& s) {
   if (!std::isfinite(s.T.norm()) || !std::isfinite(s.B.norm())) return SampleDefect::kNonFinite;
   const auto sigma_ok = [](double v) { return std::isfinite(v) && v >= 0.0; };
   if (!sigma_ok(s.sigma_B) || !sigma_ok(s.sigma_T)) return SampleDefect::kBadSigma;
+  if (s.p_SinW.cwiseAbs().maxCoeff() > kMaxAbsPosition_m || s.B.cwiseAbs().maxCoeff() > kMaxAbsB_T ||
+      s.T.cwiseAbs().maxCoeff() > kMaxAbsT_Tpm) {
+    return SampleDefect::kOutOfRange;
+  }
   if (s.T.isZero(0.0)) return SampleDefect::kZeroTensor;
   return SampleDefect::kNone;
 }
