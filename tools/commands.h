@@ -22,10 +22,14 @@ void AddSimulateCommand(CLI::App& app);
 void AddEvaluateCommand(CLI::App& app);
 // `magnav invert` (cmd_invert.cc).
 void AddInvertCommand(CLI::App& app);
-// `magnav track`: batch or sliding-window tracking of one dipole (vessel).
+// `magnav track`: batch or sliding-window tracking of every dipole (vessel).
 void AddTrackCommand(CLI::App& app);
 // `magnav localize`: sensor positions from a friendly vessel's pass.
 void AddLocalizeCommand(CLI::App& app);
+// `magnav match`: an INS path matched against a geomagnetic map.
+void AddMatchCommand(CLI::App& app);
+// `magnav plot`: SVG/PNG pictures of result files (gnuplot).
+void AddPlotCommand(CLI::App& app);
 
 #ifdef MAGNAV_WITH_DDS
 using cli::AddDdsOptions;

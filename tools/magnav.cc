@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
   magnav::tools::AddEvaluateCommand(app);
   magnav::tools::AddTrackCommand(app);
   magnav::tools::AddLocalizeCommand(app);
+  magnav::tools::AddMatchCommand(app);
+  magnav::tools::AddPlotCommand(app);
   try {
     if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
   } catch (const magnav::InputError& e) {

@@ -2,6 +2,9 @@
 
 #include <charconv>
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <set>
 #include <string_view>
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
@@ -53,21 +56,74 @@ int DomainIdFromEnvironment() {
   return 0;
 }
 
+namespace internal {
+
+std::set<std::string> ProfileNames(const std::string& xml) {
+  std::set<std::string> names;
+  static const std::string kAttr = "profile_name=\"";
+  for (std::size_t at = xml.find(kAttr); at != std::string::npos; at = xml.find(kAttr, at + 1)) {
+    const std::size_t begin = at + kAttr.size(), end = xml.find('"', begin);
+    if (end != std::string::npos) names.insert(xml.substr(begin, end - begin));
+  }
+  return names;
+}
+
+std::string WithoutProfiles(std::string xml, const std::set<std::string>& names) {
+  for (const std::string& name : names) {
+    const std::size_t attr = xml.find("profile_name=\"" + name + "\"");
+    if (attr == std::string::npos) continue;
+    const std::size_t open = xml.rfind('<', attr);
+    const std::size_t tag_end = xml.find_first_of(" \t\r\n>", open + 1);
+    if (open == std::string::npos || tag_end == std::string::npos) continue;
+    const std::string closing = "</" + xml.substr(open + 1, tag_end - open - 1) + ">";
+    const std::size_t close = xml.find(closing, attr);
+    if (close == std::string::npos) continue;
+    xml.erase(open, close + closing.size() - open);
+  }
+  return xml;
+}
+
+}  // namespace internal
+
 void LoadProfiles(const std::string& extra_file) {
-  static std::once_flag once;
-  static bool builtin_ok = false;
-  std::call_once(once, [] {
-    builtin_ok = fdds::DomainParticipantFactory::get_instance()->load_XML_profiles_string(
-                     kEmbeddedProfiles, sizeof(kEmbeddedProfiles) - 1) == ReturnCode_t::RETCODE_OK;
-  });
-  if (!builtin_ok) throw DdsError("the built-in DDS profiles (config/magnav_profiles.xml) failed to load");
-  if (!extra_file.empty()) {
-    static std::mutex mu;
-    std::lock_guard<std::mutex> lk(mu);
-    if (fdds::DomainParticipantFactory::get_instance()->load_XML_profiles_file(extra_file) !=
-        ReturnCode_t::RETCODE_OK) {
-      throw DdsError(extra_file + ": Fast DDS could not load this XML profiles file (missing or invalid)");
+  // The built-in profiles are loaded once per process, after the first extra
+  // file: a profile of the extra file with a built-in name replaces the
+  // built-in one (Fast DDS refuses a name loaded twice, so the built-in copy
+  // is left out). An extra file given to a later node may only add profiles.
+  static std::mutex mu;
+  static bool builtin_loaded = false;
+  static std::set<std::string> loaded_files;
+  std::lock_guard<std::mutex> lk(mu);
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  std::set<std::string> overrides;
+  if (!extra_file.empty() && loaded_files.insert(extra_file).second) {
+    std::ifstream in(extra_file);
+    if (!in) throw DdsError(extra_file + ": cannot open this XML profiles file");
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::set<std::string> builtin = internal::ProfileNames(kEmbeddedProfiles);
+    for (const std::string& name : internal::ProfileNames(text)) {
+      if (!builtin.count(name)) continue;
+      if (builtin_loaded) {
+        throw DdsError(extra_file + ": profile '" + name +
+                       "' is a built-in one, already in use in this process; give the file to the first node "
+                       "(--dds-profiles or $MAGNAV_DDS_PROFILES) to override it");
+      }
+      overrides.insert(name);
     }
+    if (factory->load_XML_profiles_file(extra_file) != ReturnCode_t::RETCODE_OK) {
+      throw DdsError(extra_file + ": Fast DDS could not load this XML profiles file (invalid XML, or a profile name "
+                                  "given twice)");
+    }
+    for (const std::string& name : overrides) {
+      spdlog::info("dds: profile '{}' from {} replaces the built-in one", name, extra_file);
+    }
+  }
+  if (!builtin_loaded) {
+    const std::string builtin = internal::WithoutProfiles(kEmbeddedProfiles, overrides);
+    if (factory->load_XML_profiles_string(builtin.c_str(), builtin.size()) != ReturnCode_t::RETCODE_OK) {
+      throw DdsError("the built-in DDS profiles (config/magnav_profiles.xml) failed to load");
+    }
+    builtin_loaded = true;
   }
 }
 
@@ -135,8 +191,42 @@ fdds::DataReaderQos ReaderQos(fdds::Subscriber* sub, const std::string& profile)
   return q;
 }
 
+const char* QosPolicyName(int policy_id) {
+  using P = fdds::QosPolicyId_t;
+  switch (static_cast<P>(policy_id)) {
+    case P::DURABILITY_QOS_POLICY_ID:
+      return "durability";
+    case P::PRESENTATION_QOS_POLICY_ID:
+      return "presentation";
+    case P::DEADLINE_QOS_POLICY_ID:
+      return "deadline";
+    case P::LATENCYBUDGET_QOS_POLICY_ID:
+      return "latency budget";
+    case P::OWNERSHIP_QOS_POLICY_ID:
+      return "ownership";
+    case P::LIVELINESS_QOS_POLICY_ID:
+      return "liveliness";
+    case P::RELIABILITY_QOS_POLICY_ID:
+      return "reliability";
+    case P::DESTINATIONORDER_QOS_POLICY_ID:
+      return "destination order";
+    case P::DATAREPRESENTATION_QOS_POLICY_ID:
+      return "data representation (magnav writes XCDR1; an XCDR2-only peer matches nothing)";
+    case P::TYPECONSISTENCYENFORCEMENT_QOS_POLICY_ID:
+      return "type consistency enforcement";
+    case P::DISABLEPOSITIVEACKS_QOS_POLICY_ID:
+      return "disable positive acks";
+    default:
+      return "unnamed";
+  }
+}
+
 void LogIncompatible(const std::string& topic, const char* side, int policy_id) {
-  spdlog::warn("dds: {} on '{}' has a peer with incompatible QoS (policy id {})", side, topic, policy_id);
+  // Fast DDS's policy ids; other vendors number them differently (Cyclone
+  // DDS reports data representation as 25), so the name is what counts.
+  spdlog::warn("dds: {} on '{}' has a peer with incompatible QoS: policy {} (Fast DDS policy id {}); "
+               "see docs/PROTOCOL.md for magnav's QoS",
+               side, topic, QosPolicyName(policy_id), policy_id);
 }
 
 void LogLost(const std::string& topic, int total, int change) {

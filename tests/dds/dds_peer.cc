@@ -2,6 +2,8 @@
 // domain given by $MAGNAV_DOMAIN_ID, then optionally stays alive until SIGTERM.
 //   dds_peer stream N      publish N GradiometerSamples to one matched reader, wait for acks, exit
 //   dds_peer estimates N   publish N DipoleFix (transient-local), print "ready", wait for SIGTERM
+//   dds_peer qos 0         print the history depth of a GradiometerSample writer and reader (the
+//                          sensor_stream profiles, as $MAGNAV_DDS_PROFILES may override them)
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -42,6 +44,11 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
       while (!magnav::dds::WaitForShutdown(100ms)) {
       }
+    } else if (mode == "qos") {
+      auto w = node.CreateWriter<magnav::dds::msg::GradiometerSample>();
+      auto r = node.CreateReader<magnav::dds::msg::GradiometerSample>(
+          [](const magnav::dds::msg::GradiometerSample&, const auto&) {});
+      std::printf("writer depth %d reader depth %d\n", w->qos().history().depth, r->qos().history().depth);
     } else {
       return 2;
     }

@@ -200,5 +200,55 @@ TEST(Dds, BadOptionsAndEnvironmentAreReported) {
   EXPECT_EQ(DomainIdFromEnvironment(), 0);
 }
 
+// An extra profiles file (--dds-profiles, $MAGNAV_DDS_PROFILES) may redefine a
+// built-in profile: it replaces the built-in one (was: "XMLPARSER Error:
+// Error adding profile" and the built-in QoS stayed). Checked in a peer
+// process (profiles load once per process): the sensor stream's history depth
+// is the file's 7, not the built-in 1000.
+TEST(Dds, ExtraProfilesFileOverridesABuiltInProfile) {
+  const std::string dir = testing::TempDir();
+  std::ofstream(dir + "/override.xml") << R"(<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <data_writer profile_name="sensor_stream_writer">
+    <topic><historyQos><kind>KEEP_LAST</kind><depth>7</depth></historyQos></topic>
+    <qos><reliability><kind>RELIABLE</kind></reliability><durability><kind>VOLATILE</kind></durability></qos>
+  </data_writer>
+</profiles>
+)";
+  const auto [rc, out] = testing::RunCommand({MAGNAV_DDS_PEER, "qos", "0"},
+                                             {{"MAGNAV_DOMAIN_ID", std::to_string(TestDomain())},
+                                              {"MAGNAV_DDS_PROFILES", dir + "/override.xml"}});
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("writer depth 7 reader depth 1000"), std::string::npos) << out;
+  EXPECT_NE(out.find("profile 'sensor_stream_writer' from " + dir + "/override.xml replaces the built-in one"),
+            std::string::npos)
+      << out;
+  const auto [rc0, out0] =
+      testing::RunCommand({MAGNAV_DDS_PEER, "qos", "0"}, {{"MAGNAV_DOMAIN_ID", std::to_string(TestDomain())}});
+  ASSERT_EQ(rc0, 0) << out0;
+  EXPECT_NE(out0.find("writer depth 1000 reader depth 1000"), std::string::npos) << out0;
+  // A broken file is refused, naming it.
+  std::ofstream(dir + "/broken.xml") << "<profiles><data_writer profile_name=\"x\">";
+  const auto [rc2, out2] = testing::RunCommand({MAGNAV_DDS_PEER, "qos", "0"},
+                                               {{"MAGNAV_DOMAIN_ID", std::to_string(TestDomain())},
+                                                {"MAGNAV_DDS_PROFILES", dir + "/broken.xml"}});
+  EXPECT_NE(rc2, 0);
+  EXPECT_NE(out2.find(dir + "/broken.xml"), std::string::npos) << out2;
+}
+
+TEST(Dds, ProfileFilterAndPolicyNames) {
+  const std::string xml =
+      "<profiles><data_writer profile_name=\"a\"><x/></data_writer>"
+      "<data_reader profile_name=\"b\"><y/></data_reader><participant profile_name=\"c\"></participant></profiles>";
+  EXPECT_EQ(internal::ProfileNames(xml), (std::set<std::string>{"a", "b", "c"}));
+  EXPECT_EQ(internal::WithoutProfiles(xml, {"b"}),
+            "<profiles><data_writer profile_name=\"a\"><x/></data_writer><participant profile_name=\"c\"></participant>"
+            "</profiles>");
+  EXPECT_EQ(internal::WithoutProfiles(xml, {"zz"}), xml);
+  EXPECT_NE(std::string(internal::QosPolicyName(23)).find("data representation"), std::string::npos);
+  EXPECT_STREQ(internal::QosPolicyName(2), "durability");
+  EXPECT_STREQ(internal::QosPolicyName(11), "reliability");
+}
+
 }  // namespace
 }  // namespace magnav::dds

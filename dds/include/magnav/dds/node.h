@@ -21,6 +21,7 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <set>
 #include <string>
 #include <utility>
 
@@ -78,6 +79,12 @@ namespace internal {
 fdds::DataWriterQos WriterQos(fdds::Publisher* pub, const std::string& profile);
 fdds::DataReaderQos ReaderQos(fdds::Subscriber* sub, const std::string& profile);
 void LogIncompatible(const std::string& topic, const char* side, int policy_id);
+// The name of a Fast DDS QoS policy id, for logs ("unnamed" for others).
+const char* QosPolicyName(int policy_id);
+// Profile names an XML profiles text defines, and the text without the
+// elements of the given profiles (how an extra file overrides built-ins).
+std::set<std::string> ProfileNames(const std::string& xml);
+std::string WithoutProfiles(std::string xml, const std::set<std::string>& names);
 void LogLost(const std::string& topic, int total, int change);
 void LogCallbackError(const std::string& topic, const char* what);
 bool WaitUntil(std::mutex& mu, std::condition_variable& cv, const std::function<bool()>& pred,
@@ -134,6 +141,8 @@ class Writer {
   }
   const EndpointStats& stats() const { return stats_; }
   const std::string& topic() const { return topic_; }
+  // The QoS in force (from the profile).
+  fdds::DataWriterQos qos() const { return writer_->get_qos(); }
 
  private:
   friend class Node;
@@ -194,6 +203,8 @@ class Reader {
   }
   const EndpointStats& stats() const { return stats_; }
   const std::string& topic() const { return topic_; }
+  // The QoS in force (from the profile).
+  fdds::DataReaderQos qos() const { return reader_->get_qos(); }
 
  private:
   friend class Node;

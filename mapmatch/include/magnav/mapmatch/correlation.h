@@ -1,0 +1,57 @@
+// Correlation matching (MAGCOM, METHODS.md §5): the INS path is shifted over
+// a grid of translations and scored against the map.
+//
+// Units: positions and the search window in degrees (WGS84), values in nT.
+// The shifts are whole grid steps (lat step, lon step) within ±window, so
+// the result is on the map's resolution; each point's bilinear weights stay
+// the same for every shift, which makes the search a few loads per point.
+//
+// Scores over the points on the map at that shift (others excluded; a shift
+// needs at least min_on_map_fraction of the usable points on the map):
+//   MAD   = mean |M_S − M_M|                            (minimised)
+//   MSD   = mean (M_S − M_M)²                           (minimised)
+//   PROD  = mean M_S·M_M                                (maximised)
+//   NPROD = Σ M_S M_M / (sqrt(Σ M_S²) sqrt(Σ M_M²))     (maximised; the paper's
+//           printed formula drops the squares — not copied)
+// with M_S the measurement and M_M the map value at the shifted point.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "magnav/mapmatch/geo_grid.h"
+#include "magnav/mapmatch/path.h"
+
+namespace magnav::mapmatch {
+
+enum class CorrelationMetric { kMad, kMsd, kProd, kNprod };
+
+// "mad", "msd", "prod", "nprod".
+const char* CorrelationMetricName(CorrelationMetric metric);
+
+struct CorrelationOptions {
+  CorrelationMetric metric = CorrelationMetric::kMsd;
+  // Half-width of the translation search in lat and lon (deg). No default:
+  // it must cover the INS error, which only the caller knows (> 0 required).
+  double search_window_deg = 0.0;
+  // A shift counts only with at least this fraction of the usable points on the map.
+  double min_on_map_fraction = 0.5;
+  // Rotation search (a plus, not in the paper): the INS path is also turned
+  // about the centroid of its usable points by every multiple of
+  // rotation_step_deg within ±rotation_window_deg, each with the full
+  // translation search. 0 = translations only.
+  double rotation_window_deg = 0.0;
+  double rotation_step_deg = 0.5;
+
+  bool IsValid(std::string* error) const;
+};
+
+// The path shifted (and turned) by the best translation (and rotation).
+// iterations = number of shifts (× rotations) scored; score = the metric at the best shift (nT for MAD, nT² for MSD and
+// PROD, 1 for NPROD). Not converged (with the reason) when no shift has
+// enough points on the map (path left as the INS gave it) or the best shift
+// or rotation lies on the window's edge (the window may be too small).
+MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
+                             const CorrelationOptions& options);
+
+}  // namespace magnav::mapmatch

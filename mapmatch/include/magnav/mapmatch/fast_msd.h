@@ -1,0 +1,70 @@
+// Fast MSD matching (METHODS.md §5, after the fast-MSD paper) by Jacobi
+// iteration, with re-linearisation rounds and an optional coarse stage.
+//
+// Units: positions and corrections e_i in degrees (lat, lon, used as a plane),
+// map values m and measurements l in nT, gradients g in nT/deg, λ in nT²/deg².
+//
+// Each round linearises the map around the reference path r_i,
+// m(r_i + e_i) ≈ m_i + g_i·e_i, and minimises
+//   Σ (g_i·e_i + m_i − l_i)² + λ Σ |e_i − ē_i|²   (ē_i = mean of the neighbours' e)
+// point by point: (λ I + g gᵀ) e_i = λ ē_i − g (m_i − l_i), whose exact solution
+//   e_i = ē_i − g (g·ē_i + m_i − l_i) / (λ + |g|²)
+// is the Jacobi update (the paper's printed eq. 15–16 drop the factor g in
+// front of the fraction — not copied). The two end points have one neighbour.
+// Iterate from e = 0 until the mean squared change < epsilon; then r ← r + e
+// and re-linearise, for `rounds` rounds (or, once λ is at its final value,
+// until a round's mean squared correction < epsilon). A point off the map (or with a bad measurement) has
+// no data term: it follows its neighbours (e_i = ē_i) and is counted.
+//
+// Coarse stage (search_window_deg > 0): an MSD correlation search over
+// ±window (correlation.h) first, and the rounds start from its shifted path.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+#include "magnav/mapmatch/geo_grid.h"
+#include "magnav/mapmatch/path.h"
+
+namespace magnav::mapmatch {
+
+// How each round's linear equations are solved: the paper's Jacobi iteration
+// (stops at epsilon_deg2), or directly (the same equations are block
+// tridiagonal in path order: block Thomas elimination, O(N), the exact fixed
+// point of the Jacobi iteration). Direct is the default: the same answer
+// (tested) about 100x faster (a 200-point path in 50 µs instead of 5.7 ms,
+// docs/BENCHMARKS.md); Jacobi is kept as the paper's method.
+enum class FastMsdSolver { kJacobi, kDirect };
+
+struct FastMsdOptions {
+  FastMsdSolver solver = FastMsdSolver::kDirect;
+  // Smoothness weight λ (nT²/deg²): ~1e7 suits the crustal reference map
+  // (RMS gradient ≈ 1.2e4 nT/deg); larger = stiffer path.
+  double lambda_nT2_per_deg2 = 1e7;
+  // Continuation (not in the paper): round k of R uses
+  // λ · factor^((R − 1 − k)/(R − 1)), i.e. a stiffer path (closer to a pure
+  // translation) while the linearisation is still far off, and λ itself in the
+  // last round; 1 = the paper's constant λ. On the crustal reference paths a
+  // constant λ overfits each point along its iso-line (mean error 0.0023° from
+  // the coarse stage at 0.5 nT; 0.0007° with 100, docs/ACCURACY.md).
+  double lambda_first_round_factor = 100.0;
+  // Jacobi stop: mean squared change of e per iteration (deg²).
+  double epsilon_deg2 = 1e-14;
+  int max_iterations_per_round = 20000;
+  // Re-linearisation rounds (the paper repeats the process three times from
+  // 0.1°; five carry the λ continuation down in steps of 10^0.5).
+  int rounds = 5;
+  // A round needs this fraction of the usable points on the map.
+  double min_on_map_fraction = 0.3;
+  // Coarse MSD translation search ±window (deg) before the rounds; 0 = none.
+  double search_window_deg = 0.0;
+
+  bool IsValid(std::string* error) const;
+};
+
+// iterations = Jacobi iterations over all rounds (direct solver: one per round); score = MSD (nT²) at the
+// matched points on the map; converged = every round's Jacobi met epsilon.
+MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
+                         const FastMsdOptions& options = {});
+
+}  // namespace magnav::mapmatch

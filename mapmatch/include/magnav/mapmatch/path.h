@@ -1,0 +1,55 @@
+// The path a matcher corrects and what every matcher returns.
+//
+// Units: latitude/longitude in degrees (WGS84), measured field in nT.
+#pragma once
+
+#include <cstddef>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace magnav::mapmatch {
+
+// An INS / dead-reckoning path with one measured map value per point.
+// A non-finite measurement is allowed here: matchers leave such a point out
+// of the fit (counted in MatchResult::points_bad_measurement) and move it
+// with the path's correction.
+struct MatchPath {
+  std::vector<long long> k;            // point index from the file (0.. if not given)
+  std::vector<double> lat_deg;         // INS latitude
+  std::vector<double> lon_deg;         // INS longitude
+  std::vector<double> measured_nT;     // the measured value of the map's layer
+
+  std::size_t size() const { return lat_deg.size(); }
+  // Throws InputError if the vectors differ in size, the path is empty or a
+  // position is not finite.
+  void Check() const;
+};
+
+// Reads `k,ins_lat,ins_lon` and the measurement column (by name; other
+// columns ignored). Every bad field is an InputError with file, line, column.
+MatchPath ReadMatchPath(const std::string& path, const std::string& meas_column);
+
+struct MatchResult {
+  std::string method;
+  std::vector<double> lat_deg;  // matched position of every path point
+  std::vector<double> lon_deg;
+  int iterations = 0;
+  // The method's own score (named in score_name, with its unit).
+  double score = std::numeric_limits<double>::quiet_NaN();
+  std::string score_name;
+  bool converged = false;
+  std::string reason;  // why not converged, or why the path was left as it was
+  // Points in the fit; left out because off the map (at the final position
+  // or, for correlation, in the best window); left out for a bad measurement.
+  int points_used = 0;
+  int points_off_map = 0;
+  int points_bad_measurement = 0;
+  // Settings the method derived rather than took (e.g. the field scale), for the summary.
+  std::string notes;
+
+  // "method icp, iterations 12, score 0.0123 (rms distance, deg), converged, used 60/60, off map 0, bad 0"
+  std::string BriefReport() const;
+};
+
+}  // namespace magnav::mapmatch

@@ -1,0 +1,204 @@
+#include "magnav/mapmatch/correlation.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "magnav/core/csv.h"
+#include "magnav/core/option_check.h"
+#include "match_common.h"
+
+namespace magnav::mapmatch {
+namespace {
+
+// A usable point: its base cell and bilinear weights, which every whole-step shift keeps.
+struct CellPoint {
+  int i, j;
+  double w00, w01, w10, w11;
+  double measured_nT;
+};
+
+bool Maximised(CorrelationMetric metric) {
+  return metric == CorrelationMetric::kProd || metric == CorrelationMetric::kNprod;
+}
+
+// The best whole-cell shift so far (over every rotation tried).
+struct Best {
+  double score = 0.0;
+  int a = 0, b = 0;  // shift in lat, lon steps
+  std::size_t on = 0;
+  bool found = false;
+};
+
+// Scores every shift (a, b) in [-A, A] x [-B, B] of the points; updates *best
+// with a strictly better score (ties keep the earlier: the smaller rotation,
+// then the smaller shift). Returns whether it did.
+bool SearchShifts(const GeoGrid& grid, std::size_t layer, const std::vector<CellPoint>& pts, int A, int B,
+                  std::size_t needed, CorrelationMetric metric, Best* best) {
+  const GridAxis& la = grid.lat();
+  const GridAxis& lo = grid.lon();
+  const double* val = grid.values(layer).data();
+  const int n_lon = lo.count;
+  const bool maximise = Maximised(metric);
+  bool improved = false;
+  bool seen_here = false;
+  Best here;
+  for (int a = -A; a <= A; ++a) {
+    for (int b = -B; b <= B; ++b) {
+      std::size_t n_on = 0;
+      double s_abs = 0.0, s_sq = 0.0, s_lm = 0.0, s_mm = 0.0, s_ll = 0.0;
+      for (const CellPoint& q : pts) {
+        const int i = q.i + a, j = q.j + b;
+        if (i < 0 || j < 0 || i > la.count - 2 || j > lo.count - 2) continue;
+        const double* c = val + static_cast<std::size_t>(i) * n_lon + j;
+        const double m = q.w00 * c[0] + q.w01 * c[1] + q.w10 * c[n_lon] + q.w11 * c[n_lon + 1];
+        const double d = q.measured_nT - m;
+        ++n_on;
+        s_abs += std::abs(d);
+        s_sq += d * d;
+        s_lm += q.measured_nT * m;
+        s_mm += m * m;
+        s_ll += q.measured_nT * q.measured_nT;
+      }
+      if (n_on < needed || n_on == 0) continue;
+      const double n = static_cast<double>(n_on);
+      double score = 0.0;
+      switch (metric) {
+        case CorrelationMetric::kMad:
+          score = s_abs / n;
+          break;
+        case CorrelationMetric::kMsd:
+          score = s_sq / n;
+          break;
+        case CorrelationMetric::kProd:
+          score = s_lm / n;
+          break;
+        case CorrelationMetric::kNprod:
+          score = s_lm / (std::sqrt(s_ll) * std::sqrt(s_mm));
+          break;
+      }
+      // Within one rotation, ties go to the smaller shift (the scan order would
+      // otherwise favour a corner).
+      const bool better_here = !seen_here || (maximise ? score > here.score : score < here.score) ||
+                               (score == here.score && a * a + b * b < here.a * here.a + here.b * here.b);
+      if (better_here) {
+        here = Best{score, a, b, n_on, true};
+        seen_here = true;
+      }
+    }
+  }
+  if (seen_here && (!best->found || (maximise ? here.score > best->score : here.score < best->score))) {
+    *best = here;
+    improved = true;
+  }
+  return improved;
+}
+
+}  // namespace
+
+const char* CorrelationMetricName(CorrelationMetric metric) {
+  switch (metric) {
+    case CorrelationMetric::kMad:
+      return "mad";
+    case CorrelationMetric::kMsd:
+      return "msd";
+    case CorrelationMetric::kProd:
+      return "prod";
+    case CorrelationMetric::kNprod:
+      return "nprod";
+  }
+  return "?";
+}
+
+bool CorrelationOptions::IsValid(std::string* error) const {
+  if (!PositiveFinite(search_window_deg)) {
+    return Fail(error, "search_window_deg must be finite and > 0 (it must cover the INS error; no default)");
+  }
+  if (!internal::ValidOnMapFraction(min_on_map_fraction, error)) return false;
+  if (!(std::isfinite(rotation_window_deg) && rotation_window_deg >= 0.0 && rotation_window_deg <= 180.0)) {
+    return Fail(error, "rotation_window_deg must be in [0, 180] (0 = no rotation search)");
+  }
+  if (!PositiveFinite(rotation_step_deg)) return Fail(error, "rotation_step_deg must be finite and > 0");
+  return true;
+}
+
+MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
+                             const CorrelationOptions& options) {
+  internal::CheckInputs(grid, layer, path, options, CorrelationMetricName(options.metric));
+  const std::string unit = options.metric == CorrelationMetric::kMad     ? "nT"
+                           : options.metric == CorrelationMetric::kNprod ? "1"
+                                                                         : "nT^2";
+  MatchResult r = internal::StartResult(CorrelationMetricName(options.metric),
+                                        std::string(CorrelationMetricName(options.metric)) + ", " + unit, path);
+  const std::vector<std::size_t> used = internal::FiniteMeasurements(path, &r);
+  if (!internal::EnoughPoints(used, 1, &r)) return r;
+  const GridAxis& la = grid.lat();
+  const GridAxis& lo = grid.lon();
+  const int A = static_cast<int>(std::floor(options.search_window_deg / la.step_deg + 1e-9));
+  const int B = static_cast<int>(std::floor(options.search_window_deg / lo.step_deg + 1e-9));
+  const int n_rot = options.rotation_window_deg > 0.0
+                        ? static_cast<int>(std::floor(options.rotation_window_deg / options.rotation_step_deg + 1e-9))
+                        : 0;
+  // Rotations about the centroid of the usable INS points (deg plane).
+  double c_lat = 0.0, c_lon = 0.0;
+  for (std::size_t p : used) {
+    c_lat += path.lat_deg[p] / static_cast<double>(used.size());
+    c_lon += path.lon_deg[p] / static_cast<double>(used.size());
+  }
+  const auto rotated = [&](std::size_t p, double theta_rad) {
+    const double a = path.lat_deg[p] - c_lat, b = path.lon_deg[p] - c_lon;
+    return std::array<double, 2>{c_lat + std::cos(theta_rad) * a - std::sin(theta_rad) * b,
+                                 c_lon + std::sin(theta_rad) * a + std::cos(theta_rad) * b};
+  };
+  const std::size_t needed =
+      static_cast<std::size_t>(std::ceil(options.min_on_map_fraction * static_cast<double>(used.size()) - 1e-9));
+  Best best;
+  best.score = Maximised(options.metric) ? -std::numeric_limits<double>::infinity()
+                                         : std::numeric_limits<double>::infinity();
+  int best_rot = 0;
+  std::vector<CellPoint> pts(used.size());
+  for (int k = 0; k <= 2 * n_rot; ++k) {
+    const int rot = k % 2 == 0 ? k / 2 : -(k + 1) / 2;  // 0, -1, 1, -2, 2, ...: ties keep the smaller angle
+    const double theta = rot * options.rotation_step_deg * M_PI / 180.0;
+    for (std::size_t c = 0; c < used.size(); ++c) {
+      const auto x = rotated(used[c], theta);
+      const double fi = (x[0] - la.first_deg) / la.step_deg, fj = (x[1] - lo.first_deg) / lo.step_deg;
+      const double bi = std::floor(fi), bj = std::floor(fj);
+      const double u = fi - bi, v = fj - bj;
+      pts[c] = {static_cast<int>(bi), static_cast<int>(bj), (1 - u) * (1 - v), (1 - u) * v, u * (1 - v), u * v,
+                path.measured_nT[used[c]]};
+    }
+    if (SearchShifts(grid, layer, pts, A, B, needed, options.metric, &best)) best_rot = rot;
+  }
+  r.iterations = (2 * A + 1) * (2 * B + 1) * (2 * n_rot + 1);
+  if (!best.found) {
+    r.points_used = 0;
+    r.reason = "no shift within the window has " + FormatNumber(options.min_on_map_fraction) +
+               " of the points on the map: path left as the INS gave it";
+    return r;
+  }
+  r.score = best.score;
+  r.points_used = static_cast<int>(best.on);
+  r.points_off_map = static_cast<int>(used.size() - best.on);
+  const double theta = best_rot * options.rotation_step_deg * M_PI / 180.0;
+  for (std::size_t p = 0; p < path.size(); ++p) {
+    const auto x = rotated(p, theta);
+    r.lat_deg[p] = x[0] + best.a * la.step_deg;
+    r.lon_deg[p] = x[1] + best.b * lo.step_deg;
+  }
+  r.notes = "shift " + FormatNumber(best.a * la.step_deg) + ", " + FormatNumber(best.b * lo.step_deg) +
+            " deg (lat, lon) in a window of +-" + FormatNumber(options.search_window_deg) + " deg";
+  if (n_rot > 0) r.notes += ", rotation " + FormatNumber(best_rot * options.rotation_step_deg) + " deg";
+  if (A == 0 || B == 0) {
+    r.reason = "the window is narrower than one grid step in lat or lon: that axis was not searched";
+  } else if (std::abs(best.a) == A || std::abs(best.b) == B || (n_rot > 0 && std::abs(best_rot) == n_rot)) {
+    r.reason = "best shift or rotation on the edge of the search window (the window may be too small)";
+  } else {
+    r.converged = true;
+  }
+  return r;
+}
+
+}  // namespace magnav::mapmatch

@@ -1,0 +1,228 @@
+#include "magnav/mapmatch/fast_msd.h"
+
+#include <cmath>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "magnav/core/csv.h"
+#include "magnav/core/option_check.h"
+#include "magnav/mapmatch/correlation.h"
+#include "match_common.h"
+
+namespace magnav::mapmatch {
+
+namespace {
+
+// One round's linearisation around the reference path.
+struct Linearisation {
+  explicit Linearisation(std::size_t n) : g_lat(n), g_lon(n), resid(n), data(n) {}
+  std::vector<double> g_lat, g_lon;  // ∇m at r_i, nT/deg
+  std::vector<double> resid;         // m_i − l_i, nT
+  std::vector<char> data;            // point has a data term (on the map, finite measurement)
+};
+
+// The paper's Jacobi iteration from e = 0 until the mean squared change < ε:
+// e_i ← ē_i − g (g·ē_i + m_i − l_i)/(λ + |g|²). Returns (iterations, converged).
+std::pair<int, bool> JacobiRound(const Linearisation& lin, double lambda, const FastMsdOptions& options,
+                                 std::vector<double>* e_lat_out, std::vector<double>* e_lon_out) {
+  std::vector<double>& e_lat = *e_lat_out;
+  std::vector<double>& e_lon = *e_lon_out;
+  const std::size_t n = e_lat.size();
+  std::vector<double> nxt_lat(n), nxt_lon(n);
+  for (int it = 1; it <= options.max_iterations_per_round; ++it) {
+    double change2 = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      double mlat, mlon;  // ē_i; the end points have one neighbour
+      if (n == 1) {
+        mlat = e_lat[i];
+        mlon = e_lon[i];
+      } else if (i == 0) {
+        mlat = e_lat[1];
+        mlon = e_lon[1];
+      } else if (i == n - 1) {
+        mlat = e_lat[n - 2];
+        mlon = e_lon[n - 2];
+      } else {
+        mlat = 0.5 * (e_lat[i - 1] + e_lat[i + 1]);
+        mlon = 0.5 * (e_lon[i - 1] + e_lon[i + 1]);
+      }
+      if (lin.data[i]) {
+        const double gl = lin.g_lat[i], gn = lin.g_lon[i];
+        const double k = (gl * mlat + gn * mlon + lin.resid[i]) / (lambda + gl * gl + gn * gn);
+        mlat -= gl * k;
+        mlon -= gn * k;
+      }
+      const double dl = mlat - e_lat[i], dn = mlon - e_lon[i];
+      change2 += dl * dl + dn * dn;
+      nxt_lat[i] = mlat;
+      nxt_lon[i] = mlon;
+    }
+    e_lat.swap(nxt_lat);
+    e_lon.swap(nxt_lon);
+    if (change2 / static_cast<double>(n) < options.epsilon_deg2) return {it, true};
+  }
+  return {options.max_iterations_per_round, false};
+}
+
+// The fixed point of the same iteration solved directly: the equations
+//   (λ I + g gᵀ) e_i − λ ē_i = −g (m_i − l_i)
+// are block-tridiagonal (2 × 2 blocks) in the path order: block Thomas
+// elimination, O(N).
+void DirectRound(const Linearisation& lin, double lambda, std::vector<double>* e_lat,
+                 std::vector<double>* e_lon) {
+  using M2 = Eigen::Matrix2d;
+  using V2 = Eigen::Vector2d;
+  const std::size_t n = e_lat->size();
+  if (n == 1) {  // no neighbour: ē = e, so g gᵀ e = −g r, the least-norm e
+    const V2 g(lin.g_lat[0], lin.g_lon[0]);
+    const V2 e = lin.data[0] && g.squaredNorm() > 0.0 ? V2(-g * lin.resid[0] / g.squaredNorm()) : V2::Zero();
+    (*e_lat)[0] = e(0);
+    (*e_lon)[0] = e(1);
+    return;
+  }
+  // Row i: A_i e_{i-1} + B_i e_i + C_i e_{i+1} = d_i (A, C multiples of I).
+  std::vector<M2> c_prime(n);
+  std::vector<V2> d_prime(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const V2 g(lin.g_lat[i], lin.g_lon[i]);
+    M2 B = lambda * M2::Identity();
+    V2 d = V2::Zero();
+    if (lin.data[i]) {
+      B += g * g.transpose();
+      d = -g * lin.resid[i];
+    }
+    const double a = i == 0 ? 0.0 : (i == n - 1 ? -lambda : -0.5 * lambda);
+    const double c = i == n - 1 ? 0.0 : (i == 0 ? -lambda : -0.5 * lambda);
+    if (i > 0) {
+      B -= a * c_prime[i - 1];
+      d -= a * d_prime[i - 1];
+    }
+    const Eigen::PartialPivLU<M2> lu(B);
+    c_prime[i] = lu.solve(c * M2::Identity());
+    d_prime[i] = lu.solve(d);
+  }
+  V2 next = d_prime[n - 1];
+  (*e_lat)[n - 1] = next(0);
+  (*e_lon)[n - 1] = next(1);
+  for (std::size_t i = n - 1; i-- > 0;) {
+    next = d_prime[i] - c_prime[i] * next;
+    (*e_lat)[i] = next(0);
+    (*e_lon)[i] = next(1);
+  }
+}
+
+}  // namespace
+
+bool FastMsdOptions::IsValid(std::string* error) const {
+  if (!PositiveFinite(lambda_nT2_per_deg2)) return Fail(error, "lambda_nT2_per_deg2 must be finite and > 0");
+  if (!(std::isfinite(lambda_first_round_factor) && lambda_first_round_factor >= 1.0)) {
+    return Fail(error, "lambda_first_round_factor must be finite and >= 1");
+  }
+  if (!PositiveFinite(epsilon_deg2)) return Fail(error, "epsilon_deg2 must be finite and > 0");
+  if (max_iterations_per_round < 1) return Fail(error, "max_iterations_per_round must be >= 1");
+  if (rounds < 1) return Fail(error, "rounds must be >= 1");
+  if (!internal::ValidOnMapFraction(min_on_map_fraction, error)) return false;
+  if (!(std::isfinite(search_window_deg) && search_window_deg >= 0.0)) {
+    return Fail(error, "search_window_deg must be finite and >= 0 (0 = no coarse stage)");
+  }
+  return true;
+}
+
+MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
+                         const FastMsdOptions& options) {
+  internal::CheckInputs(grid, layer, path, options, "fast-msd");
+  MatchResult r = internal::StartResult("fast-msd", "msd at the matched points, nT^2", path);
+  const std::vector<std::size_t> finite = internal::FiniteMeasurements(path, &r);
+  if (!internal::EnoughPoints(finite, 2, &r)) return r;
+  const std::size_t n = path.size();
+  std::vector<double> ref_lat = path.lat_deg, ref_lon = path.lon_deg;
+  if (options.search_window_deg > 0.0) {
+    CorrelationOptions coarse;
+    coarse.metric = CorrelationMetric::kMsd;
+    coarse.search_window_deg = options.search_window_deg;
+    coarse.min_on_map_fraction = options.min_on_map_fraction;
+    const MatchResult c = MatchCorrelation(grid, layer, path, coarse);
+    if (c.points_used == 0) {
+      r.reason = "coarse stage: " + c.reason;
+      return r;
+    }
+    ref_lat = c.lat_deg;
+    ref_lon = c.lon_deg;
+    r.notes = "coarse stage: " + c.notes + (c.converged ? "" : " (" + c.reason + ")");
+  }
+  std::vector<double> e_lat(n), e_lon(n);
+  Linearisation lin(n);
+  bool all_converged = true;
+  int rounds_done = 0;
+  for (int round = 0; round < options.rounds; ++round) {
+    std::size_t on = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto s = std::isfinite(path.measured_nT[i]) ? grid.Sample(layer, ref_lat[i], ref_lon[i]) : std::nullopt;
+      lin.data[i] = s.has_value();
+      if (s) {
+        lin.g_lat[i] = s->dvalue_dlat_nT_per_deg;
+        lin.g_lon[i] = s->dvalue_dlon_nT_per_deg;
+        lin.resid[i] = s->value_nT - path.measured_nT[i];
+        ++on;
+      }
+    }
+    if (static_cast<double>(on) < options.min_on_map_fraction * static_cast<double>(finite.size()) || on == 0) {
+      all_converged = false;
+      r.reason = "round " + std::to_string(round + 1) + ": only " + std::to_string(on) + " of " +
+                 std::to_string(finite.size()) + " points on the map (needs " +
+                 FormatNumber(options.min_on_map_fraction) + "); stopped there";
+      break;
+    }
+    const double lambda =
+        options.lambda_nT2_per_deg2 *
+        (options.rounds > 1 ? std::pow(options.lambda_first_round_factor,
+                                       static_cast<double>(options.rounds - 1 - round) / (options.rounds - 1))
+                            : 1.0);
+    std::fill(e_lat.begin(), e_lat.end(), 0.0);
+    std::fill(e_lon.begin(), e_lon.end(), 0.0);
+    bool round_converged = true;
+    if (options.solver == FastMsdSolver::kJacobi) {
+      const auto [iterations, converged] = JacobiRound(lin, lambda, options, &e_lat, &e_lon);
+      r.iterations += iterations;
+      round_converged = converged;
+    } else {
+      DirectRound(lin, lambda, &e_lat, &e_lon);
+      ++r.iterations;
+    }
+    ++rounds_done;
+    double step2 = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      ref_lat[i] += e_lat[i];
+      ref_lon[i] += e_lon[i];
+      step2 += e_lat[i] * e_lat[i] + e_lon[i] * e_lon[i];
+    }
+    if (!round_converged) {
+      all_converged = false;
+      r.reason = "round " + std::to_string(round + 1) + ": Jacobi change still >= epsilon after " +
+                 std::to_string(options.max_iterations_per_round) + " iterations";
+    }
+    // Nothing left to re-linearise (only once λ has reached its final value).
+    if (lambda == options.lambda_nT2_per_deg2 && step2 / static_cast<double>(n) < options.epsilon_deg2) break;
+  }
+  r.lat_deg = ref_lat;
+  r.lon_deg = ref_lon;
+  double sum2 = 0.0;
+  int on = 0;
+  for (std::size_t p : finite) {
+    if (const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p])) {
+      sum2 += (s->value_nT - path.measured_nT[p]) * (s->value_nT - path.measured_nT[p]);
+      ++on;
+    }
+  }
+  r.points_used = on;
+  r.score = on > 0 ? sum2 / on : std::numeric_limits<double>::quiet_NaN();
+  internal::CountOffMap(grid, &r);
+  r.converged = all_converged && rounds_done > 0;
+  const std::string rounds_note = std::to_string(rounds_done) + " rounds";
+  r.notes = r.notes.empty() ? rounds_note : r.notes + "; " + rounds_note;
+  return r;
+}
+
+}  // namespace magnav::mapmatch

@@ -1,0 +1,125 @@
+// `magnav match`: correct an INS / dead-reckoning path by matching its
+// measured field against a geomagnetic map (mapmatch/): single points, ICP,
+// ICCP, MMA, MAD/MSD/PROD/NPROD correlation, fast MSD.
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <unistd.h>
+
+#include "commands.h"
+#include "magnav/core/csv.h"
+#include "magnav/core/error.h"
+#include "magnav/mapmatch/match.h"
+
+namespace magnav::tools {
+
+namespace {
+
+struct MatchArgs {
+  std::string map, value_column, path, meas_column, method, output;
+  std::string solver = "direct";
+  bool icp_3d = false;
+  double search_window_deg = 0.0;  // 0 = not given
+  mapmatch::MatchOptions options;
+};
+
+void RunMatch(MatchArgs a) {
+  const auto method = mapmatch::ParseMethod(a.method);
+  if (!method) throw InputError("--method: expected " + mapmatch::MethodNames() + ", got '" + a.method + "'");
+  const bool correlation = *method == mapmatch::Method::kMad || *method == mapmatch::Method::kMsd ||
+                           *method == mapmatch::Method::kProd || *method == mapmatch::Method::kNprod;
+  if (correlation && !(a.search_window_deg > 0.0)) {
+    throw InputError("--search-window: " + a.method + " needs the half-width of its search (deg), e.g. 0.15");
+  }
+  a.options.correlation.search_window_deg = a.search_window_deg;
+  a.options.fast_msd.search_window_deg = a.search_window_deg;  // 0: no coarse stage
+  a.options.icp.planar_motion = !a.icp_3d;
+  a.options.fast_msd.solver = a.solver == "direct" ? mapmatch::FastMsdSolver::kDirect : mapmatch::FastMsdSolver::kJacobi;
+  // NGDC-style whitespace text ("lon lat value") by its extension, else CSV.
+  const mapmatch::GeoGrid grid = mapmatch::ReadGeoGridFile(a.map, {a.value_column});
+  const mapmatch::MatchPath path = mapmatch::ReadMatchPath(a.path, a.meas_column);
+  const mapmatch::MatchResult r = mapmatch::Match(*method, grid, 0, path, a.options);
+  // Written beside the output and renamed: a reader never sees half a file.
+  const std::string tmp = a.output + ".tmp." + std::to_string(::getpid());
+  try {
+    CsvWriter w(tmp, {"k", "lat", "lon"},
+                {{"map", a.map},
+                 {"value_column", a.value_column},
+                 {"path", a.path},
+                 {"meas_column", a.meas_column},
+                 {"frame", "matched position, latitude/longitude in degrees (WGS84)"},
+                 {"summary", r.BriefReport()}});
+    for (std::size_t p = 0; p < path.size(); ++p) {
+      w.WriteRow({std::to_string(path.k[p]), FormatNumber(r.lat_deg[p]), FormatNumber(r.lon_deg[p])});
+    }
+    w.Close();
+  } catch (...) {
+    std::remove(tmp.c_str());
+    throw;
+  }
+  if (std::rename(tmp.c_str(), a.output.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw InputError(a.output + ": cannot write (rename from the temporary file failed)");
+  }
+}
+
+}  // namespace
+
+void AddMatchCommand(CLI::App& app) {
+  auto args = std::make_shared<MatchArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "match", "Correct an INS path by matching its measured field against a geomagnetic map (mapmatch/)");
+  cmd->option_defaults()->always_capture_default();  // --help shows the papers' values
+  cmd->add_option("--map", args->map,
+                  "map CSV: lat,lon (deg) and value columns (nT), a complete regular grid; or NGDC text "
+                  "'lon lat value' (*.xyz, *.txt; its one layer takes the --value-column name); or a raster "
+                  "through GDAL (GeoTIFF, NetCDF, ...: a north-up lat/lon grid; the layer is the NetCDF variable "
+                  "or band description named by --value-column, or the only band)")
+      ->required();
+  cmd->add_option("--value-column", args->value_column, "the map column to match, e.g. F_nT or anomaly_nT")
+      ->required();
+  cmd->add_option("--path", args->path, "path CSV: k,ins_lat,ins_lon (deg) and the measurement column (nT)")
+      ->required();
+  cmd->add_option("--meas-column", args->meas_column, "the path's measurement column, e.g. meas_nT")->required();
+  cmd->add_option("--method", args->method, mapmatch::MethodNames())->required();
+  cmd->add_option("--search-window", args->search_window_deg,
+                  "half-width of the translation search, deg: required by mad|msd|prod|nprod; with fast-msd, "
+                  "the coarse MSD stage (none without it)");
+  cmd->add_option("--output", args->output, "k,lat,lon (deg) of the matched path and a '# summary:' line")
+      ->required();
+  mapmatch::MatchOptions& o = args->options;
+  cmd->add_option("--tolerance", o.point.tolerance_nT, "point: half-width of the value window, nT");
+  cmd->add_option("--field-scale", o.icp.field_scale_deg_per_nT,
+                  "icp, mma: deg per nT in the closest-point distance; 0 = 1/(rms map gradient)");
+  cmd->add_option("--subdivision", o.icp.closest_point_subdivision,
+                  "icp, mma: closest points on a grid this many times finer than the map (bilinear values)");
+  cmd->add_flag("--icp-3d", args->icp_3d,
+               "icp: the thesis' rigid 3-D transform of (lat, lon, scale*field) instead of moving only (lat, lon)");
+  cmd->add_option("--tau", o.icp.convergence_tau, "icp, iccp: convergence threshold on the transform increment");
+  cmd->add_option("--max-iterations", o.icp.max_iterations, "icp, iccp: iteration cap");
+  cmd->add_option("--min-on-map", o.correlation.min_on_map_fraction,
+                  "mad|msd|prod|nprod: fraction of the points a shift needs on the map");
+  cmd->add_option("--rotation-window", o.correlation.rotation_window_deg,
+                  "mad|msd|prod|nprod: also turn the path within +-this (deg) about its centroid; 0 = translations only");
+  cmd->add_option("--rotation-step", o.correlation.rotation_step_deg, "mad|msd|prod|nprod: rotation step, deg");
+  cmd->add_option("--lambda", o.fast_msd.lambda_nT2_per_deg2, "fast-msd: smoothness weight, nT^2/deg^2");
+  cmd->add_option("--lambda-first-factor", o.fast_msd.lambda_first_round_factor,
+                  "fast-msd: the first round's lambda is this times --lambda, decreasing geometrically to it");
+  cmd->add_option("--epsilon", o.fast_msd.epsilon_deg2, "fast-msd: Jacobi stop, mean squared change, deg^2");
+  cmd->add_option("--solver", args->solver,
+                  "fast-msd: direct (default: the fixed point of the paper's iteration by block-tridiagonal "
+                  "elimination) or jacobi (the paper's iteration; same answer, ~100x slower)")
+      ->check(CLI::IsMember({"jacobi", "direct"}));
+  cmd->add_option("--rounds", o.fast_msd.rounds, "fast-msd: re-linearisation rounds");
+  cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
+  cmd->callback([args] {
+    MatchArgs a = *args;
+    a.options.mma.field_scale_deg_per_nT = a.options.icp.field_scale_deg_per_nT;
+    a.options.mma.closest_point_subdivision = a.options.icp.closest_point_subdivision;
+    a.options.iccp.convergence_tau = a.options.icp.convergence_tau;
+    a.options.iccp.max_iterations = a.options.icp.max_iterations;
+    RunMatch(a);
+  });
+}
+
+}  // namespace magnav::tools
