@@ -24,6 +24,7 @@ struct MatchArgs {
 };
 
 void RunMatch(MatchArgs a) {
+  RefuseOutputOverInput(a.output, {a.map, a.path});
   const auto method = mapmatch::ParseMethod(a.method);
   if (!method) throw InputError("--method: expected " + mapmatch::MethodNames() + ", got '" + a.method + "'");
   const bool correlation = *method == mapmatch::Method::kMad || *method == mapmatch::Method::kMsd ||

@@ -220,6 +220,11 @@ TEST(BadInput, OutputEqualToAnInputIsRefused) {
   const auto [rc3, msg3] =
       testing::RunCommand({kMagnav, "simulate", "--output", dir + "/sim.csv", "--truth", dir + "/sim.csv"});
   EXPECT_EQ(rc3, 2) << msg3;
+  const auto [rc4, msg4] = testing::RunCommand({kMagnav, "match", "--map", dir + "/map.csv", "--value-column", "F",
+                                                "--path", pass, "--meas-column", "B", "--method", "point",
+                                                "--output", dir + "/link.csv"});
+  EXPECT_EQ(rc4, 2) << msg4;
+  EXPECT_NE(msg4.find("are the same file"), std::string::npos) << msg4;
   EXPECT_EQ(Text(pass), before);
 }
 
