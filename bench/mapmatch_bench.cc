@@ -1,9 +1,12 @@
 // Map-matching benchmarks: one bilinear map evaluation (the unit the others
 // are compared with in the same run), fast MSD on a 200-point path, ICP on a
 // 1-million-cell map, the coarse MSD search over ±0.15° on the crustal map,
-// and a single-point query. Results: docs/BENCHMARKS.md.
+// a single-point query, and the particle filters (a PF step with 3000
+// particles, an AFPF step at its adaptive count, the AFPF's first step, whole
+// paths). Results: docs/BENCHMARKS.md.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -124,6 +127,62 @@ void BM_PointQuery(benchmark::State& state) {
   state.counters["hits_per_query"] = static_cast<double>(hits) / static_cast<double>(queries);
 }
 BENCHMARK(BM_PointQuery)->Unit(benchmark::kMicrosecond);
+
+// One filter step (predict, weigh, resample or fission, estimate, diversity)
+// in steady state: the filter first runs the reference path's first 75 points
+// (converged), then the timed steps cycle over points 75..149 (the wrap is one
+// INS jump per 75 steps). PF: 3000 particles (Arg); AFPF: at its adaptive
+// count (3000 once converged, the `particles` counter).
+void FilterStep(benchmark::State& state, ParticleFilterKind kind) {
+  ParticleFilterOptions o;
+  o.num_particles = static_cast<int>(state.range(0));
+  o.max_particles = std::max(o.max_particles, o.num_particles);
+  const MatchPath& p = CrustalPath();
+  auto f = MakeParticleFilter(kind, Crustal(), 0, o);
+  std::size_t k = 0;
+  for (; k < 75; ++k) f->Step(p.lat_deg[k], p.lon_deg[k], p.measured_nT[k]);
+  double particles = 0.0, steps = 0.0;
+  for (auto _ : state) {
+    const StepDiagnostics& d = f->Step(p.lat_deg[k], p.lon_deg[k], p.measured_nT[k]);
+    particles += d.particles;
+    steps += 1.0;
+    if (++k == p.size()) k = 75;
+  }
+  state.counters["particles"] = particles / steps;
+}
+void BM_PfStep(benchmark::State& state) { FilterStep(state, ParticleFilterKind::kPf); }
+BENCHMARK(BM_PfStep)->Arg(3000)->Unit(benchmark::kMicrosecond);
+void BM_AfpfStep(benchmark::State& state) { FilterStep(state, ParticleFilterKind::kAfpf); }
+BENCHMARK(BM_AfpfStep)->Arg(3000)->Unit(benchmark::kMicrosecond);
+
+// The AFPF's first step at the default cap (30000 particles over the ±0.15°
+// prior, fission of all of them): the most expensive step of a run.
+void BM_AfpfFirstStep(benchmark::State& state) {
+  const MatchPath& p = CrustalPath();
+  double particles = 0.0;
+  for (auto _ : state) {
+    auto f = MakeParticleFilter(ParticleFilterKind::kAfpf, Crustal(), 0, ParticleFilterOptions{});
+    particles = f->Step(p.lat_deg[0], p.lon_deg[0], p.measured_nT[0]).particles;
+  }
+  state.counters["particles_after"] = particles;
+}
+BENCHMARK(BM_AfpfFirstStep)->Unit(benchmark::kMillisecond);
+
+// A whole 150-point reference path, default settings.
+void BM_PfPath150(benchmark::State& state) {
+  for (auto _ : state) {
+    const MatchResult r = MatchParticleFilter(ParticleFilterKind::kPf, Crustal(), 0, CrustalPath(), {});
+    benchmark::DoNotOptimize(r.lat_deg.data());
+  }
+}
+BENCHMARK(BM_PfPath150)->Unit(benchmark::kMillisecond);
+void BM_AfpfPath150(benchmark::State& state) {
+  for (auto _ : state) {
+    const MatchResult r = MatchParticleFilter(ParticleFilterKind::kAfpf, Crustal(), 0, CrustalPath(), {});
+    benchmark::DoNotOptimize(r.lat_deg.data());
+  }
+}
+BENCHMARK(BM_AfpfPath150)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace magnav::mapmatch

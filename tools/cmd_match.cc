@@ -1,13 +1,16 @@
 // `magnav match`: correct an INS / dead-reckoning path by matching its
 // measured field against a geomagnetic map (mapmatch/): single points, ICP,
-// ICCP, MMA, MAD/MSD/PROD/NPROD correlation, fast MSD.
+// ICCP, MMA, MAD/MSD/PROD/NPROD correlation, fast MSD, and the sequential
+// particle filters (pf, afpf) run over the path.
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 #include <unistd.h>
 
 #include "commands.h"
 #include "magnav/core/csv.h"
+#include "magnav/cli/particle_filter_options.h"
 #include "magnav/core/error.h"
 #include "magnav/mapmatch/match.h"
 
@@ -18,10 +21,42 @@ namespace {
 struct MatchArgs {
   std::string map, value_column, path, meas_column, method, output;
   std::string solver = "direct";
+  std::string diagnostics;  // pf, afpf: per-step CSV
   bool icp_3d = false;
   double search_window_deg = 0.0;  // 0 = not given
   mapmatch::MatchOptions options;
 };
+
+const char* UpdateName(mapmatch::StepUpdate u) {
+  switch (u) {
+    case mapmatch::StepUpdate::kUpdated:
+      return "updated";
+    case mapmatch::StepUpdate::kBadMeasurement:
+      return "bad_measurement";
+    case mapmatch::StepUpdate::kAllOffMap:
+      return "all_off_map";
+  }
+  return "?";
+}
+
+// One row per step of a particle filter (particle_filter.h StepDiagnostics).
+void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
+                      const std::vector<mapmatch::StepDiagnostics>& steps) {
+  CsvWriter w(file,
+              {"k", "lat", "lon", "cov_lat_lat", "cov_lat_lon", "cov_lon_lon", "ess", "particles", "unique_particles",
+               "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost", "bias_nT", "bias_sigma_nT"},
+              {{"frame", "estimate lat/lon deg, covariance deg^2 (particle_filter.h StepDiagnostics)"}});
+  for (std::size_t p = 0; p < steps.size(); ++p) {
+    const mapmatch::StepDiagnostics& d = steps[p];
+    w.WriteRow({std::to_string(path.k[p]), FormatNumber(d.lat_deg), FormatNumber(d.lon_deg),
+                FormatNumber(d.cov_lat_lat), FormatNumber(d.cov_lat_lon), FormatNumber(d.cov_lon_lon),
+                FormatNumber(d.ess), std::to_string(d.particles), std::to_string(d.unique_particles),
+                std::to_string(d.occupied_cells), FormatNumber(d.nis), d.resampled ? "1" : "0",
+                d.ins_jump ? "1" : "0", UpdateName(d.update), d.lost ? "1" : "0", FormatNumber(d.bias_nT),
+                FormatNumber(d.bias_sigma_nT)});
+  }
+  w.Close();
+}
 
 void RunMatch(MatchArgs a) {
   RefuseOutputOverInput(a.output, {a.map, a.path});
@@ -39,7 +74,15 @@ void RunMatch(MatchArgs a) {
   // NGDC-style whitespace text ("lon lat value") by its extension, else CSV.
   const mapmatch::GeoGrid grid = mapmatch::ReadGeoGridFile(a.map, {a.value_column});
   const mapmatch::MatchPath path = mapmatch::ReadMatchPath(a.path, a.meas_column);
-  const mapmatch::MatchResult r = mapmatch::Match(*method, grid, 0, path, a.options);
+  const bool filter = *method == mapmatch::Method::kPf || *method == mapmatch::Method::kAfpf;
+  if (!a.diagnostics.empty() && !filter) throw InputError("--diagnostics: only for pf and afpf");
+  std::vector<mapmatch::StepDiagnostics> steps;
+  const mapmatch::MatchResult r =
+      filter ? mapmatch::MatchParticleFilter(*method == mapmatch::Method::kPf ? mapmatch::ParticleFilterKind::kPf
+                                                                              : mapmatch::ParticleFilterKind::kAfpf,
+                                             grid, 0, path, a.options.particle_filter, &steps)
+             : mapmatch::Match(*method, grid, 0, path, a.options);
+  if (!a.diagnostics.empty()) WriteDiagnostics(a.diagnostics, path, steps);
   // Written beside the output and renamed: a reader never sees half a file.
   const std::string tmp = a.output + ".tmp." + std::to_string(::getpid());
   try {
@@ -113,6 +156,10 @@ void AddMatchCommand(CLI::App& app) {
       ->check(CLI::IsMember({"jacobi", "direct"}));
   cmd->add_option("--rounds", o.fast_msd.rounds, "fast-msd: re-linearisation rounds");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
+  cmd->add_option("--diagnostics", args->diagnostics,
+                  "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "
+                  "occupied map cells, NIS, resampled, INS jump, update and lost flags to this CSV");
+  cli::AddParticleFilterOptions(*cmd, &o.particle_filter);
   cmd->callback([args] {
     MatchArgs a = *args;
     a.options.mma.field_scale_deg_per_nT = a.options.icp.field_scale_deg_per_nT;

@@ -61,6 +61,11 @@ std::vector<std::string> Header(const std::string& topic) {
   }
   if (topic == "magnetometer") return {"t", "sensor_id", "seq", "B_x", "B_y", "B_z"};
   if (topic == "vessel_nav") return {"t", "x", "y", "sigma"};
+  if (topic == "map_fix") {
+    // covariance (north, east) m², row-major, and its roots.
+    return {"t", "vehicle_id", "method", "lat", "lon", "score", "sigma_north_m", "sigma_east_m", "cov_nn", "cov_ne",
+            "cov_en", "cov_ee"};
+  }
   if (topic == "sensor_position") {
     // The columns of `magnav localize`'s output, with the estimate's time first.
     return {"t", "sensor_id", "x", "y", "z", "sigma_x", "sigma_y", "crlb_x", "crlb_y"};
@@ -100,6 +105,15 @@ std::vector<std::string> Row(const dds::msg::SensorPositionEstimate& m) {
   f.push_back(N(std::sqrt(std::max(0.0, m.covariance()[4]))));
   f.push_back(N(std::sqrt(std::max(0.0, m.crlb()[0]))));
   f.push_back(N(std::sqrt(std::max(0.0, m.crlb()[4]))));
+  return f;
+}
+
+std::vector<std::string> Row(const dds::msg::MapFix& m) {
+  std::vector<std::string> f = {FormatNanosAsSeconds(m.stamp_ns()), std::to_string(m.vehicle_id()), m.method_name().c_str(),
+                                N(m.lat_deg()), N(m.lon_deg()), N(m.score()),
+                                N(std::sqrt(std::max(0.0, m.covariance()[0]))),
+                                N(std::sqrt(std::max(0.0, m.covariance()[3])))};
+  Append(f, m.covariance());
   return f;
 }
 
@@ -217,6 +231,8 @@ void Run(const RecordArgs& a) {
     Record<dds::msg::VesselNav>(node, sink, a);
   } else if (a.topic == "sensor_position") {
     Record<dds::msg::SensorPositionEstimate>(node, sink, a);
+  } else if (a.topic == "map_fix") {
+    Record<dds::msg::MapFix>(node, sink, a);
   } else {
     Record<dds::msg::TrackEstimate>(node, sink, a);
   }
@@ -231,8 +247,9 @@ void AddRecordCommand(CLI::App& app) {
   auto args = std::make_shared<RecordArgs>();
   CLI::App* sub = app.add_subcommand("record", "Write what arrives on a magnav topic as CSV");
   sub->add_option("--topic", args->topic,
-                  "gradiometer, dipole_fix, track, magnetometer, vessel_nav or sensor_position")
-      ->check(CLI::IsMember({"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position"}));
+                  "gradiometer, dipole_fix, track, magnetometer, vessel_nav, sensor_position or map_fix")
+      ->check(CLI::IsMember(
+          {"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position", "map_fix"}));
   sub->add_option("--output", args->output,
                   "CSV file, or - for standard output. The rows go to OUTPUT.tmp-PID-N, renamed to OUTPUT when "
                   "recording stops (SIGINT/SIGTERM, --count, --duration or an error): OUTPUT only ever holds "

@@ -3,9 +3,16 @@
 // per row) with, optionally, a GNSS file onto magnav/vessel_nav (one VesselNav
 // per row), paced by their time columns (or as fast as the reliable streams
 // allow). The two localize streams go out merged in time order, a fix before
-// the samples of the same time.
+// the samples of the same time. Or a map-matching run (`--map-path`, the
+// k,ins_lat,ins_lon,meas_nT files of `magnav match`): per point a VesselNav
+// (NAV_INS, geodetic = the INS lat/lon) and a MagnetometerSample whose |B| is
+// the map's reference field plus the measured anomaly, with the same stamp
+// (docs/PROTOCOL.md), one point every --step-period seconds.
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <memory>
 #include <thread>
@@ -19,16 +26,51 @@
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
+#include "magnav/mapmatch/path.h"
 
 namespace magnav::tools {
 namespace {
 
 struct ReplayArgs {
-  std::string input, magnetometer, gnss;
+  std::string input, magnetometer, gnss, map_path, meas_column = "meas_nT";
+  double reference_field_nT = std::nan("");
+  double step_period_s = 1.0;
+  std::uint32_t vehicle_id = 0;
   double speed = 1.0;           // time factor; 0 = as fast as possible
+  bool loop = false;            // gradiometer file: over and over until stopped
   int wait_readers = 1;
   double wait_s = 10.0;
   DdsArgs dds;
+};
+
+// Progress of a replay: on a terminal one line redrawn four times a second
+// (samples sent of the total, rate, time left); otherwise a plain line every
+// 10 s (none for a replay shorter than that).
+class Progress {
+ public:
+  Progress(std::size_t total, bool loop) : total_(total), loop_(loop), tty_(isatty(fileno(stdout)) != 0) {}
+  void Sent(std::size_t n) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now < next_) return;
+    next_ = now + (tty_ ? std::chrono::milliseconds(250) : std::chrono::milliseconds(10000));
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    if (elapsed < 0.25) return;  // no rate from the first samples (and no line at all before 10 s off a terminal)
+    const double rate = elapsed > 0 ? static_cast<double>(n) / elapsed : 0.0;
+    std::string line = "replay: " + std::to_string(n) + (loop_ ? "" : " of " + std::to_string(total_)) +
+                       " samples, " + FormatNumber(std::round(rate)) + "/s";
+    if (!loop_ && rate > 0 && n <= total_) line += ", " + FormatNumber(std::round((total_ - n) / rate)) + " s left";
+    std::printf(tty_ ? "\r%-70s" : "%s\n", line.c_str());
+    std::fflush(stdout);
+    shown_ = true;
+  }
+  void Done() {
+    if (tty_ && shown_) std::printf("\r%-70s\r", "");
+  }
+
+ private:
+  std::size_t total_;
+  bool loop_, tty_, shown_ = false;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), next_ = start_;
 };
 
 // One timed message of the localize streams.
@@ -83,8 +125,7 @@ std::vector<LocalizeEvent> ReadLocalizeEvents(const std::string& measurements, c
   return out;
 }
 
-void RunLocalizeStreams(const ReplayArgs& a) {
-  const std::vector<LocalizeEvent> events = ReadLocalizeEvents(a.magnetometer, a.gnss);
+void RunLocalizeStreams(const ReplayArgs& a, const std::vector<LocalizeEvent>& events, bool with_nav) {
   dds::InstallShutdownHandlers();
   dds::Node node(a.dds.ToNodeOptions("magnav_replay"));
   auto samples = node.CreateWriter<dds::msg::MagnetometerSample>();
@@ -93,7 +134,7 @@ void RunLocalizeStreams(const ReplayArgs& a) {
   fixes->SetFlowControl(500, std::chrono::seconds(10));
   const auto wait = std::chrono::milliseconds(static_cast<long>(a.wait_s * 1000));
   if (a.wait_readers > 0 && (!samples->WaitForMatched(a.wait_readers, wait) ||
-                             (!a.gnss.empty() && !fixes->WaitForMatched(a.wait_readers, wait)))) {
+                             (with_nav && !fixes->WaitForMatched(a.wait_readers, wait)))) {
     throw InputError("replay: no reader of magnav/magnetometer (and magnav/vessel_nav) appeared within " +
                      FormatNumber(a.wait_s) + " s (domain " + std::to_string(node.domain_id()) + ")");
   }
@@ -116,10 +157,35 @@ void RunLocalizeStreams(const ReplayArgs& a) {
               node.domain_id());
 }
 
+// A map-matching run: events in path order, the VesselNav before the sample.
+std::vector<LocalizeEvent> ReadMapRunEvents(const ReplayArgs& a) {
+  if (!(std::isfinite(a.reference_field_nT) && a.reference_field_nT > 0.0)) {
+    throw InputError("replay: --map-path needs --reference-field (the map's reference field, nT)");
+  }
+  if (!(a.step_period_s > 0.0)) throw InputError("replay: --step-period must be > 0");
+  const mapmatch::MatchPath p = mapmatch::ReadMatchPath(a.map_path, a.meas_column);
+  std::vector<LocalizeEvent> out;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double t = static_cast<double>(i) * a.step_period_s;
+    const std::uint64_t stamp = SecondsToNanos(t);
+    LocalizeEvent fix{t, true, {}, dds::InsNavMsg(a.vehicle_id, stamp, p.lat_deg[i], p.lon_deg[i])};
+    LocalizeEvent sample{t, false, dds::AnomalySampleMsg(a.vehicle_id, stamp, i, p.measured_nT[i], a.reference_field_nT), {}};
+    out.push_back(fix);
+    out.push_back(sample);
+  }
+  return out;
+}
+
 void Run(const ReplayArgs& a) {
+  if (a.loop && a.input.empty()) throw InputError("replay: --loop goes with --input (a gradiometer file)");
+  if (!a.map_path.empty()) {
+    if (!a.input.empty() || !a.magnetometer.empty()) throw InputError("replay: --map-path goes alone");
+    RunLocalizeStreams(a, ReadMapRunEvents(a), true);
+    return;
+  }
   if (!a.magnetometer.empty()) {
     if (!a.input.empty()) throw InputError("replay: give --input or --magnetometer, not both");
-    RunLocalizeStreams(a);
+    RunLocalizeStreams(a, ReadLocalizeEvents(a.magnetometer, a.gnss), !a.gnss.empty());
     return;
   }
   if (!a.gnss.empty()) throw InputError("replay: --gnss goes with --magnetometer");
@@ -139,18 +205,32 @@ void Run(const ReplayArgs& a) {
   std::unordered_map<std::uint32_t, std::uint64_t> seq;
   const auto t0 = std::chrono::steady_clock::now();
   const double file_t0 = file.samples.empty() ? 0.0 : file.samples.front().t_s;
-  std::size_t sent = 0;
-  for (const GradiometerSample& s : file.samples) {
-    if (dds::ShutdownRequested()) break;
-    if (a.speed > 0) {
-      const auto due = t0 + std::chrono::duration<double>((s.t_s - file_t0) / a.speed);
-      std::this_thread::sleep_until(due);
-    }
-    if (!writer->Write(dds::ToMsg(s, seq[s.sensor_id]++))) {
-      throw InputError("replay: a reader did not acknowledge samples within 10 s (too slow or gone)");
-    }
-    ++sent;
+  // With --loop each pass is shifted by the file's span plus one sample
+  // interval, so time keeps going forward for the consumers.
+  double span_s = 0.0;
+  if (file.samples.size() > 1) {
+    const double last = file.samples.back().t_s;
+    double step = 0.0;
+    for (std::size_t i = 1; i < file.samples.size() && step == 0.0; ++i) step = file.samples[i].t_s - file_t0;
+    span_s = last - file_t0 + step;
   }
+  Progress progress(file.samples.size(), a.loop);
+  std::size_t sent = 0;
+  for (int pass = 0; pass == 0 || (a.loop && !dds::ShutdownRequested()); ++pass) {
+    for (GradiometerSample s : file.samples) {
+      if (dds::ShutdownRequested()) break;
+      s.t_s += pass * span_s;
+      if (a.speed > 0) {
+        const auto due = t0 + std::chrono::duration<double>((s.t_s - file_t0) / a.speed);
+        std::this_thread::sleep_until(due);
+      }
+      if (!writer->Write(dds::ToMsg(s, seq[s.sensor_id]++))) {
+        throw InputError("replay: a reader did not acknowledge samples within 10 s (too slow or gone)");
+      }
+      progress.Sent(++sent);
+    }
+  }
+  progress.Done();
   writer->WaitForAcknowledgments(std::chrono::seconds(10));
   std::printf("replayed %zu samples from %s on domain %d\n", sent, a.input.c_str(), node.domain_id());
 }
@@ -160,13 +240,26 @@ void Run(const ReplayArgs& a) {
 void AddReplayCommand(CLI::App& app) {
   auto args = std::make_shared<ReplayArgs>();
   CLI::App* sub = app.add_subcommand(
-      "replay", "Publish a gradiometer CSV on magnav/gradiometer, or localize files on magnav/magnetometer + magnav/vessel_nav");
+      "replay",
+      "Publish a gradiometer CSV on magnav/gradiometer, localize files or a map-matching run on magnav/magnetometer + "
+      "magnav/vessel_nav");
   sub->add_option("--input", args->input, "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22)");
   sub->add_option("--magnetometer", args->magnetometer,
                   "localize measurements CSV (t,sensor_id,B_x,B_y,B_z) -> magnav/magnetometer");
   sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma) -> magnav/vessel_nav");
+  sub->add_option("--map-path", args->map_path,
+                  "map-matching run (k,ins_lat,ins_lon and --meas-column, as `magnav match` reads) -> magnav/vessel_nav "
+                  "(INS, geodetic) + magnav/magnetometer (|B| = --reference-field + anomaly)");
+  sub->add_option("--meas-column", args->meas_column, "with --map-path: the measured anomaly column, nT");
+  sub->add_option("--reference-field", args->reference_field_nT,
+                  "with --map-path: the map's reference field |F0|, nT (required with it)");
+  sub->add_option("--step-period", args->step_period_s, "with --map-path: seconds between path points");
+  sub->add_option("--vehicle-id", args->vehicle_id, "with --map-path: vessel_id and sensor_id of the messages");
   sub->add_option("--speed", args->speed, "time factor (1 = real time, 10 = ten times faster, 0 = no pacing)")
       ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--loop", args->loop,
+               "with --input: replay the file over and over until stopped (SIGINT/SIGTERM), each pass shifted in time "
+               "by the file's span so that time keeps going forward");
   sub->add_option("--wait-readers", args->wait_readers, "wait for this many readers before sending");
   sub->add_option("--wait", args->wait_s, "how long to wait for readers, s");
   AddDdsOptions(*sub, &args->dds);

@@ -6,7 +6,7 @@
 namespace magnav::mapmatch {
 namespace {
 
-constexpr std::array<std::pair<Method, const char*>, 9> kMethods = {{{Method::kPoint, "point"},
+constexpr std::array<std::pair<Method, const char*>, 11> kMethods = {{{Method::kPoint, "point"},
                                                                      {Method::kIcp, "icp"},
                                                                      {Method::kIccp, "iccp"},
                                                                      {Method::kMma, "mma"},
@@ -14,7 +14,9 @@ constexpr std::array<std::pair<Method, const char*>, 9> kMethods = {{{Method::kP
                                                                      {Method::kMsd, "msd"},
                                                                      {Method::kProd, "prod"},
                                                                      {Method::kNprod, "nprod"},
-                                                                     {Method::kFastMsd, "fast-msd"}}};
+                                                                     {Method::kFastMsd, "fast-msd"},
+                                                                     {Method::kPf, "pf"},
+                                                                     {Method::kAfpf, "afpf"}}};
 
 MatchResult Correlate(CorrelationMetric metric, const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                       CorrelationOptions options) {
@@ -68,6 +70,10 @@ MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const M
       return Correlate(CorrelationMetric::kNprod, grid, layer, path, options.correlation);
     case Method::kFastMsd:
       return MatchFastMsd(grid, layer, path, options.fast_msd);
+    case Method::kPf:
+      return MatchParticleFilter(ParticleFilterKind::kPf, grid, layer, path, options.particle_filter);
+    case Method::kAfpf:
+      return MatchParticleFilter(ParticleFilterKind::kAfpf, grid, layer, path, options.particle_filter);
   }
   return {};
 }

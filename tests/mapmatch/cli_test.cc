@@ -146,5 +146,65 @@ TEST(MatchCli, AnOffMapPathIsReportedNotHidden) {
   EXPECT_EQ(t.number(0, 1), 50.0);
 }
 
+TEST(MatchCli, ParticleFiltersWriteTheLibrarysRunAndItsDiagnostics) {
+  const std::string dir = testing::TempDir();
+  const std::string map = testing::ReferencePath("map_crustal_anomaly.csv");
+  const std::string path = testing::ReferencePath("mappath_crustal_off0p01deg_noise3nT.csv");
+  const GeoGrid grid = ReadGeoGridCsv(map, {"anomaly_nT"});
+  const MatchPath p = ReadMatchPath(path, "meas_nT");
+  for (const std::string method : {"pf", "afpf"}) {
+    const std::string out = dir + "/" + method + ".csv", diag = dir + "/" + method + "_steps.csv";
+    std::vector<std::string> args = Args(map, "anomaly_nT", path, "meas_nT", method, out);
+    args.insert(args.end(), {"--particles", "1000", "--max-particles", "5000", "--seed", "5", "--sigma", "6",
+                             "--diagnostics", diag});
+    const auto [code, text] = RunMatch(args);
+    ASSERT_EQ(code, 0) << text;
+    ParticleFilterOptions o;
+    o.num_particles = 1000;
+    o.max_particles = 5000;
+    o.seed = 5;
+    o.measurement_sigma_nT = 6.0;
+    std::vector<StepDiagnostics> steps;
+    const MatchResult lib = MatchParticleFilter(method == "pf" ? ParticleFilterKind::kPf : ParticleFilterKind::kAfpf,
+                                                grid, 0, p, o, &steps);
+    const CsvTable t = CsvTable::Read(out);
+    ASSERT_EQ(t.num_rows(), p.size());
+    for (std::size_t r = 0; r < t.num_rows(); ++r) {
+      EXPECT_EQ(t.number(r, 1), lib.lat_deg[r]);
+      EXPECT_EQ(t.number(r, 2), lib.lon_deg[r]);
+    }
+    EXPECT_EQ(t.params().at("summary"), lib.BriefReport());
+    EXPECT_NE(lib.BriefReport().find("seed 5"), std::string::npos);
+    const CsvTable d = CsvTable::Read(diag);
+    ASSERT_EQ(d.num_rows(), p.size());
+    const std::size_t cp = d.column("particles"), cu = d.column("update");
+    EXPECT_EQ(d.integer(p.size() - 1, cp), steps.back().particles);
+    EXPECT_EQ(d.text(0, cu), "updated");
+  }
+}
+
+TEST(MatchCli, ParticleFilterBadOptionsExit2) {
+  const std::string dir = testing::TempDir();
+  const std::string map = testing::ReferencePath("map_crustal_anomaly.csv");
+  const std::string path = testing::ReferencePath("mappath_crustal_off0p01deg_noise3nT.csv");
+  const std::string out = dir + "/out.csv";
+  struct Case {
+    std::vector<std::string> extra;
+    std::string method, expected;
+  };
+  for (const Case& c : {Case{{"--particles", "0"}, "pf", "num_particles"},
+                        Case{{"--particles", "4000", "--max-particles", "3000"}, "afpf", "max_particles"},
+                        Case{{"--sigma", "-1"}, "afpf", "measurement_sigma_nT"},
+                        Case{{"--resample-ess", "2"}, "pf", "resample_ess_fraction"},
+                        Case{{"--diagnostics", dir + "/d.csv"}, "icp", "--diagnostics"}}) {
+    std::vector<std::string> args = Args(map, "anomaly_nT", path, "meas_nT", c.method, out);
+    args.insert(args.end(), c.extra.begin(), c.extra.end());
+    const auto [code, text] = RunMatch(args);
+    EXPECT_EQ(code, 2) << c.expected << ": " << text;
+    EXPECT_NE(text.find(c.expected), std::string::npos) << text;
+    EXPECT_FALSE(std::filesystem::exists(out));
+  }
+}
+
 }  // namespace
 }  // namespace magnav::mapmatch

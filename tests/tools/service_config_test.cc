@@ -28,7 +28,7 @@ TEST(ServiceConfig, UnknownKeysAndSectionsAreRefused) {
       {"\xEF\xBB\xBF" "stats-period = 5\nstats_period = 5\n", cfg + ":2: unknown option 'stats_period'"},
   };
   int refused = 0;
-  for (const std::string bin : {MAGNAV_INVERTER_BIN, MAGNAV_TRACKER_BIN, MAGNAV_LOCALIZER_BIN}) {
+  for (const std::string bin : {MAGNAV_INVERTER_BIN, MAGNAV_TRACKER_BIN, MAGNAV_LOCALIZER_BIN, MAGNAV_MATCHER_BIN}) {
     for (const Case& c : cases) {
       std::ofstream(cfg, std::ios::binary) << c.text;
       const auto [rc, out] = testing::RunCommand({bin, "--config", cfg}, {}, std::chrono::seconds(20));
@@ -37,7 +37,7 @@ TEST(ServiceConfig, UnknownKeysAndSectionsAreRefused) {
       refused += rc == 2;
     }
   }
-  EXPECT_EQ(refused, 12);
+  EXPECT_EQ(refused, 16);
 }
 
 }  // namespace

@@ -1,0 +1,42 @@
+// The particle filters' flags, shared by `magnav match --method pf|afpf` and
+// `magnav-matcher` (mapmatch/particle_filter.h). Each flag's default is the
+// option's documented default (--help shows it); a config file's keys are the
+// flag names. Header-only: the program that includes it links
+// magnav::mapmatch.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include "magnav/mapmatch/particle_filter.h"
+
+namespace magnav::cli {
+
+inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOptions* f) {
+  auto opt = [&](const char* name, auto* value, const char* help) { app.add_option(name, *value, help)->capture_default_str(); };
+  opt("--particles", &f->num_particles, "pf: particles; afpf: the fewest it adapts down to (the paper: 3000)");
+  opt("--max-particles", &f->max_particles, "afpf: particles at the start and at most (adaptive count)");
+  opt("--particles-per-cell", &f->particles_per_cell,
+      "afpf: adaptive count = this x map cells holding a particle (clamped to --particles..--max-particles)");
+  opt("--seed", &f->seed, "pf, afpf: random seed (std::mt19937_64)");
+  opt("--sigma", &f->measurement_sigma_nT,
+      "pf, afpf: likelihood sigma, nT (sensor + map + particle spacing; the paper's tau = sigma^2)");
+  opt("--drift-sigma", &f->drift_sigma_deg, "pf, afpf: INS drift noise per step and axis, deg");
+  opt("--prior-half-width", &f->prior_half_width_deg,
+      "pf, afpf: uniform prior square around the first INS point (clipped to the map), deg");
+  opt("--resample-ess", &f->resample_ess_fraction, "pf: resample when ESS < this fraction of N");
+  opt("--off-map-sigmas", &f->off_map_sigmas, "pf, afpf: an off-map particle's likelihood is that of this many sigma");
+  opt("--max-step", &f->max_step_deg, "pf, afpf: a longer INS increment is a jump (not applied), deg");
+  opt("--divergence-window", &f->divergence_window, "pf, afpf: updates in the divergence test");
+  opt("--divergence-nis", &f->divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
+  opt("--reinitialize-when-lost", &f->reinitialize_when_lost,
+      "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
+  app.add_flag("--estimate-bias", f->estimate_bias, "pf, afpf: a map bias per particle (reading - bias vs the map)");
+  opt("--bias-prior-sigma", &f->bias_prior_sigma_nT, "pf, afpf with --estimate-bias: prior sigma of the bias, nT");
+  opt("--bias-drift-sigma", &f->bias_drift_sigma_nT, "pf, afpf with --estimate-bias: random walk of the bias per step, nT");
+  opt("--fission-penalty", &f->fission_motion_penalty,
+      "afpf: an offspring's weight pays its fission move as drift (1) or not, as the paper (0)");
+  opt("--fission-lambda", &f->fission_lambda, "afpf: offspring variance scale lambda (the paper: 0.001)");
+  opt("--fission-mu", &f->fission_mu_deg2, "afpf: parents' sampling variance mu, deg^2 (the paper: 1.6454e-4)");
+}
+
+}  // namespace magnav::cli

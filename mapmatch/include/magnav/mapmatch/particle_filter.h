@@ -1,0 +1,196 @@
+// Sequential map matching (METHODS.md §6, after the adaptive-fission paper):
+// a particle filter (PF) and the adaptive fission particle filter (AFPF),
+// fed one INS/DR position and one measured map value at a time.
+//
+// Units: particle positions in degrees (lat, lon, used as a plane like the
+// other matchers), map values and measurements in nT, covariances in deg².
+//
+// Model (both filters):
+//   motion      x_k = x_(k−1) + (ins_k − ins_(k−1)) + n_k,  n_k ~ N(0, drift_sigma_deg² I)
+//   likelihood  p(z | x) = exp(−(z − m(x))² / (2σ²)),  m = bilinear map value,
+//               σ = measurement_sigma_nT (the paper's τ = σ²)
+//   off the map p(z | x) = exp(−off_map_sigmas² / 2): a particle off the map
+//               keeps a floor likelihood (that of an off_map_sigmas residual),
+//               so a cloud that partly leaves the map is not wiped out, and
+//               returns when its neighbours on the map do better. When every
+//               particle is off the map the update is skipped (counted) and
+//               the filter dead-reckons on the INS increments.
+//   prior       uniform over the square of half-width prior_half_width_deg
+//               around the first INS position, clipped to the map (the vehicle
+//               being matched is taken to be on the map; an empty intersection
+//               is an InputError).
+//
+// PF: weights w ← w·p(z|x), normalised; systematic resampling when the
+// effective sample size 1/Σw² < resample_ess_fraction·N.
+//
+// AFPF (the paper's algorithm 1): after the weight update each parent i
+// spawns m_i = round(N w_i) + 2 offspring drawn from N(x_i, σ_i I) with the
+// variance σ_i = λ μ a_i (deg²) and fission factor
+//   a_i = 1 / (1 + exp((w_i − w_avg)/(w_max − w_avg)))   (a_i = 1/2 when all
+//   weights are equal); light parents spread their offspring wider.
+// Offspring are weighted like their parent (w_(k−1) of the parent times their
+// own likelihood), parents and offspring are pooled, the N_k heaviest kept and
+// renormalised. The estimate is the weighted mean. Two readings of the paper
+// are fixed here: its eq. (10) prints λ μ (1 + exp(…)) = λ μ / a_i, against
+// its text ("σ = λ μ a", fission factor as the variance scale) — the text is
+// followed; and N(x, σ) there takes σ as a variance (μ = 1.6454e-4 deg² is a
+// variance; read as a standard deviation the offspring would move ~2 cm).
+// One change (fission_motion_penalty, on by default): an offspring's weight
+// also pays its fission move as drift, exp(−|x̃ − x|²/(2 drift_sigma_deg²)).
+// Without it the selection is by rank only, offspring move freely to fit each
+// reading, and with 3 nT noise the filter chases the noise into a wrong basin
+// (measured on the crustal reference paths: second-half mean error 4× the
+// INS's on the 0.01° path; docs/ACCURACY.md). `fission_motion_penalty = false`
+// is the paper's algorithm.
+// Adaptive count (this library's, not the paper's, which keeps N fixed): the
+// filter starts with max_particles (covering the wide prior) and after each
+// step takes N_(k+1) = clamp(num_particles, max_particles,
+// particles_per_cell · occupied map cells) (KLD-sampling's idea: the count
+// follows the spread), dropping the lightest; it shrinks to N once the cloud
+// has converged and stays large while it is spread or multimodal.
+//
+// Input at the door: a non-finite measurement skips the update (prediction
+// still runs; counted); a non-finite INS position or an INS increment longer
+// than max_step_deg is an INS jump — the increment is not applied (a reset or
+// glitch is not vehicle motion), only the drift noise; counted.
+//
+// Divergence ("lost"): each update's normalised innovation
+// NIS = Σ w_(k−1),i (z − m(x_i))²/σ² over the predicted cloud (particles on the
+// map). The filter is lost while the mean NIS over the last divergence_window
+// updates exceeds divergence_nis (a tracking filter's NIS is ≈ 1 plus the
+// cloud's spread; a lost one sees the map's ±60 nT as residuals). It clears
+// when the window's mean falls back. With reinitialize_when_lost the particles
+// are then spread again over the prior square around the current INS position.
+//
+// Randomness: one std::mt19937_64 seeded with `seed`; a run is reproducible
+// bit for bit on one platform (the standard library's normal distribution
+// differs between implementations).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "magnav/mapmatch/geo_grid.h"
+#include "magnav/mapmatch/path.h"
+
+namespace magnav::mapmatch {
+
+enum class ParticleFilterKind { kPf, kAfpf };
+const char* ParticleFilterKindName(ParticleFilterKind kind);  // "pf", "afpf"
+
+struct ParticleFilterOptions {
+  // Particles (the paper: 3000). PF: always this many; AFPF: the fewest it adapts down to.
+  int num_particles = 3000;
+  std::uint64_t seed = 1;
+  // Likelihood σ (nT): sensor noise plus map error plus what the particles'
+  // spacing leaves (a particle is rarely on the truth). Not the paper's
+  // τ = 1e5 nT² (σ ≈ 316 nT, for its sensor and map): on the reference map
+  // (anomaly std 60 nT) that makes every PF weight update ≈ 1. 5 nT: one
+  // fixed value for the 0.5 nT and 3 nT reference paths (3 nT made the AFPF
+  // lose 2 of 5 seeds at 3 nT noise, 10 nT widened the PF's posterior by 30 %).
+  double measurement_sigma_nT = 5.0;
+  // Drift noise per step, per axis (deg). Default: the reference paths'
+  // INS drift (a U(±0.0005°) step per axis, σ = 0.00029°), README §4b.
+  double drift_sigma_deg = 0.0003;
+  // Half-width of the uniform prior square around the first INS position (deg).
+  // Default 0.15°: covers the 0.1°-offset reference paths (≈ 11 km).
+  double prior_half_width_deg = 0.15;
+  // PF: resample (systematic) when ESS < this fraction of N.
+  double resample_ess_fraction = 0.5;
+  // Off-map likelihood floor, in σ of residual.
+  double off_map_sigmas = 3.0;
+  // An INS increment longer than this (deg) is a jump, not applied.
+  double max_step_deg = 0.01;
+  // Divergence rule (see above).
+  int divergence_window = 10;
+  double divergence_nis = 9.0;
+  // On by default: on the crustal 0.01°/3 nT path 1 of 20 AFPF seeds locks
+  // onto a wrong basin early; the rule flags it and a fresh prior finds the
+  // track (docs/ACCURACY.md).
+  bool reinitialize_when_lost = true;
+  // AFPF: λ (the paper: 0.001) and μ, the parents' sampling variance per axis
+  // (the paper: 1.6454e-4 deg²).
+  double fission_lambda = 0.001;
+  double fission_mu_deg2 = 1.6454e-4;
+  // AFPF: an offspring's weight also pays its fission move as drift,
+  // exp(−|x̃ − x|²/(2 drift_sigma_deg²)) (not in the paper; see above).
+  bool fission_motion_penalty = true;
+  // Map bias (optional third state): every particle carries a bias b (nT),
+  // the likelihood compares z − b with the map; prior N(0, bias_prior_sigma²),
+  // random walk bias_drift_sigma per step; AFPF offspring draw theirs from
+  // N(parent's b, bias_drift_sigma²). Off by default (no extra random draws: runs without it are
+  // unchanged).
+  bool estimate_bias = false;
+  double bias_prior_sigma_nT = 30.0;
+  double bias_drift_sigma_nT = 0.2;
+  // AFPF adaptive count: start (and cap), and particles per occupied map cell.
+  int max_particles = 30000;
+  double particles_per_cell = 30.0;
+
+  bool IsValid(std::string* error) const;
+};
+
+// One particle (deg) and its normalised weight.
+struct Particle {
+  double lat_deg = 0.0, lon_deg = 0.0;
+  double bias_nT = 0.0;  // map bias (0 unless estimate_bias)
+  double weight = 0.0;
+};
+
+// What happened to a step's measurement.
+enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap };
+
+// Diagnostics after one step.
+struct StepDiagnostics {
+  double lat_deg = 0.0, lon_deg = 0.0;                    // weighted mean
+  double cov_lat_lat = 0.0, cov_lat_lon = 0.0, cov_lon_lon = 0.0;  // weighted covariance, deg²
+  double bias_nT = 0.0, bias_sigma_nT = 0.0;                       // weighted mean and sd of the map bias
+  double ess = 0.0;              // 1/Σw² after the update (before resampling)
+  int particles = 0;             // after the step
+  int unique_particles = 0;      // distinct particles after the step (resampling copies)
+  int occupied_cells = 0;        // distinct map cells holding a particle (spread)
+  double nis = 0.0;              // this update's normalised innovation (0 if no update)
+  bool resampled = false;
+  bool ins_jump = false;
+  StepUpdate update = StepUpdate::kUpdated;
+  bool lost = false;
+};
+
+struct FilterCounters {
+  int steps = 0, updates = 0, bad_measurements = 0, all_off_map = 0, ins_jumps = 0, resamples = 0,
+      lost_steps = 0, reinitialisations = 0;
+};
+
+// The common interface of the PF and the AFPF.
+class SequentialMatcher {
+ public:
+  virtual ~SequentialMatcher() = default;
+  // One INS position (deg) and the value measured there (nT; NaN = none).
+  // The first call places the prior around this INS position.
+  virtual const StepDiagnostics& Step(double ins_lat_deg, double ins_lon_deg, double measured_nT) = 0;
+  virtual const std::vector<Particle>& particles() const = 0;
+  virtual const FilterCounters& counters() const = 0;
+  virtual const StepDiagnostics& last() const = 0;
+  virtual ParticleFilterKind kind() const = 0;
+  bool lost() const { return last().lost; }
+};
+
+// A PF or an AFPF on `layer` of `grid` (kept by reference: must outlive the
+// filter). Throws InputError on invalid options or a missing layer.
+std::unique_ptr<SequentialMatcher> MakeParticleFilter(ParticleFilterKind kind, const GeoGrid& grid,
+                                                      std::size_t layer, const ParticleFilterOptions& options);
+
+// Runs a filter over a whole path (what `magnav match --method pf|afpf` does):
+// the matched position of point k is the estimate after step k. score = mean
+// ESS over the path; converged = not lost at the last step (reason names the
+// first lost step); points_used = updates; off map = all-off-map steps.
+// `steps` (optional) receives every step's diagnostics.
+MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
+                                const MatchPath& path, const ParticleFilterOptions& options,
+                                std::vector<StepDiagnostics>* steps = nullptr);
+
+}  // namespace magnav::mapmatch

@@ -1,0 +1,105 @@
+#include "matcher_node.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+
+#include "magnav/core/error.h"
+#include "magnav/core/option_check.h"
+#include "magnav/core/units.h"
+
+namespace magnav::mapmatch {
+
+bool MatcherNodeOptions::IsValid(std::string* error) const {
+  if (!(std::isfinite(fix_every_m) && fix_every_m >= 0.0)) return Fail(error, "fix_every_m must be finite and >= 0");
+  if (!PositiveFinite(reference_field_nT)) {
+    return Fail(error, "reference_field_nT (the map's reference field, nT) must be given, finite and > 0");
+  }
+  return filter.IsValid(error);
+}
+
+dds::msg::MapFix ToMsg(const StepDiagnostics& d, ParticleFilterKind kind, std::uint32_t vehicle_id,
+                       std::uint64_t stamp_ns) {
+  dds::msg::MapFix m;
+  m.vehicle_id(vehicle_id);
+  m.stamp_ns(stamp_ns);
+  m.method(dds::msg::METHOD_MC);
+  m.method_name(ParticleFilterKindName(kind));
+  m.lat_deg(d.lat_deg);
+  m.lon_deg(d.lon_deg);
+  m.score(d.ess);
+  m.covariance(CovarianceNorthEast_m2(d));
+  return m;
+}
+
+namespace {
+const MatcherNodeOptions& Checked(const MatcherNodeOptions& o) {
+  std::string why;
+  if (!o.IsValid(&why)) throw InputError("matcher options: " + why);
+  return o;
+}
+}  // namespace
+
+MatcherNode::MatcherNode(dds::Node& node, const GeoGrid& grid, std::size_t layer, const MatcherNodeOptions& options)
+    : options_(Checked(options)),
+      filter_(MakeParticleFilter(options.kind, grid, layer, options.filter)),
+      schedule_(options.fix_every_m, options.filter.max_step_deg) {
+  writer_ = node.CreateWriter<dds::msg::MapFix>();
+  nav_reader_ = node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto&) { OnNav(m); });
+  mag_reader_ = node.CreateReader<dds::msg::MagnetometerSample>(
+      [this](const dds::msg::MagnetometerSample& m, const auto&) { OnSample(m); });
+}
+
+FilterCounters MatcherNode::filter_counters() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return filter_->counters();
+}
+
+void MatcherNode::Skip(const std::string& why, double t_s) {
+  ++skipped_;
+  if (warned_.insert(why).second) {
+    spdlog::warn("magnav-matcher: sample at t = {} s skipped: {} (further ones are only counted)", t_s, why);
+  }
+}
+
+void MatcherNode::OnNav(const dds::msg::VesselNav& m) {
+  if (m.vessel_id() != options_.vehicle_id || m.source() == dds::msg::NAV_GNSS) return;
+  std::lock_guard<std::mutex> lk(mu_);
+  const double lat = m.geodetic()[0], lon = m.geodetic()[1];
+  if (!std::isfinite(lat) || !std::isfinite(lon)) return Skip("vessel_nav without a finite geodetic lat/lon", NanosToSeconds(m.stamp_ns()));
+  navs_[m.stamp_ns()] = {lat, lon};
+  Drain();
+}
+
+void MatcherNode::OnSample(const dds::msg::MagnetometerSample& m) {
+  if (m.sensor_id() != options_.sensor_id) return;
+  std::lock_guard<std::mutex> lk(mu_);
+  if (stepped_ && m.stamp_ns() <= last_step_ns_) {
+    return Skip("magnetometer sample not later than the last step", NanosToSeconds(m.stamp_ns()));
+  }
+  pending_[m.stamp_ns()] = AnomalyOf(m, options_.reference_field_nT);
+  Drain();
+}
+
+void MatcherNode::Drain() {
+  while (!pending_.empty() && !navs_.empty()) {
+    const auto [stamp, anomaly] = *pending_.begin();
+    if (navs_.rbegin()->first < stamp) return;  // its position is not known yet
+    auto nav = navs_.upper_bound(stamp);        // first nav after the sample
+    pending_.erase(pending_.begin());
+    if (nav == navs_.begin()) {
+      Skip("magnetometer sample before the first vessel_nav", NanosToSeconds(stamp));
+      continue;
+    }
+    --nav;  // the latest at or before it
+    const auto [lat, lon] = nav->second;
+    navs_.erase(navs_.begin(), nav);  // keep the one used
+    const StepDiagnostics& d = filter_->Step(lat, lon, anomaly);
+    stepped_ = true;
+    last_step_ns_ = stamp;
+    ++steps_;
+    if (schedule_.Step(lat, lon)) writer_->Write(ToMsg(d, options_.kind, options_.vehicle_id, stamp));
+  }
+}
+
+}  // namespace magnav::mapmatch

@@ -1,0 +1,93 @@
+// The matcher's DDS node: VesselNav (magnav/vessel_nav, the vehicle's INS/DR
+// with geodetic lat/lon) and MagnetometerSample (magnav/magnetometer) in,
+// MapFix (magnav/map_fix) out on a schedule (every N metres travelled, or
+// every step). The filter is the library's (mapmatch/particle_filter.h, what
+// `magnav match --method pf|afpf` runs), so on the same stream and seed its
+// fixes are the offline ones.
+//
+// Pairing: a magnetometer sample is matched with the latest VesselNav whose
+// stamp is at or before its own, once a VesselNav at or after it has arrived
+// (the position then is known); `magnav replay --map-path` sends both with the
+// same stamp. Measurement: anomaly = |B| (nT) − reference field (nT)
+// (docs/PROTOCOL.md). At the door (counted, warned once per kind): a
+// VesselNav of another vehicle or of source NAV_GNSS is ignored; one with a
+// non-finite geodetic lat/lon is skipped; a magnetometer sample of another
+// sensor is ignored; one not later than the last step, or before the first
+// VesselNav, is skipped. A non-finite B goes to the filter as a missing
+// reading (it predicts and counts it), an INS jump is the filter's to handle.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+
+#include "magnav/dds/convert.h"
+#include "magnav/dds/node.h"
+#include "magnav/mapmatch/fix_schedule.h"
+#include "magnav/mapmatch/geo_grid.h"
+#include "magnav/mapmatch/particle_filter.h"
+
+namespace magnav::mapmatch {
+
+struct MatcherNodeOptions {
+  ParticleFilterKind kind = ParticleFilterKind::kAfpf;
+  ParticleFilterOptions filter;
+  // A MapFix every this many metres travelled (the paper: once per km); 0 = every step.
+  double fix_every_m = 1000.0;
+  // The map's reference field (nT): anomaly = |B| − this. No default.
+  double reference_field_nT = std::numeric_limits<double>::quiet_NaN();
+  std::uint32_t vehicle_id = 0;  // VesselNav.vessel_id followed, MapFix.vehicle_id
+  std::uint32_t sensor_id = 0;   // MagnetometerSample.sensor_id used
+
+  bool IsValid(std::string* error) const;
+};
+
+// The map-matching messages (anomaly, INS fix, anomaly sample) are in
+// dds/convert.h, shared with `magnav replay`.
+using dds::AnomalyOf;
+using dds::AnomalySampleMsg;
+using dds::InsNavMsg;
+
+// The fix: method METHOD_MC, method_name "pf"/"afpf", score = ESS, covariance (north, east) m².
+dds::msg::MapFix ToMsg(const StepDiagnostics& d, ParticleFilterKind kind, std::uint32_t vehicle_id,
+                       std::uint64_t stamp_ns);
+
+class MatcherNode {
+ public:
+  // `grid` must outlive the node.
+  MatcherNode(dds::Node& node, const GeoGrid& grid, std::size_t layer, const MatcherNodeOptions& options);
+  bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
+
+  std::uint64_t navs_received() const { return nav_reader_->stats().samples.load(); }
+  std::uint64_t samples_received() const { return mag_reader_->stats().samples.load(); }
+  std::uint64_t steps() const { return steps_; }
+  std::uint64_t skipped() const { return skipped_; }
+  std::uint64_t published() const { return writer_->stats().samples.load(); }
+  FilterCounters filter_counters() const;
+
+ private:
+  void OnNav(const dds::msg::VesselNav& m);
+  void OnSample(const dds::msg::MagnetometerSample& m);
+  void Drain();                                // mu_ held
+  void Skip(const std::string& why, double t_s);  // mu_ held
+
+  MatcherNodeOptions options_;
+  mutable std::mutex mu_;
+  std::unique_ptr<SequentialMatcher> filter_;
+  FixSchedule schedule_;
+  std::map<std::uint64_t, std::pair<double, double>> navs_;  // stamp -> INS lat, lon
+  std::map<std::uint64_t, double> pending_;                  // stamp -> anomaly, nT
+  bool stepped_ = false;
+  std::uint64_t last_step_ns_ = 0;
+  std::set<std::string> warned_;
+  std::atomic<std::uint64_t> steps_{0}, skipped_{0};
+  std::unique_ptr<dds::Writer<dds::msg::MapFix>> writer_;
+  std::unique_ptr<dds::Reader<dds::msg::VesselNav>> nav_reader_;
+  std::unique_ptr<dds::Reader<dds::msg::MagnetometerSample>> mag_reader_;
+};
+
+}  // namespace magnav::mapmatch

@@ -1,0 +1,431 @@
+#include "magnav/mapmatch/particle_filter.h"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <limits>
+#include <numbers>
+#include <numeric>
+#include <utility>
+
+#include "magnav/core/csv.h"
+#include "magnav/core/error.h"
+#include "magnav/core/option_check.h"
+#include "match_common.h"
+
+namespace magnav::mapmatch {
+
+const char* ParticleFilterKindName(ParticleFilterKind kind) {
+  return kind == ParticleFilterKind::kPf ? "pf" : "afpf";
+}
+
+bool ParticleFilterOptions::IsValid(std::string* error) const {
+  if (num_particles < 1) return Fail(error, "num_particles must be >= 1");
+  if (!PositiveFinite(measurement_sigma_nT)) return Fail(error, "measurement_sigma_nT must be finite and > 0");
+  if (!(std::isfinite(drift_sigma_deg) && drift_sigma_deg >= 0.0)) {
+    return Fail(error, "drift_sigma_deg must be finite and >= 0");
+  }
+  if (!PositiveFinite(prior_half_width_deg)) return Fail(error, "prior_half_width_deg must be finite and > 0");
+  if (!(resample_ess_fraction >= 0.0 && resample_ess_fraction <= 1.0)) {
+    return Fail(error, "resample_ess_fraction must be in [0, 1]");
+  }
+  if (!(std::isfinite(off_map_sigmas) && off_map_sigmas >= 0.0)) {
+    return Fail(error, "off_map_sigmas must be finite and >= 0");
+  }
+  if (!PositiveFinite(max_step_deg)) return Fail(error, "max_step_deg must be finite and > 0");
+  if (divergence_window < 1) return Fail(error, "divergence_window must be >= 1");
+  if (!PositiveFinite(divergence_nis)) return Fail(error, "divergence_nis must be finite and > 0");
+  if (!PositiveFinite(fission_lambda)) return Fail(error, "fission_lambda must be finite and > 0");
+  if (!PositiveFinite(fission_mu_deg2)) return Fail(error, "fission_mu_deg2 must be finite and > 0");
+  if (max_particles < num_particles) return Fail(error, "max_particles must be >= num_particles");
+  if (!PositiveFinite(particles_per_cell)) return Fail(error, "particles_per_cell must be finite and > 0");
+  if (!(std::isfinite(bias_prior_sigma_nT) && bias_prior_sigma_nT >= 0.0)) {
+    return Fail(error, "bias_prior_sigma_nT must be finite and >= 0");
+  }
+  if (!(std::isfinite(bias_drift_sigma_nT) && bias_drift_sigma_nT >= 0.0)) {
+    return Fail(error, "bias_drift_sigma_nT must be finite and >= 0");
+  }
+  return true;
+}
+
+namespace {
+
+class Filter final : public SequentialMatcher {
+ public:
+  Filter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer, const ParticleFilterOptions& o)
+      : kind_(kind), grid_(grid), layer_(layer), o_(o), rng_(o.seed) {
+    if (layer >= grid.layer_names().size()) throw InputError(std::string(Name()) + ": layer index not in the map");
+    std::string why;
+    if (!o.IsValid(&why)) throw InputError(std::string(Name()) + " options: " + why);
+    inv_two_var_ = 1.0 / (2.0 * o.measurement_sigma_nT * o.measurement_sigma_nT);
+    off_map_loglik_ = -0.5 * o.off_map_sigmas * o.off_map_sigmas;
+  }
+
+  const StepDiagnostics& Step(double ins_lat, double ins_lon, double measured_nT) override {
+    StepDiagnostics d;
+    ++counters_.steps;
+    if (!initialised_) {
+      if (!std::isfinite(ins_lat) || !std::isfinite(ins_lon)) {
+        throw InputError(std::string(Name()) + ": the first INS position is not finite");
+      }
+      SpreadPrior(ins_lat, ins_lon);
+      prev_lat_ = ins_lat;
+      prev_lon_ = ins_lon;
+      initialised_ = true;
+    } else {
+      d.ins_jump = Predict(ins_lat, ins_lon);
+    }
+    Update(measured_nT, &d);
+    Estimate(&d);
+    if (kind_ == ParticleFilterKind::kAfpf) AdaptCount(d);
+    d.particles = static_cast<int>(p_.size());
+    d.unique_particles = std::min(d.unique_particles, d.particles);  // after the AFPF's trim
+    if (d.lost) {
+      ++counters_.lost_steps;
+      if (o_.reinitialize_when_lost && std::isfinite(ins_lat) && std::isfinite(ins_lon)) {
+        SpreadPrior(ins_lat, ins_lon);
+        nis_window_.clear();
+        ++counters_.reinitialisations;
+      }
+    }
+    last_ = d;
+    return last_;
+  }
+
+  const std::vector<Particle>& particles() const override { return p_; }
+  const FilterCounters& counters() const override { return counters_; }
+  const StepDiagnostics& last() const override { return last_; }
+  ParticleFilterKind kind() const override { return kind_; }
+
+ private:
+  const char* Name() const { return ParticleFilterKindName(kind_); }
+
+  // Log-likelihood of a measurement at a point (the off-map floor outside).
+  double LogLik(double lat, double lon, double z, bool* on_map) const {
+    const auto s = grid_.Sample(layer_, lat, lon);
+    *on_map = s.has_value();
+    if (!s) return off_map_loglik_;
+    const double r = z - s->value_nT;
+    return -r * r * inv_two_var_;
+  }
+
+  void SpreadPrior(double lat, double lon) {
+    const double h = o_.prior_half_width_deg;
+    const double lat0 = std::max(lat - h, grid_.lat().first_deg), lat1 = std::min(lat + h, grid_.lat().last_deg());
+    const double lon0 = std::max(lon - h, grid_.lon().first_deg), lon1 = std::min(lon + h, grid_.lon().last_deg());
+    if (!(lat0 < lat1 && lon0 < lon1)) {
+      throw InputError(std::string(Name()) + ": the prior square (±" + FormatNumber(h) + " deg around " +
+                       FormatNumber(lat) + ", " + FormatNumber(lon) + ") does not overlap the map");
+    }
+    const int n = kind_ == ParticleFilterKind::kAfpf ? o_.max_particles : o_.num_particles;
+    std::uniform_real_distribution<double> ulat(lat0, lat1), ulon(lon0, lon1);
+    p_.assign(static_cast<std::size_t>(n), Particle{});
+    logw_.assign(p_.size(), 0.0);
+    for (Particle& q : p_) {
+      q.lat_deg = ulat(rng_);
+      q.lon_deg = ulon(rng_);
+      q.weight = 1.0 / n;
+    }
+    if (o_.estimate_bias) {
+      std::normal_distribution<double> b(0.0, o_.bias_prior_sigma_nT);
+      for (Particle& q : p_) q.bias_nT = b(rng_);
+    }
+  }
+
+  // Moves every particle by the INS increment plus drift noise; true if the
+  // increment was a jump (not applied).
+  bool Predict(double lat, double lon) {
+    double dlat = lat - prev_lat_, dlon = lon - prev_lon_;
+    bool jump = false;
+    if (!std::isfinite(lat) || !std::isfinite(lon)) {
+      jump = true;  // the last finite INS position stays the reference
+    } else {
+      jump = std::hypot(dlat, dlon) > o_.max_step_deg;
+      prev_lat_ = lat;
+      prev_lon_ = lon;
+    }
+    if (jump) {
+      dlat = dlon = 0.0;
+      ++counters_.ins_jumps;
+    }
+    std::normal_distribution<double> n(0.0, o_.drift_sigma_deg);
+    for (Particle& q : p_) {
+      q.lat_deg += dlat + n(rng_);
+      q.lon_deg += dlon + n(rng_);
+    }
+    if (o_.estimate_bias) {
+      std::normal_distribution<double> b(0.0, o_.bias_drift_sigma_nT);
+      for (Particle& q : p_) q.bias_nT += b(rng_);
+    }
+    return jump;
+  }
+
+  void Normalise() {
+    const double mx = *std::max_element(logw_.begin(), logw_.end());
+    double sum = 0.0;
+    for (std::size_t i = 0; i < p_.size(); ++i) {
+      logw_[i] -= mx;
+      p_[i].weight = std::exp(logw_[i]);
+      sum += p_[i].weight;
+    }
+    const double lsum = std::log(sum);
+    for (std::size_t i = 0; i < p_.size(); ++i) {
+      p_[i].weight /= sum;
+      logw_[i] -= lsum;
+    }
+  }
+
+  void Update(double z, StepDiagnostics* d) {
+    unique_ = static_cast<int>(p_.size());
+    if (!std::isfinite(z)) {
+      d->update = StepUpdate::kBadMeasurement;
+      ++counters_.bad_measurements;
+      d->ess = Ess();
+      d->lost = Lost();
+      return;
+    }
+    const std::size_t n = p_.size();
+    loglik_.resize(n);
+    bool any_on = false;
+    double evidence = 0.0;  // Σ w_(k−1) p(z|x)
+    for (std::size_t i = 0; i < n; ++i) {
+      bool on = false;
+      loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, z - p_[i].bias_nT, &on);
+      any_on = any_on || on;
+      evidence += p_[i].weight * std::exp(loglik_[i]);
+    }
+    if (!any_on) {
+      d->update = StepUpdate::kAllOffMap;
+      ++counters_.all_off_map;
+      d->ess = Ess();
+      d->lost = Lost();
+      return;
+    }
+    ++counters_.updates;
+    d->nis = evidence > 0.0 ? -2.0 * std::log(evidence) : std::numeric_limits<double>::infinity();
+    nis_window_.push_back(d->nis);
+    if (static_cast<int>(nis_window_.size()) > o_.divergence_window) nis_window_.pop_front();
+    for (std::size_t i = 0; i < n; ++i) logw_[i] += loglik_[i];
+    Normalise();
+    d->ess = Ess();
+    if (kind_ == ParticleFilterKind::kPf) {
+      if (d->ess < o_.resample_ess_fraction * static_cast<double>(n)) {
+        Resample();
+        d->resampled = true;
+        ++counters_.resamples;
+      }
+    } else {
+      Fission(z);
+    }
+    d->lost = Lost();
+  }
+
+  double Ess() const {
+    double s = 0.0;
+    for (const Particle& q : p_) s += q.weight * q.weight;
+    return s > 0.0 ? 1.0 / s : 0.0;
+  }
+
+  bool Lost() const {
+    if (static_cast<int>(nis_window_.size()) < o_.divergence_window) return false;
+    const double mean = std::accumulate(nis_window_.begin(), nis_window_.end(), 0.0) / nis_window_.size();
+    return mean > o_.divergence_nis;
+  }
+
+  // Systematic resampling: one uniform offset, N evenly spaced pointers.
+  void Resample() {
+    const std::size_t n = p_.size();
+    const double step = 1.0 / static_cast<double>(n);
+    std::uniform_real_distribution<double> u(0.0, step);
+    double pointer = u(rng_), cum = p_[0].weight;
+    std::vector<Particle> out(n);
+    std::size_t j = 0;
+    int unique = 0;
+    std::size_t last_j = n;
+    for (std::size_t i = 0; i < n; ++i) {
+      while (pointer > cum && j + 1 < n) cum += p_[++j].weight;
+      out[i] = p_[j];
+      out[i].weight = step;
+      if (j != last_j) ++unique, last_j = j;
+      pointer += step;
+    }
+    p_.swap(out);
+    std::fill(logw_.begin(), logw_.end(), std::log(step));
+    unique_ = unique;
+  }
+
+  // The paper's fission, pooling and selection of the heaviest current-count particles.
+  void Fission(double z) {
+    const std::size_t n = p_.size();
+    double w_max = 0.0;
+    for (const Particle& q : p_) w_max = std::max(w_max, q.weight);
+    const double w_avg = 1.0 / static_cast<double>(n);
+    const double spread = w_max - w_avg;
+    pool_.assign(p_.begin(), p_.end());
+    pool_logw_.assign(logw_.begin(), logw_.end());
+    std::normal_distribution<double> unit(0.0, 1.0);
+    const double penalty = o_.fission_motion_penalty && o_.drift_sigma_deg > 0.0
+                               ? 0.5 / (o_.drift_sigma_deg * o_.drift_sigma_deg)
+                               : 0.0;
+    std::normal_distribution<double> bias_spread(0.0, o_.bias_drift_sigma_nT);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double wi = p_[i].weight;
+      const double a = spread > 1e-15 * w_avg ? 1.0 / (1.0 + std::exp((wi - w_avg) / spread)) : 0.5;
+      const double sd = std::sqrt(o_.fission_lambda * o_.fission_mu_deg2 * a);
+      const long m = std::lround(static_cast<double>(n) * wi) + 2;
+      for (long j = 0; j < m; ++j) {
+        Particle c;
+        c.lat_deg = p_[i].lat_deg + sd * unit(rng_);
+        c.lon_deg = p_[i].lon_deg + sd * unit(rng_);
+        c.bias_nT = p_[i].bias_nT + (o_.estimate_bias ? bias_spread(rng_) : 0.0);
+        bool on = false;
+        // The parent's prior weight times the offspring's likelihood, with the
+        // parents' normaliser: logw_i − loglik_i + loglik(offspring).
+        double lw = logw_[i] - loglik_[i] + LogLik(c.lat_deg, c.lon_deg, z - c.bias_nT, &on);
+        if (penalty > 0.0) {
+          const double dl = c.lat_deg - p_[i].lat_deg, dn = c.lon_deg - p_[i].lon_deg;
+          lw -= penalty * (dl * dl + dn * dn);
+        }
+        pool_logw_.push_back(lw);
+        pool_.push_back(c);
+      }
+    }
+    KeepHeaviest(n);
+  }
+
+  // Keeps the `n` heaviest of pool_ (descending weight) in p_, renormalised.
+  void KeepHeaviest(std::size_t n) {
+    order_.resize(pool_.size());
+    std::iota(order_.begin(), order_.end(), std::size_t{0});
+    auto heavier = [this](std::size_t a, std::size_t b) {
+      return pool_logw_[a] > pool_logw_[b] || (pool_logw_[a] == pool_logw_[b] && a < b);
+    };
+    n = std::min(n, order_.size());
+    std::nth_element(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(n), order_.end(), heavier);
+    std::sort(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(n), heavier);
+    p_.resize(n);
+    logw_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      p_[i] = pool_[order_[i]];
+      logw_[i] = pool_logw_[order_[i]];
+    }
+    Normalise();
+    unique_ = static_cast<int>(n);
+  }
+
+  void Estimate(StepDiagnostics* d) {
+    double lat = 0.0, lon = 0.0, bias = 0.0;
+    for (const Particle& q : p_) {
+      lat += q.weight * q.lat_deg;
+      lon += q.weight * q.lon_deg;
+      bias += q.weight * q.bias_nT;
+    }
+    double bias_var = 0.0;
+    for (const Particle& q : p_) bias_var += q.weight * (q.bias_nT - bias) * (q.bias_nT - bias);
+    d->bias_nT = bias;
+    d->bias_sigma_nT = std::sqrt(bias_var);
+    double cll = 0.0, cln = 0.0, cnn = 0.0;
+    for (const Particle& q : p_) {
+      const double a = q.lat_deg - lat, b = q.lon_deg - lon;
+      cll += q.weight * a * a;
+      cln += q.weight * a * b;
+      cnn += q.weight * b * b;
+    }
+    d->lat_deg = lat;
+    d->lon_deg = lon;
+    d->cov_lat_lat = cll;
+    d->cov_lat_lon = cln;
+    d->cov_lon_lon = cnn;
+    d->unique_particles = unique_;
+    // Occupied map cells (cells outside the map counted too).
+    cells_.resize(p_.size());
+    const double la0 = grid_.lat().first_deg, lo0 = grid_.lon().first_deg;
+    const double ila = 1.0 / grid_.lat().step_deg, ilo = 1.0 / grid_.lon().step_deg;
+    for (std::size_t i = 0; i < p_.size(); ++i) {
+      const auto a = static_cast<long long>(std::floor((p_[i].lat_deg - la0) * ila));
+      const auto b = static_cast<long long>(std::floor((p_[i].lon_deg - lo0) * ilo));
+      cells_[i] = a * 1000003LL + b;
+    }
+    std::sort(cells_.begin(), cells_.end());
+    d->occupied_cells = static_cast<int>(std::unique(cells_.begin(), cells_.end()) - cells_.begin());
+  }
+
+  // The AFPF's count for the next step from this step's spread (occupied map
+  // cells); trims the lightest particles (p_ is sorted heaviest first after
+  // KeepHeaviest).
+  void AdaptCount(const StepDiagnostics& d) {
+    const double want = std::ceil(o_.particles_per_cell * d.occupied_cells);
+    const std::size_t n = static_cast<std::size_t>(
+        std::clamp(want, static_cast<double>(o_.num_particles), static_cast<double>(o_.max_particles)));
+    if (n >= p_.size() || d.update != StepUpdate::kUpdated) return;
+    p_.resize(n);
+    logw_.resize(n);
+    Normalise();
+  }
+
+  ParticleFilterKind kind_;
+  const GeoGrid& grid_;
+  std::size_t layer_;
+  ParticleFilterOptions o_;
+  std::mt19937_64 rng_;
+  double inv_two_var_ = 0.0, off_map_loglik_ = 0.0;
+  bool initialised_ = false;
+  double prev_lat_ = 0.0, prev_lon_ = 0.0;
+  std::vector<Particle> p_;
+  std::vector<double> logw_, loglik_;
+  std::vector<Particle> pool_;
+  std::vector<double> pool_logw_;
+  std::vector<std::size_t> order_;
+  std::vector<long long> cells_;
+  std::deque<double> nis_window_;
+  int unique_ = 0;
+  FilterCounters counters_;
+  StepDiagnostics last_;
+};
+
+}  // namespace
+
+std::unique_ptr<SequentialMatcher> MakeParticleFilter(ParticleFilterKind kind, const GeoGrid& grid,
+                                                      std::size_t layer, const ParticleFilterOptions& options) {
+  return std::make_unique<Filter>(kind, grid, layer, options);
+}
+
+MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
+                                const MatchPath& path, const ParticleFilterOptions& options,
+                                std::vector<StepDiagnostics>* steps) {
+  internal::CheckInputs(grid, layer, path, options, ParticleFilterKindName(kind));
+  MatchResult r = internal::StartResult(ParticleFilterKindName(kind), "mean effective sample size", path);
+  auto filter = MakeParticleFilter(kind, grid, layer, options);
+  if (steps != nullptr) steps->clear();
+  double ess_sum = 0.0;
+  long long first_lost = -1;
+  for (std::size_t p = 0; p < path.size(); ++p) {
+    const StepDiagnostics& d = filter->Step(path.lat_deg[p], path.lon_deg[p], path.measured_nT[p]);
+    r.lat_deg[p] = d.lat_deg;
+    r.lon_deg[p] = d.lon_deg;
+    ess_sum += d.ess;
+    if (d.lost && first_lost < 0) first_lost = path.k[p];
+    if (steps != nullptr) steps->push_back(d);
+  }
+  const FilterCounters& c = filter->counters();
+  r.iterations = c.steps;
+  r.score = ess_sum / static_cast<double>(path.size());
+  r.points_used = c.updates;
+  r.points_off_map = c.all_off_map;
+  r.points_bad_measurement = c.bad_measurements;
+  r.converged = !filter->lost();
+  if (!r.converged) {
+    r.reason = "lost (mean NIS over the last " + std::to_string(options.divergence_window) + " updates > " +
+               FormatNumber(options.divergence_nis) + ")";
+  } else if (first_lost >= 0) {
+    r.reason = "lost from k = " + std::to_string(first_lost) + ", recovered";
+  }
+  r.notes = "particles " + std::to_string(filter->particles().size()) + " at the end, seed " +
+            std::to_string(options.seed) + ", sigma " + FormatNumber(options.measurement_sigma_nT) +
+            " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
+            ", lost steps " + std::to_string(c.lost_steps) +
+            ", reinitialisations " + std::to_string(c.reinitialisations);
+  return r;
+}
+
+}  // namespace magnav::mapmatch

@@ -1,0 +1,122 @@
+// The particle-filter accuracy table of docs/ACCURACY.md ("Map matching II"),
+// re-measured: every row (pf / afpf on a crustal reference path, default
+// settings) is run through the library with the first kSeeds of the table's 20
+// seeds; the mean second-half error must stay within kFigureMargin of the
+// table's 20-seed mean, the final error within kFigureMargin of the table's
+// mean + 2 standard deviations (the final point is one sample). Then the
+// issue's targets that are met are asserted outright.
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "magnav/core/csv.h"
+#include "magnav/mapmatch/particle_filter.h"
+#include "reference_truth.h"
+#include "test_data.h"
+
+namespace magnav::mapmatch {
+namespace {
+
+constexpr int kSeeds = 2;
+
+struct Row {
+  std::string method, path;
+  double half_deg = 0.0, half_sd = 0.0, ins_half_deg = 0.0;
+  double final_deg = 0.0, final_sd = 0.0, ins_final_deg = 0.0;
+};
+
+std::string Trim(const std::string& s) {
+  const auto a = s.find_first_not_of(' '), b = s.find_last_not_of(' ');
+  return a == std::string::npos ? "" : s.substr(a, b - a + 1);
+}
+
+// "0.003619 ± 4.8e-05 (0.01036)" -> {0.003619, 4.8e-05, 0.01036}
+void Triple(const std::string& cell, double* mean, double* sd, double* ins) {
+  const auto pm = cell.find("±"), paren = cell.find('(');
+  *mean = std::stod(cell.substr(0, pm));
+  *sd = std::stod(cell.substr(pm + std::string("±").size()));
+  *ins = std::stod(cell.substr(paren + 1));
+}
+
+std::vector<Row> DocumentedRows() {
+  std::ifstream in(std::string(MAGNAV_SOURCE_DIR) + "/docs/ACCURACY.md");
+  std::vector<Row> rows;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("| pf | ", 0) != 0 && line.rfind("| afpf | ", 0) != 0) continue;
+    std::vector<std::string> cells;
+    std::stringstream ss(line.substr(1));
+    std::string cell;
+    while (std::getline(ss, cell, '|')) cells.push_back(Trim(cell));
+    if (cells.size() < 4) continue;
+    Row r;
+    r.method = cells[0];
+    r.path = cells[1] + ".csv";
+    Triple(cells[2], &r.half_deg, &r.half_sd, &r.ins_half_deg);
+    Triple(cells[3], &r.final_deg, &r.final_sd, &r.ins_final_deg);
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+struct Measured {
+  double half_deg = 0.0, final_deg = 0.0, ins_half_deg = 0.0, ins_final_deg = 0.0;
+};
+
+Measured RunRow(const GeoGrid& g, const Row& row, int seeds) {
+  const std::string file = testing::ReferencePath(row.path);
+  const CsvTable t = CsvTable::Read(file);
+  const MatchPath p = ReadMatchPath(file, "meas_nT");
+  const std::size_t cl = t.column("true_lat"), cn = t.column("true_lon");
+  const std::size_t n = p.size(), h = n / 2;
+  Measured m;
+  for (int seed = 1; seed <= seeds; ++seed) {
+    ParticleFilterOptions o;  // the defaults
+    o.seed = static_cast<std::uint64_t>(seed);
+    const MatchResult r = MatchParticleFilter(
+        row.method == "pf" ? ParticleFilterKind::kPf : ParticleFilterKind::kAfpf, g, 0, p, o);
+    for (std::size_t k = h; k < n; ++k) {
+      m.half_deg += std::hypot(r.lat_deg[k] - t.number(k, cl), r.lon_deg[k] - t.number(k, cn)) /
+                    static_cast<double>((n - h) * seeds);
+    }
+    m.final_deg += std::hypot(r.lat_deg[n - 1] - t.number(n - 1, cl), r.lon_deg[n - 1] - t.number(n - 1, cn)) / seeds;
+  }
+  for (std::size_t k = h; k < n; ++k) {
+    m.ins_half_deg += std::hypot(p.lat_deg[k] - t.number(k, cl), p.lon_deg[k] - t.number(k, cn)) /
+                      static_cast<double>(n - h);
+  }
+  m.ins_final_deg = std::hypot(p.lat_deg[n - 1] - t.number(n - 1, cl), p.lon_deg[n - 1] - t.number(n - 1, cn));
+  return m;
+}
+
+const GeoGrid& Crustal() {
+  static const GeoGrid g = ReadGeoGridCsv(testing::ReferencePath("map_crustal_anomaly.csv"), {"anomaly_nT"});
+  return g;
+}
+
+TEST(ParticleFilterAccuracy, EveryDocumentedRowHoldsAndTheMetTargetsHold) {
+  const std::vector<Row> rows = DocumentedRows();
+  ASSERT_EQ(rows.size(), 2u * 2 * 2);  // pf, afpf x 2 offsets x 2 noise levels
+  for (const Row& row : rows) {
+    const std::string what = row.method + " " + row.path;
+    const Measured m = RunRow(Crustal(), row, kSeeds);
+    testing::ExpectErrorFigure(m.half_deg, row.half_deg, what + " second-half mean error");
+    testing::ExpectErrorFigure(m.final_deg, row.final_deg + 2.0 * row.final_sd, what + " final error");
+    EXPECT_NEAR(m.ins_half_deg, row.ins_half_deg, 1e-3 * row.ins_half_deg) << what;
+    EXPECT_NEAR(m.ins_final_deg, row.ins_final_deg, 1e-3 * row.ins_final_deg) << what;
+    // Issue 12's targets: the AFPF cuts the second-half mean error to ≤ 25 % of
+    // the INS's on every path; the PF does on the 0.1° paths (on the 0.01°
+    // paths it does not: docs/ACCURACY.md).
+    const bool wide = row.path.find("off0p1deg") != std::string::npos;
+    if (row.method == "afpf" || wide) {
+      EXPECT_LE(m.half_deg, 0.25 * m.ins_half_deg) << what;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace magnav::mapmatch

@@ -1,0 +1,188 @@
+// magnav-matcher as a process on loopback DDS, fed by `magnav replay
+// --map-path` (paced: 0.03 s per point, so the KEEP_LAST 10 fix history never
+// overflows ahead of the recorder) (a crustal reference run: INS as VesselNav, the anomaly as a
+// MagnetometerSample on the map's reference field) and recorded by `magnav
+// record --topic map_fix`: its fixes equal the library's filter run offline on
+// the same stream with the same seed, at the steps the schedule names.
+#include <signal.h>
+
+#include <atomic>
+#include <cmath>
+#include <functional>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "magnav/core/csv.h"
+#include "magnav/mapmatch/fix_schedule.h"
+#include "magnav/mapmatch/particle_filter.h"
+#include "matcher_node.h"
+#include "subprocess.h"
+#include "test_data.h"
+
+namespace magnav::mapmatch {
+namespace {
+
+using namespace std::chrono_literals;
+namespace msg = ::magnav::msg;
+
+// |F0| of the crustal map (tests/data/reference/README.md §4b).
+const double kReferenceField_nT =
+    std::sqrt(22838.121767602996 * 22838.121767602996 + 1452.8242542037194 * 1452.8242542037194 +
+              41845.01475649571 * 41845.01475649571);
+
+struct Expected {
+  std::vector<std::size_t> steps;  // path index of each fix
+  std::vector<StepDiagnostics> fixes;
+};
+
+// The library offline on the stream the service sees (anomalies through the
+// message's |B|), with the schedule of the service.
+Expected Offline(const std::string& path_file, ParticleFilterKind kind, const ParticleFilterOptions& o, double every_m) {
+  const GeoGrid g = ReadGeoGridCsv(testing::ReferencePath("map_crustal_anomaly.csv"), {"anomaly_nT"});
+  MatchPath p = ReadMatchPath(path_file, "meas_nT");
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    p.measured_nT[i] = AnomalyOf(AnomalySampleMsg(0, 0, i, p.measured_nT[i], kReferenceField_nT), kReferenceField_nT);
+  }
+  std::vector<StepDiagnostics> steps;
+  MatchParticleFilter(kind, g, 0, p, o, &steps);
+  FixSchedule schedule(every_m, o.max_step_deg);
+  Expected e;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (schedule.Step(p.lat_deg[i], p.lon_deg[i])) {
+      e.steps.push_back(i);
+      e.fixes.push_back(steps[i]);
+    }
+  }
+  return e;
+}
+
+TEST(MatcherService, ReplayedRunsFixesEqualTheOfflineFilters) {
+  const int domain = testing::TestDomainId();
+  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}};
+  const std::string dir = testing::TempDir();
+  const std::string path = testing::ReferencePath("mappath_crustal_off0p1deg_noise3nT.csv");
+  char ref_exact[64];
+  std::snprintf(ref_exact, sizeof(ref_exact), "%.17g", kReferenceField_nT);
+
+  ParticleFilterOptions o;
+  o.seed = 7;
+  const Expected want = Offline(path, ParticleFilterKind::kAfpf, o, 1000.0);
+  ASSERT_GE(want.steps.size(), 10u);
+
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--map", testing::ReferencePath("map_crustal_anomaly.csv"),
+                               "--value-column", "anomaly_nT", "--reference-field", ref_exact, "--method", "afpf",
+                               "--seed", "7", "--stats-period", "0"},
+                              env, /*merge_stderr=*/true);
+  testing::Subprocess record({MAGNAV_BIN, "record", "--topic", "map_fix", "--count",
+                              std::to_string(want.steps.size()), "--output", dir + "/fixes.csv"},
+                             env, /*merge_stderr=*/true);
+  const auto [rc, out] = testing::RunCommand({MAGNAV_BIN, "replay", "--map-path", path, "--reference-field", ref_exact,
+                                              "--step-period", "0.03", "--speed", "1", "--wait-readers", "1", "--wait", "20"},
+                                             env, 120s);
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("replayed 150 magnetometer samples and 150 vessel_nav fixes"), std::string::npos) << out;
+  ASSERT_EQ(record.Wait(60s), 0) << record.ReadAll();
+  service.Signal(SIGTERM);
+  ASSERT_EQ(service.Wait(30s), 0);
+  const std::string log = service.ReadAll();
+  EXPECT_NE(log.find("150 steps (150 updates"), std::string::npos) << log;
+
+  const CsvTable t = CsvTable::Read(dir + "/fixes.csv");
+  ASSERT_EQ(t.num_rows(), want.steps.size());
+  for (std::size_t r = 0; r < t.num_rows(); ++r) {
+    SCOPED_TRACE(r);
+    const StepDiagnostics& d = want.fixes[r];
+    EXPECT_NEAR(t.number(r, t.column("t")), 0.03 * static_cast<double>(want.steps[r]), 1e-9);
+    EXPECT_EQ(t.text(r, t.column("method")), "afpf");
+    EXPECT_EQ(t.number(r, t.column("lat")), d.lat_deg);
+    EXPECT_EQ(t.number(r, t.column("lon")), d.lon_deg);
+    EXPECT_EQ(t.number(r, t.column("score")), d.ess);
+    EXPECT_EQ(t.number(r, t.column("cov_nn")), CovarianceNorthEast_m2(d)[0]);
+  }
+}
+
+// The door, in process: what the node ignores (other vehicle, other sensor,
+// GNSS), skips and counts (no geodetic position, a reading before the first
+// INS fix or not later than the last step), and what it hands the filter (a
+// NaN reading: predicted through, counted by the filter).
+TEST(MatcherService, TheDoorIgnoresSkipsAndCounts) {
+  const int domain = testing::TestDomainId();
+  dds::NodeOptions no;
+  no.name = "matcher_door_test";
+  no.domain_id = domain;
+  const GeoGrid g = ReadGeoGridCsv(testing::ReferencePath("map_crustal_anomaly.csv"), {"anomaly_nT"});
+  MatcherNodeOptions o;
+  o.kind = ParticleFilterKind::kPf;
+  o.filter.num_particles = 500;
+  o.fix_every_m = 0.0;  // a fix every step
+  o.reference_field_nT = kReferenceField_nT;
+  dds::Node service_node(no), peer(no);
+  MatcherNode matcher(service_node, g, 0, o);
+  std::atomic<int> fixes{0};
+  auto reader = peer.CreateReader<msg::MapFix>([&](const msg::MapFix&, const auto&) { ++fixes; });
+  auto navs = peer.CreateWriter<msg::VesselNav>();
+  auto samples = peer.CreateWriter<msg::MagnetometerSample>();
+  ASSERT_TRUE(navs->WaitForMatched(1, 20s));
+  ASSERT_TRUE(samples->WaitForMatched(1, 20s));
+  ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+  auto until = [](const std::function<bool()>& done) {
+    for (int i = 0; i < 200 && !done(); ++i) std::this_thread::sleep_for(25ms);
+    return done();
+  };
+  const std::uint64_t s = 1000000000ULL;
+  const double lat = 45.0, lon = 10.0, v = g.Sample(0, lat, lon)->value_nT;
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 1 * s, 0, v, kReferenceField_nT)));  // before any INS fix
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 2 * s, lat, lon)));
+  msg::VesselNav gnss = InsNavMsg(0, 3 * s, lat, lon);
+  gnss.source(msg::NAV_GNSS);
+  ASSERT_TRUE(navs->Write(gnss));                                         // ignored
+  ASSERT_TRUE(navs->Write(InsNavMsg(5, 3 * s, lat, lon)));                // another vehicle: ignored
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 3 * s, std::nan(""), lon)));      // skipped
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 4 * s, lat, lon)));
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 4 * s, 1, v, kReferenceField_nT)));
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(7, 5 * s, 0, v, kReferenceField_nT)));  // another sensor: ignored
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 5 * s, 2, std::nan(""), kReferenceField_nT)));  // NaN reading
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 5 * s, lat + 0.0009, lon)));
+  ASSERT_TRUE(until([&] { return matcher.steps() == 2; })) << matcher.steps();
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 4 * s, 3, v, kReferenceField_nT)));  // not later: skipped
+  ASSERT_TRUE(navs->Write(InsNavMsg(0, 6 * s, lat + 0.0018, lon)));
+  ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 6 * s, 4, g.Sample(0, lat + 0.0018, lon)->value_nT, kReferenceField_nT)));
+  ASSERT_TRUE(until([&] { return matcher.steps() == 3 && fixes == 3; })) << matcher.steps() << " " << fixes;
+  EXPECT_EQ(matcher.skipped(), 3u);  // before the first fix, no geodetic, not later
+  const FilterCounters c = matcher.filter_counters();
+  EXPECT_EQ(c.steps, 3);
+  EXPECT_EQ(c.bad_measurements, 1);
+  EXPECT_EQ(c.updates, 2);
+  EXPECT_EQ(matcher.published(), 3u);
+}
+
+TEST(MatcherService, BadArgumentsExit2) {
+  const std::string path = testing::ReferencePath("mappath_crustal_off0p1deg_noise3nT.csv");
+  const std::string map = testing::ReferencePath("map_crustal_anomaly.csv");
+  struct Case {
+    std::vector<std::string> argv;
+    std::string expected;
+  };
+  for (const Case& c : {Case{{MAGNAV_BIN, "replay", "--map-path", path, "--wait", "1"}, "--reference-field"},
+                        Case{{MAGNAV_BIN, "replay", "--map-path", path, "--reference-field", "47693", "--step-period",
+                              "0", "--wait", "1"},
+                             "--step-period"},
+                        Case{{MAGNAV_BIN, "replay", "--map-path", path, "--reference-field", "47693", "--input", path},
+                             "--map-path goes alone"},
+                        Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "anomaly_nT", "--reference-field",
+                              "-5"},
+                             "reference_field_nT"},
+                        Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "anomaly_nT", "--reference-field",
+                              "47693", "--particles", "0"},
+                             "num_particles"},
+                        Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "F_nT", "--reference-field", "47693"},
+                             "F_nT"}}) {
+    const auto [rc, out] = testing::RunCommand(c.argv, {}, 30s);
+    EXPECT_EQ(rc, 2) << out;
+    EXPECT_NE(out.find(c.expected), std::string::npos) << out;
+  }
+}
+
+}  // namespace
+}  // namespace magnav::mapmatch

@@ -1,0 +1,49 @@
+// `magnav replay --loop`: a file replayed over and over until stopped, each
+// pass shifted in time by the file's span, so a consumer sees time going
+// forward and more samples than the file holds; SIGTERM stops it cleanly.
+#include <signal.h>
+
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "magnav/core/csv.h"
+#include "subprocess.h"
+#include "test_data.h"
+
+namespace magnav {
+namespace {
+
+using namespace std::chrono_literals;
+const std::string kMagnav = MAGNAV_BIN;
+
+TEST(Replay, LoopKeepsTimeGoingForwardUntilStopped) {
+  const std::string dir = testing::TempDir();
+  ASSERT_EQ(testing::RunCommand({kMagnav, "simulate", "--turns", "2:0", "--output", dir + "/p.csv"}).first, 0);
+  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}};
+  testing::Subprocess record({kMagnav, "record", "--topic", "gradiometer", "--count", "60", "--duration", "60",
+                              "--output", dir + "/rec.csv"},
+                             env);
+  testing::Subprocess replay(
+      {kMagnav, "replay", "--input", dir + "/p.csv", "--loop", "--speed", "20", "--wait-readers", "1"}, env, true);
+  EXPECT_EQ(record.Wait(60s), 0);
+  replay.Signal(SIGTERM);
+  EXPECT_EQ(replay.Wait(20s), 0);
+  const std::string log = replay.ReadAll();
+  EXPECT_NE(log.find("replayed "), std::string::npos) << log;
+  const CsvTable t = CsvTable::Read(dir + "/rec.csv");
+  ASSERT_EQ(t.num_rows(), 60u);  // the file has 21 (t = 0 .. 2 s at 10 Hz)
+  for (std::size_t i = 0; i < t.num_rows(); ++i) {
+    EXPECT_NEAR(t.number(i, t.column("t")), 0.1 * static_cast<double>(i), 1e-9) << i;  // 2.0 s, then 2.1 s, ...
+  }
+  // --loop is for gradiometer files only.
+  const auto [rc, out] = testing::RunCommand(
+      {kMagnav, "replay", "--map-path", testing::ReferencePath("mappath_crustal_off0p01deg_noise0p5nT.csv"),
+       "--reference-field", "47693", "--loop"});
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(out.find("--loop goes with --input"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace magnav
