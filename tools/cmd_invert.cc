@@ -40,6 +40,7 @@ std::string Num(double v) {
 }
 
 void RunInvert(const InvertArgs& args) {
+  RefuseOutputOverInput(args.output, {args.input});
   GradiometerFile file = ReadGradiometerFile(args.input);
   const bool has_case = !file.case_ids.empty();
   const bool has_t = file.has_time;

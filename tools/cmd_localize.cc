@@ -29,6 +29,7 @@ struct LocalizeArgs {
 std::string Sqrt(double variance) { return FormatNumber(std::sqrt(std::max(variance, 0.0))); }
 
 void RunLocalize(LocalizeArgs a) {
+  RefuseOutputOverInput(a.output, {a.measurements, a.deployment, a.gnss});
   const localizer::PassFile f =
       localizer::ReadPassFiles(a.measurements, a.deployment, a.gnss,
                                a.moment.set ? std::optional<Eigen::Vector3d>(a.moment.value()) : std::nullopt);

@@ -59,6 +59,7 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
 }
 
 void RunMatch(MatchArgs a) {
+  RefuseOutputOverInput(a.output, {a.map, a.path});
   const auto method = mapmatch::ParseMethod(a.method);
   if (!method) throw InputError("--method: expected " + mapmatch::MethodNames() + ", got '" + a.method + "'");
   const bool correlation = *method == mapmatch::Method::kMad || *method == mapmatch::Method::kMsd ||

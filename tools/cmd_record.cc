@@ -5,6 +5,7 @@
 #include <cmath>
 #include <chrono>
 #include <cstdio>
+#include <exception>
 #include <memory>
 #include <mutex>
 
@@ -164,6 +165,13 @@ class Sink {
       writer_ = std::make_unique<CsvWriter>(path, header);
     }
   }
+  // Left by an error: what was recorded is kept (every row is whole).
+  ~Sink() {
+    try {
+      Close();
+    } catch (const std::exception&) {
+    }
+  }
   void Write(const std::vector<std::string>& f) {
     std::lock_guard<std::mutex> lk(mu_);
     if (writer_) {
@@ -242,7 +250,10 @@ void AddRecordCommand(CLI::App& app) {
                   "gradiometer, dipole_fix, track, magnetometer, vessel_nav, sensor_position or map_fix")
       ->check(CLI::IsMember(
           {"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position", "map_fix"}));
-  sub->add_option("--output", args->output, "CSV file, or - for standard output");
+  sub->add_option("--output", args->output,
+                  "CSV file, or - for standard output. The rows go to OUTPUT.tmp-PID-N, renamed to OUTPUT when "
+                  "recording stops (SIGINT/SIGTERM, --count, --duration or an error): OUTPUT only ever holds "
+                  "whole rows; after kill -9 the rows so far are in the temporary");
   sub->add_option("--count", args->count, "stop after this many samples (0 = no limit)");
   sub->add_option("--duration", args->duration_s, "stop after this many seconds (0 = until SIGINT/SIGTERM)");
   AddDdsOptions(*sub, &args->dds);

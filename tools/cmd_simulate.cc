@@ -125,6 +125,7 @@ void RunField(const SimulateArgs& a, double sigma_B, double sigma_T) {
 }
 
 void Run(const SimulateArgs& a) {
+  RefuseOutputOverInput(a.truth, {a.output});
   PassScenario sc;
   if (a.noise == "fluxgate") {
     sc.sigma_B = 1e-9;

@@ -6,10 +6,12 @@
 // output of `magnav invert`, or `magnav record --topic dipole_fix`), as
 // magnav-tracker takes them from magnav/dipole_fix.
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 
 #include "commands.h"
@@ -34,19 +36,36 @@ struct TrackArgs {
 };
 
 // A fix file: t, sensor_id (optional: 0), dipole_x..z, valid (optional: 1).
-// A row that is not valid may leave its position empty. In time order.
-std::vector<tracker::DipoleFix> ReadFixes(const std::string& path) {
+// A row that is not valid may leave its position empty. In time order. Every
+// sensor_id must be one of the pass's (`sensor_ids`); positions within
+// kMaxAbsPosition_m.
+std::vector<tracker::DipoleFix> ReadFixes(const std::string& path, const std::set<std::uint32_t>& sensor_ids,
+                                          const std::string& pass_path) {
   const CsvTable c = CsvTable::Read(path);
   const std::size_t t = c.column("t"), x = c.column("dipole_x"), y = c.column("dipole_y"), z = c.column("dipole_z");
   const auto id = c.find_column("sensor_id");
   const auto valid = c.find_column("valid");
+  const auto where = [&](std::size_t row, std::size_t col) {
+    return path + ":" + std::to_string(c.line_of(row)) + ": column '" + c.header()[col] + "': ";
+  };
   std::vector<tracker::DipoleFix> out;
   for (std::size_t i = 0; i < c.num_rows(); ++i) {
     const bool ok = !valid || c.integer(i, *valid) != 0;
-    out.push_back(tracker::MakeFix(c.number(i, t), id ? c.uint32(i, *id) : 0,
-                                   ok ? Eigen::Vector3d(c.number(i, x), c.number(i, y), c.number(i, z))
-                                      : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()),
-                                   ok));
+    const std::uint32_t sensor = id ? c.uint32(i, *id) : 0;
+    if (id && sensor_ids.count(sensor) == 0) {
+      throw InputError(where(i, *id) + "sensor " + std::to_string(sensor) + " is not in the pass " + pass_path);
+    }
+    Eigen::Vector3d p = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+    if (ok) {
+      for (const std::size_t col : {x, y, z}) {
+        if (std::abs(c.number(i, col)) > kMaxAbsPosition_m) {
+          throw InputError(where(i, col) + FormatNumber(c.number(i, col)) + " m is out of range (|value| > " +
+                           FormatNumber(kMaxAbsPosition_m) + " m)");
+        }
+      }
+      p = {c.number(i, x), c.number(i, y), c.number(i, z)};
+    }
+    out.push_back(tracker::MakeFix(c.number(i, t), sensor, p, ok));
   }
   std::stable_sort(out.begin(), out.end(),
                    [](const tracker::DipoleFix& a, const tracker::DipoleFix& b) { return a.t_s < b.t_s; });
@@ -107,7 +126,9 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
 }
 
 void RunTrack(const TrackArgs& a) {
+  RefuseOutputOverInput(a.output, {a.input, a.fixes});
   const GradiometerFile f = ReadGradiometerFile(a.input);
+  if (!f.has_time) throw InputError(a.input + ": missing column 't': a pass to track needs its time column (s)");
   Eigen::Vector3d B0;
   if (a.b0.set) {
     B0 = {a.b0.v[0], a.b0.v[1], a.b0.v[2]};
@@ -135,7 +156,11 @@ void RunTrack(const TrackArgs& a) {
     throw InputError("--init-from dipole_fix needs --fixes FILE (e.g. the output of magnav invert)");
   }
   std::optional<std::vector<tracker::DipoleFix>> fixes;
-  if (!a.fixes.empty()) fixes = ReadFixes(a.fixes);
+  if (!a.fixes.empty()) {
+    std::set<std::uint32_t> ids;
+    for (const auto& s : f.samples) ids.insert(s.sensor_id);
+    fixes = ReadFixes(a.fixes, ids, a.input);
+  }
   const std::vector<tracker::DipoleFix>* given = fixes ? &*fixes : nullptr;
 
   std::vector<Row> rows;

@@ -1,10 +1,20 @@
 #include "magnav/core/csv.h"
 
 #include <cctype>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
-#include <sstream>
+#include <mutex>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "magnav/core/error.h"
 
@@ -80,12 +90,36 @@ std::string FormatNumber(double value) {
 }
 
 CsvTable CsvTable::Read(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw InputError(path + ": is a directory, not a file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open file for reading");
-  std::ostringstream ss;
-  ss << in.rdbuf();
+  // Read in chunks, never holding a line longer than kMaxLineBytes: a device
+  // or a binary file without newlines (/dev/zero) fails after 1 MiB instead of
+  // growing memory until the machine gives out.
+  std::string text;
+  std::vector<char> chunk(1 << 16);
+  std::size_t line_start = 0;  // offset of the current (unfinished) line
+  std::size_t lines = 1;
+  while (in) {
+    in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    const std::size_t n = static_cast<std::size_t>(in.gcount());
+    if (n == 0) break;
+    const std::size_t old_size = text.size();
+    text.append(chunk.data(), n);
+    for (std::size_t i = old_size; i < text.size(); ++i) {
+      if (text[i] == '\n') {
+        line_start = i + 1;
+        ++lines;
+      }
+    }
+    if (text.size() - line_start > kMaxLineBytes) {
+      throw InputError(path + ":" + std::to_string(lines) + ": line longer than " +
+                       std::to_string(kMaxLineBytes >> 20) + " MiB (no newline): not a CSV file");
+    }
+  }
   if (in.bad()) throw InputError(path + ": read error");
-  return Parse(ss.str(), path);
+  return Parse(text, path);
 }
 
 CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
@@ -95,6 +129,10 @@ CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
   std::size_t pos = 0;
   bool have_header = false;
   bool ends_with_newline = text.empty() || text.back() == '\n';
+  // A UTF-8 byte-order mark (as some editors and spreadsheets write) is not
+  // part of the first column's name.
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+  int header_line = 0;
   while (pos < text.size()) {
     std::size_t nl = text.find('\n', pos);
     const bool last = nl == std::string_view::npos;
@@ -131,6 +169,7 @@ CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
       }
       t.header_ = std::move(fields);
       have_header = true;
+      header_line = line_no;
       continue;
     }
     if (fields.size() != t.header_.size()) {
@@ -148,6 +187,9 @@ CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
   if (!have_header) {
     throw InputError(source + ": empty file: no header row" +
                      std::string(line_no > 0 ? " (only comments or blank lines)" : ""));
+  }
+  if (t.rows_.empty()) {
+    throw InputError(source + ":" + std::to_string(header_line) + ": no data rows (the file ends after its header)");
   }
   return t;
 }
@@ -218,15 +260,103 @@ std::optional<double> CsvTable::param_number(const std::string& key) const {
   return param_numbers(key, 1)[0];
 }
 
+namespace {
+
+// Temporary files of the CsvWriters still open, removed if the process is
+// stopped by SIGINT/SIGTERM before they are renamed. Fixed slots, so that the
+// handler touches no allocator (it only calls unlink, signal and raise).
+constexpr int kMaxTempFiles = 8;
+constexpr std::size_t kMaxTempPath = 4096;
+char g_temp_paths[kMaxTempFiles][kMaxTempPath];
+volatile std::sig_atomic_t g_temp_used[kMaxTempFiles];
+std::mutex g_temp_mutex;
+
+extern "C" void RemoveTempFilesAndDie(int sig) {
+  for (int i = 0; i < kMaxTempFiles; ++i) {
+    if (g_temp_used[i]) ::unlink(g_temp_paths[i]);
+  }
+  std::signal(sig, SIG_DFL);
+  std::raise(sig);
+}
+
+// Registers a temporary file; installs the handler for SIGINT/SIGTERM unless
+// the program has its own (magnav record stops cleanly on them and closes).
+int RegisterTempFile(const std::string& path) {
+  std::lock_guard<std::mutex> lock(g_temp_mutex);
+  static const bool installed = [] {
+    for (int sig : {SIGINT, SIGTERM}) {
+      struct sigaction old {};
+      if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_DFL) std::signal(sig, RemoveTempFilesAndDie);
+    }
+    return true;
+  }();
+  (void)installed;
+  if (path.size() >= kMaxTempPath) return -1;
+  for (int i = 0; i < kMaxTempFiles; ++i) {
+    if (!g_temp_used[i]) {
+      std::memcpy(g_temp_paths[i], path.c_str(), path.size() + 1);
+      g_temp_used[i] = 1;
+      return i;
+    }
+  }
+  return -1;
+}
+
+void UnregisterTempFile(int slot) {
+  if (slot < 0) return;
+  std::lock_guard<std::mutex> lock(g_temp_mutex);
+  g_temp_used[slot] = 0;
+}
+
+}  // namespace
+
+void RefuseOutputOverInput(const std::string& output, const std::vector<std::string>& inputs) {
+  namespace fs = std::filesystem;
+  if (output.empty()) return;
+  std::error_code ec;
+  const fs::path out = fs::weakly_canonical(output, ec);
+  for (const std::string& input : inputs) {
+    if (input.empty()) continue;
+    std::error_code ec1, ec2;
+    const bool same = fs::equivalent(output, input, ec1) ||
+                      (!ec && fs::weakly_canonical(input, ec2) == out && !ec2);
+    if (same) {
+      throw InputError("output " + output + " and input " + input +
+                       " are the same file: refusing to overwrite an input (give another output path)");
+    }
+  }
+}
+
 struct CsvWriter::Impl {
   std::ofstream out;
+  std::string temp_path;
+  int slot = -1;
+  bool renamed = false;
 };
 
 CsvWriter::CsvWriter(const std::string& path, std::vector<std::string> header,
                      const std::vector<std::pair<std::string, std::string>>& params)
     : path_(path), num_columns_(header.size()), impl_(new Impl) {
-  impl_->out.open(path, std::ios::binary | std::ios::trunc);
+  // A temporary in the same directory (so that rename is atomic), created
+  // exclusively with the permissions a plain open would give.
+  for (int attempt = 0;; ++attempt) {
+    impl_->temp_path = path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(attempt);
+    const int fd = ::open(impl_->temp_path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd >= 0) {
+      ::close(fd);
+      break;
+    }
+    if (errno != EEXIST || attempt >= 100) {
+      const std::string why = std::strerror(errno);
+      delete impl_;
+      throw InputError(path + ": cannot open file for writing (" + why + ")");
+    }
+  }
+  impl_->slot = RegisterTempFile(impl_->temp_path);
+  impl_->out.open(impl_->temp_path, std::ios::binary | std::ios::trunc);
   if (!impl_->out) {
+    ::unlink(impl_->temp_path.c_str());
+    UnregisterTempFile(impl_->slot);
     delete impl_;
     throw InputError(path + ": cannot open file for writing");
   }
@@ -235,7 +365,14 @@ CsvWriter::CsvWriter(const std::string& path, std::vector<std::string> header,
   impl_->out << '\n';
 }
 
-CsvWriter::~CsvWriter() { delete impl_; }
+CsvWriter::~CsvWriter() {
+  if (!impl_->renamed) {
+    impl_->out.close();
+    ::unlink(impl_->temp_path.c_str());
+  }
+  UnregisterTempFile(impl_->slot);
+  delete impl_;
+}
 
 void CsvWriter::AddComment(const std::string& text) { impl_->out << "# " << text << '\n'; }
 
@@ -249,9 +386,15 @@ void CsvWriter::WriteRow(const std::vector<std::string>& fields) {
 }
 
 void CsvWriter::Close() {
+  if (impl_->renamed) return;
   impl_->out.flush();
   if (!impl_->out) throw InputError(path_ + ": write failed");
   impl_->out.close();
+  if (!impl_->out) throw InputError(path_ + ": write failed");
+  if (std::rename(impl_->temp_path.c_str(), path_.c_str()) != 0) {
+    throw InputError(path_ + ": cannot rename " + impl_->temp_path + " to it (" + std::strerror(errno) + ")");
+  }
+  impl_->renamed = true;
 }
 
 }  // namespace magnav

@@ -19,6 +19,8 @@ const char* SampleDefectName(SampleDefect defect) {
       return "bad_sigma";
     case SampleDefect::kZeroTensor:
       return "zero_tensor";
+    case SampleDefect::kOutOfRange:
+      return "out_of_range";
   }
   return "unknown";
 }
@@ -30,6 +32,10 @@ SampleDefect CheckSample(const GradiometerSample& s) {
   if (!std::isfinite(s.T.norm()) || !std::isfinite(s.B.norm())) return SampleDefect::kNonFinite;
   const auto sigma_ok = [](double v) { return std::isfinite(v) && v >= 0.0; };
   if (!sigma_ok(s.sigma_B) || !sigma_ok(s.sigma_T)) return SampleDefect::kBadSigma;
+  if (s.p_SinW.cwiseAbs().maxCoeff() > kMaxAbsPosition_m || s.B.cwiseAbs().maxCoeff() > kMaxAbsB_T ||
+      s.T.cwiseAbs().maxCoeff() > kMaxAbsT_Tpm) {
+    return SampleDefect::kOutOfRange;
+  }
   if (s.T.isZero(0.0)) return SampleDefect::kZeroTensor;
   return SampleDefect::kNone;
 }
@@ -49,6 +55,25 @@ std::vector<std::string> GradiometerDataColumns() {
   return c;
 }
 
+namespace {
+
+// Refuses a row whose value `values[i]` (from column `cols[i]`) is beyond
+// `limit` (|v|): not a reading in the file's units (1e308, or nT given as T),
+// named by line and column.
+template <std::size_t N>
+void CheckRange(const CsvTable& t, std::size_t row, const std::size_t (&cols)[N], const double* values, double limit,
+                const char* unit, const char* hint) {
+  for (std::size_t i = 0; i < N; ++i) {
+    if (std::abs(values[i]) > limit) {
+      throw InputError(t.source() + ":" + std::to_string(t.line_of(row)) + ": column '" + t.header()[cols[i]] +
+                       "': " + FormatNumber(values[i]) + " " + unit + " is out of range (|value| > " +
+                       FormatNumber(limit) + " " + unit + "; " + hint + ")");
+    }
+  }
+}
+
+}  // namespace
+
 GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerColumns& cols) {
   const CsvTable t = CsvTable::Read(path);
   GradiometerFile f;
@@ -61,6 +86,7 @@ GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerCo
   if (f.sigma_T && *f.sigma_T < 0) throw InputError(path + ": parameter 'sigma_T_Tpm' must be >= 0");
 
   const std::size_t sx = t.column("sensor_x"), sy = t.column("sensor_y"), sz = t.column("sensor_z");
+  const std::size_t s_cols[3] = {sx, sy, sz};
   std::size_t b[3], tt[9];
   const char* axes = "xyz";
   for (int i = 0; i < 3; ++i) b[i] = t.column(cols.B + axes[i]);
@@ -72,6 +98,14 @@ GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerCo
   const auto c_case = t.find_column("case_id");
   // Per-row noise (magnav record writes it): overrides the file parameters.
   const auto c_sigma_B = t.find_column("sigma_B"), c_sigma_T = t.find_column("sigma_T");
+  if (!c_t && !c_case) {
+    try {
+      t.column("t");
+    } catch (const InputError& e) {
+      throw InputError(std::string(e.what()) + "; a pass needs its time column 't' (s), a file of independent cases "
+                                               "its 'case_id'");
+    }
+  }
   f.has_time = c_t.has_value();
   f.has_sensor_id = c_id.has_value();
 
@@ -89,6 +123,11 @@ GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerCo
     if (!(s.sigma_B >= 0.0) || !(s.sigma_T >= 0.0)) {
       throw InputError(path + ":" + std::to_string(t.line_of(r)) + ": sigma_B and sigma_T must be >= 0");
     }
+    double T_values[9];
+    for (int k = 0; k < 9; ++k) T_values[k] = s.T(k / 3, k % 3);
+    CheckRange(t, r, s_cols, s.p_SinW.data(), kMaxAbsPosition_m, "m", "a position in km or beyond the Earth");
+    CheckRange(t, r, b, s.B.data(), kMaxAbsB_T, "T", "B in nT or uT written as T? (the Earth's field is 5e-5 T)");
+    CheckRange(t, r, tt, T_values, kMaxAbsT_Tpm, "T/m", "a gradient in nT/m written as T/m?");
     if (c_case) f.case_ids.push_back(t.integer(r, *c_case));
     f.samples.push_back(s);
     f.lines.push_back(t.line_of(r));

@@ -60,6 +60,8 @@ const char* RejectReasonName(RejectReason reason) {
       return "unknown_sigma";
     case RejectReason::kNoRegionalField:
       return "no_b0";
+    case RejectReason::kOutOfRange:
+      return "out_of_range";
   }
   return "unknown";
 }
@@ -123,6 +125,8 @@ DipoleFix InvertSample(const GradiometerSample& sample, const InverterOptions& o
       break;
     case SampleDefect::kZeroTensor:  // dead sensor, or no signal at all
       return reject(RejectReason::kZeroTensor);
+    case SampleDefect::kOutOfRange:  // 1e308, or nT given as T
+      return reject(RejectReason::kOutOfRange);
     default:  // non-finite time, B, T, position, or σ
       return reject(RejectReason::kNonFinite);
   }

@@ -348,7 +348,9 @@ DipoleFix MonteCarloTracker::Process(const GradiometerSample& sample) {
   fix.t_s = sample.t_s;
   // The door: a bad sample reaches neither the initialiser nor the filter.
   if (const SampleDefect defect = CheckSample(sample); defect != SampleDefect::kNone) {
-    fix.reason = defect == SampleDefect::kZeroTensor ? RejectReason::kZeroTensor : RejectReason::kNonFinite;
+    fix.reason = defect == SampleDefect::kZeroTensor   ? RejectReason::kZeroTensor
+                 : defect == SampleDefect::kOutOfRange ? RejectReason::kOutOfRange
+                                                       : RejectReason::kNonFinite;
     return fix;
   }
   auto it = tracks_.find(sample.sensor_id);

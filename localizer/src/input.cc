@@ -6,6 +6,7 @@
 
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
+#include "magnav/core/gradiometer.h"
 
 namespace magnav::localizer {
 
@@ -85,6 +86,13 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
       s.t_s = m.number(i, t);
       s.sensor_id = m.uint32(i, id);
       s.B_T = {m.number(i, bx), m.number(i, by), m.number(i, bz)};
+      for (int k = 0; k < 3; ++k) {
+        if (std::abs(s.B_T[k]) > kMaxAbsB_T) {
+          const std::string name = std::string("B_") + "xyz"[k];
+          throw InputError(Where(m, i, name) + FormatNumber(s.B_T[k]) + " T is out of range (|value| > " +
+                           FormatNumber(kMaxAbsB_T) + " T; B in nT or uT written as T?)");
+        }
+      }
       const int k = pass.SensorIndex(s.sensor_id);
       if (k < 0) {
         throw InputError(Where(m, i, "sensor_id") + "sensor " + std::to_string(s.sensor_id) +

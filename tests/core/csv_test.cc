@@ -2,6 +2,11 @@
 // of malformed file.
 #include "magnav/core/csv.h"
 
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 
@@ -144,6 +149,99 @@ TEST(CsvWriter, WritesReadableFile) {
   EXPECT_EQ(t.text(0, 1), "x");
   EXPECT_EQ(t.param_vec3("B0_T")->y(), 2.0);
   EXPECT_THROW(CsvWriter("/nonexistent/dir/o.csv", {"a"}), InputError);
+}
+
+std::vector<std::string> Names(const std::string& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::string Contents(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Rows go to a temporary renamed by Close(): a writer given up part-way (an
+// error: destroyed without Close) leaves neither a cut-off file nor its
+// temporary, and an existing file keeps its contents until Close().
+TEST(CsvWriter, OutputIsCompleteOrAbsent) {
+  const std::string dir = testing::TempDir();
+  const std::string p = dir + "/out.csv";
+  {
+    CsvWriter w(p, {"a"});
+    w.WriteRow({"1"});
+    EXPECT_FALSE(std::filesystem::exists(p));
+  }
+  EXPECT_TRUE(Names(dir).empty());
+  std::ofstream(p) << "old\n";
+  {
+    CsvWriter w(p, {"a"});
+    w.WriteRow({"1"});
+    EXPECT_EQ(Contents(p), "old\n");
+  }
+  EXPECT_EQ(Contents(p), "old\n");
+  {
+    CsvWriter w(p, {"a"});
+    w.WriteRow({"1"});
+    w.Close();
+  }
+  EXPECT_EQ(Contents(p), "a\n1\n");
+  EXPECT_EQ(Names(dir), std::vector<std::string>{"out.csv"});
+}
+
+// SIGTERM while a writer is open (a program without its own handler, as the
+// offline commands): the temporary is removed, an existing output untouched,
+// and the process still dies of the signal.
+TEST(CsvWriter, SigtermLeavesNoTemporary) {
+  const std::string dir = testing::TempDir();
+  const std::string p = dir + "/out.csv";
+  std::ofstream(p) << "old\n";
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    CsvWriter w(p, {"a"});
+    w.WriteRow({"1"});
+    ::kill(::getpid(), SIGTERM);
+    ::_exit(0);  // not reached
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM);
+  EXPECT_EQ(Names(dir), std::vector<std::string>{"out.csv"});
+  EXPECT_EQ(Contents(p), "old\n");
+}
+
+// Output equal to an input, however spelled, is refused.
+TEST(CsvWriter, RefusesOutputOverInput) {
+  const std::string dir = testing::TempDir();
+  const std::string in = dir + "/in.csv";
+  std::ofstream(in) << "a\n1\n";
+  std::filesystem::create_hard_link(in, dir + "/hard.csv");
+  std::filesystem::create_symlink(in, dir + "/soft.csv");
+  for (const std::string& out : {in, dir + "/./in.csv", dir + "/hard.csv", dir + "/soft.csv"}) {
+    EXPECT_NE(ErrorOf([&] { RefuseOutputOverInput(out, {"", in}); }).find("are the same file"), std::string::npos)
+        << out;
+  }
+  EXPECT_EQ(ErrorOf([&] { RefuseOutputOverInput(dir + "/new.csv", {in}); }), "");
+  EXPECT_EQ(ErrorOf([&] { RefuseOutputOverInput("", {in}); }), "");
+}
+
+// Reading is bounded: a file without newlines fails after 1 MiB, naming the
+// limit; a BOM and CRLF line ends are read as a plain file.
+TEST(CsvErrors, LongLineBomAndCrlf) {
+  const std::string msg = ErrorOf([] { CsvTable::Read("/dev/zero"); });
+  EXPECT_NE(msg.find("/dev/zero:1: line longer than 1 MiB (no newline)"), std::string::npos) << msg;
+  const std::string p = WriteTemp("long.csv", "a\n" + std::string(CsvTable::kMaxLineBytes + 10, '1'));
+  EXPECT_NE(ErrorOf([&] { CsvTable::Read(p); }).find(p + ":2: line longer than"), std::string::npos);
+  const std::string q = WriteTemp("bom.csv", "\xEF\xBB\xBF# k: 1\r\nt,b\r\n1,2\r\n");
+  const CsvTable t = CsvTable::Read(q);
+  EXPECT_EQ(t.header(), (std::vector<std::string>{"t", "b"}));
+  EXPECT_EQ(t.number(0, t.column("b")), 2.0);
+  EXPECT_EQ(*t.param_number("k"), 1.0);
+  EXPECT_NE(ErrorOf([&] { CsvTable::Read(WriteTemp("h.csv", "# c\nt,b\n\n")); }).find(":2: no data rows"),
+            std::string::npos);
 }
 
 }  // namespace

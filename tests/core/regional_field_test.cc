@@ -59,6 +59,21 @@ TEST(CheckSample, NamesEachDefect) {
   s = GoodSample();
   s.T.setZero();
   EXPECT_EQ(CheckSample(s), SampleDefect::kZeroTensor);
+  // Finite but no reading (the same limits as the file readers).
+  s = GoodSample();
+  s.p_SinW.y() = 1e308;
+  EXPECT_EQ(CheckSample(s), SampleDefect::kOutOfRange);
+  s = GoodSample();
+  s.B.z() = 45000.0;  // nT as T
+  EXPECT_EQ(CheckSample(s), SampleDefect::kOutOfRange);
+  s = GoodSample();
+  s.T(1, 0) = -11.0;
+  EXPECT_EQ(CheckSample(s), SampleDefect::kOutOfRange);
+  s = GoodSample();
+  s.B.x() = kMaxAbsB_T;  // at the limit: kept
+  s.p_SinW.x() = kMaxAbsPosition_m;
+  EXPECT_EQ(CheckSample(s), SampleDefect::kNone);
+  EXPECT_STREQ(SampleDefectName(SampleDefect::kOutOfRange), "out_of_range");
   EXPECT_STREQ(SampleDefectName(SampleDefect::kZeroTensor), "zero_tensor");
   EXPECT_STREQ(SampleDefectName(SampleDefect::kNone), "");
 }

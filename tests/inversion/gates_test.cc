@@ -73,6 +73,15 @@ TEST_P(BadSampleTest, RejectedWithReasonNeverThrows) {
   s = good;
   s.T.setConstant(1e300);  // overflows the norm
   cases.push_back({"overflow", s, RejectReason::kNonFinite});
+  s = good;
+  s.p_SinW.x() = 1e308;  // finite, absurd
+  cases.push_back({"absurd position", s, RejectReason::kOutOfRange});
+  s = good;
+  s.B *= 1e9;  // nT sent as T
+  cases.push_back({"B in nT", s, RejectReason::kOutOfRange});
+  s = good;
+  s.T(0, 0) = 1e3;  // a gradient in nT/m sent as T/m
+  cases.push_back({"T in nT/m", s, RejectReason::kOutOfRange});
 
   for (const auto& c : cases) {
     DipoleFix fix;

@@ -3,9 +3,12 @@
 // every sample unchanged.
 #include <unistd.h>
 
+#include <csignal>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -78,6 +81,26 @@ TEST(MagnavCli, ReplayThenRecordDeliversEverySampleUnchanged) {
     ASSERT_EQ(got.number(r, got.column("B_y")), s.B.y());
     ASSERT_EQ(got.number(r, got.column("T12")), s.T(1, 2));
   }
+}
+
+// SIGTERM stops the recorder cleanly: the output holds every row received,
+// each whole, and no temporary is left (rows go to OUTPUT.tmp-PID-N until
+// the recorder stops, then it is renamed).
+TEST(MagnavCli, RecordStoppedBySigtermLeavesACompleteFile) {
+  const std::string dir = testing::TempDir();
+  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}};
+  ASSERT_EQ(testing::RunCommand({kMagnav, "simulate", "--turns", "10:0.1", "--sensors", "0,0,0", "--output",
+                                 dir + "/p.csv"}).first, 0);
+  testing::Subprocess rec({kMagnav, "record", "--topic", "gradiometer", "--output", dir + "/r.csv"}, env);
+  const auto [rc, out] = testing::RunCommand({kMagnav, "replay", "--input", dir + "/p.csv", "--speed", "0"}, env);
+  ASSERT_EQ(rc, 0) << out;
+  std::this_thread::sleep_for(200ms);  // acknowledged samples reach the recorder's callback
+  rec.Signal(SIGTERM);
+  ASSERT_EQ(rec.Wait(20s), 0);
+  EXPECT_EQ(CsvTable::Read(dir + "/r.csv").num_rows(), 101u);
+  std::size_t files = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++files;
+  EXPECT_EQ(files, 2u);  // p.csv, r.csv
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 
 #include "magnav/core/csv.h"
 #include "magnav/core/gradiometer.h"
+#include "magnav/tracker/multi_tracker.h"
 #include "magnav/tracker/tracker.h"
 #include "test_data.h"
 
@@ -131,6 +132,32 @@ TEST(BatchEdges, BadSamplesAreLeftOutAndCounted) {
   }
   // Same span for both costs: the final cost is below the initial one.
   EXPECT_LT(got.summary.final_cost, got.summary.initial_cost);
+}
+
+// Batch over several tracks (what `magnav track` runs): one sample whose
+// tensor overflows (T00 = 1e200) is left out as in the single-track batch, and
+// the tracks are those of the pass without it: refined, with covariances.
+TEST(BatchEdges, OverflowingTensorInTheMultiTrackBatch) {
+  const GradiometerFile f = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
+  std::vector<GradiometerSample> bad = f.samples, clean;
+  bad[1000].T(0, 0) = 1e200;
+  for (const auto& s : bad) {
+    if (CheckSample(s) == SampleDefect::kNone) clean.push_back(s);
+  }
+  ASSERT_EQ(clean.size() + 1, bad.size());
+  const MultiTrackerOptions o;
+  const auto got = SolveBatchMulti(GroupEpochs(bad, o.track.epoch_tolerance_s), *f.B0, o);
+  const auto want = SolveBatchMulti(GroupEpochs(clean, o.track.epoch_tolerance_s), *f.B0, o);
+  ASSERT_EQ(got.size(), want.size());
+  ASSERT_FALSE(got.empty());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].track.summary.message, want[i].track.summary.message);
+    ASSERT_EQ(got[i].track.epochs.size(), want[i].track.epochs.size());
+    for (std::size_t k = 0; k < got[i].track.epochs.size(); ++k) {
+      EXPECT_EQ(got[i].track.epochs[k].has_covariance, want[i].track.epochs[k].has_covariance) << k;
+      EXPECT_LT((got[i].track.epochs[k].p_VinW - want[i].track.epochs[k].p_VinW).norm(), 1e-6) << k;
+    }
+  }
 }
 
 // Every tolerance is checked (before, the window's and the intermediate one

@@ -3,7 +3,10 @@
 // line (options also from a TOML/INI file), and parsing with magnav's exit codes.
 #pragma once
 
+#include <iterator>
+#include <memory>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -92,10 +95,92 @@ inline std::vector<Eigen::Vector3d> ParseVec3List(const std::string& flag, const
   }
 }
 
-// --config FILE (TOML/INI, keys = long flag names) and defaults shown in --help.
-// Call before adding the options.
+// The --config reader of the services: CLI11's TOML/INI reader, strict. Every
+// key must be a long flag name of the program, at the top level. CLI11 2.1
+// ignores an unknown key and reads "key" under "[section]" as "section.key",
+// which it ignores too (with b0 under [magnav] the inverter ran with B0 = 0
+// and published fixes 1.4 km off). Here either is an error naming the file,
+// the line and the key; a UTF-8 byte-order mark at the start is skipped.
+class StrictConfig : public CLI::ConfigTOML {
+ public:
+  explicit StrictConfig(const CLI::App* app) : app_(app) {}
+
+  std::vector<CLI::ConfigItem> from_config(std::istream& input) const override {
+    std::string text((std::istreambuf_iterator<char>(input)), std::istreambuf_iterator<char>());
+    if (text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
+    std::istringstream in(text);
+    std::vector<CLI::ConfigItem> items = CLI::ConfigTOML::from_config(in);
+    // Keys in file order; a section's open/close markers ("++", "--") after
+    // its keys, so that a key under a section is what is named.
+    std::vector<const CLI::ConfigItem*> order;
+    for (const CLI::ConfigItem& item : items) {
+      if (item.name != "++" && item.name != "--") order.push_back(&item);
+    }
+    for (const CLI::ConfigItem& item : items) {
+      if (item.name == "++" || item.name == "--") order.push_back(&item);
+    }
+    for (const CLI::ConfigItem* item : order) {
+      if (!item->parents.empty()) {
+        std::string section;
+        for (const auto& p : item->parents) section += (section.empty() ? "" : ".") + p;
+        const std::string key = item->name == "++" || item->name == "--" ? "" : item->name;
+        throw CLI::ConfigError(Where(text, section, key) + "section [" + section + "] is not supported" +
+                               (key.empty() ? "" : " (key '" + key + "')") +
+                               ": options go at the top of the file, one per line as NAME = VALUE with NAME a "
+                               "long flag name (see --help)");
+      }
+      if (Known(item->name)) continue;
+      throw CLI::ConfigError(Where(text, "", item->name) + "unknown option '" + item->name +
+                             "': keys are the long flag names without '--' (see --help)");
+    }
+    return items;
+  }
+
+ private:
+  bool Known(const std::string& name) const {
+    return app_->get_option_no_throw("--" + name) != nullptr ||
+           (name.size() == 1 && app_->get_option_no_throw("-" + name) != nullptr);
+  }
+
+  // "FILE:LINE: " of the first line that sets `key` in `section` ("": the
+  // top level; key "": the section's own line).
+  std::string Where(const std::string& text, const std::string& section, const std::string& key) const {
+    std::string file = "config file";
+    if (const CLI::Option* opt = app_->get_config_ptr(); opt != nullptr && !opt->results().empty()) {
+      file = opt->results().back();
+    }
+    std::istringstream lines(text);
+    std::string line, current;
+    for (int n = 1; std::getline(lines, line); ++n) {
+      CLI::detail::trim(line);
+      if (line.size() >= 2 && line.front() == '[' && line.back() == ']') {
+        current = line.substr(1, line.size() - 2);
+        if (current.size() >= 2 && current.front() == '[' && current.back() == ']') {
+          current = current.substr(1, current.size() - 2);
+        }
+        CLI::detail::trim(current);
+        if (key.empty() && current == section) return file + ":" + std::to_string(n) + ": ";
+        continue;
+      }
+      if (line.empty() || line.front() == '#' || line.front() == ';' || current != section) continue;
+      std::string name = line.substr(0, line.find('='));
+      CLI::detail::trim(name);
+      CLI::detail::remove_quotes(name);
+      if (name == key) return file + ":" + std::to_string(n) + ": ";
+    }
+    return file + ": ";
+  }
+
+  const CLI::App* app_;
+};
+
+// --config FILE (TOML/INI, keys = long flag names; unknown keys and sections
+// are errors, see StrictConfig) and defaults shown in --help. Call before
+// adding the options.
 inline void ConfigureServiceApp(CLI::App& app) {
   app.set_config("--config", "", "read options from a TOML/INI file (keys = long flag names)");
+  app.config_formatter(std::make_shared<StrictConfig>(&app));
+  app.allow_config_extras(CLI::config_extras_mode::error);
   app.option_defaults()->always_capture_default();
 }
 

@@ -22,8 +22,14 @@ namespace magnav {
 
 class CsvTable {
  public:
-  // Reads a file; throws InputError (missing file, empty file, no header,
-  // duplicate column names, a row with the wrong number of fields).
+  // Longest line Read accepts (1 MiB): a file without newlines (a device such
+  // as /dev/zero, a binary file) is refused after that much, not read whole.
+  static constexpr std::size_t kMaxLineBytes = std::size_t{1} << 20;
+
+  // Reads a file; throws InputError (missing file, a directory, empty file, no
+  // header, no data row after the header, duplicate column names, a row with
+  // the wrong number of fields, a line longer than kMaxLineBytes). A UTF-8
+  // byte-order mark is skipped and CRLF line ends are read as LF.
   static CsvTable Read(const std::string& path);
   // Parses text already in memory; `source` names it in errors.
   static CsvTable Parse(std::string_view text, const std::string& source);
@@ -77,9 +83,19 @@ std::string FormatNumber(double value);
 // ParseNumberList reads it back).
 std::string FormatVec3(const Eigen::Vector3d& v);
 
+// Throws InputError if `output` is the same file as one of `inputs` (after
+// resolving links and "..", or a hard link to it): every command that writes
+// a file calls it first, so that --output equal to --input is refused.
+void RefuseOutputOverInput(const std::string& output, const std::vector<std::string>& inputs);
+
 // Writes a CSV file: parameter comments, header, rows. Fields are written as
-// given (numbers through FormatNumber). Throws InputError if the file cannot
-// be opened or a row has the wrong number of fields.
+// given (numbers through FormatNumber). Safe for the file it replaces: rows go
+// to a temporary "PATH.tmp-PID-N" in the same directory, renamed to PATH by
+// Close(); a writer destroyed without Close() (an error part-way) removes it,
+// and so does SIGINT/SIGTERM in a program without its own handler for them.
+// So an output file is either complete or absent, and an existing one is
+// untouched until the new one is complete. Throws InputError if the file
+// cannot be created or a row has the wrong number of fields.
 class CsvWriter {
  public:
   CsvWriter(const std::string& path, std::vector<std::string> header,
@@ -90,7 +106,8 @@ class CsvWriter {
 
   void AddComment(const std::string& text);
   void WriteRow(const std::vector<std::string>& fields);
-  // Flushes and closes; throws if the write failed (disk full, ...).
+  // Flushes, closes and renames the temporary to the path; throws if the
+  // write failed (disk full, ...).
   void Close();
 
  private:

@@ -21,6 +21,15 @@ struct GradiometerSample {
   double sigma_T = 0.0;                        // 1-σ noise per element, T/m (0 = unknown)
 };
 
+// Largest magnitudes a sample may hold (per element): beyond them a value is
+// not a reading (1e308, or nT/µT/km written where T/m are meant). B up to 1 T
+// (a dipole 1 m away gives 1e-2 T: the reference cases reach 5e-3 T), a
+// gradient up to 10 T/m, positions up to 10 000 km. Files (ReadGradiometerFile)
+// and the wire (CheckSample) apply the same limits.
+inline constexpr double kMaxAbsPosition_m = 1e7;
+inline constexpr double kMaxAbsB_T = 1.0;
+inline constexpr double kMaxAbsT_Tpm = 10.0;
+
 // What is wrong with a sample, checked at the door before any estimator sees
 // it (CheckSample). Stable snake_case names (SampleDefectName): "" for kNone.
 enum class SampleDefect {
@@ -29,12 +38,13 @@ enum class SampleDefect {
   kNonFinite,      // B, T or the sensor position not finite (NaN, ±inf)
   kBadSigma,       // sigma_B or sigma_T negative or not finite (0 = unknown is fine)
   kZeroTensor,     // every element of T is exactly 0: a dead or unwired gradiometer
+  kOutOfRange,     // finite but beyond the kMaxAbs* limits: a sensor position, B or T no instrument gives
 };
 const char* SampleDefectName(SampleDefect defect);
 
 // The checks every consumer of samples (inverter, trackers, estimators of B0)
-// applies first. Does not judge signal strength, symmetry or range: those are
-// the estimators' own gates.
+// applies first. Does not judge signal strength, symmetry or the dipole's
+// range: those are the estimators' own gates.
 SampleDefect CheckSample(const GradiometerSample& sample);
 
 // Everything a gradiometer file holds: the samples plus its parameters.
@@ -66,8 +76,9 @@ std::string TensorColumnName(const std::string& prefix, int i, int j);
 // sensor_x,sensor_y,sensor_z, B_x,B_y,B_z, T00..T22.
 std::vector<std::string> GradiometerDataColumns();
 
-// Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22 and, if
-// present, t, sensor_id and case_id. Sample sigmas come from per-row
+// Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22, t (or, for
+// rows that are independent cases, case_id) and, if present, sensor_id.
+// Every value must be within the kMaxAbs* limits above. Sample sigmas come from per-row
 // sigma_B, sigma_T columns if present (as magnav record writes them), else
 // the file's sigma parameters (0 = unknown when absent). Throws InputError naming file, line and
 // column on any problem.
