@@ -1,11 +1,14 @@
 // magnav record: subscribe to a topic and write what arrives as CSV (to a
-// file, or '-' for standard output), until a count, a duration or SIGINT.
+// file, or '-' for standard output), until a count, a duration or SIGINT; or
+// to several topics at once, one CSV per topic in a directory.
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 
@@ -20,8 +23,9 @@ namespace magnav::tools {
 namespace {
 
 struct RecordArgs {
-  std::string topic = "gradiometer";
+  std::vector<std::string> topics;  // one, or several with --output-dir (default: gradiometer)
   std::string output = "-";
+  std::string output_dir;
   std::uint64_t count = 0;   // 0 = unlimited
   double duration_s = 0.0;   // 0 = until SIGINT/SIGTERM
   DdsArgs dds;
@@ -197,48 +201,85 @@ class Sink {
   std::atomic<std::uint64_t> count_{0};
 };
 
+// One topic being recorded: its reader (type-erased) and its sink.
+struct Recording {
+  std::string topic;
+  std::unique_ptr<Sink> sink;
+  std::shared_ptr<void> reader;
+  std::function<std::uint64_t()> lost;
+};
+
 template <class M>
-void Record(dds::Node& node, Sink& sink, const RecordArgs& a) {
-  auto reader = node.CreateReader<M>([&](const M& m, const auto&) {
-    if (a.count == 0 || sink.count() < a.count) sink.Write(Row(m));
+Recording Subscribe(dds::Node& node, const std::string& topic, const std::string& path, std::uint64_t count) {
+  Recording r;
+  r.topic = topic;
+  r.sink = std::make_unique<Sink>(path, Header(topic));
+  Sink* sink = r.sink.get();
+  std::shared_ptr<dds::Reader<M>> reader = node.CreateReader<M>([sink, count](const M& m, const auto&) {
+    if (count == 0 || sink->count() < count) sink->Write(Row(m));
   });
+  r.lost = [reader] { return reader->stats().lost.load(); };
+  r.reader = reader;
+  return r;
+}
+
+Recording Subscribe(dds::Node& node, const std::string& topic, const std::string& path, std::uint64_t count) {
+  if (topic == "gradiometer") return Subscribe<dds::msg::GradiometerSample>(node, topic, path, count);
+  if (topic == "dipole_fix") return Subscribe<dds::msg::DipoleFix>(node, topic, path, count);
+  if (topic == "magnetometer") return Subscribe<dds::msg::MagnetometerSample>(node, topic, path, count);
+  if (topic == "vessel_nav") return Subscribe<dds::msg::VesselNav>(node, topic, path, count);
+  if (topic == "sensor_position") return Subscribe<dds::msg::SensorPositionEstimate>(node, topic, path, count);
+  if (topic == "map_fix") return Subscribe<dds::msg::MapFix>(node, topic, path, count);
+  return Subscribe<dds::msg::TrackEstimate>(node, topic, path, count);
+}
+
+const std::vector<std::string> kTopics = {"gradiometer",  "dipole_fix",      "track",  "magnetometer",
+                                          "vessel_nav",   "sensor_position", "map_fix"};
+
+void Run(const RecordArgs& a) {
+  std::vector<std::string> topics = a.topics.empty() ? std::vector<std::string>{"gradiometer"} : a.topics;
+  if (std::find(topics.begin(), topics.end(), "all") != topics.end()) topics = kTopics;
+  std::sort(topics.begin(), topics.end());
+  topics.erase(std::unique(topics.begin(), topics.end()), topics.end());
+  if (topics.size() > 1 && a.output_dir.empty()) {
+    throw InputError("record: several topics need --output-dir DIR (one TOPIC.csv each)");
+  }
+  if (!a.output_dir.empty() && a.output != "-") throw InputError("record: give --output or --output-dir, not both");
+  if (!a.output_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.output_dir, ec);
+    if (ec || !std::filesystem::is_directory(a.output_dir)) {
+      throw InputError("--output-dir: cannot create directory '" + a.output_dir + "'");
+    }
+  }
+  dds::InstallShutdownHandlers();
+  dds::Node node(a.dds.ToNodeOptions("magnav_record"));
+  std::vector<Recording> rec;
+  for (const std::string& t : topics) {
+    rec.push_back(Subscribe(node, t, a.output_dir.empty() ? a.output : a.output_dir + "/" + t + ".csv", a.count));
+  }
+  // Until SIGINT/SIGTERM, the duration, or every topic's --count.
   const auto start = std::chrono::steady_clock::now();
   while (!dds::ShutdownRequested()) {
-    if (a.count > 0 && sink.count() >= a.count) break;
+    if (a.count > 0 && std::all_of(rec.begin(), rec.end(), [&](const Recording& r) { return r.sink->count() >= a.count; })) {
+      break;
+    }
     if (a.duration_s > 0 &&
         std::chrono::steady_clock::now() - start > std::chrono::duration<double>(a.duration_s)) {
       break;
     }
     dds::WaitForShutdown(std::chrono::milliseconds(20));
   }
-  if (reader->stats().lost > 0) {
-    std::fprintf(stderr, "record: %llu sample(s) lost on %s\n",
-                 static_cast<unsigned long long>(reader->stats().lost.load()), reader->topic().c_str());
+  for (Recording& r : rec) {
+    r.reader.reset();  // no callback after this
+    r.sink->Close();
+    if (r.lost() > 0) {
+      std::fprintf(stderr, "record: %llu sample(s) lost on magnav/%s\n", static_cast<unsigned long long>(r.lost()),
+                   r.topic.c_str());
+    }
+    std::fprintf(stderr, "recorded %llu %s sample(s)\n", static_cast<unsigned long long>(r.sink->count()),
+                 r.topic.c_str());
   }
-}
-
-void Run(const RecordArgs& a) {
-  dds::InstallShutdownHandlers();
-  dds::Node node(a.dds.ToNodeOptions("magnav_record"));
-  Sink sink(a.output, Header(a.topic));
-  if (a.topic == "gradiometer") {
-    Record<dds::msg::GradiometerSample>(node, sink, a);
-  } else if (a.topic == "dipole_fix") {
-    Record<dds::msg::DipoleFix>(node, sink, a);
-  } else if (a.topic == "magnetometer") {
-    Record<dds::msg::MagnetometerSample>(node, sink, a);
-  } else if (a.topic == "vessel_nav") {
-    Record<dds::msg::VesselNav>(node, sink, a);
-  } else if (a.topic == "sensor_position") {
-    Record<dds::msg::SensorPositionEstimate>(node, sink, a);
-  } else if (a.topic == "map_fix") {
-    Record<dds::msg::MapFix>(node, sink, a);
-  } else {
-    Record<dds::msg::TrackEstimate>(node, sink, a);
-  }
-  sink.Close();
-  std::fprintf(stderr, "recorded %llu %s sample(s)\n", static_cast<unsigned long long>(sink.count()),
-               a.topic.c_str());
 }
 
 }  // namespace
@@ -246,15 +287,19 @@ void Run(const RecordArgs& a) {
 void AddRecordCommand(CLI::App& app) {
   auto args = std::make_shared<RecordArgs>();
   CLI::App* sub = app.add_subcommand("record", "Write what arrives on a magnav topic as CSV");
-  sub->add_option("--topic", args->topic,
-                  "gradiometer, dipole_fix, track, magnetometer, vessel_nav, sensor_position or map_fix")
-      ->check(CLI::IsMember(
-          {"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position", "map_fix"}));
+  sub->add_option("--topic", args->topics,
+                  "gradiometer (default), dipole_fix, track, magnetometer, vessel_nav, sensor_position, map_fix, or all; "
+                  "several (repeated, or comma-separated) with --output-dir")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position",
+                             "map_fix", "all"}));
   sub->add_option("--output", args->output,
                   "CSV file, or - for standard output. The rows go to OUTPUT.tmp-PID-N, renamed to OUTPUT when "
                   "recording stops (SIGINT/SIGTERM, --count, --duration or an error): OUTPUT only ever holds "
                   "whole rows; after kill -9 the rows so far are in the temporary");
-  sub->add_option("--count", args->count, "stop after this many samples (0 = no limit)");
+  sub->add_option("--output-dir", args->output_dir,
+                  "several topics: a directory (made if missing) with one TOPIC.csv per topic, each written as --output");
+  sub->add_option("--count", args->count, "stop after this many samples (of every topic; 0 = no limit)");
   sub->add_option("--duration", args->duration_s, "stop after this many seconds (0 = until SIGINT/SIGTERM)");
   AddDdsOptions(*sub, &args->dds);
   sub->callback([args] { Run(*args); });

@@ -1,6 +1,7 @@
 // `magnav replay --loop`: a file replayed over and over until stopped, each
 // pass shifted in time by the file's span, so a consumer sees time going
 // forward and more samples than the file holds; SIGTERM stops it cleanly.
+// `magnav record` of several topics at once into a directory.
 #include <signal.h>
 
 #include <string>
@@ -43,6 +44,29 @@ TEST(Replay, LoopKeepsTimeGoingForwardUntilStopped) {
        "--reference-field", "47693", "--loop"});
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("--loop goes with --input"), std::string::npos) << out;
+}
+
+TEST(Record, SeveralTopicsIntoADirectory) {
+  const std::string dir = testing::TempDir();
+  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}};
+  testing::Subprocess record({kMagnav, "record", "--topic", "magnetometer,vessel_nav", "--output-dir", dir + "/rec",
+                              "--count", "150", "--duration", "60"},
+                             env, true);
+  const auto [rc, out] = testing::RunCommand(
+      {kMagnav, "replay", "--map-path", testing::ReferencePath("mappath_crustal_off0p01deg_noise0p5nT.csv"),
+       "--reference-field", "47693.77", "--step-period", "0.01", "--wait-readers", "1"},
+      env);
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_EQ(record.Wait(60s), 0);
+  const std::string log = record.ReadAll();
+  EXPECT_NE(log.find("recorded 150 magnetometer sample(s)"), std::string::npos) << log;
+  EXPECT_NE(log.find("recorded 150 vessel_nav sample(s)"), std::string::npos) << log;
+  EXPECT_EQ(CsvTable::Read(dir + "/rec/magnetometer.csv").num_rows(), 150u);
+  EXPECT_EQ(CsvTable::Read(dir + "/rec/vessel_nav.csv").num_rows(), 150u);
+  // Several topics need a directory.
+  const auto [rc2, out2] = testing::RunCommand({kMagnav, "record", "--topic", "track", "--topic", "map_fix"});
+  EXPECT_EQ(rc2, 2);
+  EXPECT_NE(out2.find("several topics need --output-dir"), std::string::npos) << out2;
 }
 
 }  // namespace
