@@ -306,6 +306,12 @@ void Match(const PlotArgs& a, GnuplotFigure* fig) {
 }
 
 void RunPlot(const PlotArgs& a) {
+  std::vector<std::string> inputs;
+  for (const std::string* in : {&a.estimate, &a.truth, &a.pass, &a.fixes, &a.sensors, &a.deployment, &a.map, &a.path,
+                                &a.matched}) {
+    if (!in->empty()) inputs.push_back(*in);
+  }
+  RefuseOutputOverInput(a.output, inputs);
   GnuplotFigure fig(a.output, a.width, a.height);
   if (a.kind == "tracks") {
     Tracks(a, &fig);

@@ -142,6 +142,12 @@ TEST_F(Plot, BadRequestsAreClearAndLeaveNoPicture) {
   EXPECT_EQ(rc3, 2);
   EXPECT_NE(out3.find("bad.csv:2: column 'y'"), std::string::npos) << out3;
   EXPECT_FALSE(std::filesystem::exists(dir_ + "/x.svg"));
+  // A picture over one of its inputs is refused, the input left as it was.
+  std::ofstream(dir_ + "/in.svg") << "t,track_id,x,y,z\n0,1,1,2,3\n";
+  const auto [rc4, out4] =
+      Magnav({"plot", "--kind", "tracks", "--estimate", dir_ + "/in.svg", "--output", dir_ + "/in.svg"});
+  EXPECT_EQ(rc4, 2);
+  EXPECT_EQ(Slurp(dir_ + "/in.svg"), "t,track_id,x,y,z\n0,1,1,2,3\n");
   EXPECT_FALSE(std::filesystem::exists(dir_ + "/x.jpg"));
 }
 
