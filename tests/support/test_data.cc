@@ -2,6 +2,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <stdexcept>
 
 #include <unistd.h>
 
@@ -17,11 +18,11 @@ std::string ReferencePath(const std::string& name) { return TestDataDir() + "/re
 int TestDomainId() { return 10 + static_cast<int>(::getpid() % 200); }
 
 std::string TempDir() {
-  static int counter = 0;
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("magnav_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-  std::filesystem::create_directories(dir);
-  return dir.string();
+  // A new, empty directory every time (mkdtemp): a name made of the pid
+  // could be one a reused pid of an earlier run left behind, files and all.
+  std::string tmpl = (std::filesystem::temp_directory_path() / "magnav_test_XXXXXX").string();
+  if (::mkdtemp(tmpl.data()) == nullptr) throw std::runtime_error("cannot create a temporary directory");
+  return tmpl;
 }
 
 }  // namespace magnav::testing
