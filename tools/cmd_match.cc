@@ -6,7 +6,6 @@
 #include <memory>
 #include <string>
 #include <vector>
-#include <unistd.h>
 
 #include "commands.h"
 #include "magnav/core/csv.h"
@@ -83,28 +82,18 @@ void RunMatch(MatchArgs a) {
                                              grid, 0, path, a.options.particle_filter, &steps)
              : mapmatch::Match(*method, grid, 0, path, a.options);
   if (!a.diagnostics.empty()) WriteDiagnostics(a.diagnostics, path, steps);
-  // Written beside the output and renamed: a reader never sees half a file.
-  const std::string tmp = a.output + ".tmp." + std::to_string(::getpid());
-  try {
-    CsvWriter w(tmp, {"k", "lat", "lon"},
-                {{"map", a.map},
-                 {"value_column", a.value_column},
-                 {"path", a.path},
-                 {"meas_column", a.meas_column},
-                 {"frame", "matched position, latitude/longitude in degrees (WGS84)"},
-                 {"summary", r.BriefReport()}});
-    for (std::size_t p = 0; p < path.size(); ++p) {
-      w.WriteRow({std::to_string(path.k[p]), FormatNumber(r.lat_deg[p]), FormatNumber(r.lon_deg[p])});
-    }
-    w.Close();
-  } catch (...) {
-    std::remove(tmp.c_str());
-    throw;
+  // CsvWriter writes beside the output and renames on Close: a reader never sees half a file.
+  CsvWriter w(a.output, {"k", "lat", "lon"},
+              {{"map", a.map},
+               {"value_column", a.value_column},
+               {"path", a.path},
+               {"meas_column", a.meas_column},
+               {"frame", "matched position, latitude/longitude in degrees (WGS84)"},
+               {"summary", r.BriefReport()}});
+  for (std::size_t p = 0; p < path.size(); ++p) {
+    w.WriteRow({std::to_string(path.k[p]), FormatNumber(r.lat_deg[p]), FormatNumber(r.lon_deg[p])});
   }
-  if (std::rename(tmp.c_str(), a.output.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw InputError(a.output + ": cannot write (rename from the temporary file failed)");
-  }
+  w.Close();
 }
 
 }  // namespace

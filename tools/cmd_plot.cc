@@ -144,7 +144,8 @@ void Error(const PlotArgs& a, GnuplotFigure* fig) {
   const auto sx = e.find_column("sigma_x"), sy = e.find_column("sigma_y"), sz = e.find_column("sigma_z");
   std::vector<std::string> plots;
   int used = 0;
-  for (const auto& [id, rows] : GroupBy(e, "track_id")) {
+  const auto tracks = GroupBy(e, "track_id");
+  for (const auto& [id, rows] : tracks) {
     Rows r;
     for (std::size_t i : rows) {
       const auto it = truth.at.find(std::llround(e.number(i, ct) * 1e6));
@@ -162,7 +163,7 @@ void Error(const PlotArgs& a, GnuplotFigure* fig) {
     }
     if (r.empty()) continue;
     const std::string d = fig->Data("error" + std::to_string(id), r);
-    const std::string name = GroupBy(e, "track_id").size() > 1 ? " (track " + std::to_string(id) + ")" : "";
+    const std::string name = tracks.size() > 1 ? " (track " + std::to_string(id) + ")" : "";
     plots.push_back(d + " using 1:(0):3 with filledcurves fs transparent solid 0.25 noborder title " +
                     Quote("1-σ (3-D)" + name));
     plots.push_back(d + " using 1:2 with lines lw 1.5 title " + Quote("|error|" + name));
