@@ -40,6 +40,7 @@ struct ReplayArgs {
   bool loop = false;            // gradiometer file: over and over until stopped
   int wait_readers = 1;
   double wait_s = 10.0;
+  double settle_s = 0.25;       // after the readers matched, before the first sample
   DdsArgs dds;
 };
 
@@ -125,6 +126,23 @@ std::vector<LocalizeEvent> ReadLocalizeEvents(const std::string& measurements, c
   return out;
 }
 
+// After the readers matched: this side has matched them, but a reader may not
+// yet have matched this writer (its discovery runs on its own), and a VOLATILE
+// reader of another vendor then drops the first samples and starts from a
+// later heartbeat. TRANSIENT_LOCAL readers are repaired from the history and
+// need no settling (docs/INTEROP.md).
+void Settle(const ReplayArgs& a) {
+  if (a.wait_readers > 0 && a.settle_s > 0) std::this_thread::sleep_for(std::chrono::duration<double>(a.settle_s));
+}
+
+void WarnIfNotAcknowledged(bool acked) {
+  if (!acked) {
+    std::fprintf(stderr,
+                 "replay: warning: not every matched reader acknowledged every sample within 10 s of the end (a reader "
+                 "left, or is too slow): it may have missed the last samples\n");
+  }
+}
+
 void RunLocalizeStreams(const ReplayArgs& a, const std::vector<LocalizeEvent>& events, bool with_nav) {
   dds::InstallShutdownHandlers();
   dds::Node node(a.dds.ToNodeOptions("magnav_replay"));
@@ -138,6 +156,7 @@ void RunLocalizeStreams(const ReplayArgs& a, const std::vector<LocalizeEvent>& e
     throw InputError("replay: no reader of magnav/magnetometer (and magnav/vessel_nav) appeared within " +
                      FormatNumber(a.wait_s) + " s (domain " + std::to_string(node.domain_id()) + ")");
   }
+  Settle(a);
   const auto t0 = std::chrono::steady_clock::now();
   const double file_t0 = events.empty() ? 0.0 : events.front().t_s;
   std::size_t sent = 0, sent_fixes = 0;
@@ -151,8 +170,8 @@ void RunLocalizeStreams(const ReplayArgs& a, const std::vector<LocalizeEvent>& e
     }
     ++(e.is_fix ? sent_fixes : sent);
   }
-  samples->WaitForAcknowledgments(std::chrono::seconds(10));
-  fixes->WaitForAcknowledgments(std::chrono::seconds(10));
+  const bool acked = samples->WaitForAcknowledgments(std::chrono::seconds(10));
+  WarnIfNotAcknowledged(fixes->WaitForAcknowledgments(std::chrono::seconds(10)) && acked);
   std::printf("replayed %zu magnetometer samples and %zu vessel_nav fixes on domain %d\n", sent, sent_fixes,
               node.domain_id());
 }
@@ -202,6 +221,7 @@ void Run(const ReplayArgs& a) {
     throw InputError("replay: no reader of magnav/gradiometer appeared within " + FormatNumber(a.wait_s) +
                      " s (domain " + std::to_string(node.domain_id()) + ")");
   }
+  Settle(a);
   std::unordered_map<std::uint32_t, std::uint64_t> seq;
   const auto t0 = std::chrono::steady_clock::now();
   const double file_t0 = file.samples.empty() ? 0.0 : file.samples.front().t_s;
@@ -231,7 +251,7 @@ void Run(const ReplayArgs& a) {
     }
   }
   progress.Done();
-  writer->WaitForAcknowledgments(std::chrono::seconds(10));
+  WarnIfNotAcknowledged(writer->WaitForAcknowledgments(std::chrono::seconds(10)));
   std::printf("replayed %zu samples from %s on domain %d\n", sent, a.input.c_str(), node.domain_id());
 }
 
@@ -262,6 +282,10 @@ void AddReplayCommand(CLI::App& app) {
                "by the file's span so that time keeps going forward");
   sub->add_option("--wait-readers", args->wait_readers, "wait for this many readers before sending");
   sub->add_option("--wait", args->wait_s, "how long to wait for readers, s");
+  sub->add_option("--settle", args->settle_s,
+                  "after the readers matched, wait this long before the first sample, s: a VOLATILE reader of another "
+                  "vendor may not have matched this writer yet (TRANSIENT_LOCAL readers need none; docs/INTEROP.md)")
+      ->check(CLI::NonNegativeNumber);
   AddDdsOptions(*sub, &args->dds);
   sub->callback([args] { Run(*args); });
 }

@@ -50,6 +50,13 @@ bool NodeOptions::IsValid(std::string* error) const {
   return true;
 }
 
+bool Ros2NamesFromEnvironment() {
+  const char* v = std::getenv("MAGNAV_ROS2_NAMES");
+  if (!v || !*v || std::string_view(v) == "0") return false;
+  if (std::string_view(v) == "1") return true;
+  throw DdsError(std::string("$MAGNAV_ROS2_NAMES='") + v + "' must be 1 (ROS 2 names) or 0");
+}
+
 int DomainIdFromEnvironment() {
   if (auto id = ParseDomain("MAGNAV_DOMAIN_ID")) return *id;
   if (auto id = ParseDomain("ROS_DOMAIN_ID")) return *id;
@@ -57,6 +64,12 @@ int DomainIdFromEnvironment() {
 }
 
 namespace internal {
+
+std::string Ros2TypeName(const std::string& type_name) {
+  const std::size_t last = type_name.rfind("::");
+  if (last == std::string::npos) return "dds_::" + type_name + "_";
+  return type_name.substr(0, last) + "::dds_::" + type_name.substr(last + 2) + "_";
+}
 
 std::set<std::string> ProfileNames(const std::string& xml) {
   std::set<std::string> names;
@@ -132,6 +145,7 @@ Node::Node(const NodeOptions& options) {
   if (!options.IsValid(&err)) throw DdsError("NodeOptions: " + err);
   LoadProfiles(options.profiles_file.empty() ? EnvOr("MAGNAV_DDS_PROFILES", "") : options.profiles_file);
   domain_id_ = options.domain_id ? *options.domain_id : DomainIdFromEnvironment();
+  ros2_names_ = options.ros2_names ? *options.ros2_names : Ros2NamesFromEnvironment();
   const std::string profile = options.participant_profile.empty()
                                   ? EnvOr("MAGNAV_DDS_PARTICIPANT", "magnav_loopback")
                                   : options.participant_profile;
@@ -150,7 +164,8 @@ Node::Node(const NodeOptions& options) {
     factory->delete_participant(participant_);
     throw DdsError("cannot create publisher/subscriber");
   }
-  spdlog::debug("dds: participant '{}' on domain {} with profile '{}'", options.name, domain_id_, profile);
+  spdlog::debug("dds: participant '{}' on domain {} with profile '{}'{}", options.name, domain_id_, profile,
+                ros2_names_ ? ", ROS 2 names" : "");
 }
 
 Node::~Node() {

@@ -250,5 +250,25 @@ TEST(Dds, ProfileFilterAndPolicyNames) {
   EXPECT_STREQ(internal::QosPolicyName(11), "reliability");
 }
 
+// ROS 2 names (NodeOptions::ros2_names, $MAGNAV_ROS2_NAMES): the type name ROS 2's
+// DDS layers use, and a bad value of the variable is an error naming it. The
+// names on the wire are checked against Cyclone DDS by Interop.Cyclone_ros2_names.
+TEST(Dds, Ros2Names) {
+  EXPECT_EQ(internal::Ros2TypeName("magnav::msg::GradiometerSample"), "magnav::msg::dds_::GradiometerSample_");
+  EXPECT_EQ(internal::Ros2TypeName("Plain"), "dds_::Plain_");
+  setenv("MAGNAV_ROS2_NAMES", "yes", 1);
+  try {
+    Node node(TestNode("ros2"));
+    ADD_FAILURE() << "no error";
+  } catch (const DdsError& e) {
+    EXPECT_NE(std::string(e.what()).find("MAGNAV_ROS2_NAMES='yes'"), std::string::npos) << e.what();
+  }
+  setenv("MAGNAV_ROS2_NAMES", "1", 1);
+  Node node(TestNode("ros2"));
+  auto w = node.CreateWriter<msg::GradiometerSample>();
+  EXPECT_EQ(w->topic(), "rt/magnav/gradiometer");
+  unsetenv("MAGNAV_ROS2_NAMES");
+}
+
 }  // namespace
 }  // namespace magnav::dds

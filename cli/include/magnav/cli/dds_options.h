@@ -1,6 +1,6 @@
 // Command-line options every DDS program shares (the magnav tool's replay and
 // record commands, and each service): domain id, extra XML profiles,
-// participant profile. Part of the command-line module that tools and
+// participant profile, ROS 2 names. Part of the command-line module that tools and
 // services both sit on; the DDS adapter itself has no command line.
 #pragma once
 
@@ -16,6 +16,7 @@ struct DdsArgs {
   int domain_id = -1;               // -1: $MAGNAV_DOMAIN_ID, else $ROS_DOMAIN_ID, else 0
   std::string profiles_file;        // extra Fast DDS XML profiles
   std::string participant_profile;  // "": $MAGNAV_DDS_PARTICIPANT or magnav_loopback
+  bool ros2_names = false;          // ROS 2 topic/type names; false: $MAGNAV_ROS2_NAMES decides
 
   dds::NodeOptions ToNodeOptions(const std::string& name) const {
     dds::NodeOptions o;
@@ -23,6 +24,7 @@ struct DdsArgs {
     if (domain_id >= 0) o.domain_id = domain_id;
     o.profiles_file = profiles_file;
     o.participant_profile = participant_profile;
+    if (ros2_names) o.ros2_names = true;
     return o;
   }
 };
@@ -34,6 +36,9 @@ inline void AddDdsOptions(CLI::App& app, DdsArgs* out) {
       ->check(CLI::ExistingFile);
   app.add_option("--dds-participant", out->participant_profile,
                  "participant profile (default magnav_loopback: 127.0.0.1 + shared memory only)");
+  app.add_flag("--ros2-names", out->ros2_names,
+               "ROS 2 names on the wire: topics rt/magnav/..., types magnav::msg::dds_::..._ (or $MAGNAV_ROS2_NAMES=1; "
+               "docs/INTEROP.md)");
 }
 
 }  // namespace magnav::cli

@@ -9,7 +9,9 @@
 // $ROS_DOMAIN_ID, else 0. Participant profile: NodeOptions, else
 // $MAGNAV_DDS_PARTICIPANT, else "magnav_loopback" (UDP on 127.0.0.1 + shared
 // memory only). Extra XML profiles: NodeOptions::profiles_file, else
-// $MAGNAV_DDS_PROFILES.
+// $MAGNAV_DDS_PROFILES. Names on the wire: magnav's ("magnav/gradiometer",
+// "magnav::msg::GradiometerSample"), or ROS 2's with NodeOptions::ros2_names /
+// $MAGNAV_ROS2_NAMES=1.
 #pragma once
 
 #include <atomic>
@@ -53,6 +55,10 @@ struct NodeOptions {
   std::optional<int> domain_id;          // 0..232; unset = from the environment
   std::string participant_profile;       // "" = $MAGNAV_DDS_PARTICIPANT or "magnav_loopback"
   std::string profiles_file;             // extra XML profiles; "" = $MAGNAV_DDS_PROFILES or none
+  // ROS 2 names on the wire: topic "rt/<name>", type "<module>::msg::dds_::<Type>_" (what ROS 2's
+  // DDS layers use), so ROS 2 tools and nodes with the same message layout see magnav's topics.
+  // Unset = $MAGNAV_ROS2_NAMES ("1" on, "0" or unset off). docs/INTEROP.md.
+  std::optional<bool> ros2_names;
 
   bool IsValid(std::string* error) const;
 };
@@ -87,6 +93,8 @@ std::set<std::string> ProfileNames(const std::string& xml);
 std::string WithoutProfiles(std::string xml, const std::set<std::string>& names);
 void LogLost(const std::string& topic, int total, int change);
 void LogCallbackError(const std::string& topic, const char* what);
+// ROS 2's DDS name of a type: "magnav::msg::GradiometerSample" -> "magnav::msg::dds_::GradiometerSample_".
+std::string Ros2TypeName(const std::string& type_name);
 bool WaitUntil(std::mutex& mu, std::condition_variable& cv, const std::function<bool()>& pred,
                std::chrono::milliseconds timeout);
 }  // namespace internal
@@ -277,7 +285,7 @@ class Node {
   template <class M>
   std::unique_ptr<Writer<M>> CreateWriter(const std::string& topic_name = TopicTraits<M>::kTopic,
                                           const std::string& profile = TopicTraits<M>::kWriterProfile) {
-    fdds::Topic* t = GetTopic(topic_name, RegisterType<M>());
+    fdds::Topic* t = GetTopic(WireTopicName(topic_name), RegisterType<M>());
     return std::unique_ptr<Writer<M>>(new Writer<M>(publisher_, t, profile));
   }
 
@@ -285,7 +293,7 @@ class Node {
   std::unique_ptr<Reader<M>> CreateReader(typename Reader<M>::Callback cb,
                                           const std::string& topic_name = TopicTraits<M>::kTopic,
                                           const std::string& profile = TopicTraits<M>::kReaderProfile) {
-    fdds::Topic* t = GetTopic(topic_name, RegisterType<M>());
+    fdds::Topic* t = GetTopic(WireTopicName(topic_name), RegisterType<M>());
     return std::unique_ptr<Reader<M>>(new Reader<M>(subscriber_, t, profile, std::move(cb)));
   }
 
@@ -293,16 +301,18 @@ class Node {
   template <class M>
   std::string RegisterType() {
     fdds::TypeSupport ts(new typename TopicTraits<M>::PubSubType());
-    const std::string name = ts.get_type_name();
+    const std::string name = ros2_names_ ? internal::Ros2TypeName(ts.get_type_name()) : ts.get_type_name();
     if (!participant_->find_type(name).empty()) return name;
-    if (ts.register_type(participant_) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+    if (ts.register_type(participant_, name) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
       throw DdsError("cannot register type " + name);
     }
     return name;
   }
   fdds::Topic* GetTopic(const std::string& name, const std::string& type);
+  std::string WireTopicName(const std::string& name) const { return ros2_names_ ? "rt/" + name : name; }
 
   int domain_id_ = 0;
+  bool ros2_names_ = false;
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;
   fdds::Subscriber* subscriber_ = nullptr;

@@ -1,0 +1,472 @@
+/*
+ * cyclone_peer: a small Eclipse Cyclone DDS (C API, 0.10) program that talks to
+ * magnav's services on the same topics, as any other vendor's application
+ * would. It is built against Debian's cyclonedds-dev from the project's own
+ * idl/magnav.idl (compiled by Cyclone's idlc), and driven by
+ * tests/interop/cyclone_interop_test.sh. Its configuration (loopback only)
+ * comes from $CYCLONEDDS_URI (config/cyclonedds_loopback.xml), its domain id
+ * from $MAGNAV_DOMAIN_ID; with $MAGNAV_ROS2_NAMES=1 it uses ROS 2's topic and
+ * type names, as magnav's programs then do.
+ *
+ *   cyclone_peer expect-samples FILE TIMEOUT_S [volatile]
+ *       Subscribes magnav/gradiometer and waits until it has received every row
+ *       of the gradiometer CSV FILE (as `magnav replay --input FILE` sends it:
+ *       per-sensor seq from 0 in file order), each exactly once and bit for
+ *       bit equal to the file. Prints "ready" once its reader exists and
+ *       "received R of N, M differ, D repeated" at the end. Exit 0 iff all N
+ *       came, none differ, none repeated. The reader is RELIABLE and
+ *       TRANSIENT_LOCAL (docs/INTEROP.md), or VOLATILE with "volatile".
+ *   cyclone_peer send-samples FILE
+ *       Publishes every row of FILE on magnav/gradiometer (sigma_B and sigma_T
+ *       from the file's "# sigma_B_T:" and "# sigma_T_Tpm:" lines) once a
+ *       reader is matched, then waits until it has acknowledged them all.
+ *   cyclone_peer expect-fixes FILE TIMEOUT_S
+ *       Subscribes magnav/dipole_fix and waits for one fix per row of FILE,
+ *       the CSV `magnav invert` writes for the same samples; checks validity,
+ *       reason, position and covariance bit for bit (the CSV has 17
+ *       significant digits, so strtod gives back the very doubles).
+ *
+ * Exit codes: 0 ok, 1 the check failed, 2 usage or input error, 3 DDS error.
+ */
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "dds/dds.h"
+#include "magnav.h"
+
+#define MAX_COLUMNS 64
+#define MAX_LINE 8192
+
+/* ---- a minimal CSV table: '#' lines are parameters, then a header, then rows ---- */
+
+typedef struct {
+  int num_columns;
+  char *names[MAX_COLUMNS];
+  size_t num_rows;
+  double *values;  /* num_rows x num_columns; an empty field is NaN */
+  char **text;     /* num_rows x num_columns, the fields as written */
+  double sigma_B;  /* "# sigma_B_T:" or NaN */
+  double sigma_T;  /* "# sigma_T_Tpm:" or NaN */
+} table_t;
+
+static char *dup_trimmed(const char *s, size_t n) {
+  while (n > 0 && (*s == ' ' || *s == '\t')) ++s, --n;
+  while (n > 0 && (s[n - 1] == ' ' || s[n - 1] == '\t' || s[n - 1] == '\r' || s[n - 1] == '\n')) --n;
+  char *out = malloc(n + 1);
+  if (!out) exit(3);
+  memcpy(out, s, n);
+  out[n] = '\0';
+  return out;
+}
+
+/* Splits a line at commas into at most MAX_COLUMNS fields; returns the count. */
+static int split(const char *line, char **fields) {
+  int n = 0;
+  const char *start = line;
+  for (const char *p = line;; ++p) {
+    if (*p == ',' || *p == '\0' || *p == '\n' || *p == '\r') {
+      if (n == MAX_COLUMNS) return -1;
+      fields[n++] = dup_trimmed(start, (size_t)(p - start));
+      if (*p != ',') break;
+      start = p + 1;
+    }
+  }
+  return n;
+}
+
+static double param_value(const char *line, const char *key) {
+  const size_t k = strlen(key);
+  if (strncmp(line + 1, " ", 1) != 0 || strncmp(line + 2, key, k) != 0 || line[2 + k] != ':') return NAN;
+  return strtod(line + 3 + k, NULL);
+}
+
+static int read_table(const char *path, table_t *t) {
+  memset(t, 0, sizeof *t);
+  t->sigma_B = t->sigma_T = NAN;
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    fprintf(stderr, "cyclone_peer: cannot open %s\n", path);
+    return -1;
+  }
+  char line[MAX_LINE];
+  size_t capacity = 0;
+  while (fgets(line, sizeof line, f)) {
+    if (line[0] == '#') {
+      const double b = param_value(line, "sigma_B_T"), tt = param_value(line, "sigma_T_Tpm");
+      if (!isnan(b)) t->sigma_B = b;
+      if (!isnan(tt)) t->sigma_T = tt;
+      continue;
+    }
+    if (line[0] == '\n' || line[0] == '\0') continue;
+    if (t->num_columns == 0) {
+      t->num_columns = split(line, t->names);
+      if (t->num_columns <= 0) break;
+      continue;
+    }
+    char *fields[MAX_COLUMNS];
+    const int n = split(line, fields);
+    if (n != t->num_columns) {
+      fprintf(stderr, "cyclone_peer: %s: a row has %d fields, the header %d\n", path, n, t->num_columns);
+      fclose(f);
+      return -1;
+    }
+    if (t->num_rows == capacity) {
+      capacity = capacity ? 2 * capacity : 1024;
+      t->values = realloc(t->values, capacity * (size_t)t->num_columns * sizeof(double));
+      t->text = realloc(t->text, capacity * (size_t)t->num_columns * sizeof(char *));
+      if (!t->values || !t->text) exit(3);
+    }
+    for (int c = 0; c < n; ++c) {
+      char *end = NULL;
+      double v = strtod(fields[c], &end);
+      if (fields[c][0] == '\0' || *end != '\0') v = NAN;
+      t->values[t->num_rows * (size_t)t->num_columns + (size_t)c] = v;
+      t->text[t->num_rows * (size_t)t->num_columns + (size_t)c] = fields[c];
+    }
+    ++t->num_rows;
+  }
+  fclose(f);
+  if (t->num_columns <= 0) {
+    fprintf(stderr, "cyclone_peer: %s has no header\n", path);
+    return -1;
+  }
+  return 0;
+}
+
+static int column(const table_t *t, const char *name) {
+  for (int c = 0; c < t->num_columns; ++c) {
+    if (strcmp(t->names[c], name) == 0) return c;
+  }
+  fprintf(stderr, "cyclone_peer: no column '%s'\n", name);
+  exit(2);
+}
+
+static double value(const table_t *t, size_t row, int col) { return t->values[row * (size_t)t->num_columns + (size_t)col]; }
+static const char *text(const table_t *t, size_t row, int col) { return t->text[row * (size_t)t->num_columns + (size_t)col]; }
+
+static uint64_t seconds_to_nanos(double s) { return (isfinite(s) && s > 0.0) ? (uint64_t)llround(s * 1e9) : 0; }
+
+/* Bit-for-bit equality (NaN equals NaN of the same bits; 0.0 differs from -0.0). */
+static int same_bits(double a, double b) { return memcmp(&a, &b, sizeof a) == 0; }
+
+/* The gradiometer sample magnav replay sends for row r with per-sensor seq. */
+static void sample_of_row(const table_t *t, size_t r, uint64_t seq, magnav_msg_GradiometerSample *m) {
+  static const char *pos[3] = {"sensor_x", "sensor_y", "sensor_z"};
+  static const char *b[3] = {"B_x", "B_y", "B_z"};
+  memset(m, 0, sizeof *m);
+  m->sensor_id = (uint32_t)value(t, r, column(t, "sensor_id"));
+  m->stamp_ns = seconds_to_nanos(value(t, r, column(t, "t")));
+  m->seq = seq;
+  for (int i = 0; i < 3; ++i) {
+    m->sensor_position[i] = value(t, r, column(t, pos[i]));
+    m->B[i] = value(t, r, column(t, b[i]));
+  }
+  for (int k = 0; k < 9; ++k) {
+    char name[4] = {'T', (char)('0' + k / 3), (char)('0' + k % 3), '\0'};
+    m->T[k] = value(t, r, column(t, name));
+  }
+  m->sigma_B = t->sigma_B;
+  m->sigma_T = t->sigma_T;
+}
+
+static int same_sample(const magnav_msg_GradiometerSample *a, const magnav_msg_GradiometerSample *b) {
+  if (a->sensor_id != b->sensor_id || a->stamp_ns != b->stamp_ns || a->seq != b->seq) return 0;
+  for (int i = 0; i < 3; ++i) {
+    if (!same_bits(a->sensor_position[i], b->sensor_position[i]) || !same_bits(a->B[i], b->B[i])) return 0;
+  }
+  for (int k = 0; k < 9; ++k) {
+    if (!same_bits(a->T[k], b->T[k])) return 0;
+  }
+  return same_bits(a->sigma_B, b->sigma_B) && same_bits(a->sigma_T, b->sigma_T);
+}
+
+/* ---- DDS set-up ---- */
+
+static dds_entity_t participant(void) {
+  const char *env = getenv("MAGNAV_DOMAIN_ID");
+  const dds_domainid_t domain = env ? (dds_domainid_t)strtoul(env, NULL, 10) : 0;
+  const dds_entity_t pp = dds_create_participant(domain, NULL, NULL);
+  if (pp < 0) {
+    fprintf(stderr, "cyclone_peer: dds_create_participant: %s\n", dds_strretcode(-pp));
+    exit(3);
+  }
+  return pp;
+}
+
+/* magnav's endpoint QoS (docs/PROTOCOL.md): reliable, XCDR1, and here
+ * TRANSIENT_LOCAL so that samples written before this side matched the
+ * writer are repaired from the writer's history (docs/INTEROP.md). */
+static dds_qos_t *endpoint_qos(int transient_local, int keep_all) {
+  dds_qos_t *q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(10));
+  dds_qset_durability(q, transient_local ? DDS_DURABILITY_TRANSIENT_LOCAL : DDS_DURABILITY_VOLATILE);
+  if (keep_all) {
+    dds_qset_history(q, DDS_HISTORY_KEEP_ALL, 0);
+  } else {
+    dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1000);
+  }
+  dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
+  dds_qset_data_representation(q, 1, &xcdr1);
+  return q;
+}
+
+/* The topic, with magnav's names or, when $MAGNAV_ROS2_NAMES=1, ROS 2's:
+ * "rt/magnav/gradiometer" of type "magnav::msg::dds_::GradiometerSample_". */
+static dds_entity_t topic_on(dds_entity_t pp, const dds_topic_descriptor_t *desc, const char *name) {
+  char topic_name[128];
+  const char *ros2 = getenv("MAGNAV_ROS2_NAMES");
+  if (ros2 && strcmp(ros2, "1") == 0) {
+    /* A copy of the descriptor with the other type name (its members are
+     * const: copied bytewise into fresh memory, kept for the process). */
+    char *type_name = malloc(128);
+    dds_topic_descriptor_t *copy = malloc(sizeof *copy);
+    if (!type_name || !copy) exit(3);
+    const char *last = strrchr(desc->m_typename, ':');
+    const size_t prefix = last ? (size_t)(last + 1 - desc->m_typename) : 0;
+    snprintf(type_name, 128, "%.*sdds_::%s_", (int)prefix, desc->m_typename, desc->m_typename + prefix);
+    memcpy(copy, desc, sizeof *copy);
+    memcpy((char *)copy + offsetof(dds_topic_descriptor_t, m_typename), &type_name, sizeof type_name);
+    desc = copy;
+    snprintf(topic_name, sizeof topic_name, "rt/%s", name);
+  } else {
+    snprintf(topic_name, sizeof topic_name, "%s", name);
+  }
+  const dds_entity_t topic = dds_create_topic(pp, desc, topic_name, NULL, NULL);
+  if (topic < 0) {
+    fprintf(stderr, "cyclone_peer: dds_create_topic %s: %s\n", topic_name, dds_strretcode(-topic));
+    exit(3);
+  }
+  return topic;
+}
+
+static dds_entity_t reader_on(dds_entity_t pp, const dds_topic_descriptor_t *desc, const char *name, int tl) {
+  const dds_entity_t topic = topic_on(pp, desc, name);
+  dds_qos_t *q = endpoint_qos(tl, 1);
+  const dds_entity_t rd = dds_create_reader(pp, topic, q, NULL);
+  dds_delete_qos(q);
+  if (rd < 0) {
+    fprintf(stderr, "cyclone_peer: dds_create_reader %s: %s\n", name, dds_strretcode(-rd));
+    exit(3);
+  }
+  return rd;
+}
+
+#define TAKE_MAX 256
+
+/* Takes what is there, waiting up to 100 ms for data; returns the count (loaned). */
+static int take_some(dds_entity_t rd, dds_entity_t ws, void **samples, dds_sample_info_t *infos) {
+  dds_waitset_wait(ws, NULL, 0, DDS_MSECS(100));
+  memset(samples, 0, TAKE_MAX * sizeof(void *));
+  return dds_take(rd, samples, infos, TAKE_MAX, TAKE_MAX);
+}
+
+static dds_entity_t waitset_for(dds_entity_t pp, dds_entity_t rd) {
+  const dds_entity_t ws = dds_create_waitset(pp);
+  const dds_entity_t rc = dds_create_readcondition(rd, DDS_ANY_STATE);
+  dds_waitset_attach(ws, rc, rd);
+  return ws;
+}
+
+/* A reader that leaves the moment it has its data may not have acknowledged
+ * the last samples yet, and the writer then waits for it until its lease ends
+ * (magnav replay: up to 10 s). Stay half a second to answer the heartbeats. */
+static void linger_then_delete(dds_entity_t pp) {
+  dds_sleepfor(DDS_MSECS(500));
+  dds_delete(pp);
+}
+
+/* ---- modes ---- */
+
+static int expect_samples(const char *path, double timeout_s, int transient_local) {
+  table_t t;
+  if (read_table(path, &t) != 0) return 2;
+  const int c_id = column(&t, "sensor_id");
+  /* Row of (sensor id, seq): per-sensor seq in file order, as replay numbers them. */
+  uint32_t *row_sensor = calloc(t.num_rows, sizeof(uint32_t));
+  uint64_t *row_seq = calloc(t.num_rows, sizeof(uint64_t));
+  int *seen = calloc(t.num_rows, sizeof(int));
+  if (!row_sensor || !row_seq || !seen) return 3;
+  for (size_t r = 0; r < t.num_rows; ++r) {
+    row_sensor[r] = (uint32_t)value(&t, r, c_id);
+    uint64_t n = 0;
+    for (size_t q = 0; q < r; ++q) n += row_sensor[q] == row_sensor[r];
+    row_seq[r] = n;
+  }
+  const dds_entity_t pp = participant();
+  const dds_entity_t rd = reader_on(pp, &magnav_msg_GradiometerSample_desc, "magnav/gradiometer", transient_local);
+  const dds_entity_t ws = waitset_for(pp, rd);
+  printf("ready\n");
+  fflush(stdout);
+
+  size_t received = 0, differ = 0, repeated = 0, unknown = 0;
+  const dds_time_t deadline = dds_time() + (dds_duration_t)(timeout_s * 1e9);
+  void *samples[TAKE_MAX];
+  dds_sample_info_t infos[TAKE_MAX];
+  while (received < t.num_rows && dds_time() < deadline) {
+    const int n = take_some(rd, ws, samples, infos);
+    for (int i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const magnav_msg_GradiometerSample *m = samples[i];
+      size_t r = t.num_rows;
+      for (size_t k = 0; k < t.num_rows; ++k) {
+        if (row_sensor[k] == m->sensor_id && row_seq[k] == m->seq) {
+          r = k;
+          break;
+        }
+      }
+      if (r == t.num_rows) {
+        ++unknown;
+        continue;
+      }
+      if (seen[r]++) {
+        ++repeated;
+        continue;
+      }
+      ++received;
+      magnav_msg_GradiometerSample expected;
+      sample_of_row(&t, r, row_seq[r], &expected);
+      if (!same_sample(&expected, m)) {
+        if (differ == 0) fprintf(stderr, "cyclone_peer: row %zu differs from the file\n", r + 1);
+        ++differ;
+      }
+    }
+    if (n > 0) dds_return_loan(rd, samples, n);
+  }
+  size_t first_missing = t.num_rows;
+  for (size_t r = 0; r < t.num_rows && first_missing == t.num_rows; ++r) {
+    if (!seen[r]) first_missing = r;
+  }
+  printf("received %zu of %zu, %zu differ, %zu repeated, %zu unknown", received, t.num_rows, differ, repeated,
+         unknown);
+  if (first_missing < t.num_rows) printf(" (first missing: sample %zu of the file)", first_missing);
+  printf("\n");
+  linger_then_delete(pp);
+  return (received == t.num_rows && differ == 0 && repeated == 0 && unknown == 0) ? 0 : 1;
+}
+
+static int send_samples(const char *path) {
+  table_t t;
+  if (read_table(path, &t) != 0) return 2;
+  if (isnan(t.sigma_B) || isnan(t.sigma_T)) {
+    fprintf(stderr, "cyclone_peer: %s has no '# sigma_B_T:' and '# sigma_T_Tpm:' lines\n", path);
+    return 2;
+  }
+  const int c_id = column(&t, "sensor_id");
+  const dds_entity_t pp = participant();
+  const dds_entity_t topic = topic_on(pp, &magnav_msg_GradiometerSample_desc, "magnav/gradiometer");
+  dds_qos_t *q = endpoint_qos(1, 1);
+  const dds_entity_t wr = dds_create_writer(pp, topic, q, NULL);
+  dds_delete_qos(q);
+  if (topic < 0 || wr < 0) {
+    fprintf(stderr, "cyclone_peer: cannot create the writer\n");
+    return 3;
+  }
+  dds_publication_matched_status_t st = {0};
+  const dds_time_t deadline = dds_time() + DDS_SECS(30);
+  while (st.current_count < 1 && dds_time() < deadline) {
+    dds_get_publication_matched_status(wr, &st);
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  if (st.current_count < 1) {
+    fprintf(stderr, "cyclone_peer: no reader of magnav/gradiometer within 30 s\n");
+    return 1;
+  }
+  uint64_t seq[1024] = {0};
+  for (size_t r = 0; r < t.num_rows; ++r) {
+    const uint32_t id = (uint32_t)value(&t, r, c_id);
+    if (id >= 1024) return 2;
+    magnav_msg_GradiometerSample m;
+    sample_of_row(&t, r, seq[id]++, &m);
+    const dds_return_t rc = dds_write(wr, &m);
+    if (rc != DDS_RETCODE_OK) {
+      fprintf(stderr, "cyclone_peer: dds_write: %s\n", dds_strretcode(-rc));
+      return 3;
+    }
+  }
+  const dds_return_t acked = dds_wait_for_acks(wr, DDS_SECS(30));
+  printf("sent %zu samples%s\n", t.num_rows, acked == DDS_RETCODE_OK ? "" : " (not all acknowledged)");
+  dds_delete(pp);
+  return acked == DDS_RETCODE_OK ? 0 : 1;
+}
+
+static int expect_fixes(const char *path, double timeout_s) {
+  table_t t;
+  if (read_table(path, &t) != 0) return 2;
+  const int c_t = column(&t, "t"), c_id = column(&t, "sensor_id"), c_valid = column(&t, "valid");
+  const int c_reason = column(&t, "reason");
+  const int c_pos[3] = {column(&t, "dipole_x"), column(&t, "dipole_y"), column(&t, "dipole_z")};
+  const int c_cov[6] = {column(&t, "cov_xx"), column(&t, "cov_xy"), column(&t, "cov_xz"),
+                        column(&t, "cov_yy"), column(&t, "cov_yz"), column(&t, "cov_zz")};
+  static const int kCovIndex[6] = {0, 1, 2, 4, 5, 8};
+  int *seen = calloc(t.num_rows, sizeof(int));
+  if (!seen) return 3;
+  const dds_entity_t pp = participant();
+  const dds_entity_t rd = reader_on(pp, &magnav_msg_DipoleFix_desc, "magnav/dipole_fix", 1);
+  const dds_entity_t ws = waitset_for(pp, rd);
+  printf("ready\n");
+  fflush(stdout);
+
+  size_t received = 0, differ = 0, repeated = 0, unknown = 0, valid = 0;
+  const dds_time_t deadline = dds_time() + (dds_duration_t)(timeout_s * 1e9);
+  void *samples[TAKE_MAX];
+  dds_sample_info_t infos[TAKE_MAX];
+  while (received < t.num_rows && dds_time() < deadline) {
+    const int n = take_some(rd, ws, samples, infos);
+    for (int i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const magnav_msg_DipoleFix *f = samples[i];
+      size_t r = t.num_rows;
+      for (size_t k = 0; k < t.num_rows; ++k) {
+        if ((uint32_t)value(&t, k, c_id) == f->sensor_id && seconds_to_nanos(value(&t, k, c_t)) == f->stamp_ns) {
+          r = k;
+          break;
+        }
+      }
+      if (r == t.num_rows) {
+        ++unknown;
+        continue;
+      }
+      if (seen[r]++) {
+        ++repeated;
+        continue;
+      }
+      ++received;
+      const int want_valid = value(&t, r, c_valid) == 1.0;
+      int same = (f->valid != 0) == want_valid && strcmp(f->reason, text(&t, r, c_reason)) == 0;
+      if (want_valid) {
+        ++valid;
+        for (int k = 0; k < 3; ++k) same = same && same_bits(f->position[k], value(&t, r, c_pos[k]));
+        for (int k = 0; k < 6; ++k) same = same && same_bits(f->covariance[kCovIndex[k]], value(&t, r, c_cov[k]));
+      }
+      if (!same) {
+        if (differ == 0) {
+          fprintf(stderr, "cyclone_peer: the fix of row %zu (t = %s) differs from the offline result\n", r + 1,
+                  text(&t, r, c_t));
+        }
+        ++differ;
+      }
+    }
+    if (n > 0) dds_return_loan(rd, samples, n);
+  }
+  printf("received %zu of %zu fixes (%zu valid), %zu differ, %zu repeated, %zu unknown\n", received, t.num_rows,
+         valid, differ, repeated, unknown);
+  linger_then_delete(pp);
+  return (received == t.num_rows && differ == 0 && repeated == 0 && unknown == 0) ? 0 : 1;
+}
+
+int main(int argc, char **argv) {
+  if (argc >= 4 && strcmp(argv[1], "expect-samples") == 0) {
+    const int tl = !(argc == 5 && strcmp(argv[4], "volatile") == 0);
+    return expect_samples(argv[2], atof(argv[3]), tl);
+  }
+  if (argc == 3 && strcmp(argv[1], "send-samples") == 0) return send_samples(argv[2]);
+  if (argc == 4 && strcmp(argv[1], "expect-fixes") == 0) return expect_fixes(argv[2], atof(argv[3]));
+  fprintf(stderr,
+          "usage: cyclone_peer expect-samples FILE TIMEOUT_S [volatile] | send-samples FILE | "
+          "expect-fixes FILE TIMEOUT_S\n");
+  return 2;
+}
