@@ -17,6 +17,7 @@
 #include "magnav/core/gradiometer.h"
 #include "magnav/core/units.h"
 #include "magnav/dds/node.h"
+#include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/shutdown.h"
 
 namespace magnav::tools {
@@ -207,6 +208,7 @@ struct Recording {
   std::unique_ptr<Sink> sink;
   std::shared_ptr<void> reader;
   std::function<std::uint64_t()> lost;
+  std::shared_ptr<dds::RepeatFilter> repeats;
 };
 
 template <class M>
@@ -215,8 +217,12 @@ Recording Subscribe(dds::Node& node, const std::string& topic, const std::string
   r.topic = topic;
   r.sink = std::make_unique<Sink>(path, Header(topic));
   Sink* sink = r.sink.get();
-  std::shared_ptr<dds::Reader<M>> reader = node.CreateReader<M>([sink, count](const M& m, const auto&) {
-    if (count == 0 || sink->count() < count) sink->Write(Row(m));
+  // A message seen before (a restarted producer's history: same key, seq and
+  // time) is written once.
+  r.repeats = std::make_shared<dds::RepeatFilter>();
+  dds::RepeatFilter* repeats = r.repeats.get();
+  std::shared_ptr<dds::Reader<M>> reader = node.CreateReader<M>([sink, count, repeats](const M& m, const auto&) {
+    if ((count == 0 || sink->count() < count) && repeats->First(m)) sink->Write(Row(m));
   });
   r.lost = [reader] { return reader->stats().lost.load(); };
   r.reader = reader;
@@ -276,6 +282,10 @@ void Run(const RecordArgs& a) {
     if (r.lost() > 0) {
       std::fprintf(stderr, "record: %llu sample(s) lost on magnav/%s\n", static_cast<unsigned long long>(r.lost()),
                    r.topic.c_str());
+    }
+    if (r.repeats->repeats() > 0) {
+      std::fprintf(stderr, "record: %llu repeated message(s) on magnav/%s written once (same key, seq and time)\n",
+                   static_cast<unsigned long long>(r.repeats->repeats()), r.topic.c_str());
     }
     std::fprintf(stderr, "recorded %llu %s sample(s)\n", static_cast<unsigned long long>(r.sink->count()),
                  r.topic.c_str());

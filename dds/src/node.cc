@@ -12,6 +12,7 @@
 #include <spdlog/spdlog.h>
 
 #include "embedded_profiles.h"
+#include "magnav/dds/shm_clean.h"
 
 namespace magnav::dds {
 
@@ -143,6 +144,16 @@ void LoadProfiles(const std::string& extra_file) {
 Node::Node(const NodeOptions& options) {
   std::string err;
   if (!options.IsValid(&err)) throw DdsError("NodeOptions: " + err);
+  // Shared-memory files of processes that died without cleaning up (kill -9),
+  // once per process, before this participant makes its own.
+  static std::once_flag shm_cleaned;
+  std::call_once(shm_cleaned, [] {
+    const ShmCleanResult c = CleanStaleSharedMemory();
+    if (c.segments + c.ports > 0) {
+      spdlog::info("dds: removed {} shared-memory segment(s) and {} port(s) left by dead processes", c.segments,
+                   c.ports);
+    }
+  });
   LoadProfiles(options.profiles_file.empty() ? EnvOr("MAGNAV_DDS_PROFILES", "") : options.profiles_file);
   domain_id_ = options.domain_id ? *options.domain_id : DomainIdFromEnvironment();
   ros2_names_ = options.ros2_names ? *options.ros2_names : Ros2NamesFromEnvironment();

@@ -75,6 +75,8 @@ void InverterNode::Start(dds::Node& node) {
 }
 
 void InverterNode::OnSample(const dds::msg::GradiometerSample& m) {
+  // A sample seen before (a restarted producer's history) already has its fix.
+  if (!repeats_.First(m)) return;
   GradiometerSample s = dds::FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   DipoleFix fix;

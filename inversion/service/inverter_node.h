@@ -13,6 +13,7 @@
 
 #include "magnav/dds/node.h"
 #include "magnav/dds/regional_field_source.h"
+#include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/sample_door.h"
 #include "magnav/inversion/inverter.h"
 #include "magnav/inversion/particle_filter.h"
@@ -37,6 +38,7 @@ class InverterNode {
   std::uint64_t published() const { return writer_->stats().samples.load(); }
   const dds::EndpointStats& input_stats() const { return reader_->stats(); }
   std::uint64_t bad_samples() const { return door_.rejected(); }
+  std::uint64_t repeated() const { return repeats_.repeats(); }
   const dds::RegionalFieldSource& b0() const { return *b0_; }
 
  private:
@@ -45,6 +47,7 @@ class InverterNode {
 
   std::mutex mu_;  // the middleware may call the listener from several receive threads
   dds::SampleDoor door_{"magnav-inverter"};
+  dds::RepeatFilter repeats_;  // samples seen before: a restarted producer's history
   std::unique_ptr<dds::RegionalFieldSource> b0_;
   std::variant<Inverter, MonteCarloTracker> engine_;
   dds::msg::FixMethod method_;

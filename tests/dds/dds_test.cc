@@ -1,7 +1,10 @@
 // DDS adapter tests in the manner of Fast DDS's blackbox suite: a domain id
 // derived from the process id, discovery awaited before sending, a peer in a
 // separate process so samples really cross the loopback transports.
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
+#include <utime.h>
 #include <unistd.h>
 
 #include <bit>
@@ -16,6 +19,8 @@
 
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
+#include "magnav/dds/repeat_filter.h"
+#include "magnav/dds/shm_clean.h"
 #include "sample_pattern.h"
 #include "subprocess.h"
 #include "test_data.h"
@@ -268,6 +273,68 @@ TEST(Dds, Ros2Names) {
   auto w = node.CreateWriter<msg::GradiometerSample>();
   EXPECT_EQ(w->topic(), "rt/magnav/gradiometer");
   unsetenv("MAGNAV_ROS2_NAMES");
+}
+
+// A restarted producer's history: the same (key, seq, stamp) is a repeat; the
+// same seq at a new time (a producer that started over) is not; memory is
+// bounded per key.
+TEST(Dds, RepeatFilterDropsExactRepeatsOnly) {
+  RepeatFilter f(3);
+  EXPECT_TRUE(f.First(MessageId{1, 10, 100}));
+  EXPECT_TRUE(f.First(MessageId{2, 10, 100}));  // another sensor
+  EXPECT_FALSE(f.First(MessageId{1, 10, 100}));
+  EXPECT_TRUE(f.First(MessageId{1, 10, 200}));  // seq reused at a new time
+  EXPECT_TRUE(f.First(MessageId{1, 11, 110}));
+  EXPECT_TRUE(f.First(MessageId{1, 12, 120}));  // evicts (1, 10, 100): depth 3
+  EXPECT_TRUE(f.First(MessageId{1, 10, 100}));
+  EXPECT_EQ(f.repeats(), 1u);
+  msg::DipoleFix fix = testing::PatternFix(4);
+  EXPECT_TRUE(f.First(fix));
+  EXPECT_FALSE(f.First(fix));
+}
+
+// Stale shared-memory files: a lock file nobody holds (older than the grace
+// period) goes with its segment; a held one, a young one and a port whose
+// sender lock is held stay.
+TEST(Dds, StaleSharedMemoryOfDeadProcessesIsRemoved) {
+  const std::filesystem::path dir = magnav::testing::TempDir();
+  const auto make = [&](const std::string& name, bool old) {
+    std::ofstream(dir / name) << "x";
+    if (old) {
+      struct utimbuf t {};
+      t.actime = t.modtime = time(nullptr) - 3600;
+      utime((dir / name).c_str(), &t);
+    }
+  };
+  make("fastrtps_00000000000000aa", true);  // dead segment
+  make("fastrtps_00000000000000aa_el", true);
+  make("fastrtps_00000000000000bb", true);  // live segment: its lock is held
+  make("fastrtps_00000000000000bb_el", true);
+  make("fastrtps_00000000000000cc", false);  // just made: grace period
+  make("fastrtps_00000000000000cc_el", false);
+  make("fastrtps_port7411", true);  // dead port
+  make("fastrtps_port7411_el", true);
+  make("fastrtps_port7411_sl", true);
+  make("sem.fastrtps_port7411_mutex", true);
+  make("fastrtps_port7413", true);  // listener gone, a sender still holds it
+  make("fastrtps_port7413_el", true);
+  make("fastrtps_port7413_sl", true);
+  make("unrelated_file", true);
+  const int held = open((dir / "fastrtps_00000000000000bb_el").c_str(), O_RDONLY);
+  const int held_sl = open((dir / "fastrtps_port7413_sl").c_str(), O_RDONLY);
+  ASSERT_EQ(flock(held, LOCK_EX | LOCK_NB), 0);
+  ASSERT_EQ(flock(held_sl, LOCK_SH | LOCK_NB), 0);
+  const ShmCleanResult r = CleanStaleSharedMemory(dir.string(), 2.0);
+  close(held);
+  close(held_sl);
+  EXPECT_EQ(r.segments, 1);
+  EXPECT_EQ(r.ports, 1);
+  std::set<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) left.insert(e.path().filename().string());
+  EXPECT_EQ(left, (std::set<std::string>{"fastrtps_00000000000000bb", "fastrtps_00000000000000bb_el",
+                                         "fastrtps_00000000000000cc", "fastrtps_00000000000000cc_el",
+                                         "fastrtps_port7413", "fastrtps_port7413_el", "fastrtps_port7413_sl",
+                                         "unrelated_file"}));
 }
 
 }  // namespace

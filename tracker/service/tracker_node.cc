@@ -68,6 +68,7 @@ TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options,
 }
 
 void TrackerNode::OnFix(const dds::msg::DipoleFix& m) {
+  if (!fix_repeats_.First(m)) return;  // a restarted inverter's fix of a sample already answered
   const DipoleFix f = FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   try {
@@ -79,6 +80,7 @@ void TrackerNode::OnFix(const dds::msg::DipoleFix& m) {
 }
 
 void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
+  if (!repeats_.First(m)) return;
   GradiometerSample s = dds::FromMsg(m);
   if (door_.Check(s) != SampleDefect::kNone) return;
   const auto B0 = b0_->For(s);

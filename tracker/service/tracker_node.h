@@ -25,6 +25,7 @@
 
 #include "magnav/dds/node.h"
 #include "magnav/dds/regional_field_source.h"
+#include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/sample_door.h"
 #include "magnav/tracker/multi_tracker.h"
 
@@ -56,6 +57,7 @@ class TrackerNode {
   std::uint64_t dropped_late() const { return dropped_late_; }
   std::uint64_t rejected() const { return rejected_; }
   std::uint64_t bad_samples() const { return door_.rejected(); }
+  std::uint64_t repeated() const { return repeats_.repeats() + fix_repeats_.repeats(); }
   const dds::RegionalFieldSource& b0() const { return *b0_; }
   std::uint64_t fixes_received() const { return fix_reader_ ? fix_reader_->stats().samples.load() : 0; }
   std::uint64_t fixes_rejected() const { return fixes_rejected_; }
@@ -71,6 +73,8 @@ class TrackerNode {
   TrackerNodeOptions options_;
   mutable std::mutex mu_;
   dds::SampleDoor door_{"magnav-tracker"};
+  dds::RepeatFilter repeats_;      // samples seen before: a restarted producer's history
+  dds::RepeatFilter fix_repeats_;  // fixes seen before: a restarted inverter's
   std::unique_ptr<dds::RegionalFieldSource> b0_;
   std::set<std::uint32_t> no_sigma_logged_;  // sensors whose missing σ was logged
   MultiTracker tracker_;

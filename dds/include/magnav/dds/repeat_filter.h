@@ -1,0 +1,68 @@
+// Recognises a message that arrived before. With TRANSIENT_LOCAL streams a
+// reader that matches a writer late gets the writer's history, and a service
+// restarted after kill -9 republishes results for samples it had already
+// answered before it died (docs/RELIABILITY.md, "Crash and restart"). Every
+// stream message carries what identifies it: its key (sensor, track, vehicle),
+// the sequence number of the sample it belongs to (samples: `seq`, fixes:
+// `sample_seq`; estimates have none: 0) and its time stamp. A consumer passes
+// each message through a RepeatFilter and drops the repeats: the same
+// (key, seq, stamp) within the last `depth_per_key` messages of that key.
+// A restarted producer of new data (new stamps) is never taken for a repeat.
+// Thread-safe.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <mutex>
+#include <set>
+#include <tuple>
+#include <unordered_map>
+
+#include "magnav/dds/topics.h"
+
+namespace magnav::dds {
+
+struct MessageId {
+  std::uint32_t key = 0;
+  std::uint64_t seq = 0;
+  std::uint64_t stamp_ns = 0;
+  bool operator<(const MessageId& o) const {
+    return std::tie(key, seq, stamp_ns) < std::tie(o.key, o.seq, o.stamp_ns);
+  }
+};
+
+inline MessageId IdOf(const msg::GradiometerSample& m) { return {m.sensor_id(), m.seq(), m.stamp_ns()}; }
+inline MessageId IdOf(const msg::MagnetometerSample& m) { return {m.sensor_id(), m.seq(), m.stamp_ns()}; }
+inline MessageId IdOf(const msg::DipoleFix& m) { return {m.sensor_id(), m.sample_seq(), m.stamp_ns()}; }
+inline MessageId IdOf(const msg::VesselNav& m) { return {m.vessel_id(), 0, m.stamp_ns()}; }
+inline MessageId IdOf(const msg::TrackEstimate& m) { return {m.track_id(), 0, m.stamp_ns()}; }
+inline MessageId IdOf(const msg::SensorPositionEstimate& m) { return {m.sensor_id(), 0, m.stamp_ns()}; }
+inline MessageId IdOf(const msg::MapFix& m) { return {m.vehicle_id(), 0, m.stamp_ns()}; }
+
+class RepeatFilter {
+ public:
+  // depth_per_key: how many recent messages of each key are remembered; at
+  // least the writers' history depth (1000 per sensor, PROTOCOL.md).
+  explicit RepeatFilter(std::size_t depth_per_key = 4096) : depth_(depth_per_key) {}
+
+  // True the first time `id` is offered; false (and counted) for a repeat.
+  bool First(const MessageId& id);
+  template <class M>
+  bool First(const M& m) {
+    return First(IdOf(m));
+  }
+  std::uint64_t repeats() const { return repeats_.load(); }
+
+ private:
+  struct PerKey {
+    std::set<MessageId> seen;
+    std::deque<MessageId> order;  // oldest first, for eviction
+  };
+  std::size_t depth_;
+  std::mutex mu_;
+  std::unordered_map<std::uint32_t, PerKey> keys_;
+  std::atomic<std::uint64_t> repeats_{0};
+};
+
+}  // namespace magnav::dds
