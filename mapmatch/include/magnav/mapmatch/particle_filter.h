@@ -23,6 +23,33 @@
 // PF: weights w ← w·p(z|x), normalised; systematic resampling when the
 // effective sample size 1/Σw² < resample_ess_fraction·N.
 //
+// PF, adaptive σ (adaptive_sigma, on by default; the AFPF ignores it): the
+// sensor's noise is not known in advance (0.5–5 nT in this project's data),
+// and one fixed σ must be as large as the worst of it, which throws away most
+// of a quiet sensor's information. So the PF estimates it from its own
+// innovations (Mehra's innovation-based adaptive estimation): over the
+// predicted cloud, with m̄ = Σw m(x_i) and V = Σw (m(x_i) − m̄)², a consistent
+// filter has E[(z − m̄)²] = σ² + V, so
+//   σ_k² = mean over the last sigma_window updates of ((z − m̄)² − V),
+// clamped to [min_measurement_sigma_nT², measurement_sigma_nT²];
+// measurement_sigma_nT until the window is full; σ rises at once but falls by
+// at most a factor (1 − 1/sigma_window) per update (the cloud's spread V lags
+// σ: a sudden small σ collapses a cloud that has not tightened yet, measured
+// on held-out paths). Only updates whose cloud is
+// compact in map value (V ≤ measurement_sigma_nT²) enter the window, and a
+// spread one empties it: while the cloud is still spread over several basins
+// (acquisition, or after a re-initialisation) its mean residual says nothing
+// about σ, and an early small σ collapses the cloud into whichever basin is
+// ahead (measured on held-out paths, docs/ACCURACY.md). The AFPF's cloud is
+// a rank selection, not a posterior sample, so the identity does not hold for
+// it (measured: adaptive σ made its covariance and held-out errors worse).
+//
+// Regularised PF (regularization_bandwidth, off by default): after resampling
+// each particle moves by h·L·ε, L Lᵀ = the cloud's covariance, h = bandwidth ·
+// N^(−1/6) (Musso, Oudjane & Le Gland 2001). With the cloud's global
+// covariance as the kernel it blurs the basins during acquisition: on held-out
+// paths it lost the track in most runs (docs/ACCURACY.md), so it is off.
+//
 // AFPF (the paper's algorithm 1): after the weight update each parent i
 // spawns m_i = round(N w_i) + 2 offspring drawn from N(x_i, σ_i I) with the
 // variance σ_i = λ μ a_i (deg²) and fission factor
@@ -92,7 +119,19 @@ struct ParticleFilterOptions {
   // (anomaly std 60 nT) that makes every PF weight update ≈ 1. 5 nT: one
   // fixed value for the 0.5 nT and 3 nT reference paths (3 nT made the AFPF
   // lose 2 of 5 seeds at 3 nT noise, 10 nT widened the PF's posterior by 30 %).
+  // The PF with adaptive_sigma: the largest σ, and the σ it starts with.
   double measurement_sigma_nT = 5.0;
+  // PF: adaptive σ (see above): σ_k from the last sigma_window innovations,
+  // clamped to [min_measurement_sigma_nT, measurement_sigma_nT]; with it
+  // measurement_sigma_nT is the largest σ (and the σ until the window is
+  // full). The floor 0.5 nT: the quietest sensor in this project's data (a
+  // fluxgate's 0.5 nT; the map's own interpolation error is 0.06 nT rms on the
+  // reference paths). The window 20: the σ² estimate's relative sd is then
+  // ≈ √(2/20) ≈ 0.3 (a mean of 20 one-dof terms) and it follows a change of
+  // sensor or map within 20 steps. Ignored by the AFPF.
+  bool adaptive_sigma = true;
+  double min_measurement_sigma_nT = 0.5;
+  int sigma_window = 20;
   // Drift noise per step, per axis (deg). Default: the reference paths'
   // INS drift (a U(±0.0005°) step per axis, σ = 0.00029°), README §4b.
   double drift_sigma_deg = 0.0003;
@@ -101,6 +140,11 @@ struct ParticleFilterOptions {
   double prior_half_width_deg = 0.15;
   // PF: resample (systematic) when ESS < this fraction of N.
   double resample_ess_fraction = 0.5;
+  // PF: after resampling, jitter by a Gaussian kernel of width
+  // regularization_bandwidth · N^(−1/6) times the cloud's covariance (the
+  // regularised PF, see above); 0 = off (the default: it lost the track on
+  // held-out paths), 1 = Musso's optimal width for a Gaussian density.
+  double regularization_bandwidth = 0.0;
   // Off-map likelihood floor, in σ of residual.
   double off_map_sigmas = 3.0;
   // An INS increment longer than this (deg) is a jump, not applied.
@@ -154,6 +198,7 @@ struct StepDiagnostics {
   int unique_particles = 0;      // distinct particles after the step (resampling copies)
   int occupied_cells = 0;        // distinct map cells holding a particle (spread)
   double nis = 0.0;              // this update's normalised innovation (0 if no update)
+  double sigma_nT = 0.0;         // the likelihood σ of this step (measurement_sigma_nT unless adaptive_sigma)
   bool resampled = false;
   bool ins_jump = false;
   StepUpdate update = StepUpdate::kUpdated;
