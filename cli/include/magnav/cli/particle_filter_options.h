@@ -19,7 +19,8 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "afpf: adaptive count = this x map cells holding a particle (clamped to --particles..--max-particles)");
   opt("--seed", &f->seed, "pf, afpf: random seed (std::mt19937_64)");
   opt("--sigma", &f->measurement_sigma_nT,
-      "pf, afpf: likelihood sigma, nT (sensor + map + particle spacing; the paper's tau = sigma^2)");
+      "afpf: likelihood sigma, nT (sensor + map + particle spacing; the paper's tau = sigma^2); pf: the same with "
+      "--adaptive-sigma 0, else the largest and starting sigma");
   opt("--adaptive-sigma", &f->adaptive_sigma,
       "pf: likelihood sigma from the innovations of the last --sigma-window updates (1), in "
       "[--min-sigma, --sigma], or fixed at --sigma (0); afpf: always fixed at --sigma");
