@@ -40,6 +40,9 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
     return Fail(error, "min_measurement_sigma_nT must be finite, > 0 and <= measurement_sigma_nT");
   }
   if (sigma_window < 1) return Fail(error, "sigma_window must be >= 1");
+  if (!(min_update_ess_fraction >= 0.0 && min_update_ess_fraction <= 1.0)) {
+    return Fail(error, "min_update_ess_fraction must be in [0, 1]");
+  }
   if (!(std::isfinite(regularization_bandwidth) && regularization_bandwidth >= 0.0)) {
     return Fail(error, "regularization_bandwidth must be finite and >= 0");
   }
@@ -250,7 +253,20 @@ class Filter final : public SequentialMatcher {
     d->nis = evidence > 0.0 ? -2.0 * std::log(evidence) : std::numeric_limits<double>::infinity();
     nis_window_.push_back(d->nis);
     if (static_cast<int>(nis_window_.size()) > o_.divergence_window) nis_window_.pop_front();
-    for (std::size_t i = 0; i < n; ++i) logw_[i] += loglik_[i];
+    double beta = 1.0;
+    const double floor_ess = o_.min_update_ess_fraction * static_cast<double>(n);
+    if (kind_ == ParticleFilterKind::kPf && floor_ess > 0.0 && EssWith(1.0) < floor_ess) {
+      // Tempered update (see the header): the largest β with ESS(β) ≥ the floor, by bisection.
+      double lo = 0.0, hi = 1.0;
+      for (int it = 0; it < 40; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (EssWith(mid) >= floor_ess ? lo : hi) = mid;
+      }
+      beta = lo;
+      ++counters_.tempered_updates;
+    }
+    d->likelihood_exponent = beta;
+    for (std::size_t i = 0; i < n; ++i) logw_[i] += beta * loglik_[i];
     Normalise();
     d->ess = Ess();
     if (kind_ == ParticleFilterKind::kPf) {
@@ -264,6 +280,18 @@ class Filter final : public SequentialMatcher {
       Fission(z);
     }
     d->lost = Lost();
+  }
+
+  // ESS of the weights w_i ∝ exp(logw_i + β loglik_i) (before they are applied).
+  double EssWith(double beta) const {
+    double mx = -std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < p_.size(); ++i) mx = std::max(mx, logw_[i] + beta * loglik_[i]);
+    double s1 = 0.0, s2 = 0.0;
+    for (std::size_t i = 0; i < p_.size(); ++i) {
+      const double w = std::exp(logw_[i] + beta * loglik_[i] - mx);
+      s1 += w, s2 += w * w;
+    }
+    return s2 > 0.0 ? s1 * s1 / s2 : 0.0;
   }
 
   double Ess() const {
@@ -506,7 +534,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
             std::to_string(options.seed) + ", sigma " + FormatNumber(options.measurement_sigma_nT) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", lost steps " + std::to_string(c.lost_steps) +
-            ", reinitialisations " + std::to_string(c.reinitialisations);
+            ", reinitialisations " + std::to_string(c.reinitialisations) +
+            (kind == ParticleFilterKind::kPf ? ", tempered updates " + std::to_string(c.tempered_updates) : "");
   return r;
 }
 

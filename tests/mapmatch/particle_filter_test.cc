@@ -300,6 +300,9 @@ TEST(ParticleFilter, DoorAndOptions) {
   o.regularization_bandwidth = -1.0;
   EXPECT_FALSE(o.IsValid(&why));
   o = {};
+  o.min_update_ess_fraction = 1.5;
+  EXPECT_FALSE(o.IsValid(&why));
+  o = {};
   EXPECT_THROW(MakeParticleFilter(ParticleFilterKind::kPf, SyntheticMap(), 3, o), InputError);
   o.num_particles = -1;
   EXPECT_THROW(MakeParticleFilter(ParticleFilterKind::kPf, SyntheticMap(), 0, o), InputError);
@@ -384,6 +387,30 @@ TEST(Pf, CovarianceIsHonestOnRunsNotTunedOn) {
     EXPECT_GE(nees, 1.0) << noise << " nT";
     EXPECT_LE(nees, 2.9) << noise << " nT";
   }
+}
+
+// A reading that only a handful of particles fit (here: σ 0.01 nT against a
+// cloud spread over the ±0.03° prior) is tempered to keep 1 % of N effective
+// particles, and counted; with the floor off it collapses the cloud.
+TEST(Pf, AReadingFewParticlesFitIsTempered) {
+  ParticleFilterOptions o = TestOptions();
+  o.adaptive_sigma = false;
+  o.measurement_sigma_nT = 0.01;
+  o.min_measurement_sigma_nT = 0.01;
+  const Truth t = SyntheticRun(0.004, -0.003);
+  auto f = MakeParticleFilter(ParticleFilterKind::kPf, SyntheticMap(), 0, o);
+  const StepDiagnostics d = f->Step(t.path.lat_deg[0], t.path.lon_deg[0], t.path.measured_nT[0]);
+  EXPECT_LT(d.likelihood_exponent, 1.0);
+  EXPECT_GT(d.likelihood_exponent, 0.0);
+  EXPECT_NEAR(d.ess, o.min_update_ess_fraction * o.num_particles, 1e-3 * o.num_particles);
+  EXPECT_EQ(f->counters().tempered_updates, 1);
+  EXPECT_GT(d.cov_lat_lat * d.cov_lon_lon - d.cov_lat_lon * d.cov_lat_lon, 0.0);
+  o.min_update_ess_fraction = 0.0;
+  auto g = MakeParticleFilter(ParticleFilterKind::kPf, SyntheticMap(), 0, o);
+  const StepDiagnostics e = g->Step(t.path.lat_deg[0], t.path.lon_deg[0], t.path.measured_nT[0]);
+  EXPECT_EQ(e.likelihood_exponent, 1.0);
+  EXPECT_LT(e.ess, o.num_particles * 0.01);
+  EXPECT_EQ(g->counters().tempered_updates, 0);
 }
 
 // Regularised resampling (off by default) makes every resampled copy

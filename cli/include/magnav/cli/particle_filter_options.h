@@ -30,6 +30,8 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
   opt("--prior-half-width", &f->prior_half_width_deg,
       "pf, afpf: uniform prior square around the first INS point (clipped to the map), deg");
   opt("--resample-ess", &f->resample_ess_fraction, "pf: resample when ESS < this fraction of N");
+  opt("--min-update-ess", &f->min_update_ess_fraction,
+      "pf: temper a reading (likelihood^beta) that would leave fewer effective particles than this fraction of N; 0 = off");
   opt("--regularize", &f->regularization_bandwidth,
       "pf: after resampling jitter by this x N^(-1/6) x the cloud's covariance (regularised PF; 0 = off)");
   opt("--off-map-sigmas", &f->off_map_sigmas, "pf, afpf: an off-map particle's likelihood is that of this many sigma");
