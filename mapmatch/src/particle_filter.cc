@@ -507,13 +507,14 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   MatchResult r = internal::StartResult(ParticleFilterKindName(kind), "mean effective sample size", path);
   auto filter = MakeParticleFilter(kind, grid, layer, options);
   if (steps != nullptr) steps->clear();
-  double ess_sum = 0.0;
+  double ess_sum = 0.0, last_sigma = options.measurement_sigma_nT;
   long long first_lost = -1;
   for (std::size_t p = 0; p < path.size(); ++p) {
     const StepDiagnostics& d = filter->Step(path.lat_deg[p], path.lon_deg[p], path.measured_nT[p]);
     r.lat_deg[p] = d.lat_deg;
     r.lon_deg[p] = d.lon_deg;
     ess_sum += d.ess;
+    if (d.sigma_nT > 0.0) last_sigma = d.sigma_nT;
     if (d.lost && first_lost < 0) first_lost = path.k[p];
     if (steps != nullptr) steps->push_back(d);
   }
@@ -531,7 +532,12 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
     r.reason = "lost from k = " + std::to_string(first_lost) + ", recovered";
   }
   r.notes = "particles " + std::to_string(filter->particles().size()) + " at the end, seed " +
-            std::to_string(options.seed) + ", sigma " + FormatNumber(options.measurement_sigma_nT) +
+            std::to_string(options.seed) + ", sigma " +
+            (kind == ParticleFilterKind::kPf && options.adaptive_sigma
+                 ? "adaptive in [" + FormatNumber(options.min_measurement_sigma_nT) + ", " +
+                       FormatNumber(options.measurement_sigma_nT) + "] nT, last " +
+                       FormatNumber(last_sigma)
+                 : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", lost steps " + std::to_string(c.lost_steps) +
             ", reinitialisations " + std::to_string(c.reinitialisations) +

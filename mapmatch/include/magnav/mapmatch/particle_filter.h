@@ -93,7 +93,7 @@
 //
 // Divergence ("lost"): each update's normalised innovation
 // NIS = Σ w_(k−1),i (z − m(x_i))²/σ² over the predicted cloud (particles on the
-// map). The filter is lost while the mean NIS over the last divergence_window
+// map; σ: this update's, the adaptive one for the PF). The filter is lost while the mean NIS over the last divergence_window
 // updates exceeds divergence_nis (a tracking filter's NIS is ≈ 1 plus the
 // cloud's spread; a lost one sees the map's ±60 nT as residuals). It clears
 // when the window's mean falls back. With reinitialize_when_lost the particles
