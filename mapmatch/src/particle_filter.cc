@@ -35,6 +35,17 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(max_step_deg)) return Fail(error, "max_step_deg must be finite and > 0");
   if (divergence_window < 1) return Fail(error, "divergence_window must be >= 1");
   if (!PositiveFinite(divergence_nis)) return Fail(error, "divergence_nis must be finite and > 0");
+  if (!(std::isfinite(min_measurement_sigma_nT) && min_measurement_sigma_nT > 0.0 &&
+        min_measurement_sigma_nT <= measurement_sigma_nT)) {
+    return Fail(error, "min_measurement_sigma_nT must be finite, > 0 and <= measurement_sigma_nT");
+  }
+  if (sigma_window < 1) return Fail(error, "sigma_window must be >= 1");
+  if (!(min_update_ess_fraction >= 0.0 && min_update_ess_fraction <= 1.0)) {
+    return Fail(error, "min_update_ess_fraction must be in [0, 1]");
+  }
+  if (!(std::isfinite(regularization_bandwidth) && regularization_bandwidth >= 0.0)) {
+    return Fail(error, "regularization_bandwidth must be finite and >= 0");
+  }
   if (!PositiveFinite(fission_lambda)) return Fail(error, "fission_lambda must be finite and > 0");
   if (!PositiveFinite(fission_mu_deg2)) return Fail(error, "fission_mu_deg2 must be finite and > 0");
   if (max_particles < num_particles) return Fail(error, "max_particles must be >= num_particles");
@@ -59,6 +70,7 @@ class Filter final : public SequentialMatcher {
     if (!o.IsValid(&why)) throw InputError(std::string(Name()) + " options: " + why);
     inv_two_var_ = 1.0 / (2.0 * o.measurement_sigma_nT * o.measurement_sigma_nT);
     off_map_loglik_ = -0.5 * o.off_map_sigmas * o.off_map_sigmas;
+    adaptive_ = o.adaptive_sigma && kind == ParticleFilterKind::kPf;
   }
 
   const StepDiagnostics& Step(double ins_lat, double ins_lon, double measured_nT) override {
@@ -85,6 +97,8 @@ class Filter final : public SequentialMatcher {
       if (o_.reinitialize_when_lost && std::isfinite(ins_lat) && std::isfinite(ins_lon)) {
         SpreadPrior(ins_lat, ins_lon);
         nis_window_.clear();
+        innov_.clear();
+        sigma_ = 0.0;  // starts again at measurement_sigma_nT
         ++counters_.reinitialisations;
       }
     }
@@ -101,12 +115,25 @@ class Filter final : public SequentialMatcher {
   const char* Name() const { return ParticleFilterKindName(kind_); }
 
   // Log-likelihood of a measurement at a point (the off-map floor outside).
-  double LogLik(double lat, double lon, double z, bool* on_map) const {
+  double LogLik(double lat, double lon, double z, bool* on_map, double* residual = nullptr) const {
     const auto s = grid_.Sample(layer_, lat, lon);
     *on_map = s.has_value();
     if (!s) return off_map_loglik_;
     const double r = z - s->value_nT;
+    if (residual != nullptr) *residual = r;
     return -r * r * inv_two_var_;
+  }
+
+  // The likelihood σ for this update (adaptive_sigma: from the innovations of
+  // the last sigma_window updates, see the header).
+  double CurrentSigma() const {
+    const double hi = o_.measurement_sigma_nT;
+    if (!adaptive_ || static_cast<int>(innov_.size()) < o_.sigma_window) return hi;
+    double r2 = 0.0, spread = 0.0;
+    for (const auto& [a, b] : innov_) r2 += a, spread += b;
+    const double var = (r2 - spread) / static_cast<double>(innov_.size());
+    const double lo = o_.min_measurement_sigma_nT;
+    return std::clamp(std::sqrt(std::max(var, 0.0)), lo, hi);
   }
 
   void SpreadPrior(double lat, double lon) {
@@ -188,11 +215,32 @@ class Filter final : public SequentialMatcher {
     loglik_.resize(n);
     bool any_on = false;
     double evidence = 0.0;  // Σ w_(k−1) p(z|x)
+    // σ rises at once (the safe side) but falls by at most a factor
+    // (1 − 1/sigma_window) per update: the cloud's spread V lags σ, and a
+    // sudden small σ collapses a cloud that has not yet tightened.
+    const double prev_sigma = sigma_ > 0.0 ? sigma_ : o_.measurement_sigma_nT;
+    sigma_ = std::max(CurrentSigma(), prev_sigma * (1.0 - 1.0 / o_.sigma_window));
+    inv_two_var_ = 1.0 / (2.0 * sigma_ * sigma_);
+    d->sigma_nT = sigma_;
+    double w_on = 0.0, r1 = 0.0, r2 = 0.0;  // predicted residual moments over the particles on the map
     for (std::size_t i = 0; i < n; ++i) {
       bool on = false;
-      loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, z - p_[i].bias_nT, &on);
+      double r = 0.0;
+      loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, z - p_[i].bias_nT, &on, &r);
       any_on = any_on || on;
       evidence += p_[i].weight * std::exp(loglik_[i]);
+      if (on) w_on += p_[i].weight, r1 += p_[i].weight * r, r2 += p_[i].weight * r * r;
+    }
+    if (adaptive_ && w_on > 0.5) {
+      // (mean residual)² and the cloud's spread of predicted map values:
+      // E[(z − m̄)²] = σ² + Var(m) for a consistent filter.
+      const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0);
+      if (spread <= o_.measurement_sigma_nT * o_.measurement_sigma_nT) {
+        innov_.emplace_back(mean * mean, spread);
+        if (static_cast<int>(innov_.size()) > o_.sigma_window) innov_.pop_front();
+      } else {
+        innov_.clear();  // a spread (acquiring, multimodal) cloud: its mean residual says nothing of σ
+      }
     }
     if (!any_on) {
       d->update = StepUpdate::kAllOffMap;
@@ -205,12 +253,26 @@ class Filter final : public SequentialMatcher {
     d->nis = evidence > 0.0 ? -2.0 * std::log(evidence) : std::numeric_limits<double>::infinity();
     nis_window_.push_back(d->nis);
     if (static_cast<int>(nis_window_.size()) > o_.divergence_window) nis_window_.pop_front();
-    for (std::size_t i = 0; i < n; ++i) logw_[i] += loglik_[i];
+    double beta = 1.0;
+    const double floor_ess = o_.min_update_ess_fraction * static_cast<double>(n);
+    if (kind_ == ParticleFilterKind::kPf && floor_ess > 0.0 && EssWith(1.0) < floor_ess) {
+      // Tempered update (see the header): the largest β with ESS(β) ≥ the floor, by bisection.
+      double lo = 0.0, hi = 1.0;
+      for (int it = 0; it < 40; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (EssWith(mid) >= floor_ess ? lo : hi) = mid;
+      }
+      beta = lo;
+      ++counters_.tempered_updates;
+    }
+    d->likelihood_exponent = beta;
+    for (std::size_t i = 0; i < n; ++i) logw_[i] += beta * loglik_[i];
     Normalise();
     d->ess = Ess();
     if (kind_ == ParticleFilterKind::kPf) {
       if (d->ess < o_.resample_ess_fraction * static_cast<double>(n)) {
         Resample();
+        if (o_.regularization_bandwidth > 0.0) Regularise();
         d->resampled = true;
         ++counters_.resamples;
       }
@@ -218,6 +280,18 @@ class Filter final : public SequentialMatcher {
       Fission(z);
     }
     d->lost = Lost();
+  }
+
+  // ESS of the weights w_i ∝ exp(logw_i + β loglik_i) (before they are applied).
+  double EssWith(double beta) const {
+    double mx = -std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < p_.size(); ++i) mx = std::max(mx, logw_[i] + beta * loglik_[i]);
+    double s1 = 0.0, s2 = 0.0;
+    for (std::size_t i = 0; i < p_.size(); ++i) {
+      const double w = std::exp(logw_[i] + beta * loglik_[i] - mx);
+      s1 += w, s2 += w * w;
+    }
+    return s2 > 0.0 ? s1 * s1 / s2 : 0.0;
   }
 
   double Ess() const {
@@ -252,6 +326,39 @@ class Filter final : public SequentialMatcher {
     p_.swap(out);
     std::fill(logw_.begin(), logw_.end(), std::log(step));
     unique_ = unique;
+  }
+
+  // Regularised PF (Musso, Oudjane & Le Gland 2001): after resampling every
+  // particle moves by h·L·ε, ε ~ N(0, I₂), L Lᵀ = the cloud's covariance
+  // (now equal-weighted, i.e. that of the weighted cloud before resampling),
+  // h = bandwidth · h_opt, h_opt = (4 / ((d + 2) N))^(1/(d + 4)) = N^(−1/6) for
+  // d = 2 (the Gaussian kernel's optimal width for a Gaussian density). The
+  // copies that resampling made become distinct, near where the evidence put
+  // them; the cloud's variance grows by h² (≈ 7 % at N = 3000).
+  void Regularise() {
+    const std::size_t n = p_.size();
+    double mlat = 0.0, mlon = 0.0;
+    for (const Particle& q : p_) mlat += q.lat_deg, mlon += q.lon_deg;
+    mlat /= static_cast<double>(n);
+    mlon /= static_cast<double>(n);
+    double a = 0.0, b = 0.0, c = 0.0;
+    for (const Particle& q : p_) {
+      const double x = q.lat_deg - mlat, y = q.lon_deg - mlon;
+      a += x * x, b += x * y, c += y * y;
+    }
+    a /= static_cast<double>(n), b /= static_cast<double>(n), c /= static_cast<double>(n);
+    // Cholesky of [[a, b], [b, c]] (a degenerate cloud gets no jitter along its null direction).
+    const double l11 = std::sqrt(std::max(a, 0.0));
+    const double l21 = l11 > 0.0 ? b / l11 : 0.0;
+    const double l22 = std::sqrt(std::max(c - l21 * l21, 0.0));
+    const double h = o_.regularization_bandwidth * std::pow(static_cast<double>(n), -1.0 / 6.0);
+    std::normal_distribution<double> unit(0.0, 1.0);
+    for (Particle& q : p_) {
+      const double e1 = unit(rng_), e2 = unit(rng_);
+      q.lat_deg += h * l11 * e1;
+      q.lon_deg += h * (l21 * e1 + l22 * e2);
+    }
+    unique_ = static_cast<int>(n);
   }
 
   // The paper's fission, pooling and selection of the heaviest current-count particles.
@@ -378,6 +485,9 @@ class Filter final : public SequentialMatcher {
   std::vector<std::size_t> order_;
   std::vector<long long> cells_;
   std::deque<double> nis_window_;
+  std::deque<std::pair<double, double>> innov_;  // adaptive σ: (z − m̄)², Var(m) per update
+  double sigma_ = 0.0;
+  bool adaptive_ = false;  // adaptive_sigma, PF only
   int unique_ = 0;
   FilterCounters counters_;
   StepDiagnostics last_;
@@ -397,13 +507,14 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   MatchResult r = internal::StartResult(ParticleFilterKindName(kind), "mean effective sample size", path);
   auto filter = MakeParticleFilter(kind, grid, layer, options);
   if (steps != nullptr) steps->clear();
-  double ess_sum = 0.0;
+  double ess_sum = 0.0, last_sigma = options.measurement_sigma_nT;
   long long first_lost = -1;
   for (std::size_t p = 0; p < path.size(); ++p) {
     const StepDiagnostics& d = filter->Step(path.lat_deg[p], path.lon_deg[p], path.measured_nT[p]);
     r.lat_deg[p] = d.lat_deg;
     r.lon_deg[p] = d.lon_deg;
     ess_sum += d.ess;
+    if (d.sigma_nT > 0.0) last_sigma = d.sigma_nT;
     if (d.lost && first_lost < 0) first_lost = path.k[p];
     if (steps != nullptr) steps->push_back(d);
   }
@@ -421,10 +532,16 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
     r.reason = "lost from k = " + std::to_string(first_lost) + ", recovered";
   }
   r.notes = "particles " + std::to_string(filter->particles().size()) + " at the end, seed " +
-            std::to_string(options.seed) + ", sigma " + FormatNumber(options.measurement_sigma_nT) +
+            std::to_string(options.seed) + ", sigma " +
+            (kind == ParticleFilterKind::kPf && options.adaptive_sigma
+                 ? "adaptive in [" + FormatNumber(options.min_measurement_sigma_nT) + ", " +
+                       FormatNumber(options.measurement_sigma_nT) + "] nT, last " +
+                       FormatNumber(last_sigma)
+                 : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", lost steps " + std::to_string(c.lost_steps) +
-            ", reinitialisations " + std::to_string(c.reinitialisations);
+            ", reinitialisations " + std::to_string(c.reinitialisations) +
+            (kind == ParticleFilterKind::kPf ? ", tempered updates " + std::to_string(c.tempered_updates) : "");
   return r;
 }
 

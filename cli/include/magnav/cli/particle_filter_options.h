@@ -19,11 +19,21 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "afpf: adaptive count = this x map cells holding a particle (clamped to --particles..--max-particles)");
   opt("--seed", &f->seed, "pf, afpf: random seed (std::mt19937_64)");
   opt("--sigma", &f->measurement_sigma_nT,
-      "pf, afpf: likelihood sigma, nT (sensor + map + particle spacing; the paper's tau = sigma^2)");
+      "afpf: likelihood sigma, nT (sensor + map + particle spacing; the paper's tau = sigma^2); pf: the same with "
+      "--adaptive-sigma 0, else the largest and starting sigma");
+  opt("--adaptive-sigma", &f->adaptive_sigma,
+      "pf: likelihood sigma from the innovations of the last --sigma-window updates (1), in "
+      "[--min-sigma, --sigma], or fixed at --sigma (0); afpf: always fixed at --sigma");
+  opt("--min-sigma", &f->min_measurement_sigma_nT, "pf with --adaptive-sigma 1: smallest likelihood sigma, nT");
+  opt("--sigma-window", &f->sigma_window, "pf with --adaptive-sigma 1: updates in the sigma estimate");
   opt("--drift-sigma", &f->drift_sigma_deg, "pf, afpf: INS drift noise per step and axis, deg");
   opt("--prior-half-width", &f->prior_half_width_deg,
       "pf, afpf: uniform prior square around the first INS point (clipped to the map), deg");
   opt("--resample-ess", &f->resample_ess_fraction, "pf: resample when ESS < this fraction of N");
+  opt("--min-update-ess", &f->min_update_ess_fraction,
+      "pf: temper a reading (likelihood^beta) that would leave fewer effective particles than this fraction of N; 0 = off");
+  opt("--regularize", &f->regularization_bandwidth,
+      "pf: after resampling jitter by this x N^(-1/6) x the cloud's covariance (regularised PF; 0 = off)");
   opt("--off-map-sigmas", &f->off_map_sigmas, "pf, afpf: an off-map particle's likelihood is that of this many sigma");
   opt("--max-step", &f->max_step_deg, "pf, afpf: a longer INS increment is a jump (not applied), deg");
   opt("--divergence-window", &f->divergence_window, "pf, afpf: updates in the divergence test");

@@ -23,6 +23,43 @@
 // PF: weights w ← w·p(z|x), normalised; systematic resampling when the
 // effective sample size 1/Σw² < resample_ess_fraction·N.
 //
+// PF, adaptive σ (adaptive_sigma, on by default; the AFPF ignores it): the
+// sensor's noise is not known in advance (0.5–5 nT in this project's data),
+// and one fixed σ must be as large as the worst of it, which throws away most
+// of a quiet sensor's information. So the PF estimates it from its own
+// innovations (Mehra's innovation-based adaptive estimation): over the
+// predicted cloud, with m̄ = Σw m(x_i) and V = Σw (m(x_i) − m̄)², a consistent
+// filter has E[(z − m̄)²] = σ² + V, so
+//   σ_k² = mean over the last sigma_window updates of ((z − m̄)² − V),
+// clamped to [min_measurement_sigma_nT², measurement_sigma_nT²];
+// measurement_sigma_nT until the window is full; σ rises at once but falls by
+// at most a factor (1 − 1/sigma_window) per update (the cloud's spread V lags
+// σ: a sudden small σ collapses a cloud that has not tightened yet, measured
+// on held-out paths). Only updates whose cloud is
+// compact in map value (V ≤ measurement_sigma_nT²) enter the window, and a
+// spread one empties it: while the cloud is still spread over several basins
+// (acquisition, or after a re-initialisation) its mean residual says nothing
+// about σ, and an early small σ collapses the cloud into whichever basin is
+// ahead (measured on held-out paths, docs/ACCURACY.md). The AFPF's cloud is
+// a rank selection, not a posterior sample, so the identity does not hold for
+// it (measured: adaptive σ made its covariance and held-out errors worse).
+//
+// PF, tempered update (min_update_ess_fraction, 1 % by default): a reading
+// that would leave fewer than that many effective particles (a steep stretch
+// of map where the cloud's spread in map value is many σ wide, so only a
+// handful of particles fit it) is applied as p(z|x)^β, the largest β ≤ 1
+// whose ESS stays at the floor (β by bisection; the adaptive tempering of SMC
+// samplers, Jasra et al. 2011, in one stage: the rest of the reading is
+// dropped, not applied later). Without it such a reading collapses the cloud
+// onto one particle, and the reported covariance is ~0 (measured: held-out
+// path 45 at 3 nT, step 117, ESS 1.0). Counted (tempered_updates).
+//
+// Regularised PF (regularization_bandwidth, off by default): after resampling
+// each particle moves by h·L·ε, L Lᵀ = the cloud's covariance, h = bandwidth ·
+// N^(−1/6) (Musso, Oudjane & Le Gland 2001). With the cloud's global
+// covariance as the kernel it blurs the basins during acquisition: on held-out
+// paths it lost the track in most runs (docs/ACCURACY.md), so it is off.
+//
 // AFPF (the paper's algorithm 1): after the weight update each parent i
 // spawns m_i = round(N w_i) + 2 offspring drawn from N(x_i, σ_i I) with the
 // variance σ_i = λ μ a_i (deg²) and fission factor
@@ -56,7 +93,7 @@
 //
 // Divergence ("lost"): each update's normalised innovation
 // NIS = Σ w_(k−1),i (z − m(x_i))²/σ² over the predicted cloud (particles on the
-// map). The filter is lost while the mean NIS over the last divergence_window
+// map; σ: this update's, the adaptive one for the PF). The filter is lost while the mean NIS over the last divergence_window
 // updates exceeds divergence_nis (a tracking filter's NIS is ≈ 1 plus the
 // cloud's spread; a lost one sees the map's ±60 nT as residuals). It clears
 // when the window's mean falls back. With reinitialize_when_lost the particles
@@ -92,7 +129,19 @@ struct ParticleFilterOptions {
   // (anomaly std 60 nT) that makes every PF weight update ≈ 1. 5 nT: one
   // fixed value for the 0.5 nT and 3 nT reference paths (3 nT made the AFPF
   // lose 2 of 5 seeds at 3 nT noise, 10 nT widened the PF's posterior by 30 %).
+  // The PF with adaptive_sigma: the largest σ, and the σ it starts with.
   double measurement_sigma_nT = 5.0;
+  // PF: adaptive σ (see above): σ_k from the last sigma_window innovations,
+  // clamped to [min_measurement_sigma_nT, measurement_sigma_nT]; with it
+  // measurement_sigma_nT is the largest σ (and the σ until the window is
+  // full). The floor 0.5 nT: the quietest sensor in this project's data (a
+  // fluxgate's 0.5 nT; the map's own interpolation error is 0.06 nT rms on the
+  // reference paths). The window 20: the σ² estimate's relative sd is then
+  // ≈ √(2/20) ≈ 0.3 (a mean of 20 one-dof terms) and it follows a change of
+  // sensor or map within 20 steps. Ignored by the AFPF.
+  bool adaptive_sigma = true;
+  double min_measurement_sigma_nT = 0.5;
+  int sigma_window = 20;
   // Drift noise per step, per axis (deg). Default: the reference paths'
   // INS drift (a U(±0.0005°) step per axis, σ = 0.00029°), README §4b.
   double drift_sigma_deg = 0.0003;
@@ -101,6 +150,15 @@ struct ParticleFilterOptions {
   double prior_half_width_deg = 0.15;
   // PF: resample (systematic) when ESS < this fraction of N.
   double resample_ess_fraction = 0.5;
+  // PF: a reading that would leave fewer than this fraction of N effective
+  // particles is applied tempered, p(z|x)^β with the largest β that keeps
+  // the ESS at this floor (see above); 0 = off.
+  double min_update_ess_fraction = 0.01;
+  // PF: after resampling, jitter by a Gaussian kernel of width
+  // regularization_bandwidth · N^(−1/6) times the cloud's covariance (the
+  // regularised PF, see above); 0 = off (the default: it lost the track on
+  // held-out paths), 1 = Musso's optimal width for a Gaussian density.
+  double regularization_bandwidth = 0.0;
   // Off-map likelihood floor, in σ of residual.
   double off_map_sigmas = 3.0;
   // An INS increment longer than this (deg) is a jump, not applied.
@@ -154,6 +212,8 @@ struct StepDiagnostics {
   int unique_particles = 0;      // distinct particles after the step (resampling copies)
   int occupied_cells = 0;        // distinct map cells holding a particle (spread)
   double nis = 0.0;              // this update's normalised innovation (0 if no update)
+  double sigma_nT = 0.0;         // the likelihood σ of this step (measurement_sigma_nT unless adaptive_sigma)
+  double likelihood_exponent = 1.0;  // β of a tempered PF update (1: the reading applied in full)
   bool resampled = false;
   bool ins_jump = false;
   StepUpdate update = StepUpdate::kUpdated;
@@ -162,7 +222,7 @@ struct StepDiagnostics {
 
 struct FilterCounters {
   int steps = 0, updates = 0, bad_measurements = 0, all_off_map = 0, ins_jumps = 0, resamples = 0,
-      lost_steps = 0, reinitialisations = 0;
+      lost_steps = 0, reinitialisations = 0, tempered_updates = 0;
 };
 
 // The common interface of the PF and the AFPF.
