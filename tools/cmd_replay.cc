@@ -166,7 +166,7 @@ void RunLocalizeStreams(const ReplayArgs& a, const std::vector<LocalizeEvent>& e
       std::this_thread::sleep_until(t0 + std::chrono::duration<double>((e.t_s - file_t0) / a.speed));
     }
     if (!(e.is_fix ? fixes->Write(e.fix) : samples->Write(e.sample))) {
-      throw InputError("replay: a reader did not acknowledge samples within 10 s (too slow or gone)");
+      throw InputError("replay: the middleware refused a sample");
     }
     ++(e.is_fix ? sent_fixes : sent);
   }
@@ -245,7 +245,7 @@ void Run(const ReplayArgs& a) {
         std::this_thread::sleep_until(due);
       }
       if (!writer->Write(dds::ToMsg(s, seq[s.sensor_id]++))) {
-        throw InputError("replay: a reader did not acknowledge samples within 10 s (too slow or gone)");
+        throw InputError("replay: the middleware refused a sample");
       }
       progress.Sent(++sent);
     }

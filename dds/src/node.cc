@@ -259,6 +259,12 @@ void LogLost(const std::string& topic, int total, int change) {
   spdlog::warn("dds: reader on '{}' lost {} sample(s) ({} in total)", topic, change, total);
 }
 
+void LogFlowTimeout(const std::string& topic, std::chrono::milliseconds timeout) {
+  spdlog::warn("dds: writer on '{}': a reader did not acknowledge within {} s (too slow, or gone and not yet "
+               "forgotten); going on without it (it may miss samples)",
+               topic, static_cast<double>(timeout.count()) / 1000.0);
+}
+
 void LogCallbackError(const std::string& topic, const char* what) {
   spdlog::error("dds: handler of a sample on '{}' failed: {} (sample skipped)", topic, what);
 }

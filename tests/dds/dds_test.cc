@@ -291,6 +291,15 @@ TEST(Dds, RepeatFilterDropsExactRepeatsOnly) {
   msg::DipoleFix fix = testing::PatternFix(4);
   EXPECT_TRUE(f.First(fix));
   EXPECT_FALSE(f.First(fix));
+  // Bounded in keys: the least recently used key is forgotten.
+  RepeatFilter g(8, 2);
+  EXPECT_TRUE(g.First(MessageId{1, 0, 1}));
+  EXPECT_TRUE(g.First(MessageId{2, 0, 1}));
+  EXPECT_FALSE(g.First(MessageId{1, 0, 1}));  // key 1 used last
+  EXPECT_TRUE(g.First(MessageId{3, 0, 1}));   // forgets key 2
+  EXPECT_EQ(g.num_keys(), 2u);
+  EXPECT_FALSE(g.First(MessageId{1, 0, 1}));
+  EXPECT_TRUE(g.First(MessageId{2, 0, 1}));  // forgotten: taken as new
 }
 
 // Stale shared-memory files: a lock file nobody holds (older than the grace

@@ -78,6 +78,7 @@ struct EndpointStats {
   std::atomic<std::uint64_t> incompatible_qos{0};
   std::atomic<std::uint64_t> callback_errors{0};  // reader callbacks that threw
   std::atomic<int> matched{0};                  // currently matched peers
+  std::atomic<std::uint64_t> flow_timeouts{0};  // writer flow control: readers not acknowledging in time
 };
 
 namespace internal {
@@ -92,6 +93,7 @@ const char* QosPolicyName(int policy_id);
 std::set<std::string> ProfileNames(const std::string& xml);
 std::string WithoutProfiles(std::string xml, const std::set<std::string>& names);
 void LogLost(const std::string& topic, int total, int change);
+void LogFlowTimeout(const std::string& topic, std::chrono::milliseconds timeout);
 void LogCallbackError(const std::string& topic, const char* what);
 // ROS 2's DDS name of a type: "magnav::msg::GradiometerSample" -> "magnav::msg::dds_::GradiometerSample_".
 std::string Ros2TypeName(const std::string& type_name);
@@ -111,13 +113,18 @@ class Writer {
   Writer(const Writer&) = delete;
   Writer& operator=(const Writer&) = delete;
 
-  // Publishes a sample; false if the middleware refused it (e.g. blocked too long).
   // Publishes a sample; false if the middleware refused it (e.g. blocked too
-  // long) or, with flow control on, if the readers did not acknowledge in time.
+  // long).
   bool Write(const M& sample) {
     if (flow_window_ > 0 && ++since_ack_ >= flow_window_) {
       since_ack_ = 0;
-      if (!WaitForAcknowledgments(flow_timeout_)) return false;
+      // A reader that does not acknowledge in time (too slow, or dead and not
+      // yet forgotten by discovery) must not stop the producer: counted,
+      // logged, and the sample is written anyway (that reader may lose some).
+      if (!WaitForAcknowledgments(flow_timeout_)) {
+        ++stats_.flow_timeouts;
+        internal::LogFlowTimeout(topic_, flow_timeout_);
+      }
     }
     M copy = sample;  // Fast DDS takes a non-const pointer
     const bool ok = writer_->write(&copy);
@@ -126,9 +133,11 @@ class Writer {
   }
   // Flow control for senders that publish faster than readers may take (a
   // file replayed without pacing): every `window` samples, wait until every
-  // matched reader has acknowledged all of them. With a KEEP_LAST history this
-  // is what keeps a burst longer than the history from overwriting samples a
-  // slow reader has not received yet. Keep window below the history depth.
+  // matched reader has acknowledged all of them (at most `timeout`; then it
+  // goes on, logged and counted in stats().flow_timeouts). With a KEEP_LAST
+  // history this is what keeps a burst longer than the history from
+  // overwriting samples a slow reader has not received yet. Keep window below
+  // the history depth.
   // window 0 turns it off (the default: live streams are paced by the sensor).
   void SetFlowControl(int window, std::chrono::milliseconds timeout) {
     flow_window_ = window;

@@ -6,7 +6,8 @@
 // the sequence number of the sample it belongs to (samples: `seq`, fixes:
 // `sample_seq`; estimates have none: 0) and its time stamp. A consumer passes
 // each message through a RepeatFilter and drops the repeats: the same
-// (key, seq, stamp) within the last `depth_per_key` messages of that key.
+// (key, seq, stamp) within the last `depth_per_key` messages of that key
+// (and of the last `max_keys` keys used).
 // A restarted producer of new data (new stamps) is never taken for a repeat.
 // Thread-safe.
 #pragma once
@@ -44,7 +45,11 @@ class RepeatFilter {
  public:
   // depth_per_key: how many recent messages of each key are remembered; at
   // least the writers' history depth (1000 per sensor, PROTOCOL.md).
-  explicit RepeatFilter(std::size_t depth_per_key = 4096) : depth_(depth_per_key) {}
+  // max_keys: keys remembered at once; past it, the key used least recently
+  // is forgotten (track ids are never reused: a recorder running for weeks
+  // must not remember every track). Memory ≈ max_keys × depth × 70 bytes.
+  explicit RepeatFilter(std::size_t depth_per_key = 2048, std::size_t max_keys = 256)
+      : depth_(depth_per_key), max_keys_(max_keys) {}
 
   // True the first time `id` is offered; false (and counted) for a repeat.
   bool First(const MessageId& id);
@@ -53,14 +58,21 @@ class RepeatFilter {
     return First(IdOf(m));
   }
   std::uint64_t repeats() const { return repeats_.load(); }
+  std::size_t num_keys() const {
+    std::lock_guard<std::mutex> lk(mu_);
+    return keys_.size();
+  }
 
  private:
   struct PerKey {
     std::set<MessageId> seen;
     std::deque<MessageId> order;  // oldest first, for eviction
+    std::uint64_t last_use = 0;
   };
   std::size_t depth_;
-  std::mutex mu_;
+  std::size_t max_keys_;
+  std::uint64_t uses_ = 0;
+  mutable std::mutex mu_;
   std::unordered_map<std::uint32_t, PerKey> keys_;
   std::atomic<std::uint64_t> repeats_{0};
 };
