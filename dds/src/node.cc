@@ -6,6 +6,7 @@
 #include <iterator>
 #include <set>
 #include <string_view>
+#include <thread>
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
@@ -149,9 +150,15 @@ Node::Node(const NodeOptions& options) {
   static std::once_flag shm_cleaned;
   std::call_once(shm_cleaned, [] {
     const ShmCleanResult c = CleanStaleSharedMemory();
-    if (c.segments + c.ports > 0) {
-      spdlog::info("dds: removed {} shared-memory segment(s) and {} port(s) left by dead processes", c.segments,
-                   c.ports);
+    if (c.segments > 0) spdlog::info("dds: removed {} shared-memory segment(s) left by dead processes", c.segments);
+    if (!c.dead_ports.empty()) {
+      // See shm_clean.h: joining before the peers forgot the dead process can
+      // leave this one deaf (a Fast DDS 2.9 shared-memory bug).
+      spdlog::warn("dds: {} shared-memory port(s) of a process that died (e.g. {}); waiting {} s so that its peers "
+                   "forget it before this participant joins",
+                   c.dead_ports.size(), c.dead_ports.front(), kZombiePortWaitS);
+      std::this_thread::sleep_for(std::chrono::duration<double>(kZombiePortWaitS));
+      RemoveDeadPorts("/dev/shm", c.dead_ports);
     }
   });
   LoadProfiles(options.profiles_file.empty() ? EnvOr("MAGNAV_DDS_PROFILES", "") : options.profiles_file);

@@ -5,10 +5,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <regex>
-#include <set>
 #include <string>
 #include <vector>
 #include <system_error>
@@ -44,7 +44,7 @@ void Remove(const std::filesystem::path& p) {
 ShmCleanResult CleanStaleSharedMemory(const std::string& dir, double min_age_s) {
   ShmCleanResult r;
   static const std::regex kSegmentLock("fastrtps_[0-9a-f]{16}_el");
-  static const std::regex kPortLock("fastrtps_port[0-9]{1,5}_(el|sl)");
+  static const std::regex kPortListenerLock("fastrtps_port[0-9]{1,5}_el");
   std::error_code ec;
   std::filesystem::directory_iterator it(dir, ec), end;
   if (ec) return r;
@@ -52,34 +52,36 @@ ShmCleanResult CleanStaleSharedMemory(const std::string& dir, double min_age_s) 
   for (; it != end; it.increment(ec)) {
     if (ec) break;
     const std::string name = it->path().filename().string();
-    if (std::regex_match(name, kSegmentLock) || std::regex_match(name, kPortLock)) locks.push_back(it->path());
-  }
-  std::set<std::string> done;
-  for (const std::filesystem::path& lock : locks) {
-    const std::string name = lock.filename().string();
-    const std::string base = name.substr(0, name.size() - 3);  // without _el / _sl
-    if (!done.insert(base).second) continue;
-    // A port has two lock files (listener: _el, senders: _sl): dead only when neither is held.
-    bool dead = true;
-    for (const char* suffix : {"_el", "_sl"}) {
-      const std::filesystem::path l = lock.parent_path() / (base + suffix);
-      if (std::filesystem::exists(l, ec) && (!OlderThan(l, min_age_s) || Locked(l.string()))) dead = false;
+    if (std::regex_match(name, kSegmentLock)) locks.push_back(it->path());
+    // Ports: a shorter grace (a listener locks its port right after making it),
+    // since a restarted service comes back quickly after its predecessor began.
+    if (std::regex_match(name, kPortListenerLock) && OlderThan(it->path(), std::min(min_age_s, 0.5)) &&
+        !Locked(it->path().string())) {
+      r.dead_ports.push_back(name.substr(0, name.size() - 3));
     }
-    if (!dead) {
+  }
+  for (const std::filesystem::path& lock : locks) {
+    if (!OlderThan(lock, min_age_s) || Locked(lock.string())) {
       ++r.in_use;
       continue;
     }
-    Remove(lock.parent_path() / base);
-    Remove(lock.parent_path() / (base + "_el"));
-    Remove(lock.parent_path() / (base + "_sl"));
-    if (name.rfind("fastrtps_port", 0) == 0) {
-      Remove(lock.parent_path() / ("sem." + base + "_mutex"));
-      ++r.ports;
-    } else {
-      ++r.segments;
-    }
+    const std::string name = lock.filename().string();
+    Remove(lock.parent_path() / name.substr(0, name.size() - 3));  // the segment
+    Remove(lock);
+    ++r.segments;
   }
   return r;
+}
+
+void RemoveDeadPorts(const std::string& dir, const std::vector<std::string>& ports) {
+  const std::filesystem::path d(dir);
+  for (const std::string& port : ports) {
+    if (Locked((d / (port + "_el")).string())) continue;  // a listener came back meanwhile
+    Remove(d / port);
+    Remove(d / (port + "_el"));
+    Remove(d / (port + "_sl"));
+    Remove(d / ("sem." + port + "_mutex"));
+  }
 }
 
 }  // namespace magnav::dds

@@ -3,8 +3,10 @@
 # the middle of a replayed pass and start it again, while the producer and the
 # consumers keep running. Loopback only.
 #
-#   inverter  magnav-inverter killed 1.5 s into a 5 s replay (the AUV fluxgate
-#             pass, 2001 samples, --speed 20) and restarted 0.3 s later. Passes
+#   inverter  magnav-inverter killed 3 s into a 20 s replay (the AUV fluxgate
+#             pass, 2001 samples, --speed 10: the writer's history of 1000
+#             samples holds 10 s) and restarted 0.3 s later (it then waits 4 s
+#             for the dead one to be forgotten, shm_clean.h). Passes
 #             when replay finished on its own (a dead reader did not stop it),
 #             the recorder (never restarted) has exactly one fix per sample
 #             (2001 rows, 2001 distinct sample seqs) and the valid fixes are
@@ -55,11 +57,11 @@ inverter)
     "$BIN/magnav-inverter" --b0 "$B0" --stats-period 0 >"$WORK/inverter1.log" 2>&1 &
     inv1=$!; pids+=($inv1)
     start=$(date +%s.%N)
-    "$BIN/magnav" replay --input "$PASS" --speed 20 --wait-readers 1 --wait 20 >"$WORK/replay.log" 2>&1 &
+    "$BIN/magnav" replay --input "$PASS" --speed 10 --wait-readers 1 --wait 20 >"$WORK/replay.log" 2>&1 &
     rp=$!; pids+=($rp)
-    sleep 1.5
+    sleep 3
     kill -9 "$inv1"; wait "$inv1" 2>/dev/null || true
-    sleep 0.3
+    sleep "${MAGNAV_RESTART_DELAY:-0.3}"
     "$BIN/magnav-inverter" --b0 "$B0" --stats-period 0 >"$WORK/inverter2.log" 2>&1 &
     inv2=$!; pids+=($inv2)
     wait "$rp" || fail "replay stopped: $(tail -1 "$WORK/replay.log")"
@@ -92,7 +94,7 @@ tracker)
     # Pass time 80 s: 8 s at --speed 10 after the first sample (+ the settle).
     sleep 8.3
     kill -9 "$tr1"; wait "$tr1" 2>/dev/null || true
-    sleep 0.3
+    sleep "${MAGNAV_RESTART_DELAY:-0.3}"
     "$BIN/magnav-tracker" --b0 "$B0" --stats-period 0 >"$WORK/tracker2.log" 2>&1 &
     tr2=$!; pids+=($tr2)
     wait "$rp" || fail "replay stopped: $(tail -1 "$WORK/replay.log")"
