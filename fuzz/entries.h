@@ -30,9 +30,11 @@ void FuzzMap(const std::uint8_t* data, std::size_t size);
 void FuzzConfig(const std::uint8_t* data, std::size_t size);
 
 // DDS samples at the door (needs MAGNAV_BUILD_DDS): the first byte picks the
-// topic type (gradiometer, magnetometer, vessel navigation); the rest is a
-// CDR payload deserialised by the generated type support, then converted
-// (FromMsg/ToMsg, AnomalyOf) and checked (CheckSample, SampleDoor).
+// topic type (byte % 7: gradiometer, magnetometer, vessel navigation, dipole
+// fix, track, sensor position, map fix); the rest is a CDR payload
+// deserialised by the type support the services register (TopicTraits), then
+// for the first three converted (FromMsg/ToMsg, AnomalyOf, InsNavMsg) and
+// checked (CheckSample, SampleDoor).
 void FuzzDdsConvert(const std::uint8_t* data, std::size_t size);
 
 }  // namespace magnav::fuzz

@@ -233,6 +233,12 @@ void LogLost(const std::string& topic, int total, int change) {
   spdlog::warn("dds: reader on '{}' lost {} sample(s) ({} in total)", topic, change, total);
 }
 
+void LogBadPayload(const std::string& topic) {
+  spdlog::error("dds: a sample on '{}' is not a valid payload of its type (skipped; EndpointStats::bad_payloads "
+                "counts them, logged once)",
+                topic);
+}
+
 void LogCallbackError(const std::string& topic, const char* what) {
   spdlog::error("dds: handler of a sample on '{}' failed: {} (sample skipped)", topic, what);
 }

@@ -71,6 +71,7 @@ struct EndpointStats {
   std::atomic<std::uint64_t> lost{0};           // reported lost by the middleware
   std::atomic<std::uint64_t> incompatible_qos{0};
   std::atomic<std::uint64_t> callback_errors{0};  // reader callbacks that threw
+  std::atomic<std::uint64_t> bad_payloads{0};     // received payloads that are not CDR of the type (skipped)
   std::atomic<int> matched{0};                  // currently matched peers
 };
 
@@ -79,6 +80,8 @@ namespace internal {
 fdds::DataWriterQos WriterQos(fdds::Publisher* pub, const std::string& profile);
 fdds::DataReaderQos ReaderQos(fdds::Subscriber* sub, const std::string& profile);
 void LogIncompatible(const std::string& topic, const char* side, int policy_id);
+// Logged once per reader: a payload its type support could not deserialise.
+void LogBadPayload(const std::string& topic);
 // The name of a Fast DDS QoS policy id, for logs ("unnamed" for others).
 const char* QosPolicyName(int policy_id);
 // Profile names an XML profiles text defines, and the text without the
@@ -216,6 +219,10 @@ class Reader {
     void on_data_available(fdds::DataReader* r) override {
       fdds::SampleInfo info;
       while (r->take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+        if (internal::TakeDeserializeFailure()) {  // CheckedPubSubType (topics.h)
+          if (self->stats_.bad_payloads++ == 0) internal::LogBadPayload(self->topic_);
+          continue;
+        }
         if (!info.valid_data) continue;
         try {
           if (self->callback_) self->callback_(sample, info);
