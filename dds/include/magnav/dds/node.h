@@ -218,11 +218,19 @@ class Reader {
     M sample;
     void on_data_available(fdds::DataReader* r) override {
       fdds::SampleInfo info;
-      while (r->take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
-        if (internal::TakeDeserializeFailure()) {  // CheckedPubSubType (topics.h)
+      while (true) {
+        // The failure mark of CheckedPubSubType (topics.h) is cleared first
+        // (Fast DDS may deserialise on this thread outside a take, for a key).
+        (void)internal::TakeDeserializeFailure();
+        const auto rc = r->take_next_sample(&sample, &info);
+        // A payload that failed to deserialise is dropped by Fast DDS with
+        // NO_DATA although more samples may follow: count it and take on
+        // (stopping here left the samples behind it until the next arrival).
+        if (internal::TakeDeserializeFailure()) {
           if (self->stats_.bad_payloads++ == 0) internal::LogBadPayload(self->topic_);
           continue;
         }
+        if (rc != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) break;
         if (!info.valid_data) continue;
         try {
           if (self->callback_) self->callback_(sample, info);

@@ -26,11 +26,10 @@ inline bool TakeDeserializeFailure() {
 // deserialize() catches only a short buffer (NotEnoughMemoryException); a
 // payload whose encapsulation header is not CDR (first byte not 0) throws
 // BadParamException out of DataReader::take_next_sample, which ended the
-// service (found by fuzz/dds_entry.cc). And Fast DDS 2.9 ignores a false
-// return: the sample is handed over as valid, holding whatever the short
-// buffer overwrote of the previous one. Here any failure returns false,
-// resets the sample to its default and marks the failure for the listener,
-// which skips the sample (Reader: EndpointStats::bad_payloads).
+// service (found by fuzz/dds_entry.cc). Here any failure returns false (Fast
+// DDS 2.9.1 then drops the sample: take_next_sample answers NO_DATA), resets
+// the sample to its default and marks the failure for the reader's listener,
+// which counts it (EndpointStats::bad_payloads) and goes on taking.
 template <class Generated, class M>
 class CheckedPubSubType : public Generated {
  public:
