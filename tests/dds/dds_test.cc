@@ -16,52 +16,12 @@
 
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
+#include "raw_payload.h"
 #include "sample_pattern.h"
 #include "subprocess.h"
 #include "test_data.h"
 
 namespace magnav::dds {
-
-// Raw bytes published under the gradiometer's type name: what a faulty or
-// hostile peer could send (BadPayloadsAreSkippedAndCounted).
-struct RawPayload {
-  std::vector<unsigned char> bytes;
-};
-
-class RawPayloadPubSubType : public eprosima::fastdds::dds::TopicDataType {
- public:
-  RawPayloadPubSubType() {
-    setName(msg::GradiometerSamplePubSubType().getName());
-    m_typeSize = 1024;
-    m_isGetKeyDefined = true;  // the gradiometer topic is keyed (sensor_id)
-  }
-  bool serialize(void* data, eprosima::fastrtps::rtps::SerializedPayload_t* payload) override {
-    const auto& b = static_cast<RawPayload*>(data)->bytes;
-    if (b.size() > payload->max_size) return false;
-    std::memcpy(payload->data, b.data(), b.size());
-    payload->length = static_cast<std::uint32_t>(b.size());
-    return true;
-  }
-  bool deserialize(eprosima::fastrtps::rtps::SerializedPayload_t*, void*) override { return false; }
-  std::function<std::uint32_t()> getSerializedSizeProvider(void* data) override {
-    return [data] { return static_cast<std::uint32_t>(static_cast<RawPayload*>(data)->bytes.size()); };
-  }
-  void* createData() override { return new RawPayload(); }
-  void deleteData(void* data) override { delete static_cast<RawPayload*>(data); }
-  bool getKey(void*, eprosima::fastrtps::rtps::InstanceHandle_t* handle, bool) override {
-    *handle = eprosima::fastrtps::rtps::InstanceHandle_t();
-    handle->value[15] = 1;  // one instance
-    return true;
-  }
-};
-
-template <>
-struct TopicTraits<RawPayload> {
-  using PubSubType = RawPayloadPubSubType;
-  static constexpr const char* kTopic = TopicTraits<msg::GradiometerSample>::kTopic;
-  static constexpr const char* kWriterProfile = TopicTraits<msg::GradiometerSample>::kWriterProfile;
-  static constexpr const char* kReaderProfile = TopicTraits<msg::GradiometerSample>::kReaderProfile;
-};
 
 namespace {
 
@@ -225,14 +185,6 @@ TEST(Dds, ConversionRoundTripsCoreSample) {
 // over as a valid sample holding part of the previous one. Now both are
 // skipped and counted, and the reader goes on.
 TEST(Dds, BadPayloadsAreSkippedAndCounted) {
-  msg::GradiometerSample good = testing::PatternSample(2, 7);
-  RawPayload good_raw;
-  {
-    msg::GradiometerSamplePubSubType type;
-    eprosima::fastrtps::rtps::SerializedPayload_t payload(type.m_typeSize);
-    ASSERT_TRUE(type.serialize(&good, &payload));
-    good_raw.bytes.assign(payload.data, payload.data + payload.length);
-  }
   std::mutex mu;
   std::vector<msg::GradiometerSample> received;
   Node reader_node(TestNode("dds_test_bad_payload_reader"));
@@ -243,17 +195,32 @@ TEST(Dds, BadPayloadsAreSkippedAndCounted) {
   Node writer_node(TestNode("dds_test_bad_payload_writer"));
   auto writer = writer_node.CreateWriter<RawPayload>();
   ASSERT_TRUE(writer->WaitForMatched(1, 10s));
-  RawPayload not_cdr{{0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x17, 0, 0, 0, 0}};  // tests/data/fuzz/dds_convert/
-  RawPayload truncated{{good_raw.bytes.begin(), good_raw.bytes.begin() + 40}};
-  ASSERT_TRUE(writer->Write(good_raw));
-  ASSERT_TRUE(writer->Write(not_cdr));
-  ASSERT_TRUE(writer->Write(truncated));
-  ASSERT_TRUE(writer->Write(good_raw));
+  for (const RawPayload& p : testing::GoodBadBadGood()) ASSERT_TRUE(writer->Write(p));
   ASSERT_TRUE(reader->WaitForSamples(2, 10s)) << "received " << reader->stats().samples.load();
   EXPECT_EQ(reader->stats().bad_payloads.load(), 2u);
   std::lock_guard<std::mutex> lk(mu);
   ASSERT_EQ(received.size(), 2u);
-  for (const auto& s : received) EXPECT_TRUE(BitEqual(s, good));
+  for (const auto& s : received) EXPECT_TRUE(BitEqual(s, testing::GoodPayloadSample()));
+}
+
+// The same from another process: the reader's listener then runs in a Fast DDS
+// receive thread, where the exception ended the process.
+TEST(Dds, BadPayloadsFromAnotherProcessAreSkippedAndCounted) {
+  std::mutex mu;
+  std::vector<msg::GradiometerSample> received;
+  Node node(TestNode("dds_test_bad_payload_reader"));
+  auto reader = node.CreateReader<msg::GradiometerSample>([&](const msg::GradiometerSample& s, const auto&) {
+    std::lock_guard<std::mutex> lk(mu);
+    received.push_back(s);
+  });
+  PeerProcess peer("bad_payloads", 1, TestDomain());
+  ASSERT_TRUE(reader->WaitForSamples(2, 30s)) << "received " << reader->stats().samples.load();
+  EXPECT_EQ(peer.Wait(30s), 0);
+  EXPECT_EQ(peer.ReadLine(), "sent 4");
+  EXPECT_EQ(reader->stats().bad_payloads.load(), 2u);
+  std::lock_guard<std::mutex> lk(mu);
+  ASSERT_EQ(received.size(), 2u);
+  for (const auto& s : received) EXPECT_TRUE(BitEqual(s, testing::GoodPayloadSample()));
 }
 
 TEST(Dds, BadOptionsAndEnvironmentAreReported) {
