@@ -77,7 +77,9 @@ void FuzzCsv(const std::uint8_t* data, std::size_t size) {
   Refused([&] { (void)localizer::ReadPassFiles(path, deployment.path(), gnss.path(), std::nullopt); });
   Refused([&] { (void)localizer::ReadPassFiles(path, deployment.path(), "", moment); });
   Refused([&] { (void)localizer::ReadPassFiles(measurements.path(), path, gnss.path(), std::nullopt); });
-  Refused([&] { (void)localizer::ReadPassFiles(measurements.path(), deployment.path(), path, std::nullopt); });
+  Refused([&] {
+    (void)localizer::ReadPassFiles(measurements.path(), deployment.path(), path, std::nullopt);
+  });
 }
 
 }  // namespace magnav::fuzz

@@ -42,7 +42,8 @@ void Gradiometer(const msg::GradiometerSample& m) {
   // Back to the wire and again: every value but the time survives bit for bit
   // (the time goes through whole nanoseconds).
   const GradiometerSample again = dds::FromMsg(dds::ToMsg(s, m.seq()));
-  if (again.sensor_id != s.sensor_id || !SameBits(again.sigma_B, s.sigma_B) || !SameBits(again.sigma_T, s.sigma_T)) {
+  if (again.sensor_id != s.sensor_id || !SameBits(again.sigma_B, s.sigma_B) ||
+      !SameBits(again.sigma_T, s.sigma_T)) {
     std::abort();
   }
   for (int i = 0; i < 3; ++i) {

@@ -234,9 +234,10 @@ void LogLost(const std::string& topic, int total, int change) {
 }
 
 void LogBadPayload(const std::string& topic) {
-  spdlog::error("dds: a sample on '{}' is not a valid payload of its type (skipped; EndpointStats::bad_payloads "
-                "counts them, logged once)",
-                topic);
+  spdlog::error(
+      "dds: a sample on '{}' is not a valid payload of its type (skipped; EndpointStats::bad_payloads "
+      "counts them, logged once)",
+      topic);
 }
 
 void LogCallbackError(const std::string& topic, const char* what) {

@@ -90,7 +90,8 @@ GeoGrid BuildGrid(const std::vector<FileNode>& nodes, std::vector<std::string> n
   // A node given twice: the first, in file order, whose place an earlier node took.
   std::size_t twice = nodes.size(), first = 0;
   for (std::size_t m = 1; m < place.size(); ++m) {
-    const bool second_of_place = place[m].first == place[m - 1].first && (m < 2 || place[m - 2].first != place[m].first);
+    const bool second_of_place =
+        place[m].first == place[m - 1].first && (m < 2 || place[m - 2].first != place[m].first);
     if (second_of_place && place[m].second < twice) {
       twice = place[m].second;
       first = place[m - 1].second;
@@ -99,15 +100,16 @@ GeoGrid BuildGrid(const std::vector<FileNode>& nodes, std::vector<std::string> n
   if (twice < nodes.size()) {
     const FileNode& n = nodes[twice];
     throw InputError(source + ":" + std::to_string(n.line) + ": node lat " + Num(n.lat_deg) + ", lon " +
-                     Num(n.lon_deg) + " given twice (first on line " + std::to_string(nodes[first].line) + ")");
+                     Num(n.lon_deg) + " given twice (first on line " + std::to_string(nodes[first].line) +
+                     ")");
   }
   if (nodes.size() != n_nodes) {  // fewer: the first grid place no node took
     std::size_t idx = 0;
     while (idx < place.size() && place[idx].first == idx) ++idx;
     const int i = static_cast<int>(idx / lon.count), j = static_cast<int>(idx % lon.count);
-    throw InputError(source + ": hole in the map: no node at lat " + Num(lat.at(i)) + ", lon " + Num(lon.at(j)) +
-                     " (" + std::to_string(nodes.size()) + " nodes for a " + std::to_string(lat.count) + " x " +
-                     std::to_string(lon.count) + " grid)");
+    throw InputError(source + ": hole in the map: no node at lat " + Num(lat.at(i)) + ", lon " +
+                     Num(lon.at(j)) + " (" + std::to_string(nodes.size()) + " nodes for a " +
+                     std::to_string(lat.count) + " x " + std::to_string(lon.count) + " grid)");
   }
   std::vector<std::vector<double>> values(names.size(), std::vector<double>(n_nodes, 0.0));
   for (const auto& [idx, k] : place) {

@@ -188,10 +188,11 @@ TEST(Dds, BadPayloadsAreSkippedAndCounted) {
   std::mutex mu;
   std::vector<msg::GradiometerSample> received;
   Node reader_node(TestNode("dds_test_bad_payload_reader"));
-  auto reader = reader_node.CreateReader<msg::GradiometerSample>([&](const msg::GradiometerSample& s, const auto&) {
-    std::lock_guard<std::mutex> lk(mu);
-    received.push_back(s);
-  });
+  auto reader =
+      reader_node.CreateReader<msg::GradiometerSample>([&](const msg::GradiometerSample& s, const auto&) {
+        std::lock_guard<std::mutex> lk(mu);
+        received.push_back(s);
+      });
   Node writer_node(TestNode("dds_test_bad_payload_writer"));
   auto writer = writer_node.CreateWriter<RawPayload>();
   ASSERT_TRUE(writer->WaitForMatched(1, 10s));

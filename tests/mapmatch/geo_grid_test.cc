@@ -136,7 +136,8 @@ TEST(GeoGrid, BadMapsAreClearErrors) {
   // Coordinates whose span overflows (fuzz/, tests/data/fuzz/map/): the step
   // was inf and a node's grid index NaN, written far outside the grid.
   e = read("lat,lon,v\n-1e308,0,1\n1e308,0,1\n-1e308,1,1\n1e308,1,1\n-1e308,2,1\n1e308,2,1\n");
-  EXPECT_NE(e.find("latitude values from -1e+308 to 1e+308 span more than a double holds"), std::string::npos) << e;
+  EXPECT_NE(e.find("latitude values from -1e+308 to 1e+308 span more than a double holds"), std::string::npos)
+      << e;
   // Nodes on a diagonal span an n x n grid: a hole, found without allocating it
   // (20 000 nodes asked for 3.2 GB).
   std::string diagonal = "lat,lon,v\n";
