@@ -272,6 +272,13 @@ void LogFlowTimeout(const std::string& topic, std::chrono::milliseconds timeout)
                topic, static_cast<double>(timeout.count()) / 1000.0);
 }
 
+void LogBadPayload(const std::string& topic) {
+  spdlog::error(
+      "dds: a sample on '{}' is not a valid payload of its type (skipped; EndpointStats::bad_payloads "
+      "counts them, logged once)",
+      topic);
+}
+
 void LogCallbackError(const std::string& topic, const char* what) {
   spdlog::error("dds: handler of a sample on '{}' failed: {} (sample skipped)", topic, what);
 }

@@ -31,6 +31,12 @@ GridAxis RegularAxis(std::vector<double> v, const std::string& source, const std
     throw InputError(source + ": the map needs at least 2 distinct " + what + " values, found " +
                      std::to_string(v.size()));
   }
+  // Coordinates of ±1e308 are finite, their span is not: the step would be
+  // inf and every node's place NaN (an index far outside the grid).
+  if (!std::isfinite(v.back() - v.front())) {
+    throw InputError(source + ": " + what + " values from " + Num(v.front()) + " to " + Num(v.back()) +
+                     " span more than a double holds: not map coordinates in degrees");
+  }
   GridAxis a;
   a.first_deg = v.front();
   a.count = static_cast<int>(v.size());
@@ -63,28 +69,51 @@ GeoGrid BuildGrid(const std::vector<FileNode>& nodes, std::vector<std::string> n
   const GridAxis lat = RegularAxis(lats, source, "latitude");
   const GridAxis lon = RegularAxis(lons, source, "longitude");
   const std::size_t n_nodes = static_cast<std::size_t>(lat.count) * lon.count;
-  std::vector<std::vector<double>> values(names.size(), std::vector<double>(n_nodes, 0.0));
-  std::vector<int> line_of(n_nodes, 0);
-  for (const FileNode& n : nodes) {
-    const long i = std::lround((n.lat_deg - lat.first_deg) / lat.step_deg);
-    const long j = std::lround((n.lon_deg - lon.first_deg) / lon.step_deg);
-    const std::size_t idx = static_cast<std::size_t>(i) * lon.count + static_cast<std::size_t>(j);
-    if (line_of[idx] != 0) {
+  // The grid place of every node, sorted, with the node's number in the file:
+  // a node given twice and a hole are found from the nodes alone. The grid is
+  // allocated only once it is known to be complete, so it is never larger
+  // than the file (n nodes on a diagonal span an n x n grid: 20 000 of them
+  // asked for 3 GB before).
+  std::vector<std::pair<std::size_t, std::size_t>> place;  // (grid index, node)
+  place.reserve(nodes.size());
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    const FileNode& n = nodes[k];
+    const double fi = std::round((n.lat_deg - lat.first_deg) / lat.step_deg);
+    const double fj = std::round((n.lon_deg - lon.first_deg) / lon.step_deg);
+    if (!(fi >= 0 && fi < lat.count && fj >= 0 && fj < lon.count)) {  // also NaN; RegularAxis rules it out
       throw InputError(source + ":" + std::to_string(n.line) + ": node lat " + Num(n.lat_deg) + ", lon " +
-                       Num(n.lon_deg) + " given twice (first on line " + std::to_string(line_of[idx]) + ")");
+                       Num(n.lon_deg) + " is not on the grid");
     }
-    line_of[idx] = n.line;
-    for (std::size_t l = 0; l < names.size(); ++l) values[l][idx] = n.values[l];
+    place.emplace_back(static_cast<std::size_t>(fi) * lon.count + static_cast<std::size_t>(fj), k);
   }
-  if (nodes.size() != n_nodes) {
-    for (std::size_t idx = 0; idx < n_nodes; ++idx) {
-      if (line_of[idx] == 0) {
-        const int i = static_cast<int>(idx / lon.count), j = static_cast<int>(idx % lon.count);
-        throw InputError(source + ": hole in the map: no node at lat " + Num(lat.at(i)) + ", lon " +
-                         Num(lon.at(j)) + " (" + std::to_string(nodes.size()) + " nodes for a " +
-                         std::to_string(lat.count) + " x " + std::to_string(lon.count) + " grid)");
-      }
+  std::sort(place.begin(), place.end());
+  // A node given twice: the first, in file order, whose place an earlier node took.
+  std::size_t twice = nodes.size(), first = 0;
+  for (std::size_t m = 1; m < place.size(); ++m) {
+    const bool second_of_place =
+        place[m].first == place[m - 1].first && (m < 2 || place[m - 2].first != place[m].first);
+    if (second_of_place && place[m].second < twice) {
+      twice = place[m].second;
+      first = place[m - 1].second;
     }
+  }
+  if (twice < nodes.size()) {
+    const FileNode& n = nodes[twice];
+    throw InputError(source + ":" + std::to_string(n.line) + ": node lat " + Num(n.lat_deg) + ", lon " +
+                     Num(n.lon_deg) + " given twice (first on line " + std::to_string(nodes[first].line) +
+                     ")");
+  }
+  if (nodes.size() != n_nodes) {  // fewer: the first grid place no node took
+    std::size_t idx = 0;
+    while (idx < place.size() && place[idx].first == idx) ++idx;
+    const int i = static_cast<int>(idx / lon.count), j = static_cast<int>(idx % lon.count);
+    throw InputError(source + ": hole in the map: no node at lat " + Num(lat.at(i)) + ", lon " +
+                     Num(lon.at(j)) + " (" + std::to_string(nodes.size()) + " nodes for a " +
+                     std::to_string(lat.count) + " x " + std::to_string(lon.count) + " grid)");
+  }
+  std::vector<std::vector<double>> values(names.size(), std::vector<double>(n_nodes, 0.0));
+  for (const auto& [idx, k] : place) {
+    for (std::size_t l = 0; l < names.size(); ++l) values[l][idx] = nodes[k].values[l];
   }
   return GeoGrid(lat, lon, std::move(names), std::move(values));
 }

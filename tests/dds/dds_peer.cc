@@ -2,6 +2,8 @@
 // domain given by $MAGNAV_DOMAIN_ID, then optionally stays alive until SIGTERM.
 //   dds_peer stream N      publish N GradiometerSamples to one matched reader, wait for acks, exit
 //   dds_peer estimates N   publish N DipoleFix (transient-local), print "ready", wait for SIGTERM
+//   dds_peer bad_payloads 1  publish a good, a non-CDR, a truncated and a good gradiometer payload
+//                          (raw_payload.h) to one matched reader, wait for acks, print "sent 4", exit
 //   dds_peer qos 0         print the history depth of a GradiometerSample writer and reader (the
 //                          sensor_stream profiles, as $MAGNAV_DDS_PROFILES may override them)
 #include <cstdio>
@@ -10,6 +12,7 @@
 
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
+#include "raw_payload.h"
 #include "sample_pattern.h"
 
 using namespace std::chrono_literals;
@@ -44,6 +47,15 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
       while (!magnav::dds::WaitForShutdown(100ms)) {
       }
+    } else if (mode == "bad_payloads") {
+      auto w = node.CreateWriter<magnav::testing::RawPayload>();
+      if (!w->WaitForMatched(1, 20s)) return 3;
+      const auto payloads = magnav::testing::GoodBadBadGood();
+      for (const auto& p : payloads) {
+        if (!w->Write(p)) return 4;
+      }
+      if (!w->WaitForAcknowledgments(30s)) return 5;
+      std::printf("sent %zu\n", payloads.size());
     } else if (mode == "qos") {
       auto w = node.CreateWriter<magnav::dds::msg::GradiometerSample>();
       auto r = node.CreateReader<magnav::dds::msg::GradiometerSample>(

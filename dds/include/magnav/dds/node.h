@@ -77,6 +77,7 @@ struct EndpointStats {
   std::atomic<std::uint64_t> lost{0};           // reported lost by the middleware
   std::atomic<std::uint64_t> incompatible_qos{0};
   std::atomic<std::uint64_t> callback_errors{0};  // reader callbacks that threw
+  std::atomic<std::uint64_t> bad_payloads{0};     // received payloads that are not CDR of the type (skipped)
   std::atomic<int> matched{0};                  // currently matched peers
   std::atomic<std::uint64_t> flow_timeouts{0};  // writer flow control: readers not acknowledging in time
 };
@@ -86,6 +87,8 @@ namespace internal {
 fdds::DataWriterQos WriterQos(fdds::Publisher* pub, const std::string& profile);
 fdds::DataReaderQos ReaderQos(fdds::Subscriber* sub, const std::string& profile);
 void LogIncompatible(const std::string& topic, const char* side, int policy_id);
+// Logged once per reader: a payload its type support could not deserialise.
+void LogBadPayload(const std::string& topic);
 // The name of a Fast DDS QoS policy id, for logs ("unnamed" for others).
 const char* QosPolicyName(int policy_id);
 // Profile names an XML profiles text defines, and the text without the
@@ -232,7 +235,19 @@ class Reader {
     M sample;
     void on_data_available(fdds::DataReader* r) override {
       fdds::SampleInfo info;
-      while (r->take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      while (true) {
+        // The failure mark of CheckedPubSubType (topics.h) is cleared first
+        // (Fast DDS may deserialise on this thread outside a take, for a key).
+        (void)internal::TakeDeserializeFailure();
+        const auto rc = r->take_next_sample(&sample, &info);
+        // A payload that failed to deserialise is dropped by Fast DDS with
+        // NO_DATA although more samples may follow: count it and take on
+        // (stopping here left the samples behind it until the next arrival).
+        if (internal::TakeDeserializeFailure()) {
+          if (self->stats_.bad_payloads++ == 0) internal::LogBadPayload(self->topic_);
+          continue;
+        }
+        if (rc != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) break;
         if (!info.valid_data) continue;
         try {
           if (self->callback_) self->callback_(sample, info);

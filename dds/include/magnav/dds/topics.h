@@ -2,12 +2,53 @@
 // human-readable table of the same facts).
 #pragma once
 
+#include <exception>
+
 #include "magnav/msg/magnav.h"
 #include "magnav/msg/magnavPubSubTypes.h"
 
 namespace magnav::dds {
 
 namespace msg = ::magnav::msg;
+
+namespace internal {
+
+// Set (per thread) when CheckedPubSubType refused a payload; the reader's
+// listener takes it right after take_next_sample (same thread).
+inline thread_local bool deserialize_failed = false;
+inline bool TakeDeserializeFailure() {
+  const bool failed = deserialize_failed;
+  deserialize_failed = false;
+  return failed;
+}
+
+// The generated type support with a door on deserialisation. fastddsgen's
+// deserialize() catches only a short buffer (NotEnoughMemoryException); a
+// payload whose encapsulation header is not CDR (first byte not 0) throws
+// BadParamException out of DataReader::take_next_sample, which ended the
+// service (found by fuzz/dds_entry.cc). Here any failure returns false (Fast
+// DDS 2.9.1 then drops the sample: take_next_sample answers NO_DATA), resets
+// the sample to its default and marks the failure for the reader's listener,
+// which counts it (EndpointStats::bad_payloads) and goes on taking.
+template <class Generated, class M>
+class CheckedPubSubType : public Generated {
+ public:
+  bool deserialize(eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* data) override {
+    bool ok = false;
+    try {
+      ok = Generated::deserialize(payload, data);
+    } catch (const std::exception&) {
+      ok = false;
+    }
+    if (!ok) {
+      *static_cast<M*>(data) = M();
+      deserialize_failed = true;
+    }
+    return ok;
+  }
+};
+
+}  // namespace internal
 
 // TopicTraits<M>: default topic name, the generated TopicDataType and the XML
 // endpoint profiles (config/magnav_profiles.xml) of message type M.
@@ -17,7 +58,7 @@ struct TopicTraits;
 #define MAGNAV_TOPIC(Type, name, writer_profile, reader_profile) \
   template <>                                                    \
   struct TopicTraits<msg::Type> {                                \
-    using PubSubType = msg::Type##PubSubType;                    \
+    using PubSubType = internal::CheckedPubSubType<msg::Type##PubSubType, msg::Type>; \
     static constexpr const char* kTopic = name;                  \
     static constexpr const char* kWriterProfile = writer_profile; \
     static constexpr const char* kReaderProfile = reader_profile; \

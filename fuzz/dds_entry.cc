@@ -1,0 +1,122 @@
+// FuzzDdsConvert: samples from the wire, through the generated type support,
+// the conversions of dds/convert.h and the door of every service (entries.h).
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+
+#include "entries.h"
+#include "magnav/core/gradiometer.h"
+#include "magnav/dds/convert.h"
+#include "magnav/dds/sample_door.h"
+#include "magnav/dds/topics.h"
+
+namespace magnav::fuzz {
+namespace {
+
+namespace msg = magnav::msg;
+
+// The CDR payload as Fast DDS hands it to the type support the services
+// register (TopicTraits: CheckedPubSubType); false when it refuses it, and
+// then the sample is the default one and the failure is marked for the
+// reader's listener. It must never throw (that ended a service).
+template <class M>
+bool Deserialize(const std::uint8_t* data, std::size_t size, M* out) {
+  typename dds::TopicTraits<M>::PubSubType type;
+  eprosima::fastrtps::rtps::SerializedPayload_t payload(static_cast<std::uint32_t>(size));
+  if (size > 0) std::memcpy(payload.data, data, size);
+  payload.length = static_cast<std::uint32_t>(size);
+  const bool ok = type.deserialize(&payload, out);
+  if (dds::internal::TakeDeserializeFailure() == ok) std::abort();
+  if (!ok && !(*out == M())) std::abort();
+  return ok;
+}
+
+bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+void Gradiometer(const msg::GradiometerSample& m) {
+  static dds::SampleDoor door("fuzz");
+  const GradiometerSample s = dds::FromMsg(m);
+  const SampleDefect defect = door.Check(s);
+  if (defect != CheckSample(s)) std::abort();
+  (void)SampleDefectName(defect);
+  // Back to the wire and again: every value but the time survives bit for bit
+  // (the time goes through whole nanoseconds).
+  const GradiometerSample again = dds::FromMsg(dds::ToMsg(s, m.seq()));
+  if (again.sensor_id != s.sensor_id || !SameBits(again.sigma_B, s.sigma_B) ||
+      !SameBits(again.sigma_T, s.sigma_T)) {
+    std::abort();
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!SameBits(again.p_SinW[i], s.p_SinW[i]) || !SameBits(again.B[i], s.B[i])) std::abort();
+    for (int j = 0; j < 3; ++j) {
+      if (!SameBits(again.T(i, j), s.T(i, j))) std::abort();
+    }
+  }
+  if (defect == SampleDefect::kNone && !std::isfinite(again.t_s)) std::abort();
+}
+
+void Magnetometer(const msg::MagnetometerSample& m) {
+  for (const double reference_nT : {0.0, 48000.0}) {
+    const double a = dds::AnomalyOf(m, reference_nT);
+    // An anomaly sample carries it back (|B| = reference + anomaly, nT).
+    if (std::isfinite(a) && std::abs(a) < 1e6) {
+      const auto back = dds::AnomalySampleMsg(m.sensor_id(), m.stamp_ns(), m.seq(), a, reference_nT);
+      const double b = dds::AnomalyOf(back, reference_nT);
+      if (!(std::abs(b - a) <= 1e-6 * (std::abs(reference_nT) + std::abs(a) + 1.0))) std::abort();
+    }
+  }
+}
+
+void Nav(const msg::VesselNav& m) {
+  const auto ins = dds::InsNavMsg(m.vessel_id(), m.stamp_ns(), m.geodetic()[0], m.geodetic()[1]);
+  if (ins.source() != msg::NAV_INS || !SameBits(ins.geodetic()[0], m.geodetic()[0])) std::abort();
+}
+
+}  // namespace
+
+void FuzzDdsConvert(const std::uint8_t* data, std::size_t size) {
+  if (size == 0) return;
+  const std::uint8_t kind = data[0] % 7;
+  ++data;
+  --size;
+  switch (kind) {
+    case 0: {
+      msg::GradiometerSample m;
+      if (Deserialize(data, size, &m)) Gradiometer(m);
+      break;
+    }
+    case 1: {
+      msg::MagnetometerSample m;
+      if (Deserialize(data, size, &m)) Magnetometer(m);
+      break;
+    }
+    case 2: {
+      msg::VesselNav m;
+      if (Deserialize(data, size, &m)) Nav(m);
+      break;
+    }
+    // The other topics a service reads: only through the type support.
+    case 3: {
+      msg::DipoleFix m;
+      (void)Deserialize(data, size, &m);
+      break;
+    }
+    case 4: {
+      msg::TrackEstimate m;
+      (void)Deserialize(data, size, &m);
+      break;
+    }
+    case 5: {
+      msg::SensorPositionEstimate m;
+      (void)Deserialize(data, size, &m);
+      break;
+    }
+    default: {
+      msg::MapFix m;
+      (void)Deserialize(data, size, &m);
+      break;
+    }
+  }
+}
+
+}  // namespace magnav::fuzz
