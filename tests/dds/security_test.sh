@@ -101,7 +101,7 @@ fi
 grep -q "no reader of magnav/gradiometer appeared" "$WORK/other_replay.log" || fail "other-CA replay: $(tail -1 "$WORK/other_replay.log")"
 "$BIN/magnav" replay --input "$WORK/pass_next.csv" --speed 20 --wait-readers 0 --settle 1 >"$WORK/plain_send.log" 2>&1 ||
   fail "plain replay (sending without readers): $(tail -1 "$WORK/plain_send.log")"
-"$BIN/magnav" record "${TOOL[@]}" --topic dipole_fix --duration 6 --output "$WORK/fixes2.csv" >"$WORK/record2.log" 2>&1 ||
+"$BIN/magnav" record "${TOOL[@]}" --topic dipole_fix --duration 8 --output "$WORK/fixes2.csv" >"$WORK/record2.log" 2>&1 ||
   fail "second secure record failed"
 t_last=$(col "$WORK/pass.csv" t | tail -1)
 old=$(rows "$WORK/fixes2.csv")
