@@ -13,6 +13,8 @@
 #      with "no reader ... appeared"); a plain replay that sends anyway (--wait-readers 0, the
 #      next 300 samples of the pass) gets no fix from the secure inverter: a new secure recorder
 #      gets the fixes of step 1 (TRANSIENT_LOCAL history) and none of those samples.
+#   3. with strace: what a secure replay sends (UDP only) holds neither the topic name nor the
+#      first sample's values, which a plain UDP replay's packets do.
 # Exit 77 (skipped) without openssl.
 # Usage: security_test.sh BIN_DIR SOURCE_DIR
 set -euo pipefail
@@ -111,4 +113,36 @@ echo "2. plain and other-CA replays: no reader within 5 s; a plain replay of $N 
 [ "$new" -eq 0 ] || fail "the secure inverter answered $new samples of a plain replay"
 
 kill -TERM "$inv"; wait "$inv" 2>/dev/null || true
+# 3. On the wire (UDP only, so that every byte goes through a socket strace sees): the secure
+#    replay's packets never hold the topic name nor the first sample's B_x and T00 (as CDR doubles);
+#    the same check on a plain UDP run finds them (the check can see plaintext). Needs strace.
+hexof() { perl -e 'print join("", map { sprintf("\\x%02x", $_) } unpack("C*", $ARGV[0] eq "d" ? pack("d<", $ARGV[1]) : $ARGV[1]))' "$@"; }
+wire() {  # wire PROFILES -> occurrences of the topic name, B_x, T00 in what the replay sent
+  "$BIN/magnav-inverter" --dds-profiles "$1" --dds-participant magnav_secure_service --b0 "$B0" --stats-period 0 \
+    >"$WORK/wire_inverter.log" 2>&1 &
+  local w=$!; pids+=($w)
+  strace -f -qq -xx -s 65535 -e trace=sendto,sendmsg -o "$WORK/strace.txt" "$BIN/magnav" replay --dds-profiles "$1" \
+    --dds-participant magnav_secure_tool --input "$WORK/pass.csv" --speed 0 --wait-readers 1 --wait 30 \
+    >"$WORK/wire_replay.log" 2>&1 || fail "replay under strace: $(tail -1 "$WORK/wire_replay.log")"
+  kill -TERM "$w"; wait "$w" 2>/dev/null || true
+  local n=0 p
+  for p in "$(hexof s magnav/gradiometer)" "$(hexof d "$bx")" "$(hexof d "$t00")"; do
+    n=$((n + $(grep -cF -- "$p" "$WORK/strace.txt" || true)))
+  done
+  echo "$n $(grep -c 'send\(to\|msg\)(' "$WORK/strace.txt" || true)"
+}
+if command -v strace >/dev/null && command -v perl >/dev/null && strace -qq -o /dev/null true 2>/dev/null; then
+  read -r bx t00 < <(awk -F, '/^#/ { next } !h { for (i = 1; i <= NF; i++) c[$i] = i; h = 1; next }
+                              { print $c["B_x"], $c["T00"]; exit }' "$WORK/pass.csv")
+  # UDP-only copies of the profiles: without shared memory, and without security for the control.
+  sed '/^          <transport_id>magnav_secure_shm</d' "$WORK/field/security.xml" >"$WORK/secure_udp.xml"
+  sed '/<propertiesPolicy>/,/<\/propertiesPolicy>/d' "$WORK/secure_udp.xml" >"$WORK/plain_udp.xml"
+  read -r seen_plain sends_plain < <(wire "$WORK/plain_udp.xml")
+  read -r seen_secure sends_secure < <(wire "$WORK/secure_udp.xml")
+  echo "3. on the wire (UDP only): topic name and first sample's B_x, T00 found $seen_plain times in $sends_plain plain sends, $seen_secure times in $sends_secure secure sends"
+  [ "$seen_plain" -ge 3 ] || fail "the wire check does not see the plain run's plaintext ($seen_plain)"
+  [ "$seen_secure" -eq 0 ] || fail "plaintext on the wire with security ($seen_secure)"
+else
+  echo "3. on the wire: skipped (no strace or perl, or ptrace not allowed)"
+fi
 echo "passed in $(echo "$(date +%s.%N) - $t_start" | bc | cut -c1-5) s"
