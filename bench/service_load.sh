@@ -7,6 +7,10 @@
 #               the hop latency without queueing, so the service's own cost shows
 #   bench/service_load.sh RATE_PER_S DURATION_S [SERVICE_BIN ...]
 # e.g. bench/service_load.sh 50000 60 "build/bin/magnav-inverter --b0 2e-05,1e-06,4.5e-05"
+# Every process uses the built-in magnav_loopback profile, unless BENCH_DDS_PROFILES=FILE and
+# BENCH_DDS_PARTICIPANT=NAME give another for all of them, e.g. DDS Security:
+#   scripts/make_security /tmp/sec && BENCH_DDS_PROFILES=/tmp/sec/security.xml \
+#     BENCH_DDS_PARTICIPANT=magnav_secure_service bench/service_load.sh 50000 60 "..."
 set -euo pipefail
 cd "$(dirname "$0")/.."
 RATE=${1:-50000}; DUR=${2:-60}; shift 2 || true
@@ -16,6 +20,10 @@ DATA=tests/data/reference/track_pass_auv_4sensor_fluxgate.csv
 LAT_RATE=${LAT_RATE:-1000}; LAT_DUR=${LAT_DUR:-20}
 export MAGNAV_DOMAIN_ID=${MAGNAV_DOMAIN_ID:-$(( $$ % 200 + 10 ))}
 unset MAGNAV_DDS_PROFILES MAGNAV_DDS_PARTICIPANT
+if [ -n "${BENCH_DDS_PROFILES:-}" ]; then
+  export MAGNAV_DDS_PROFILES=$BENCH_DDS_PROFILES
+  export MAGNAV_DDS_PARTICIPANT=${BENCH_DDS_PARTICIPANT:?BENCH_DDS_PARTICIPANT must name a participant profile of $BENCH_DDS_PROFILES}
+fi
 
 run() {  # run NAME RATE DURATION CMD...
   local name=$1 rate=$2 dur=$3; shift 3
@@ -33,7 +41,7 @@ run() {  # run NAME RATE DURATION CMD...
   rm -f "$sink_out"
 }
 
-echo "# $(date -u '+%F %H:%M') UTC, $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg); domain $MAGNAV_DOMAIN_ID"
+echo "# $(date -u '+%F %H:%M') UTC, $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg); domain $MAGNAV_DOMAIN_ID; profile ${MAGNAV_DDS_PARTICIPANT:-magnav_loopback}"
 for phase in "$RATE $DUR" "$LAT_RATE $LAT_DUR"; do
   set -- $phase "${SERVICES[@]}"
   run relay "$1" "$2" "$BIN/bench_dds_relay"
