@@ -42,7 +42,7 @@ N=$(grep -c '^[0-9]' "$PASS")
 # Column COL of CSV FILE by header name, one value per row.
 col() { awk -F, -v name="$2" '/^#/ { next } !h { for (i = 1; i <= NF; i++) if ($i == name) c = i; h = 1; next } { print $c }' "$1"; }
 
-fail() { echo "FAIL (run $run): $*"; for f in "$WORK"/*.log; do echo "== $f"; tail -5 "$f"; done; exit 1; }
+fail() { echo "FAIL (run $run): $*"; for f in "$WORK"/*.log; do echo "== $f"; tail -8 "$f"; done; exit 1; }
 
 case "$CASE" in
 inverter)
