@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Durable estimates (docs/RELIABILITY.md): magnav-tracker with
+# config/durable/magnav-tracker.xml (estimate writer TRANSIENT, SQLite) tracks
+# a pass and stops; it is started again with no data coming; a recorder started
+# after that gets the last 10 estimates of the first process, equal to what that
+# process published. Without the durable profile the same recorder gets none
+# (TRANSIENT_LOCAL history dies with its process). Loopback only.
+# Usage: durable_test.sh BIN_DIR SOURCE_DIR
+set -euo pipefail
+BIN=$1 SRC=$2
+export MAGNAV_DOMAIN_ID=$((45 + $$ % 150))
+unset MAGNAV_DDS_PROFILES MAGNAV_DDS_PARTICIPANT MAGNAV_ROS2_NAMES
+WORK=$(mktemp -d)
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; wait 2>/dev/null || true; rm -rf "$WORK"; }
+trap cleanup EXIT
+PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
+B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
+sed "s|/var/lib/magnav/magnav-tracker.db|$WORK/tracker.db|" "$SRC/config/durable/magnav-tracker.xml" >"$WORK/durable.xml"
+
+# run PROFILE_ARGS... : track the pass, stop, restart, record late -> prints the recorded t column
+run() {
+  rm -f "$WORK/live.csv" "$WORK/late.csv"
+  "$BIN/magnav" record --topic track --output "$WORK/live.csv" >"$WORK/live.log" 2>&1 & local rec=$!; pids+=($rec)
+  "$BIN/magnav-tracker" --b0 "$B0" --stats-period 0 "$@" >"$WORK/tracker1.log" 2>&1 & local t1=$!; pids+=($t1)
+  "$BIN/magnav" replay --input "$PASS" --speed 0 --wait-readers 1 --wait 20 >"$WORK/replay.log" 2>&1
+  sleep 2
+  kill -TERM "$t1"; wait "$t1" || true
+  kill -TERM "$rec"; wait "$rec" || true
+  "$BIN/magnav-tracker" --b0 "$B0" --stats-period 0 "$@" >"$WORK/tracker2.log" 2>&1 & local t2=$!; pids+=($t2)
+  sleep 2
+  "$BIN/magnav" record --topic track --duration 3 --output "$WORK/late.csv" >"$WORK/late.log" 2>&1
+  kill -TERM "$t2"; wait "$t2" || true
+}
+tcol() { awk -F, '/^#/ { next } !h { h = 1; next } { print $1 }' "$1" 2>/dev/null; }
+
+run --dds-profiles "$WORK/durable.xml"
+want=$(tcol "$WORK/live.csv" | tail -10 | tr '\n' ' ')
+got=$(tcol "$WORK/late.csv" | sort -n | tr '\n' ' ')
+echo "durable: the first process published $(tcol "$WORK/live.csv" | wc -l) estimates; after its restart a late recorder got $(tcol "$WORK/late.csv" | wc -l): t = $got"
+[ -n "$want" ] && [ "$got" = "$want" ] || { echo "FAIL: expected the last 10 estimates, t = $want"; cat "$WORK"/*.log | tail -20; exit 1; }
+cmp -s <(grep -v '^#' "$WORK/live.csv" | tail -10 | sort) <(grep -v '^#' "$WORK/late.csv" | tail -n +2 | sort) \
+  || { echo "FAIL: the late estimates differ from those published"; exit 1; }
+
+run
+n=$(tcol "$WORK/late.csv" | wc -l)
+echo "not durable (built-in TRANSIENT_LOCAL): after the restart a late recorder got $n"
+[ "$n" -eq 0 ] || { echo "FAIL: estimates of a process that has ended should be gone without the durable profile"; exit 1; }
+echo "1 passed, 0 failed"
