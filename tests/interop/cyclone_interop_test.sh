@@ -40,9 +40,10 @@ trap cleanup EXIT
 PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
 
-# Waits until FILE has a line "ready" (the peer's reader exists), at most 20 s.
+# Waits until FILE has a line "ready" (the peer's reader exists; for
+# expect-fixes: and has matched the service's writer), at most 35 s.
 wait_ready() {
-  for _ in $(seq 200); do grep -q '^ready' "$1" 2>/dev/null && return 0; sleep 0.1; done
+  for _ in $(seq 350); do grep -q '^ready' "$1" 2>/dev/null && return 0; sleep 0.1; done
   echo "FAIL: cyclone_peer did not start ($1)"; cat "$1"; return 1
 }
 

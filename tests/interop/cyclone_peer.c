@@ -21,7 +21,8 @@
  *       from the file's "# sigma_B_T:" and "# sigma_T_Tpm:" lines) once a
  *       reader is matched, then waits until it has acknowledged them all.
  *   cyclone_peer expect-fixes FILE TIMEOUT_S
- *       Subscribes magnav/dipole_fix and waits for one fix per row of FILE,
+ *       Subscribes magnav/dipole_fix, prints "ready" once a writer (the
+ *       service) is matched, and waits for one fix per row of FILE,
  *       the CSV `magnav invert` writes for the same samples; checks validity,
  *       reason, position and covariance bit for bit (the CSV has 17
  *       significant digits, so strtod gives back the very doubles).
@@ -407,6 +408,20 @@ static int expect_fixes(const char *path, double timeout_s) {
   const dds_entity_t pp = participant();
   const dds_entity_t rd = reader_on(pp, &magnav_msg_DipoleFix_desc, "magnav/dipole_fix", 1);
   const dds_entity_t ws = waitset_for(pp, rd);
+  /* Ready once the service's fix writer is matched: its TRANSIENT_LOCAL history
+   * holds the last 1000 fixes per sensor, so a reader that matches only after a
+   * 2001-sample burst gets the last 1000 (seen in CI after other tests had
+   * slowed discovery). */
+  dds_subscription_matched_status_t st = {0};
+  const dds_time_t match_deadline = dds_time() + DDS_SECS(30);
+  while (st.current_count < 1 && dds_time() < match_deadline) {
+    dds_get_subscription_matched_status(rd, &st);
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  if (st.current_count < 1) {
+    fprintf(stderr, "cyclone_peer: no writer of magnav/dipole_fix within 30 s\n");
+    return 1;
+  }
   printf("ready\n");
   fflush(stdout);
 
