@@ -16,6 +16,18 @@ std::string Where(const CsvTable& c, std::size_t row, const std::string& column)
   return c.source() + ":" + std::to_string(c.line_of(row)) + ": column '" + column + "': ";
 }
 
+// A position or length (m) within the readers' limit, else an error naming the cell.
+double Metres(const CsvTable& c, std::size_t row, std::size_t col) {
+  const double v = c.number(row, col);
+  if (std::abs(v) > kMaxAbsPosition_m) {
+    throw InputError(Where(c, row, c.header()[col]) + FormatNumber(v) + " m is out of range (|value| > " +
+                     FormatNumber(kMaxAbsPosition_m) + " m)");
+  }
+  return v;
+}
+
+bool BInRange(const Eigen::Vector3d& B_T) { return B_T.cwiseAbs().maxCoeff() <= kMaxAbsB_T; }
+
 }  // namespace
 
 int Pass::SensorIndex(std::uint32_t sensor_id) const {
@@ -33,8 +45,8 @@ std::vector<SensorPrior> ReadDeploymentFile(const std::string& path) {
   for (std::size_t i = 0; i < d.num_rows(); ++i) {
     SensorPrior p;
     p.sensor_id = d.uint32(i, id);
-    p.p_SinW_m = {d.number(i, x), d.number(i, y), d.number(i, z)};
-    p.sigma_xy_m = d.number(i, s);
+    p.p_SinW_m = {Metres(d, i, x), Metres(d, i, y), Metres(d, i, z)};
+    p.sigma_xy_m = Metres(d, i, s);
     if (!(p.sigma_xy_m > 0.0)) throw InputError(Where(d, i, "sigma_xy") + "must be > 0");
     if (pass.SensorIndex(p.sensor_id) >= 0) {
       throw InputError(Where(d, i, "sensor_id") + "sensor " + std::to_string(p.sensor_id) + " listed twice");
@@ -120,8 +132,8 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
     for (std::size_t i = 0; i < g.num_rows(); ++i) {
       GnssFix f;
       f.t_s = g.number(i, t);
-      f.p_xy_m = {g.number(i, x), g.number(i, y)};
-      f.sigma_m = g.number(i, s);
+      f.p_xy_m = {Metres(g, i, x), Metres(g, i, y)};
+      f.sigma_m = Metres(g, i, s);
       if (!(f.sigma_m > 0.0)) throw InputError(Where(g, i, "sigma") + "must be > 0");
       if (!pass.gnss.empty() && f.t_s < pass.gnss.back().t_s) {
         throw InputError(Where(g, i, "t") + "time goes backwards (" + FormatNumber(f.t_s) + " s after " +
@@ -145,6 +157,8 @@ const char* SampleCheckName(SampleCheck check) {
       return "time goes backwards";
     case SampleCheck::kBadSigma:
       return "sigma not > 0";
+    case SampleCheck::kOutOfRange:
+      return "value out of range";
   }
   return "?";
 }
@@ -156,6 +170,7 @@ InputGate::InputGate(const std::vector<SensorPrior>& sensors)
 
 SampleCheck InputGate::Check(const MagSample& sample) {
   if (!std::isfinite(sample.t_s) || !sample.B_T.allFinite()) return SampleCheck::kNonFinite;
+  if (!BInRange(sample.B_T)) return SampleCheck::kOutOfRange;
   const auto it = last_t_.find(sample.sensor_id);
   if (it == last_t_.end()) return SampleCheck::kUnknownSensor;
   if (sample.t_s < it->second) return SampleCheck::kTimeBackwards;
@@ -168,6 +183,9 @@ SampleCheck InputGate::Check(const GnssFix& fix) {
     return SampleCheck::kNonFinite;
   }
   if (!(fix.sigma_m > 0.0)) return SampleCheck::kBadSigma;
+  if (fix.p_xy_m.cwiseAbs().maxCoeff() > kMaxAbsPosition_m || fix.sigma_m > kMaxAbsPosition_m) {
+    return SampleCheck::kOutOfRange;
+  }
   if (fix.t_s < last_gnss_t_) return SampleCheck::kTimeBackwards;
   last_gnss_t_ = fix.t_s;
   return SampleCheck::kOk;

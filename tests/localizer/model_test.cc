@@ -181,6 +181,14 @@ TEST(LocalizerInput, GateRefusesAndCounts) {
   EXPECT_EQ(gate.Check(GnssFix{1.0, Eigen::Vector2d::Zero(), 0.0}), SampleCheck::kBadSigma);
   EXPECT_EQ(gate.Check(GnssFix{1.0, Eigen::Vector2d::Zero(), 3.0}), SampleCheck::kOk);
   EXPECT_EQ(gate.Check(GnssFix{0.5, Eigen::Vector2d::Zero(), 3.0}), SampleCheck::kTimeBackwards);
+  // Out of range: B in nT sent as T (|B_i| > 1 T), a position beyond 1e7 m;
+  // refused without moving the stream's time (a later good one is accepted).
+  EXPECT_EQ(gate.Check(MagSample{3.0, 7, Eigen::Vector3d(0, 0, 48000.0)}), SampleCheck::kOutOfRange);
+  EXPECT_EQ(gate.Check(MagSample{3.0, 7, Eigen::Vector3d(0, 0, -1.5)}), SampleCheck::kOutOfRange);
+  EXPECT_EQ(gate.Check(MagSample{2.5, 7, Eigen::Vector3d(0, 0, 0.99)}), SampleCheck::kOk);
+  EXPECT_EQ(gate.Check(GnssFix{2.0, Eigen::Vector2d(1e308, 0.0), 3.0}), SampleCheck::kOutOfRange);
+  EXPECT_EQ(gate.Check(GnssFix{2.0, Eigen::Vector2d(0.0, 0.0), 1e8}), SampleCheck::kOutOfRange);
+  EXPECT_EQ(gate.Check(GnssFix{1.5, Eigen::Vector2d(-9e6, 9e6), 3.0}), SampleCheck::kOk);
 }
 
 // A small pass: a straight-then-turning vessel over two sensors, noise-free.

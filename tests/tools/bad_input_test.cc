@@ -134,8 +134,10 @@ std::vector<BadInput> Corpus() {
   c.push_back({Kind::kDeployment, "deployment_duplicate_sensor.csv", ":4: column 'sensor_id': sensor 1 listed twice"});
   c.push_back({Kind::kDeployment, "deployment_text_in_number.csv", ":3: column 'y': 'zero' is not a finite number"});
   c.push_back({Kind::kDeployment, "deployment_bad_sigma.csv", ":3: column 'sigma_xy': must be > 0"});
+  c.push_back({Kind::kDeployment, "deployment_position_1e308.csv", ":3: column 'y': 1e+308 m is out of range"});
   c.push_back({Kind::kGnss, "gnss_header_only.csv", ":1: no data rows"});
   c.push_back({Kind::kGnss, "gnss_time_backwards.csv", ":4: column 't': time goes backwards"});
+  c.push_back({Kind::kGnss, "gnss_position_1e12.csv", ":3: column 'x': 5e+12 m is out of range"});
   c.push_back({Kind::kGnss, "gnss_inf.csv", ":3: column 'x': 'inf' is not a finite number"});
   return c;
 }

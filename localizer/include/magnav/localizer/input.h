@@ -34,18 +34,22 @@ std::vector<SensorPrior> ReadDeploymentFile(const std::string& path);
 // Reads and checks the files. `moment_body_Am2` overrides the measurements
 // file's "# moment_body_Am2:" line; without either the call refuses (no
 // default moment). `gnss_path` may be empty (no fixes). Checks: finite
-// numbers, known sensor ids, time not going backwards, positive sigmas, no
+// numbers within the readers' limits (|B_i| ≤ 1 T, positions and σ ≤ 1e7 m),
+// known sensor ids, time not going backwards, positive sigmas, no
 // duplicate sensor in the deployment, every deployed sensor measured at least
 // once, the vessel depth stated.
 PassFile ReadPassFiles(const std::string& measurements_path, const std::string& deployment_path,
                        const std::string& gnss_path, const std::optional<Eigen::Vector3d>& moment_body_Am2);
 
 // Why a live sample is refused.
-enum class SampleCheck { kOk, kNonFinite, kUnknownSensor, kTimeBackwards, kBadSigma };
+// kOutOfRange: finite but a value no instrument gives, the limits the file
+// readers hold to (core/gradiometer.h): |B_i| > kMaxAbsB_T (1 T: nT or µT
+// sent as T), a GNSS position or σ beyond kMaxAbsPosition_m (1e7 m).
+enum class SampleCheck { kOk, kNonFinite, kUnknownSensor, kTimeBackwards, kBadSigma, kOutOfRange };
 const char* SampleCheckName(SampleCheck check);
 
 // The door for live samples (the service): a sample is accepted only if it is
-// finite, from a deployed sensor and not older than the last accepted sample
+// finite, within range, from a deployed sensor and not older than the last accepted sample
 // of the same stream (per sensor; the GNSS is one stream). Accepting records
 // its time. Not thread-safe.
 class InputGate {
