@@ -3,11 +3,16 @@
 #include <cstdio>
 #include <exception>
 
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
 #include "commands.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 
 int main(int argc, char** argv) {
+  // Logs go to stderr: stdout may be data (`magnav record --output -`).
+  spdlog::set_default_logger(spdlog::stderr_color_mt("magnav"));
   CLI::App app{"magnav: find and follow magnetic objects with gradiometer networks"};
   app.require_subcommand(1);
   magnav::tools::AddSimulateCommand(app);

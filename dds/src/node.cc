@@ -148,17 +148,22 @@ Node::Node(const NodeOptions& options) {
   // Shared-memory files of processes that died without cleaning up (kill -9),
   // once per process, before this participant makes its own.
   static std::once_flag shm_cleaned;
+  static bool dead_ports_found = false;
   std::call_once(shm_cleaned, [] {
     const ShmCleanResult c = CleanStaleSharedMemory();
     if (c.segments > 0) spdlog::info("dds: removed {} shared-memory segment(s) left by dead processes", c.segments);
     if (!c.dead_ports.empty()) {
-      // See shm_clean.h: joining before the peers forgot the dead process can
-      // leave this one deaf (a Fast DDS 2.9 shared-memory bug).
-      spdlog::warn("dds: {} shared-memory port(s) of a process that died (e.g. {}); waiting {} s so that its peers "
-                   "forget it before this participant joins",
+      // See shm_clean.h: taking a dead process's port number again can leave
+      // this participant deaf (a Fast DDS 2.9 shared-memory bug). Its ports
+      // go once the peers have forgotten it.
+      spdlog::info("dds: {} shared-memory port(s) of a process that died (e.g. {}): joining with a participant "
+                   "index they do not use; removing them in {} s",
                    c.dead_ports.size(), c.dead_ports.front(), kZombiePortWaitS);
-      std::this_thread::sleep_for(std::chrono::duration<double>(kZombiePortWaitS));
-      RemoveDeadPorts("/dev/shm", c.dead_ports);
+      dead_ports_found = true;
+      std::thread([ports = c.dead_ports] {
+        std::this_thread::sleep_for(std::chrono::duration<double>(kZombiePortWaitS));
+        RemoveDeadPorts("/dev/shm", ports);
+      }).detach();
     }
   });
   LoadProfiles(options.profiles_file.empty() ? EnvOr("MAGNAV_DDS_PROFILES", "") : options.profiles_file);
@@ -173,7 +178,14 @@ Node::Node(const NodeOptions& options) {
     throw DdsError("DDS participant profile '" + profile + "' not found in the loaded XML profiles");
   }
   pqos.name(options.name);
+  if (dead_ports_found && pqos.wire_protocol().participant_id < 0) {
+    pqos.wire_protocol().participant_id = FreshParticipantId(domain_id_, SharedMemoryPorts());
+  }
   participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(domain_id_), pqos);
+  if (!participant_ && pqos.wire_protocol().participant_id >= 0 && dead_ports_found) {
+    pqos.wire_protocol().participant_id = -1;  // that index was taken after all (a UDP-only peer): Fast DDS's choice
+    participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(domain_id_), pqos);
+  }
   if (!participant_) throw DdsError("cannot create a DDS participant on domain " + std::to_string(domain_id_));
   publisher_ = participant_->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
   subscriber_ = participant_->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);

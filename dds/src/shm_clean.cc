@@ -9,6 +9,7 @@
 #include <chrono>
 #include <filesystem>
 #include <regex>
+#include <set>
 #include <string>
 #include <vector>
 #include <system_error>
@@ -71,6 +72,34 @@ ShmCleanResult CleanStaleSharedMemory(const std::string& dir, double min_age_s) 
     ++r.segments;
   }
   return r;
+}
+
+std::vector<int> SharedMemoryPorts(const std::string& dir) {
+  static const std::regex kPort("fastrtps_port([0-9]{1,5})");
+  std::vector<int> out;
+  std::error_code ec;
+  std::filesystem::directory_iterator it(dir, ec), end;
+  if (ec) return out;
+  for (; it != end; it.increment(ec)) {
+    if (ec) break;
+    std::smatch m;
+    const std::string name = it->path().filename().string();
+    if (std::regex_match(name, m, kPort)) out.push_back(std::stoi(m[1].str()));
+  }
+  return out;
+}
+
+int FreshParticipantId(int domain_id, const std::vector<int>& ports, int max_index) {
+  const int base = 7400 + 250 * domain_id;
+  std::set<int> used;
+  for (const int p : ports) {
+    const int offset = p - base;
+    if (offset >= 10 && offset < 250) used.insert((offset - 10) / 2);
+  }
+  for (int id = 0; id < max_index; ++id) {
+    if (!used.count(id)) return id;
+  }
+  return -1;
 }
 
 void RemoveDeadPorts(const std::string& dir, const std::vector<std::string>& ports) {

@@ -69,6 +69,7 @@ InverterNode::InverterNode(dds::Node& node, const MonteCarloTrackerOptions& opti
 }
 
 void InverterNode::Start(dds::Node& node) {
+  repeats_.SetLogName("magnav-inverter: magnav/gradiometer sensor");
   writer_ = node.CreateWriter<dds::msg::DipoleFix>();
   reader_ = node.CreateReader<dds::msg::GradiometerSample>(
       [this](const dds::msg::GradiometerSample& m, const auto&) { OnSample(m); });

@@ -39,6 +39,7 @@ class InverterNode {
   const dds::EndpointStats& input_stats() const { return reader_->stats(); }
   std::uint64_t bad_samples() const { return door_.rejected(); }
   std::uint64_t repeated() const { return repeats_.repeats(); }
+  std::uint64_t missing() const { return repeats_.missing(); }  // sequence gaps of the samples
   const dds::RegionalFieldSource& b0() const { return *b0_; }
 
  private:

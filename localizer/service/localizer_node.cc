@@ -64,6 +64,7 @@ const LocalizerNodeOptions& Checked(const LocalizerNodeOptions& o) {
 
 LocalizerNode::LocalizerNode(dds::Node& node, const LocalizerNodeOptions& options)
     : localizer_(Checked(options).vessel, options.sensors, options.localizer, options.stream) {
+  repeats_.SetLogName("magnav-localizer: magnav/magnetometer sensor");
   writer_ = node.CreateWriter<dds::msg::SensorPositionEstimate>();
   nav_reader_ =
       node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto&) { OnNav(m); });
@@ -87,17 +88,25 @@ void LocalizerNode::Skip(SampleCheck why, const std::string& stream, std::uint32
 }
 
 void LocalizerNode::OnSample(const dds::msg::MagnetometerSample& m) {
+  if (!repeats_.First(m)) return;
   const MagSample s = FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   const SampleCheck c = localizer_.Add(s);
-  if (c != SampleCheck::kOk) Skip(c, "magnetometer", s.sensor_id, s.t_s);
+  if (c != SampleCheck::kOk) {
+    repeats_.Forget(m);
+    Skip(c, "magnetometer", s.sensor_id, s.t_s);
+  }
 }
 
 void LocalizerNode::OnNav(const dds::msg::VesselNav& m) {
+  if (!nav_repeats_.First(m)) return;
   const GnssFix f = FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   const SampleCheck c = localizer_.Add(f);
-  if (c != SampleCheck::kOk) Skip(c, "gnss", 0, f.t_s);
+  if (c != SampleCheck::kOk) {
+    nav_repeats_.Forget(m);
+    Skip(c, "gnss", 0, f.t_s);
+  }
 }
 
 void LocalizerNode::Publish() {

@@ -17,6 +17,7 @@
 #include <set>
 
 #include "magnav/dds/node.h"
+#include "magnav/dds/repeat_filter.h"
 #include "magnav/localizer/stream.h"
 
 namespace magnav::localizer {
@@ -48,6 +49,11 @@ class LocalizerNode {
   std::uint64_t samples_received() const { return mag_reader_->stats().samples.load(); }
   std::uint64_t fixes_received() const { return nav_reader_->stats().samples.load(); }
   std::uint64_t skipped() const { return skipped_; }
+  // Messages seen before (a restarted producer's history: dropped before
+  // the door, so that the EKF never takes one twice) and sequence numbers
+  // of magnetometer samples that never arrived.
+  std::uint64_t repeated() const { return repeats_.repeats() + nav_repeats_.repeats(); }
+  std::uint64_t missing() const { return repeats_.missing(); }
   std::uint64_t consumed() const;
   std::uint64_t published() const { return writer_->stats().samples.load(); }
 
@@ -61,6 +67,8 @@ class LocalizerNode {
   std::set<std::uint32_t> warned_sensors_;
   bool warned_gnss_ = false;
   std::atomic<std::uint64_t> skipped_{0};
+  dds::RepeatFilter repeats_;      // magnetometer samples
+  dds::RepeatFilter nav_repeats_;  // vessel_nav
   std::unique_ptr<dds::Writer<dds::msg::SensorPositionEstimate>> writer_;
   std::unique_ptr<dds::Reader<dds::msg::MagnetometerSample>> mag_reader_;
   std::unique_ptr<dds::Reader<dds::msg::VesselNav>> nav_reader_;

@@ -66,14 +66,15 @@ int main(int argc, char** argv) {
       }
       if (stats_period_s > 0 && Clock::now() >= next_stats) {
         spdlog::info("magnav-localizer: {} magnetometer + {} vessel_nav samples in, {} used, {} skipped, {} "
-                     "estimates out",
-                     loc.samples_received(), loc.fixes_received(), loc.consumed(), loc.skipped(), loc.published());
+                     "repeated, {} missing (sequence gaps), {} estimates out",
+                     loc.samples_received(), loc.fixes_received(), loc.consumed(), loc.skipped(), loc.repeated(),
+                     loc.missing(), loc.published());
         next_stats += period(stats_period_s);
       }
     }
     loc.Flush();
     loc.WaitForAcknowledgments(std::chrono::seconds(5));
-    spdlog::info("magnav-localizer: stopping after {} samples used, {} skipped, {} estimates", loc.consumed(),
-                 loc.skipped(), loc.published());
+    spdlog::info("magnav-localizer: stopping after {} samples used, {} skipped, {} repeated, {} missing, {} estimates",
+                 loc.consumed(), loc.skipped(), loc.repeated(), loc.missing(), loc.published());
   });
 }

@@ -44,6 +44,7 @@ MatcherNode::MatcherNode(dds::Node& node, const GeoGrid& grid, std::size_t layer
     : options_(Checked(options)),
       filter_(MakeParticleFilter(options.kind, grid, layer, options.filter)),
       schedule_(options.fix_every_m, options.filter.max_step_deg) {
+  repeats_.SetLogName("magnav-matcher: magnav/magnetometer sensor");
   writer_ = node.CreateWriter<dds::msg::MapFix>();
   nav_reader_ = node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto&) { OnNav(m); });
   mag_reader_ = node.CreateReader<dds::msg::MagnetometerSample>(
@@ -64,15 +65,20 @@ void MatcherNode::Skip(const std::string& why, double t_s) {
 
 void MatcherNode::OnNav(const dds::msg::VesselNav& m) {
   if (m.vessel_id() != options_.vehicle_id || m.source() == dds::msg::NAV_GNSS) return;
+  if (!nav_repeats_.First(m)) return;
   std::lock_guard<std::mutex> lk(mu_);
   const double lat = m.geodetic()[0], lon = m.geodetic()[1];
-  if (!std::isfinite(lat) || !std::isfinite(lon)) return Skip("vessel_nav without a finite geodetic lat/lon", NanosToSeconds(m.stamp_ns()));
+  if (!std::isfinite(lat) || !std::isfinite(lon)) {
+    nav_repeats_.Forget(m);
+    return Skip("vessel_nav without a finite geodetic lat/lon", NanosToSeconds(m.stamp_ns()));
+  }
   navs_[m.stamp_ns()] = {lat, lon};
   Drain();
 }
 
 void MatcherNode::OnSample(const dds::msg::MagnetometerSample& m) {
   if (m.sensor_id() != options_.sensor_id) return;
+  if (!repeats_.First(m)) return;
   std::lock_guard<std::mutex> lk(mu_);
   if (stepped_ && m.stamp_ns() <= last_step_ns_) {
     return Skip("magnetometer sample not later than the last step", NanosToSeconds(m.stamp_ns()));

@@ -27,6 +27,7 @@
 
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
+#include "magnav/dds/repeat_filter.h"
 #include "magnav/mapmatch/fix_schedule.h"
 #include "magnav/mapmatch/geo_grid.h"
 #include "magnav/mapmatch/particle_filter.h"
@@ -66,6 +67,9 @@ class MatcherNode {
   std::uint64_t samples_received() const { return mag_reader_->stats().samples.load(); }
   std::uint64_t steps() const { return steps_; }
   std::uint64_t skipped() const { return skipped_; }
+  // Messages seen before (dropped), magnetometer sequence numbers never received.
+  std::uint64_t repeated() const { return repeats_.repeats() + nav_repeats_.repeats(); }
+  std::uint64_t missing() const { return repeats_.missing(); }
   std::uint64_t published() const { return writer_->stats().samples.load(); }
   FilterCounters filter_counters() const;
 
@@ -85,6 +89,8 @@ class MatcherNode {
   std::uint64_t last_step_ns_ = 0;
   std::set<std::string> warned_;
   std::atomic<std::uint64_t> steps_{0}, skipped_{0};
+  dds::RepeatFilter repeats_;      // magnetometer samples of our sensor
+  dds::RepeatFilter nav_repeats_;  // vessel_nav of our vehicle
   std::unique_ptr<dds::Writer<dds::msg::MapFix>> writer_;
   std::unique_ptr<dds::Reader<dds::msg::VesselNav>> nav_reader_;
   std::unique_ptr<dds::Reader<dds::msg::MagnetometerSample>> mag_reader_;

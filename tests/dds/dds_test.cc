@@ -349,6 +349,62 @@ TEST(Dds, RepeatFilterDropsExactRepeatsOnly) {
   EXPECT_TRUE(g.First(MessageId{2, 0, 1}));  // forgotten: taken as new
 }
 
+// Sequence gaps: numbers skipped are counted per key; a step back that is
+// not a repeat (a producer that started over) is counted and followed;
+// repeats and unsequenced messages never count.
+TEST(Dds, RepeatFilterCountsSequenceGapsAndStepsBack) {
+  RepeatFilter f;
+  auto id = [](std::uint32_t key, std::uint64_t seq, std::uint64_t stamp) { return MessageId{key, seq, stamp, true}; };
+  EXPECT_TRUE(f.First(id(1, 5, 50)));   // the first one sets where the key is
+  EXPECT_TRUE(f.First(id(1, 6, 60)));
+  EXPECT_TRUE(f.First(id(1, 10, 100)));  // 7, 8, 9 missing
+  EXPECT_TRUE(f.First(id(2, 0, 100)));   // another key: its own count
+  EXPECT_TRUE(f.First(id(2, 2, 120)));   // 1 missing
+  EXPECT_EQ(f.missing(), 4u);
+  EXPECT_FALSE(f.First(id(1, 6, 60)));  // a repeat: not a step back
+  EXPECT_EQ(f.restarts(), 0u);
+  EXPECT_TRUE(f.First(id(1, 0, 200)));  // started over
+  EXPECT_TRUE(f.First(id(1, 1, 210)));  // followed: no gap
+  EXPECT_EQ(f.restarts(), 1u);
+  EXPECT_EQ(f.missing(), 4u);
+  EXPECT_TRUE(f.First(MessageId{3, 0, 1}));  // unsequenced (estimates): seq 0 always
+  EXPECT_TRUE(f.First(MessageId{3, 0, 2}));
+  EXPECT_TRUE(f.First(MessageId{3, 7, 3}));
+  EXPECT_EQ(f.missing(), 4u);
+  EXPECT_EQ(f.restarts(), 1u);
+  msg::GradiometerSample a = testing::PatternSample(4, 0), b = testing::PatternSample(4, 3);
+  EXPECT_TRUE(f.First(a));
+  EXPECT_TRUE(f.First(b));
+  EXPECT_EQ(f.missing(), 6u);  // samples are sequenced
+}
+
+// A tracker running for weeks: track ids are never reused, so the track
+// writer sees ever new keys. Each ended track is unregistered; 300 tracks of
+// 20 estimates each all go out (the profile allows 100 live keys at once).
+// Without Unregister the writer refused every estimate after the 10th track
+// (Fast DDS's default max_instances, before the profile set it): measured,
+// 200 of 6000 written.
+TEST(Dds, EndedKeysAreUnregisteredSoNewOnesAlwaysFit) {
+  NodeOptions o;
+  o.name = "dds_test_tracks";
+  o.domain_id = testing::TestDomainId();
+  Node node(o);
+  auto w = node.CreateWriter<msg::TrackEstimate>();
+  int refused = 0, unregister_refused = 0;
+  for (std::uint32_t id = 1; id <= 300; ++id) {
+    msg::TrackEstimate e;
+    e.track_id(id);
+    for (int k = 0; k < 20; ++k) {
+      e.stamp_ns(1'000'000'000ull * id + 100'000'000ull * k);
+      refused += w->Write(e) ? 0 : 1;
+    }
+    unregister_refused += w->Unregister(e) ? 0 : 1;
+  }
+  EXPECT_EQ(refused, 0);
+  EXPECT_EQ(unregister_refused, 0);
+  EXPECT_EQ(w->stats().samples.load(), 6000u);
+}
+
 // Stale shared-memory files: a segment whose lock file nobody holds (older
 // than the grace period) goes with its lock; a held one and a young one stay;
 // a dead port is reported, not removed (a live writer may still send to it:
@@ -387,7 +443,15 @@ TEST(Dds, StaleSharedMemoryOfDeadProcessesIsRemoved) {
                                          "fastrtps_00000000000000cc", "fastrtps_00000000000000cc_el",
                                          "fastrtps_port7411", "fastrtps_port7411_el", "fastrtps_port7411_sl",
                                          "sem.fastrtps_port7411_mutex", "unrelated_file"}));
-  // After the wait (Node), the dead port goes with its locks and mutex.
+  // The ports in the directory, alive or dead, and a participant index none
+  // of them uses: domain 0, port 7411 = 7400 + 11 + 2·0 (index 0's data port).
+  EXPECT_EQ(SharedMemoryPorts(dir.string()), std::vector<int>{7411});
+  EXPECT_EQ(FreshParticipantId(0, SharedMemoryPorts(dir.string())), 1);
+  EXPECT_EQ(FreshParticipantId(0, {7410, 7413, 7415}), 3);  // indices 0, 1, 2 taken
+  EXPECT_EQ(FreshParticipantId(1, {7411}), 0);              // another domain's port
+  EXPECT_EQ(FreshParticipantId(0, {7410, 7412}, 2), -1);    // none free below 2
+  // After the lease (Node: in the background), the dead port goes with its
+  // locks and mutex.
   RemoveDeadPorts(dir.string(), r.dead_ports);
   EXPECT_FALSE(std::filesystem::exists(dir / "fastrtps_port7411"));
   EXPECT_FALSE(std::filesystem::exists(dir / "fastrtps_port7411_sl"));

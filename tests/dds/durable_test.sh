@@ -8,12 +8,8 @@
 # Usage: durable_test.sh BIN_DIR SOURCE_DIR
 set -euo pipefail
 BIN=$1 SRC=$2
-export MAGNAV_DOMAIN_ID=$((45 + $$ % 150))
-unset MAGNAV_DDS_PROFILES MAGNAV_DDS_PARTICIPANT MAGNAV_ROS2_NAMES
-WORK=$(mktemp -d)
-pids=()
-cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; wait 2>/dev/null || true; rm -rf "$WORK"; }
-trap cleanup EXIT
+. "$SRC/tests/support/dds_test_lib.sh"
+dds_test_setup 45
 PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
 sed "s|/var/lib/magnav/magnav-tracker.db|$WORK/tracker.db|" "$SRC/config/durable/magnav-tracker.xml" >"$WORK/durable.xml"

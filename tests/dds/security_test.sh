@@ -20,16 +20,9 @@
 set -euo pipefail
 BIN=$1 SRC=$2
 command -v openssl >/dev/null || { echo "openssl not installed: skipped"; exit 77; }
-export MAGNAV_DOMAIN_ID=$((40 + $$ % 150))
-unset MAGNAV_DDS_PROFILES MAGNAV_DDS_PARTICIPANT MAGNAV_ROS2_NAMES
-WORK=$(mktemp -d)
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill -9 "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  rm -rf "$WORK"
-}
-trap cleanup EXIT
+. "$SRC/tests/support/dds_test_lib.sh"
+dds_test_setup 40
+FAIL_LOG_LINES=5
 t_start=$(date +%s.%N)
 FULL="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$FULL" | tr -d ' ')
@@ -39,14 +32,7 @@ slice() { awk -v a="$1" -v n="$N" '/^#/ { print; next } !h { print; h = 1; next 
 slice "$FIRST" >"$WORK/pass.csv"
 slice $((FIRST + N)) >"$WORK/pass_next.csv"
 
-# Column COL of CSV FILE by header name, one value per row.
-col() { awk -F, -v name="$2" '/^#/ { next } !h { for (i = 1; i <= NF; i++) if ($i == name) c = i; h = 1; next } { print $c }' "$1"; }
 rows() { if [ -f "$1" ]; then col "$1" t | wc -l; else echo 0; fi; }
-valid() {
-  awk -F, '/^#/ { next } !h { for (i = 1; i <= NF; i++) c[$i] = i; h = 1; next }
-           $c["valid"] == 1 { print $c["t"], $c["dipole_x"], $c["dipole_y"], $c["dipole_z"] }' "$1" | sort
-}
-fail() { echo "FAIL: $*"; for f in "$WORK"/*.log; do echo "== $f"; tail -5 "$f"; done; exit 1; }
 
 "$SRC/scripts/make_security" "$WORK/field" service tool >/dev/null
 "$SRC/scripts/make_security" "$WORK/other" service tool >/dev/null
@@ -55,7 +41,7 @@ TOOL=(--dds-profiles "$WORK/field/security.xml" --dds-participant magnav_secure_
 OTHER=(--dds-profiles "$WORK/other/security.xml" --dds-participant magnav_secure_tool)
 
 "$BIN/magnav" invert --input "$WORK/pass.csv" --method ted-egt --output "$WORK/offline.csv" >/dev/null
-valid "$WORK/offline.csv" >"$WORK/want.txt"
+valid_fixes "$WORK/offline.csv" >"$WORK/want.txt"
 
 # 1. Authorised services work as before; the uncertified get nothing.
 "$BIN/magnav" record --topic all --output-dir "$WORK/plain_rec" >"$WORK/plain_record.log" 2>&1 &
@@ -74,7 +60,7 @@ wait "$rec" || fail "secure record failed"
 took=$(echo "$(date +%s.%N) - $t0" | bc)
 got=$(rows "$WORK/fixes.csv")
 distinct=$(paste -d, <(col "$WORK/fixes.csv" sensor_id) <(col "$WORK/fixes.csv" seq) | sort -u | wc -l)
-valid "$WORK/fixes.csv" >"$WORK/got.txt"
+valid_fixes "$WORK/fixes.csv" >"$WORK/got.txt"
 echo "1. secure: replay to last fix ${took%??????} s; $got fixes of $N samples ($distinct distinct), $(wc -l <"$WORK/got.txt") valid (offline $(wc -l <"$WORK/want.txt"))"
 [ "$got" -eq "$N" ] && [ "$distinct" -eq "$N" ] || fail "not exactly one fix per sample"
 [ -s "$WORK/want.txt" ] || fail "no valid fix offline: the comparison would be empty (MAGNAV_SECURITY_FIRST_ROW)"

@@ -27,16 +27,8 @@ if [ -z "$PEER" ] || [ ! -x "$PEER" ]; then
   exit 77
 fi
 export CYCLONEDDS_URI="file://$SRC/config/cyclonedds_loopback.xml"
-export MAGNAV_DOMAIN_ID=$((30 + $$ % 150))
-unset MAGNAV_DDS_PROFILES MAGNAV_DDS_PARTICIPANT
-WORK=$(mktemp -d)
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  rm -rf "$WORK"
-}
-trap cleanup EXIT
+. "$SRC/tests/support/dds_test_lib.sh"
+dds_test_setup 30
 PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
 

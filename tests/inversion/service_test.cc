@@ -34,9 +34,10 @@ namespace {
 using namespace std::chrono_literals;
 namespace msg = ::magnav::msg;
 
-// Publishes samples to the magnav-inverter running on `domain` and returns the
-// fixes it publishes, in order (the service answers every sample).
-std::vector<msg::DipoleFix> Exchange(int domain, const std::vector<GradiometerSample>& samples) {
+// Publishes messages to the magnav-inverter running on `domain` and returns
+// the fixes it publishes, in order, once `expected` have come.
+std::vector<msg::DipoleFix> ExchangeMessages(int domain, const std::vector<msg::GradiometerSample>& messages,
+                                             std::size_t expected) {
   std::mutex mu;
   std::vector<msg::DipoleFix> fixes;
   dds::NodeOptions o;
@@ -51,11 +52,18 @@ std::vector<msg::DipoleFix> Exchange(int domain, const std::vector<GradiometerSa
   writer->SetFlowControl(500, 20s);  // whole passes are sent unpaced
   EXPECT_TRUE(writer->WaitForMatched(1, 20s));
   EXPECT_TRUE(reader->WaitForMatched(1, 20s));
-  for (std::size_t i = 0; i < samples.size(); ++i) EXPECT_TRUE(writer->Write(dds::ToMsg(samples[i], i)));
-  EXPECT_TRUE(reader->WaitForSamples(samples.size(), 60s)) << reader->stats().samples.load();
+  for (const auto& m : messages) EXPECT_TRUE(writer->Write(m));
+  EXPECT_TRUE(reader->WaitForSamples(expected, 60s)) << reader->stats().samples.load();
   reader.reset();
   std::lock_guard<std::mutex> lk(mu);
   return fixes;
+}
+
+// Samples with seq 0, 1, 2, …: the service answers every one.
+std::vector<msg::DipoleFix> Exchange(int domain, const std::vector<GradiometerSample>& samples) {
+  std::vector<msg::GradiometerSample> messages;
+  for (std::size_t i = 0; i < samples.size(); ++i) messages.push_back(dds::ToMsg(samples[i], i));
+  return ExchangeMessages(domain, messages, samples.size());
 }
 
 TEST(InverterService, FixForEverySampleBadOnesRejectedServiceSurvives) {
@@ -299,6 +307,45 @@ TEST(InverterServiceEdges, BadSamplesMidPassLeaveTheOtherFixesAsTheCleanRun) {
     EXPECT_LT((Position(got[i]) - want.p_DinW).norm(), 1e-9) << i;
   }
   EXPECT_GT(valid, 100);
+}
+
+// Sequence gaps and repeats on the wire (docs/RELIABILITY.md): a stream that
+// skips ten sequence numbers, repeats five samples exactly (a restarted
+// producer's history) and then starts over at seq 0 with new times. Every
+// first sample gets one fix, the repeats none; the gap is counted and logged
+// once, the step back too, and the service goes on.
+TEST(InverterServiceEdges, SequenceGapsAndRepeatsAreCountedAndSurvived) {
+  const int domain = testing::TestDomainId();
+  const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_squid.csv"));
+  std::vector<msg::GradiometerSample> sent;
+  for (std::size_t i = 0; i < 100; ++i) {
+    if (i >= 40 && i < 50) continue;  // never sent: seq 40..49
+    sent.push_back(dds::ToMsg(file.samples[700 + i], i));
+  }
+  for (std::size_t i = 20; i < 25; ++i) sent.push_back(dds::ToMsg(file.samples[700 + i], i));  // exact repeats
+  for (std::size_t i = 0; i < 5; ++i) sent.push_back(dds::ToMsg(file.samples[900 + i], i));    // started over
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
+                              {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}}, /*merge_stderr=*/true);
+  // One fix per first sample: 90 + 5. The service answers in the order it
+  // receives, so a fix of a repeat would come before the last one.
+  const std::vector<msg::DipoleFix> fixes = ExchangeMessages(domain, sent, 95);
+  service.Signal(SIGTERM);
+  ASSERT_EQ(service.Wait(10s), 0);
+  const std::string log = service.ReadAll();
+  ASSERT_EQ(fixes.size(), 95u);
+  for (std::size_t k = 0; k < 90; ++k) EXPECT_EQ(fixes[k].sample_seq(), k < 40 ? k : k + 10) << k;
+  for (std::size_t k = 90; k < 95; ++k) {
+    EXPECT_EQ(fixes[k].sample_seq(), k - 90);
+    EXPECT_EQ(fixes[k].stamp_ns(), sent[k + 5].stamp_ns());  // the new samples', not the repeats'
+  }
+  auto count = [&](const std::string& what) {
+    int n = 0;
+    for (auto p = log.find(what); p != std::string::npos; p = log.find(what, p + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count("10 message(s) missing before seq 50 (seq 40..49 never arrived"), 1) << log;
+  EXPECT_EQ(count("seq went back from 99 to 0"), 1) << log;
+  EXPECT_EQ(count("stopping after 100 samples (5 repeated, 10 missing)"), 1) << log;
 }
 
 }  // namespace

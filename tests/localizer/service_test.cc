@@ -104,11 +104,23 @@ TEST(LocalizerService, SkipsBadSamplesAndPublishesTheLibrarysEkfEstimates) {
         MagSample unknown = s;
         unknown.sensor_id = 42;
         ASSERT_TRUE(samples->Write(SampleMsg(unknown)));
-        MagSample backwards = file.pass.samples[i - 80];  // sensor of row i−80, 2 s in the past
+        ASSERT_TRUE(samples->Write(SampleMsg(file.pass.samples[i - 80])));  // an exact repeat: dropped as such
+        MagSample backwards = file.pass.samples[i - 80];  // sensor of row i−80, 2 s in the past, a new stamp
+        backwards.t_s += 0.0005;
         ASSERT_TRUE(samples->Write(SampleMsg(backwards)));
-        GnssFix bad_fix = gnss[g - 1];
+        MagSample nT_as_T = s;  // out of range: B in nT sent as T
+        nT_as_T.sensor_id = 5;
+        nT_as_T.B_T *= 1e9;
+        nT_as_T.B_T.z() = 45000.0;
+        ASSERT_TRUE(samples->Write(SampleMsg(nT_as_T)));
+        GnssFix bad_fix = gnss[g - 1];  // a new stamp (the same one would be a repeat of gnss[g - 1])
+        bad_fix.t_s += 0.0005;
         bad_fix.sigma_m = 0.0;
         ASSERT_TRUE(fixes->Write(FixMsg(bad_fix)));
+        GnssFix far_fix = gnss[g - 1];  // out of range: a position beyond 1e7 m
+        far_fix.t_s += 0.0006;
+        far_fix.p_xy_m.x() = 1e308;
+        ASSERT_TRUE(fixes->Write(FixMsg(far_fix)));
       }
     }
     while (g < gnss.size()) ASSERT_TRUE(fixes->Write(FixMsg(gnss[g++])));
@@ -132,8 +144,10 @@ TEST(LocalizerService, SkipsBadSamplesAndPublishesTheLibrarysEkfEstimates) {
   EXPECT_EQ(Count(log, "magnetometer 3 sample"), 1) << log;   // NaN: warned once
   EXPECT_EQ(Count(log, "magnetometer 42 sample"), 1) << log;  // unknown sensor
   EXPECT_EQ(Count(log, "time goes backwards"), 1) << log;
+  EXPECT_EQ(Count(log, "magnetometer 5 sample"), 1) << log;  // out of range
+  EXPECT_EQ(Count(log, "value out of range"), 1) << log;     // (the GNSS stream was warned already)
   EXPECT_EQ(Count(log, "vessel_nav sample"), 1) << log;
-  EXPECT_NE(log.find("5 skipped"), std::string::npos) << log;  // the final line's count
+  EXPECT_NE(log.find("7 skipped, 1 repeated"), std::string::npos) << log;  // the final line's counts
 
   ASSERT_EQ(last.size(), 8u) << log;
   for (const SensorEstimate& e : want.sensors) {

@@ -52,15 +52,17 @@ int main(int argc, char** argv) {
                  opt.tracker.track.window_s, flags.init_from, node.domain_id(), tracker_node.b0().Describe());
     magnav::dds::RunUntilShutdown(stats_period_s, [&] {
       spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} tracks ({} live), {} late, {} rejected, {} "
-                   "bad samples, {} before B0, {} repeated; {} fixes in, {} skipped",
+                   "bad samples, {} before B0, {} repeated, {} missing (sequence gaps); {} fixes in, {} skipped",
                    tracker_node.received(), tracker_node.published(), tracker_node.num_tracks(),
                    tracker_node.num_live_tracks(), tracker_node.dropped_late(), tracker_node.rejected(),
-                   tracker_node.bad_samples(), tracker_node.b0().waiting(), tracker_node.repeated(),
+                   tracker_node.bad_samples(), tracker_node.b0().waiting(), tracker_node.repeated(), tracker_node.missing(),
                    tracker_node.fixes_received(), tracker_node.fixes_rejected());
     });
     tracker_node.Flush();
     tracker_node.WaitForAcknowledgments(std::chrono::seconds(5));
-    spdlog::info("magnav-tracker: stopping after {} samples, {} estimates, {} tracks", tracker_node.received(),
-                 tracker_node.published(), tracker_node.num_tracks());
+    spdlog::info("magnav-tracker: stopping after {} samples ({} repeated, {} missing), {} estimates ({} not "
+                 "published), {} tracks",
+                 tracker_node.received(), tracker_node.repeated(), tracker_node.missing(), tracker_node.published(),
+                 tracker_node.not_published(), tracker_node.num_tracks());
   });
 }

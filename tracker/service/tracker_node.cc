@@ -58,7 +58,12 @@ const TrackerNodeOptions& Checked(const TrackerNodeOptions& o) {
 TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options,
                          std::unique_ptr<dds::RegionalFieldSource> b0)
     : options_(Checked(options)), b0_(std::move(b0)), tracker_(Eigen::Vector3d::Zero(), options.tracker) {
-  writer_ = node.CreateWriter<dds::msg::TrackEstimate>();
+  repeats_.SetLogName("magnav-tracker: magnav/gradiometer sensor");
+  // Acknowledgments after every 5 estimates (below the history depth of 10
+  // per track), waiting at most 2 s for a reader (a dead one is forgotten
+  // after the 3 s lease).
+  writer_ = std::make_unique<dds::QueuedWriter<dds::msg::TrackEstimate>>(node.CreateWriter<dds::msg::TrackEstimate>(),
+                                                                        5, std::chrono::seconds(2));
   if (options_.tracker.track.init.source != InitSource::kSamples) {
     fix_reader_ =
         node.CreateReader<dds::msg::DipoleFix>([this](const dds::msg::DipoleFix& m, const auto&) { OnFix(m); });
@@ -82,7 +87,10 @@ void TrackerNode::OnFix(const dds::msg::DipoleFix& m) {
 void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
   if (!repeats_.First(m)) return;
   GradiometerSample s = dds::FromMsg(m);
-  if (door_.Check(s) != SampleDefect::kNone) return;
+  if (door_.Check(s) != SampleDefect::kNone) {
+    repeats_.Forget(m);  // a refused sample must not make a later good one look like a repeat
+    return;
+  }
   const auto B0 = b0_->For(s);
   if (!B0) return;  // counted by the source (waiting)
   s.B -= *B0;
@@ -118,7 +126,10 @@ void TrackerNode::Flush() {
   std::lock_guard<std::mutex> lk(mu_);
   for (const auto& [t, s] : pending_) Feed(s);
   pending_.clear();
-  Publish(tracker_.Flush());
+  // Tracks ended by the end of the data are not unregistered: their last
+  // estimates stay in the writer's history (and, with the durable profile,
+  // in its store) for consumers that come later.
+  Publish(tracker_.Flush(), /*unregister_ended=*/false);
 }
 
 int TrackerNode::num_tracks() const {
@@ -131,16 +142,31 @@ int TrackerNode::num_live_tracks() const {
   return tracker_.num_live_tracks();
 }
 
-void TrackerNode::Publish(const std::vector<TrackOutput>& estimates) {
-  // A track's start is logged before its first estimate goes out.
+void TrackerNode::Publish(const std::vector<TrackOutput>& estimates, bool unregister_ended) {
+  // A track's start is logged before its first estimate goes out. Ended
+  // tracks stay registered (late consumers, and the durable profile's store,
+  // keep their last estimates) until kKeptEndedTracks newer ones ended; then
+  // the oldest is unregistered: track ids are never reused, and the writer
+  // must not keep every track it ever had (track_stream: 100 keys).
+  std::vector<std::uint32_t> ended;
   for (const TrackEvent& ev : tracker_.TakeEvents()) {
     if (ev.kind == TrackEvent::Kind::kStarted) {
       spdlog::info("magnav-tracker: track {} started at t = {} s ({})", ev.track_id, ev.t_s, ev.reason);
     } else {
       spdlog::info("magnav-tracker: track {} ended at t = {} s ({})", ev.track_id, ev.t_s, ev.reason);
+      ended_.push_back(ev.track_id);
+      while (unregister_ended && ended_.size() > kKeptEndedTracks) {
+        ended.push_back(ended_.front());
+        ended_.pop_front();
+      }
     }
   }
   for (const auto& o : estimates) writer_->Write(ToMsg(o.estimate, o.m_B_Am2, o.cov_m_B, o.track_id));
+  for (const std::uint32_t id : ended) {
+    dds::msg::TrackEstimate key;
+    key.track_id(id);
+    writer_->Unregister(key);
+  }
 }
 
 }  // namespace magnav::tracker

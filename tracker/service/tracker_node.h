@@ -19,11 +19,13 @@
 
 #include <set>
 
+#include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
 
 #include "magnav/dds/node.h"
+#include "magnav/dds/queued_writer.h"
 #include "magnav/dds/regional_field_source.h"
 #include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/sample_door.h"
@@ -49,15 +51,20 @@ class TrackerNode {
   TrackerNode(dds::Node& node, const TrackerNodeOptions& options, std::unique_ptr<dds::RegionalFieldSource> b0);
   // Feeds what is still buffered to the tracker and publishes the result.
   void Flush();
-  // Waits until the readers acknowledged every estimate (before shutdown).
+  // Waits until every estimate is written and the readers acknowledged it
+  // (before shutdown).
   bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
 
   std::uint64_t received() const { return reader_->stats().samples.load(); }
   std::uint64_t published() const { return writer_->stats().samples.load(); }
+  std::uint64_t flow_timeouts() const { return writer_->stats().flow_timeouts.load(); }
+  // Estimates the middleware refused, or dropped from a full queue.
+  std::uint64_t not_published() const { return writer_->refused() + writer_->dropped(); }
   std::uint64_t dropped_late() const { return dropped_late_; }
   std::uint64_t rejected() const { return rejected_; }
   std::uint64_t bad_samples() const { return door_.rejected(); }
   std::uint64_t repeated() const { return repeats_.repeats() + fix_repeats_.repeats(); }
+  std::uint64_t missing() const { return repeats_.missing(); }  // sequence gaps of the samples
   const dds::RegionalFieldSource& b0() const { return *b0_; }
   std::uint64_t fixes_received() const { return fix_reader_ ? fix_reader_->stats().samples.load() : 0; }
   std::uint64_t fixes_rejected() const { return fixes_rejected_; }
@@ -68,7 +75,8 @@ class TrackerNode {
   void OnSample(const dds::msg::GradiometerSample& m);
   void OnFix(const dds::msg::DipoleFix& m);
   void Feed(const GradiometerSample& s);  // mu_ held
-  void Publish(const std::vector<TrackOutput>& estimates);  // mu_ held; logs starts and ends
+  // mu_ held; logs starts and ends, unregisters ended tracks' keys if asked.
+  void Publish(const std::vector<TrackOutput>& estimates, bool unregister_ended = true);
 
   TrackerNodeOptions options_;
   mutable std::mutex mu_;
@@ -79,9 +87,14 @@ class TrackerNode {
   std::set<std::uint32_t> no_sigma_logged_;  // sensors whose missing σ was logged
   MultiTracker tracker_;
   std::multimap<double, GradiometerSample> pending_;  // by time
+  std::deque<std::uint32_t> ended_;                   // ended tracks still registered, oldest first
+  static constexpr std::size_t kKeptEndedTracks = 50;
   double fed_until_s_ = -1e300;
   std::uint64_t dropped_late_ = 0, rejected_ = 0, fixes_rejected_ = 0;
-  std::unique_ptr<dds::Writer<dds::msg::TrackEstimate>> writer_;
+  // Estimates go out from the writer's own thread with flow control: a burst
+  // (a restart rebuilding tracks from the history) is not overwritten in the
+  // KEEP_LAST 10 history before the readers have it (queued_writer.h).
+  std::unique_ptr<dds::QueuedWriter<dds::msg::TrackEstimate>> writer_;
   std::unique_ptr<dds::Reader<dds::msg::GradiometerSample>> reader_;
   std::unique_ptr<dds::Reader<dds::msg::DipoleFix>> fix_reader_;  // null with init source kSamples
 };

@@ -134,6 +134,15 @@ class Writer {
     if (ok) ++stats_.samples;
     return ok;
   }
+  // Ends the instance (key) of `sample`: the writer forgets its history, and
+  // readers see it as not alive. For keys that never come back (a track that
+  // ended: track ids are never reused), so that a writer running for weeks
+  // does not run into its profile's max_instances. False if refused.
+  bool Unregister(const M& sample) {
+    M copy = sample;
+    return writer_->unregister_instance(&copy, eprosima::fastrtps::rtps::c_InstanceHandle_Unknown) ==
+           eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK;
+  }
   // Flow control for senders that publish faster than readers may take (a
   // file replayed without pacing): every `window` samples, wait until every
   // matched reader has acknowledged all of them (at most `timeout`; then it

@@ -14,9 +14,15 @@
 // Fast DDS bug, eProsima/Fast-DDS#4728): the restarted service receives
 // nothing. Measured in Dds.RestartAfterKill_inverter: 1 run in 7 without data
 // when the inverter came back 0.3 s after kill -9; 20 of 20 fine when it came
-// back after the lease. So a Node that finds a dead process's port waits out
-// the lease first (kZombiePortWait), then removes the dead ports, and only then
-// creates its participant.
+// back after the lease. Waiting out the lease before joining (what magnav did
+// next) was not enough: a restarted magnav-tracker still received nothing in
+// 1 of 10 runs (Dds.RestartAfterKill_tracker, 2026-11-25). So a Node that
+// finds a dead process's port on its domain does not take that port number
+// again: it joins at once with a participant index that no shared-memory
+// port of the domain uses, alive or dead (FreshParticipantId; its ports are
+// new files, never a dead one's), and removes the dead ports only after the
+// lease (kZombiePortWaitS), in the background, when no writer sends to them
+// any more.
 #pragma once
 
 #include <string>
@@ -30,9 +36,18 @@ struct ShmCleanResult {
   std::vector<std::string> dead_ports;  // ports whose listener died (not removed: see above)
 };
 
-// How long a Node waits after finding a dead port, before removing it and
-// joining: the loopback profile's lease (3 s) and a margin.
+// How long after finding a dead port a Node removes it: the loopback
+// profile's lease (3 s) and a margin.
 inline constexpr double kZombiePortWaitS = 4.0;
+
+// Port numbers of every shared-memory port in `dir` (`fastrtps_port<N>`),
+// alive or dead.
+std::vector<int> SharedMemoryPorts(const std::string& dir = "/dev/shm");
+
+// The lowest participant index whose ports (Fast DDS's well-known ports:
+// 7400 + 250·domain + 10 + 2·index for discovery, + 11 + 2·index for data)
+// are none of `ports`; -1 if the domain has no free index below max_index.
+int FreshParticipantId(int domain_id, const std::vector<int>& ports, int max_index = 32);
 
 // Removes the files of dead owners in `dir`. Lock files younger than
 // `min_age_s` are left alone (a process that is just starting may not have

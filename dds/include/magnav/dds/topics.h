@@ -68,7 +68,7 @@ MAGNAV_TOPIC(GradiometerSample, "magnav/gradiometer", "sensor_stream_writer", "s
 MAGNAV_TOPIC(MagnetometerSample, "magnav/magnetometer", "sensor_stream_writer", "sensor_stream_reader");
 MAGNAV_TOPIC(VesselNav, "magnav/vessel_nav", "sensor_stream_writer", "sensor_stream_reader");
 MAGNAV_TOPIC(DipoleFix, "magnav/dipole_fix", "fix_stream_writer", "fix_stream_reader");
-MAGNAV_TOPIC(TrackEstimate, "magnav/track", "estimate_writer", "estimate_reader");
+MAGNAV_TOPIC(TrackEstimate, "magnav/track", "track_stream_writer", "track_stream_reader");
 MAGNAV_TOPIC(SensorPositionEstimate, "magnav/sensor_position", "estimate_writer", "estimate_reader");
 MAGNAV_TOPIC(MapFix, "magnav/map_fix", "estimate_writer", "estimate_reader");
 
