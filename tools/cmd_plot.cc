@@ -39,7 +39,7 @@ using Rows = std::vector<std::vector<double>>;
 // A number of a row, or nullopt for an empty or "nan" cell (a rejected fix
 // has no position: magnav invert leaves it empty, magnav record writes nan).
 std::optional<double> Cell(const CsvTable& t, std::size_t row, std::size_t col) {
-  std::string text = t.text(row, col);
+  std::string text(t.text(row, col));
   std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return std::tolower(c); });
   if (text.empty() || text == "nan" || text == "-nan") return std::nullopt;
   return t.number(row, col);
@@ -183,7 +183,7 @@ void Fixes(const PlotArgs& a, GnuplotFigure* fig) {
   std::map<std::string, int> undrawn;
   for (std::size_t i = 0; i < f.num_rows(); ++i) {
     const bool valid = f.integer(i, cv) != 0;
-    const std::string reason = valid ? "accepted" : (cr ? f.text(i, *cr) : std::string("rejected"));
+    const std::string reason = valid ? "accepted" : (cr ? std::string(f.text(i, *cr)) : std::string("rejected"));
     const auto x = Cell(f, i, cx), y = Cell(f, i, cy);
     if (x && y && std::isfinite(*x) && std::isfinite(*y)) {
       drawn[reason].push_back({*y, *x});

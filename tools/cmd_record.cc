@@ -187,6 +187,10 @@ class Sink {
     ++count_;
   }
   std::uint64_t count() const { return count_.load(); }
+  void Flush() {
+    std::lock_guard<std::mutex> lk(mu_);
+    if (writer_) writer_->Flush();
+  }
   void Close() {
     if (writer_) writer_->Close();
   }
@@ -220,6 +224,7 @@ Recording Subscribe(dds::Node& node, const std::string& topic, const std::string
   // A message seen before (a restarted producer's history: same key, seq and
   // time) is written once.
   r.repeats = std::make_shared<dds::RepeatFilter>();
+  r.repeats->SetLogName("record: magnav/" + topic + " key");
   dds::RepeatFilter* repeats = r.repeats.get();
   std::shared_ptr<dds::Reader<M>> reader = node.CreateReader<M>([sink, count, repeats](const M& m, const auto&) {
     if ((count == 0 || sink->count() < count) && repeats->First(m)) sink->Write(Row(m));
@@ -266,7 +271,14 @@ void Run(const RecordArgs& a) {
   }
   // Until SIGINT/SIGTERM, the duration, or every topic's --count.
   const auto start = std::chrono::steady_clock::now();
+  auto next_flush = start + std::chrono::seconds(1);
   while (!dds::ShutdownRequested()) {
+    // Once a second the rows so far go to the temporary: after kill -9 it
+    // holds all but the last second's (docs/RELIABILITY.md).
+    if (std::chrono::steady_clock::now() >= next_flush) {
+      for (Recording& r : rec) r.sink->Flush();
+      next_flush += std::chrono::seconds(1);
+    }
     if (a.count > 0 && std::all_of(rec.begin(), rec.end(), [&](const Recording& r) { return r.sink->count() >= a.count; })) {
       break;
     }
@@ -286,6 +298,11 @@ void Run(const RecordArgs& a) {
     if (r.repeats->repeats() > 0) {
       std::fprintf(stderr, "record: %llu repeated message(s) on magnav/%s written once (same key, seq and time)\n",
                    static_cast<unsigned long long>(r.repeats->repeats()), r.topic.c_str());
+    }
+    if (r.repeats->missing() > 0 || r.repeats->restarts() > 0) {
+      std::fprintf(stderr, "record: %llu message(s) on magnav/%s missing by sequence number, %llu step(s) back\n",
+                   static_cast<unsigned long long>(r.repeats->missing()), r.topic.c_str(),
+                   static_cast<unsigned long long>(r.repeats->restarts()));
     }
     std::fprintf(stderr, "recorded %llu %s sample(s)\n", static_cast<unsigned long long>(r.sink->count()),
                  r.topic.c_str());

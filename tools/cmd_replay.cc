@@ -19,6 +19,7 @@
 #include <unordered_map>
 
 #include "commands.h"
+#include "magnav/cli/progress.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
@@ -42,36 +43,6 @@ struct ReplayArgs {
   double wait_s = 10.0;
   double settle_s = 0.25;       // after the readers matched, before the first sample
   DdsArgs dds;
-};
-
-// Progress of a replay: on a terminal one line redrawn four times a second
-// (samples sent of the total, rate, time left); otherwise a plain line every
-// 10 s (none for a replay shorter than that).
-class Progress {
- public:
-  Progress(std::size_t total, bool loop) : total_(total), loop_(loop), tty_(isatty(fileno(stdout)) != 0) {}
-  void Sent(std::size_t n) {
-    const auto now = std::chrono::steady_clock::now();
-    if (now < next_) return;
-    next_ = now + (tty_ ? std::chrono::milliseconds(250) : std::chrono::milliseconds(10000));
-    const double elapsed = std::chrono::duration<double>(now - start_).count();
-    if (elapsed < 0.25) return;  // no rate from the first samples (and no line at all before 10 s off a terminal)
-    const double rate = elapsed > 0 ? static_cast<double>(n) / elapsed : 0.0;
-    std::string line = "replay: " + std::to_string(n) + (loop_ ? "" : " of " + std::to_string(total_)) +
-                       " samples, " + FormatNumber(std::round(rate)) + "/s";
-    if (!loop_ && rate > 0 && n <= total_) line += ", " + FormatNumber(std::round((total_ - n) / rate)) + " s left";
-    std::printf(tty_ ? "\r%-70s" : "%s\n", line.c_str());
-    std::fflush(stdout);
-    shown_ = true;
-  }
-  void Done() {
-    if (tty_ && shown_) std::printf("\r%-70s\r", "");
-  }
-
- private:
-  std::size_t total_;
-  bool loop_, tty_, shown_ = false;
-  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), next_ = start_;
 };
 
 // One timed message of the localize streams.
@@ -234,7 +205,7 @@ void Run(const ReplayArgs& a) {
     for (std::size_t i = 1; i < file.samples.size() && step == 0.0; ++i) step = file.samples[i].t_s - file_t0;
     span_s = last - file_t0 + step;
   }
-  Progress progress(file.samples.size(), a.loop);
+  cli::Progress progress("replay", "samples", a.loop ? 0 : file.samples.size());
   std::size_t sent = 0;
   for (int pass = 0; pass == 0 || (a.loop && !dds::ShutdownRequested()); ++pass) {
     for (GradiometerSample s : file.samples) {
@@ -247,7 +218,7 @@ void Run(const ReplayArgs& a) {
       if (!writer->Write(dds::ToMsg(s, seq[s.sensor_id]++))) {
         throw InputError("replay: the middleware refused a sample");
       }
-      progress.Sent(++sent);
+      progress.Update(++sent);
     }
   }
   progress.Done();

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "commands.h"
+#include "magnav/cli/progress.h"
 #include "magnav/cli/tracker_options.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
@@ -26,6 +27,10 @@
 namespace magnav::tools {
 
 namespace {
+
+// Passes of at least this many epochs also say each track's refinement (a
+// line each off a terminal); shorter ones only the window pass's progress.
+constexpr std::size_t kSayStagesFromEpochs = 100000;
 
 struct TrackArgs {
   std::string input, output, mode = "batch";
@@ -127,7 +132,7 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
 
 void RunTrack(const TrackArgs& a) {
   RefuseOutputOverInput(a.output, {a.input, a.fixes});
-  const GradiometerFile f = ReadGradiometerFile(a.input);
+  GradiometerFile f = ReadGradiometerFile(a.input);
   if (!f.has_time) throw InputError(a.input + ": missing column 't': a pass to track needs its time column (s)");
   Eigen::Vector3d B0;
   if (a.b0.set) {
@@ -168,7 +173,17 @@ void RunTrack(const TrackArgs& a) {
   std::string summary;
   if (a.mode == "batch") {
     const auto epochs = tracker::GroupEpochs(f.samples, opt.epoch_tolerance_s);
-    const auto tracks = tracker::SolveBatchMulti(epochs, B0, mopt, given);
+    std::vector<GradiometerSample>().swap(f.samples);  // the epochs hold them now (a long pass: half the memory)
+    cli::Progress progress("track", "epochs", epochs.size(), stderr);
+    const auto tracks = tracker::SolveBatchMulti(
+        epochs, B0, mopt, given, [&](const std::string& stage, std::size_t done, std::size_t total) {
+          if (total > 0) {
+            progress.Update(done, stage);
+          } else if (epochs.size() >= kSayStagesFromEpochs) {
+            progress.Say(stage);
+          }
+        });
+    progress.Done();
     for (const auto& t : tracks) {
       tracker::TrackRecord r;
       r.track_id = t.track_id;
@@ -190,10 +205,14 @@ void RunTrack(const TrackArgs& a) {
     const auto take = [&](const std::vector<tracker::TrackOutput>& out) {
       for (const auto& o : out) rows.push_back({o.track_id, o.estimate});
     };
-    for (const auto& s : f.samples) {
+    cli::Progress progress("track", "samples", f.samples.size(), stderr);
+    for (std::size_t i = 0; i < f.samples.size(); ++i) {
+      const GradiometerSample& s = f.samples[i];
       while (given && next_fix < given->size() && (*given)[next_fix].t_s <= s.t_s) tr.AddFix((*given)[next_fix++]);
       take(tr.AddSample(s));
+      progress.Update(i + 1, "window");
     }
+    progress.Done();
     take(tr.Flush());
     records = tr.Tracks();
     summary = tr.summary().BriefReport();

@@ -1,5 +1,6 @@
 #include "magnav/core/csv.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -90,111 +91,156 @@ std::string FormatNumber(double value) {
   return std::string(buf, ptr);
 }
 
-CsvTable CsvTable::Read(const std::string& path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw InputError(path + ": is a directory, not a file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open file for reading");
-  // Read in chunks, never holding a line longer than kMaxLineBytes: a device
-  // or a binary file without newlines (/dev/zero) fails after 1 MiB instead of
-  // growing memory until the machine gives out.
-  std::string text;
-  std::vector<char> chunk(1 << 16);
-  std::size_t line_start = 0;  // offset of the current (unfinished) line
-  std::size_t lines = 1;
-  while (in) {
-    in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
-    const std::size_t n = static_cast<std::size_t>(in.gcount());
-    if (n == 0) break;
-    const std::size_t old_size = text.size();
-    text.append(chunk.data(), n);
-    for (std::size_t i = old_size; i < text.size(); ++i) {
-      if (text[i] == '\n') {
-        line_start = i + 1;
-        ++lines;
-      }
-    }
-    if (text.size() - line_start > kMaxLineBytes) {
-      throw InputError(path + ":" + std::to_string(lines) + ": line longer than " +
-                       std::to_string(kMaxLineBytes >> 20) + " MiB (no newline): not a CSV file");
-    }
-  }
-  if (in.bad()) throw InputError(path + ": read error");
-  return Parse(text, path);
-}
+// Turns lines into a CsvTable one at a time (Read feeds them as chunks of
+// the file arrive, Parse from text in memory).
+class CsvTable::Parser {
+ public:
+  explicit Parser(const std::string& source) { t_.source_ = source; }
+  // The fields of a file of `bytes` take at most that much: reserved at
+  // once, the buffer never grows by doubling (a 289 MB file peaked at 634 MB).
+  void Reserve(std::size_t bytes) { t_.fields_.reserve(std::min(bytes, kMaxFieldBytes)); }
 
-CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
-  CsvTable t;
-  t.source_ = source;
-  int line_no = 0;
-  std::size_t pos = 0;
-  bool have_header = false;
-  bool ends_with_newline = text.empty() || text.back() == '\n';
-  // A UTF-8 byte-order mark (as some editors and spreadsheets write) is not
-  // part of the first column's name.
-  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
-  int header_line = 0;
-  while (pos < text.size()) {
-    std::size_t nl = text.find('\n', pos);
-    const bool last = nl == std::string_view::npos;
-    std::string_view line = text.substr(pos, last ? text.npos : nl - pos);
-    pos = last ? text.size() : nl + 1;
-    ++line_no;
+  // One line without its '\n'; `unterminated`: the file's last line, with no
+  // newline after it.
+  void Line(std::string_view line, bool unterminated) {
+    ++line_no_;
+    // A UTF-8 byte-order mark (as some editors and spreadsheets write) is
+    // not part of the first column's name.
+    if (line_no_ == 1 && line.substr(0, 3) == "\xEF\xBB\xBF") line.remove_prefix(3);
     const std::string_view trimmed = Trim(line);
-    if (trimmed.empty()) continue;
+    if (trimmed.empty()) return;
     if (trimmed.front() == '#') {
       std::string_view body = Trim(trimmed.substr(1));
       const std::size_t colon = body.find(':');
       if (colon != std::string_view::npos) {
         const std::string_view key = Trim(body.substr(0, colon));
-        if (IsParamKey(key)) t.params_[std::string(key)] = std::string(Trim(body.substr(colon + 1)));
+        if (IsParamKey(key)) t_.params_[std::string(key)] = std::string(Trim(body.substr(colon + 1)));
       }
-      continue;
+      return;
     }
     if (trimmed.find('\0') != std::string_view::npos) {
-      throw InputError(source + ":" + std::to_string(line_no) + ": binary data (NUL byte) in a CSV file");
+      throw InputError(Where() + "binary data (NUL byte) in a CSV file");
     }
-    std::vector<std::string> fields = SplitFields(trimmed);
-    if (!have_header) {
-      // A set, not a pairwise comparison: a header line of 1 MiB holds 10^5
-      // names, and comparing each with every earlier one took minutes.
-      std::unordered_set<std::string_view> names;
-      names.reserve(fields.size());
-      for (std::size_t i = 0; i < fields.size(); ++i) {
-        if (fields[i].empty()) {
-          throw InputError(source + ":" + std::to_string(line_no) + ": header column " +
-                           std::to_string(i + 1) + " has no name");
+    if (header_line_ == 0) return Header(trimmed);
+    // Fields straight into the table's buffer; counted, then checked.
+    const std::size_t columns = t_.header_.size();
+    std::size_t n = 0;
+    for (std::size_t start = 0;; ++n) {
+      const std::size_t comma = trimmed.find(',', start);
+      const std::string_view f = Trim(trimmed.substr(start, comma == std::string_view::npos ? trimmed.npos
+                                                                                            : comma - start));
+      if (n < columns) {
+        if (t_.fields_.size() + f.size() > kMaxFieldBytes) {
+          throw InputError(Where() + "more than 4 GiB of fields: the file is too large to read whole");
         }
-        if (!names.insert(fields[i]).second) {
-          throw InputError(source + ":" + std::to_string(line_no) + ": duplicate column " +
-                           Quote(fields[i]) + " in header");
-        }
+        t_.fields_.append(f);
+        t_.ends_.push_back(static_cast<std::uint32_t>(t_.fields_.size()));
       }
-      t.header_ = std::move(fields);
-      have_header = true;
-      header_line = line_no;
-      continue;
+      if (comma == std::string_view::npos) break;
+      start = comma + 1;
     }
-    if (fields.size() != t.header_.size()) {
-      std::string what = fields.size() < t.header_.size() ? "short row" : "long row";
-      std::string msg = source + ":" + std::to_string(line_no) + ": " + what + ": " +
-                        std::to_string(fields.size()) + " fields, header has " +
-                        std::to_string(t.header_.size());
-      if (fields.size() < t.header_.size()) msg += " (first missing column " + Quote(t.header_[fields.size()]) + ")";
-      if (last && !ends_with_newline) msg += "; the file looks truncated (no newline at end)";
+    ++n;
+    if (n != columns) {
+      std::string what = n < columns ? "short row" : "long row";
+      std::string msg = Where() + what + ": " + std::to_string(n) + " fields, header has " + std::to_string(columns);
+      if (n < columns) msg += " (first missing column " + Quote(t_.header_[n]) + ")";
+      if (unterminated) msg += "; the file looks truncated (no newline at end)";
       throw InputError(msg);
     }
-    t.rows_.push_back(std::move(fields));
-    t.lines_.push_back(line_no);
+    t_.lines_.push_back(line_no_);
   }
-  if (!have_header) {
-    throw InputError(source + ": empty file: no header row" +
-                     std::string(line_no > 0 ? " (only comments or blank lines)" : ""));
+
+  CsvTable Finish() {
+    if (header_line_ == 0) {
+      throw InputError(t_.source_ + ": empty file: no header row" +
+                       std::string(line_no_ > 0 ? " (only comments or blank lines)" : ""));
+    }
+    if (t_.lines_.empty()) {
+      throw InputError(t_.source_ + ":" + std::to_string(header_line_) +
+                       ": no data rows (the file ends after its header)");
+    }
+    if (t_.fields_.capacity() > 2 * t_.fields_.size() + 4096) t_.fields_.shrink_to_fit();
+    t_.ends_.shrink_to_fit();
+    t_.lines_.shrink_to_fit();
+    return std::move(t_);
   }
-  if (t.rows_.empty()) {
-    throw InputError(source + ":" + std::to_string(header_line) + ": no data rows (the file ends after its header)");
+
+  int line_no() const { return line_no_; }
+
+ private:
+  std::string Where() const { return t_.source_ + ":" + std::to_string(line_no_) + ": "; }
+
+  void Header(std::string_view line) {
+    std::vector<std::string> fields = SplitFields(line);
+    // A set, not a pairwise comparison: a header line of 1 MiB holds 10^5
+    // names, and comparing each with every earlier one took minutes.
+    std::unordered_set<std::string_view> names;
+    names.reserve(fields.size());
+    for (std::size_t i = 0; i < fields.size(); ++i) {
+      if (fields[i].empty()) throw InputError(Where() + "header column " + std::to_string(i + 1) + " has no name");
+      if (!names.insert(fields[i]).second) {
+        throw InputError(Where() + "duplicate column " + Quote(fields[i]) + " in header");
+      }
+    }
+    t_.header_ = std::move(fields);
+    header_line_ = line_no_;
   }
-  return t;
+
+  CsvTable t_;
+  int line_no_ = 0;
+  int header_line_ = 0;
+};
+
+CsvTable CsvTable::Read(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) throw InputError(path + ": is a directory, not a file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open file for reading");
+  // Read in chunks and parse each complete line at once, never holding a line
+  // longer than kMaxLineBytes: a device or a binary file without newlines
+  // (/dev/zero) fails after 1 MiB instead of growing memory until the machine
+  // gives out, and a large file is not held twice (text and fields).
+  Parser parser(path);
+  if (::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) parser.Reserve(static_cast<std::size_t>(st.st_size));
+  std::string pending;  // the unfinished line
+  std::vector<char> chunk(1 << 16);
+  while (in) {
+    in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    const std::size_t n = static_cast<std::size_t>(in.gcount());
+    if (n == 0) break;
+    std::string_view data(chunk.data(), n);
+    for (std::size_t nl; (nl = data.find('\n')) != std::string_view::npos; data.remove_prefix(nl + 1)) {
+      if (pending.empty()) {
+        parser.Line(data.substr(0, nl), false);
+      } else {
+        pending.append(data.substr(0, nl));
+        parser.Line(pending, false);
+        pending.clear();
+      }
+    }
+    pending.append(data);
+    if (pending.size() > kMaxLineBytes) {
+      throw InputError(path + ":" + std::to_string(parser.line_no() + 1) + ": line longer than " +
+                       std::to_string(kMaxLineBytes >> 20) + " MiB (no newline): not a CSV file");
+    }
+  }
+  if (in.bad()) throw InputError(path + ": read error");
+  if (!pending.empty()) parser.Line(pending, true);
+  return parser.Finish();
+}
+
+CsvTable CsvTable::Parse(std::string_view text, const std::string& source) {
+  Parser parser(source);
+  while (!text.empty()) {
+    const std::size_t nl = text.find('\n');
+    if (nl == std::string_view::npos) {
+      parser.Line(text, true);
+      break;
+    }
+    parser.Line(text.substr(0, nl), false);
+    text.remove_prefix(nl + 1);
+  }
+  return parser.Finish();
 }
 
 bool CsvTable::has_column(std::string_view name) const { return find_column(name).has_value(); }
@@ -214,14 +260,14 @@ std::size_t CsvTable::column(std::string_view name) const {
 }
 
 double CsvTable::number(std::size_t row, std::size_t col) const {
-  const std::string& f = rows_[row][col];
+  const std::string_view f = text(row, col);
   if (auto v = ParseNumber(f)) return *v;
   throw InputError(source_ + ":" + std::to_string(lines_[row]) + ": column " + Quote(header_[col]) + ": " +
                    (f.empty() ? std::string("empty field") : Quote(f) + " is not a finite number"));
 }
 
 long long CsvTable::integer(std::size_t row, std::size_t col) const {
-  const std::string& f = rows_[row][col];
+  const std::string_view f = text(row, col);
   long long v = 0;
   const auto [ptr, ec] = std::from_chars(f.data(), f.data() + f.size(), v);
   if (ec == std::errc() && ptr == f.data() + f.size() && v >= 0) return v;
@@ -386,6 +432,11 @@ void CsvWriter::WriteRow(const std::vector<std::string>& fields) {
   }
   for (std::size_t i = 0; i < fields.size(); ++i) impl_->out << (i ? "," : "") << fields[i];
   impl_->out << '\n';
+}
+
+void CsvWriter::Flush() {
+  impl_->out.flush();
+  if (!impl_->out) throw InputError(path_ + ": write failed");
 }
 
 void CsvWriter::Close() {

@@ -6,6 +6,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <set>
 #include <thread>
@@ -101,6 +102,43 @@ TEST(MagnavCli, RecordStoppedBySigtermLeavesACompleteFile) {
   std::size_t files = 0;
   for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++files;
   EXPECT_EQ(files, 2u);  // p.csv, r.csv
+}
+
+// kill -9 (no chance to close): the output is absent and the rows received
+// up to a second before are in its temporary OUTPUT.tmp-PID-N, each whole
+// (record flushes once a second; without that, these 21 rows, about 6 KB,
+// would still be in the stream's buffer and the file would hold no row).
+TEST(MagnavCli, RecordKilledLeavesItsRowsWholeInTheTemporary) {
+  const std::string dir = testing::TempDir();
+  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}};
+  ASSERT_EQ(testing::RunCommand({kMagnav, "simulate", "--turns", "2:0.1", "--sensors", "0,0,0", "--output",
+                                 dir + "/p.csv"}).first, 0);
+  const GradiometerFile sent = ReadGradiometerFile(dir + "/p.csv");
+  ASSERT_EQ(sent.samples.size(), 21u);
+  testing::Subprocess rec({kMagnav, "record", "--topic", "gradiometer", "--output", dir + "/r.csv"}, env);
+  const auto [rc, out] = testing::RunCommand({kMagnav, "replay", "--input", dir + "/p.csv", "--speed", "0"}, env);
+  ASSERT_EQ(rc, 0) << out;
+  std::this_thread::sleep_for(2500ms);  // two of record's once-a-second flushes
+  rec.Signal(SIGKILL);
+  EXPECT_EQ(rec.Wait(10s), -1);  // died of the signal
+  EXPECT_FALSE(std::filesystem::exists(dir + "/r.csv"));
+  std::vector<std::string> temps;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("r.csv.tmp-", 0) == 0) temps.push_back(e.path().string());
+  }
+  ASSERT_EQ(temps.size(), 1u);
+  std::ifstream in(temps[0], std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_FALSE(text.empty());
+  EXPECT_EQ(text.back(), '\n') << "a row was cut";
+  const CsvTable got = CsvTable::Parse(text, temps[0]);
+  ASSERT_EQ(got.num_rows(), sent.samples.size());
+  for (std::size_t r = 0; r < got.num_rows(); ++r) {
+    EXPECT_EQ(got.integer(r, got.column("seq")), static_cast<long long>(r));
+    EXPECT_NEAR(got.number(r, got.column("t")), sent.samples[r].t_s, 1e-9);
+    EXPECT_EQ(got.number(r, got.column("T12")), sent.samples[r].T(1, 2));
+  }
 }
 
 }  // namespace

@@ -261,5 +261,21 @@ TEST(TrackCli, SimulatedTwoVesselFieldIsTrackedAndScoredPerVessel) {
   EXPECT_NE(out5.find("vessel ids must be unique"), std::string::npos) << out5;
 }
 
+// A long pass (100,001 rows, a vessel passing and then 10,000 s of data):
+// tracked in one go, and off a terminal `magnav track` says what it is doing
+// (each track's refinement; at least every 10 s the window pass's progress).
+TEST(TrackCli, LongPassSaysWhatItIsDoing) {
+  const std::string dir = testing::TempDir();
+  auto [rc, out] = testing::RunCommand({kMagnav, "simulate", "--noise", "fluxgate", "--turns", "10000:0", "--sensors",
+                                        "0,0,0", "--output", dir + "/long.csv", "--truth", dir + "/truth.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) = Track({"--input", dir + "/long.csv", "--output", dir + "/track.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("track: refining track 1, round 1 of 2"), std::string::npos) << out;
+  EXPECT_NE(out.find("track: refining track 1, round 2 of 2"), std::string::npos) << out;
+  const CsvTable t = CsvTable::Read(dir + "/track.csv");
+  EXPECT_GT(t.num_rows(), 300u);  // the vessel's pass near the sensor
+}
+
 }  // namespace
 }  // namespace magnav::tracker

@@ -38,7 +38,8 @@ struct TrackPath {
 
 std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                                 const MultiTrackerOptions& options,
-                                                const std::vector<DipoleFix>* fixes) {
+                                                const std::vector<DipoleFix>* fixes,
+                                                const BatchProgress& progress) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("multi-tracker options: " + why);
   // 1. The causal pass finds the vessels.
@@ -55,6 +56,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       finder.AddFix((*fixes)[next_fix++]);
     }
     take(finder.AddEpoch(e));
+    if (progress) progress("finding tracks", static_cast<std::size_t>(&e - epochs.data()) + 1, epochs.size());
   }
   take(finder.Flush());
   std::vector<MultiTrackEstimate> result;
@@ -104,6 +106,11 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       now[i].m_B = result[i].track.m_B_Am2;
     }
     for (std::size_t i = 0; i < result.size(); ++i) {
+      if (progress) {
+        progress("refining track " + std::to_string(result[i].track_id) + ", round " + std::to_string(round + 1) +
+                     " of " + std::to_string(options.batch_rounds),
+                 0, 0);
+      }
       const auto [t0, t1] = spans[i];
       std::vector<Epoch> mine;
       std::vector<DipoleFix> track_fixes;

@@ -25,18 +25,23 @@ class CsvTable {
   // Longest line Read accepts (1 MiB): a file without newlines (a device such
   // as /dev/zero, a binary file) is refused after that much, not read whole.
   static constexpr std::size_t kMaxLineBytes = std::size_t{1} << 20;
+  // Most text of all fields together (4 GiB - 1: offsets are 32-bit).
+  static constexpr std::size_t kMaxFieldBytes = 0xFFFFFFFFu;
 
   // Reads a file; throws InputError (missing file, a directory, empty file, no
   // header, no data row after the header, duplicate column names, a row with
-  // the wrong number of fields, a line longer than kMaxLineBytes). A UTF-8
-  // byte-order mark is skipped and CRLF line ends are read as LF.
+  // the wrong number of fields, a line longer than kMaxLineBytes, more than
+  // kMaxFieldBytes of fields). A UTF-8 byte-order mark is skipped and CRLF
+  // line ends are read as LF. Lines are parsed as they are read: memory is
+  // the fields' text plus 4 bytes per field and per row (about 1.3x the
+  // file), never the file twice.
   static CsvTable Read(const std::string& path);
   // Parses text already in memory; `source` names it in errors.
   static CsvTable Parse(std::string_view text, const std::string& source);
 
   const std::string& source() const { return source_; }
   const std::vector<std::string>& header() const { return header_; }
-  std::size_t num_rows() const { return rows_.size(); }
+  std::size_t num_rows() const { return lines_.size(); }
   // 1-based line number of a data row in the source.
   int line_of(std::size_t row) const { return lines_[row]; }
 
@@ -46,7 +51,11 @@ class CsvTable {
   // Index of the first present column among names, or nullopt.
   std::optional<std::size_t> find_column(std::string_view name) const;
 
-  const std::string& text(std::size_t row, std::size_t col) const { return rows_[row][col]; }
+  // The field's text (trimmed); valid as long as the table.
+  std::string_view text(std::size_t row, std::size_t col) const {
+    const std::size_t k = row * header_.size() + col;
+    return std::string_view(fields_).substr(ends_[k], ends_[k + 1] - ends_[k]);
+  }
   // The field as a finite double; throws "FILE:LINE: column 'NAME': 'abc' is not a number".
   double number(std::size_t row, std::size_t col) const;
   // The field as a non-negative integer.
@@ -65,10 +74,14 @@ class CsvTable {
   std::optional<double> param_number(const std::string& key) const;
 
  private:
+  class Parser;
   std::string source_;
   std::vector<std::string> header_;
-  std::vector<std::vector<std::string>> rows_;
-  std::vector<int> lines_;
+  // Every data field's text, row after row; field k (row r, column c: k =
+  // r·columns + c) is fields_[ends_[k], ends_[k+1]).
+  std::string fields_;
+  std::vector<std::uint32_t> ends_{0};
+  std::vector<int> lines_;  // per data row
   std::map<std::string, std::string> params_;
 };
 
@@ -106,6 +119,10 @@ class CsvWriter {
 
   void AddComment(const std::string& text);
   void WriteRow(const std::vector<std::string>& fields);
+  // Hands the rows written so far to the operating system (the temporary
+  // then holds them, whole, if the process is killed); throws if the write
+  // failed. For long-running writers (`magnav record`).
+  void Flush();
   // Flushes, closes and renames the temporary to the path; throws if the
   // write failed (disk full, ...).
   void Close();

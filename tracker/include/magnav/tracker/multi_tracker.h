@@ -41,6 +41,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -202,10 +203,15 @@ struct MultiTrackEstimate {
 // batch_margin_s of its span, the other tracks' fields removed), for
 // batch_rounds rounds. A track whose refinement fails keeps its window
 // estimates (its summary says so). Tracks in track_id order; none if no
-// vessel was found.
+// vessel was found. `progress`, if given, is called from the calling thread
+// after every epoch of the window pass ("finding tracks", epochs done, of
+// all) and before each track's refinement ("refining track N, round R", 0,
+// 0): a long pass can say how far it is (magnav track).
+using BatchProgress = std::function<void(const std::string& stage, std::size_t done, std::size_t total)>;
 std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                                 const MultiTrackerOptions& options,
-                                                const std::vector<DipoleFix>* fixes = nullptr);
+                                                const std::vector<DipoleFix>* fixes = nullptr,
+                                                const BatchProgress& progress = {});
 
 // Predicted field of a dipole vessel at a sensor (T, T/m).
 void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2, const Eigen::Vector3d& p_SinW,
