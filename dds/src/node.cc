@@ -156,14 +156,20 @@ Node::Node(const NodeOptions& options) {
       // See shm_clean.h: taking a dead process's port number again can leave
       // this participant deaf (a Fast DDS 2.9 shared-memory bug). Its ports
       // go once the peers have forgotten it.
-      spdlog::info("dds: {} shared-memory port(s) of a process that died (e.g. {}): joining with a participant "
-                   "index they do not use; removing them in {} s",
-                   c.dead_ports.size(), c.dead_ports.front(), kZombiePortWaitS);
-      dead_ports_found = true;
-      std::thread([ports = c.dead_ports] {
-        std::this_thread::sleep_for(std::chrono::duration<double>(kZombiePortWaitS));
-        RemoveDeadPorts("/dev/shm", ports);
-      }).detach();
+      const DeadPortAges a = AgeDeadPorts("/dev/shm", c.dead_ports, kZombiePortWaitS);
+      RemoveDeadPorts("/dev/shm", a.expired);
+      if (!a.young.empty()) {
+        dead_ports_found = true;
+        if (a.marked_now > 0) {
+          spdlog::info("dds: {} shared-memory port(s) of a process that died (e.g. {}): joining with a participant "
+                       "index they do not use; they are removed {} s from now",
+                       a.young.size(), a.young.front(), kZombiePortWaitS);
+          std::thread([ports = a.young] {
+            std::this_thread::sleep_for(std::chrono::duration<double>(kZombiePortWaitS));
+            RemoveDeadPorts("/dev/shm", ports);
+          }).detach();
+        }
+      }
     }
   });
   LoadProfiles(options.profiles_file.empty() ? EnvOr("MAGNAV_DDS_PROFILES", "") : options.profiles_file);

@@ -54,6 +54,11 @@ ShmCleanResult CleanStaleSharedMemory(const std::string& dir, double min_age_s) 
     if (ec) break;
     const std::string name = it->path().filename().string();
     if (std::regex_match(name, kSegmentLock)) locks.push_back(it->path());
+    // A marker whose port is gone (removed by hand, or by another process).
+    if (name.rfind("magnav_deadport_", 0) == 0 &&
+        !std::filesystem::exists(it->path().parent_path() / name.substr(16))) {
+      Remove(it->path());
+    }
     // Ports: a shorter grace (a listener locks its port right after making it),
     // since a restarted service comes back quickly after its predecessor began.
     if (std::regex_match(name, kPortListenerLock) && OlderThan(it->path(), std::min(min_age_s, 0.5)) &&
@@ -72,6 +77,25 @@ ShmCleanResult CleanStaleSharedMemory(const std::string& dir, double min_age_s) 
     ++r.segments;
   }
   return r;
+}
+
+DeadPortAges AgeDeadPorts(const std::string& dir, const std::vector<std::string>& dead_ports, double wait_s) {
+  DeadPortAges a;
+  const std::filesystem::path d(dir);
+  for (const std::string& port : dead_ports) {
+    const std::filesystem::path marker = d / ("magnav_deadport_" + port);
+    const int fd = ::open(marker.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd >= 0) {
+      ::close(fd);
+      ++a.marked_now;
+      a.young.push_back(port);
+    } else if (OlderThan(marker, wait_s)) {
+      a.expired.push_back(port);
+    } else {
+      a.young.push_back(port);
+    }
+  }
+  return a;
 }
 
 std::vector<int> SharedMemoryPorts(const std::string& dir) {
@@ -110,6 +134,7 @@ void RemoveDeadPorts(const std::string& dir, const std::vector<std::string>& por
     Remove(d / (port + "_el"));
     Remove(d / (port + "_sl"));
     Remove(d / ("sem." + port + "_mutex"));
+    Remove(d / ("magnav_deadport_" + port));
   }
 }
 

@@ -10,6 +10,9 @@
 #include <cstdlib>
 #include <string>
 
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
 #include "raw_payload.h"
@@ -23,6 +26,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   magnav::dds::InstallShutdownHandlers();
+  spdlog::set_default_logger(spdlog::stderr_color_mt("dds_peer"));  // stdout is the test's protocol
   const std::string mode = argv[1];
   const std::uint64_t n = std::strtoull(argv[2], nullptr, 10);
   try {

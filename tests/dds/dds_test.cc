@@ -450,9 +450,23 @@ TEST(Dds, StaleSharedMemoryOfDeadProcessesIsRemoved) {
   EXPECT_EQ(FreshParticipantId(0, {7410, 7413, 7415}), 3);  // indices 0, 1, 2 taken
   EXPECT_EQ(FreshParticipantId(1, {7411}), 0);              // another domain's port
   EXPECT_EQ(FreshParticipantId(0, {7410, 7412}, 2), -1);    // none free below 2
-  // After the lease (Node: in the background), the dead port goes with its
-  // locks and mutex.
-  RemoveDeadPorts(dir.string(), r.dead_ports);
+  // The first process to see the dead port marks it (young); one that finds
+  // the mark older than the lease may remove it (expired).
+  DeadPortAges a = AgeDeadPorts(dir.string(), r.dead_ports, 4.0);
+  EXPECT_EQ(a.marked_now, 1);
+  EXPECT_EQ(a.young, std::vector<std::string>{"fastrtps_port7411"});
+  EXPECT_TRUE(a.expired.empty());
+  a = AgeDeadPorts(dir.string(), r.dead_ports, 4.0);
+  EXPECT_EQ(a.marked_now, 0);
+  EXPECT_EQ(a.young.size(), 1u);
+  const auto old = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now()) - 10;
+  struct utimbuf times {old, old};
+  ASSERT_EQ(::utime((dir / "magnav_deadport_fastrtps_port7411").c_str(), &times), 0);
+  a = AgeDeadPorts(dir.string(), r.dead_ports, 4.0);
+  EXPECT_EQ(a.expired, std::vector<std::string>{"fastrtps_port7411"});
+  // Removed with its locks, mutex and marker.
+  RemoveDeadPorts(dir.string(), a.expired);
+  EXPECT_FALSE(std::filesystem::exists(dir / "magnav_deadport_fastrtps_port7411"));
   EXPECT_FALSE(std::filesystem::exists(dir / "fastrtps_port7411"));
   EXPECT_FALSE(std::filesystem::exists(dir / "fastrtps_port7411_sl"));
   EXPECT_FALSE(std::filesystem::exists(dir / "sem.fastrtps_port7411_mutex"));

@@ -20,9 +20,11 @@
 // finds a dead process's port on its domain does not take that port number
 // again: it joins at once with a participant index that no shared-memory
 // port of the domain uses, alive or dead (FreshParticipantId; its ports are
-// new files, never a dead one's), and removes the dead ports only after the
-// lease (kZombiePortWaitS), in the background, when no writer sends to them
-// any more.
+// new files, never a dead one's), and removes the dead ports only once the
+// lease is over (kZombiePortWaitS after the first process saw them dead: a
+// marker file `magnav_deadport_<port>` in /dev/shm holds that time), when no
+// writer sends to them any more: at once if a process finds them marked long
+// enough ago, else in the background of the process that marked them.
 #pragma once
 
 #include <string>
@@ -54,8 +56,19 @@ int FreshParticipantId(int domain_id, const std::vector<int>& ports, int max_ind
 // taken its lock yet). Never throws; a file that cannot be removed is skipped.
 ShmCleanResult CleanStaleSharedMemory(const std::string& dir = "/dev/shm", double min_age_s = 2.0);
 
+// The dead ports found, split by how long ago a process first saw them dead
+// (their marker; a port without one is marked now): `expired` were marked at
+// least wait_s ago and may be removed, `young` not yet; `marked_now` of the
+// young were first seen by this call.
+struct DeadPortAges {
+  std::vector<std::string> expired, young;
+  int marked_now = 0;
+};
+DeadPortAges AgeDeadPorts(const std::string& dir, const std::vector<std::string>& dead_ports, double wait_s);
+
 // Removes the files of the dead ports CleanStaleSharedMemory found (the port,
-// its locks and its mutex), those whose listener lock is still free now.
+// its locks, its mutex and its marker), those whose listener lock is still
+// free now.
 void RemoveDeadPorts(const std::string& dir, const std::vector<std::string>& ports);
 
 }  // namespace magnav::dds
