@@ -7,6 +7,7 @@
 #include "entries.h"
 #include "magnav/core/gradiometer.h"
 #include "magnav/dds/convert.h"
+#include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/sample_door.h"
 #include "magnav/dds/topics.h"
 
@@ -29,6 +30,21 @@ bool Deserialize(const std::uint8_t* data, std::size_t size, M* out) {
   if (dds::internal::TakeDeserializeFailure() == ok) std::abort();
   if (!ok && !(*out == M())) std::abort();
   return ok;
+}
+
+// A payload of type M through the type support and, if accepted, the repeat
+// filter every consumer puts first (any key, seq and stamp: gaps, steps back,
+// eviction) and `check`.
+template <class M>
+void Take(const std::uint8_t* data, std::size_t size, void (*check)(const M&) = nullptr) {
+  static dds::RepeatFilter repeats(64, 8);  // small, so that eviction is reached
+  M m;
+  if (!Deserialize(data, size, &m)) return;
+  const std::uint64_t missing = repeats.missing();
+  const bool first = repeats.First(m);
+  if (!first && repeats.missing() != missing) std::abort();  // a repeat never counts as a gap
+  if (!first && repeats.First(m)) std::abort();              // nor becomes new
+  if (check) check(m);
 }
 
 bool SameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
@@ -80,42 +96,22 @@ void FuzzDdsConvert(const std::uint8_t* data, std::size_t size) {
   ++data;
   --size;
   switch (kind) {
-    case 0: {
-      msg::GradiometerSample m;
-      if (Deserialize(data, size, &m)) Gradiometer(m);
-      break;
-    }
-    case 1: {
-      msg::MagnetometerSample m;
-      if (Deserialize(data, size, &m)) Magnetometer(m);
-      break;
-    }
-    case 2: {
-      msg::VesselNav m;
-      if (Deserialize(data, size, &m)) Nav(m);
-      break;
-    }
-    // The other topics a service reads: only through the type support.
-    case 3: {
-      msg::DipoleFix m;
-      (void)Deserialize(data, size, &m);
-      break;
-    }
-    case 4: {
-      msg::TrackEstimate m;
-      (void)Deserialize(data, size, &m);
-      break;
-    }
-    case 5: {
-      msg::SensorPositionEstimate m;
-      (void)Deserialize(data, size, &m);
-      break;
-    }
-    default: {
-      msg::MapFix m;
-      (void)Deserialize(data, size, &m);
-      break;
-    }
+    case 0:
+      return Take<msg::GradiometerSample>(data, size, Gradiometer);
+    case 1:
+      return Take<msg::MagnetometerSample>(data, size, Magnetometer);
+    case 2:
+      return Take<msg::VesselNav>(data, size, Nav);
+    // The other topics a service reads: only through the type support and
+    // the repeat filter.
+    case 3:
+      return Take<msg::DipoleFix>(data, size);
+    case 4:
+      return Take<msg::TrackEstimate>(data, size);
+    case 5:
+      return Take<msg::SensorPositionEstimate>(data, size);
+    default:
+      return Take<msg::MapFix>(data, size);
   }
 }
 

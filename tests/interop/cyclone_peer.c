@@ -280,73 +280,129 @@ static void linger_then_delete(dds_entity_t pp) {
   dds_delete(pp);
 }
 
+/* Rows by key (sensor id and seq, or sensor id and time stamp), sorted for bsearch. */
+typedef struct {
+  uint32_t sensor;
+  uint64_t second;
+  size_t row;
+} row_key_t;
+
+static int row_key_cmp(const void *x, const void *y) {
+  const row_key_t *a = x, *b = y;
+  if (a->sensor != b->sensor) return a->sensor < b->sensor ? -1 : 1;
+  if (a->second != b->second) return a->second < b->second ? -1 : 1;
+  return 0;
+}
+
+/* The row of (sensor, second) among n sorted keys; n if none. */
+static size_t find_row(const row_key_t *keys, size_t n, uint32_t sensor, uint64_t second) {
+  const row_key_t k = {sensor, second, 0};
+  const row_key_t *f = bsearch(&k, keys, n, sizeof *keys, row_key_cmp);
+  return f ? f->row : n;
+}
+
+/* What a receiving mode counted. */
+typedef struct {
+  size_t received, differ, repeated, unknown;
+} tally_t;
+
+/* Takes samples from rd until every one of the n rows has one or timeout_s has
+ * passed: key_of gives a sample's (sensor, second) key, same compares it with
+ * its row (and may count); a row's first sample counts, later ones are
+ * repeats, a sample of no row is unknown. seen[r] counts row r's samples. */
+static tally_t collect(dds_entity_t rd, dds_entity_t ws, const row_key_t *keys, size_t n, double timeout_s,
+                       int *seen, void (*key_of)(const void *sample, uint32_t *sensor, uint64_t *second),
+                       int (*same)(const void *sample, size_t row, void *ctx), void *ctx) {
+  tally_t c = {0, 0, 0, 0};
+  const dds_time_t deadline = dds_time() + (dds_duration_t)(timeout_s * 1e9);
+  void *samples[TAKE_MAX];
+  dds_sample_info_t infos[TAKE_MAX];
+  while (c.received < n && dds_time() < deadline) {
+    const int got = take_some(rd, ws, samples, infos);
+    for (int i = 0; i < got; ++i) {
+      if (!infos[i].valid_data) continue;
+      uint32_t sensor = 0;
+      uint64_t second = 0;
+      key_of(samples[i], &sensor, &second);
+      const size_t r = find_row(keys, n, sensor, second);
+      if (r == n) {
+        ++c.unknown;
+        continue;
+      }
+      if (seen[r]++) {
+        ++c.repeated;
+        continue;
+      }
+      ++c.received;
+      if (!same(samples[i], r, ctx)) {
+        if (c.differ == 0) fprintf(stderr, "cyclone_peer: the message of row %zu differs from the file\n", r + 1);
+        ++c.differ;
+      }
+    }
+    if (got > 0) dds_return_loan(rd, samples, got);
+  }
+  return c;
+}
+
+static int all_once(const tally_t *c, size_t n) {
+  return c->received == n && c->differ == 0 && c->repeated == 0 && c->unknown == 0;
+}
+
 /* ---- modes ---- */
+
+typedef struct {
+  const table_t *t;
+  const uint64_t *row_seq;
+} samples_ctx_t;
+
+static void sample_key(const void *sample, uint32_t *sensor, uint64_t *second) {
+  const magnav_msg_GradiometerSample *m = sample;
+  *sensor = m->sensor_id;
+  *second = m->seq;
+}
+
+static int sample_same(const void *sample, size_t row, void *ctx) {
+  const samples_ctx_t *c = ctx;
+  magnav_msg_GradiometerSample expected;
+  sample_of_row(c->t, row, c->row_seq[row], &expected);
+  return same_sample(&expected, sample);
+}
 
 static int expect_samples(const char *path, double timeout_s, int transient_local) {
   table_t t;
   if (read_table(path, &t) != 0) return 2;
   const int c_id = column(&t, "sensor_id");
-  /* Row of (sensor id, seq): per-sensor seq in file order, as replay numbers them. */
-  uint32_t *row_sensor = calloc(t.num_rows, sizeof(uint32_t));
+  /* Key of each row: (sensor id, per-sensor seq in file order), as replay numbers them. */
   uint64_t *row_seq = calloc(t.num_rows, sizeof(uint64_t));
+  uint64_t *next_seq = calloc(1024, sizeof(uint64_t));
+  row_key_t *keys = calloc(t.num_rows, sizeof(row_key_t));
   int *seen = calloc(t.num_rows, sizeof(int));
-  if (!row_sensor || !row_seq || !seen) return 3;
+  if (!row_seq || !next_seq || !keys || !seen) return 3;
   for (size_t r = 0; r < t.num_rows; ++r) {
-    row_sensor[r] = (uint32_t)value(&t, r, c_id);
-    uint64_t n = 0;
-    for (size_t q = 0; q < r; ++q) n += row_sensor[q] == row_sensor[r];
-    row_seq[r] = n;
+    const uint32_t id = (uint32_t)value(&t, r, c_id);
+    if (id >= 1024) return 2;
+    row_seq[r] = next_seq[id]++;
+    keys[r] = (row_key_t){id, row_seq[r], r};
   }
+  qsort(keys, t.num_rows, sizeof *keys, row_key_cmp);
   const dds_entity_t pp = participant();
   const dds_entity_t rd = reader_on(pp, &magnav_msg_GradiometerSample_desc, "magnav/gradiometer", transient_local);
   const dds_entity_t ws = waitset_for(pp, rd);
   printf("ready\n");
   fflush(stdout);
 
-  size_t received = 0, differ = 0, repeated = 0, unknown = 0;
-  const dds_time_t deadline = dds_time() + (dds_duration_t)(timeout_s * 1e9);
-  void *samples[TAKE_MAX];
-  dds_sample_info_t infos[TAKE_MAX];
-  while (received < t.num_rows && dds_time() < deadline) {
-    const int n = take_some(rd, ws, samples, infos);
-    for (int i = 0; i < n; ++i) {
-      if (!infos[i].valid_data) continue;
-      const magnav_msg_GradiometerSample *m = samples[i];
-      size_t r = t.num_rows;
-      for (size_t k = 0; k < t.num_rows; ++k) {
-        if (row_sensor[k] == m->sensor_id && row_seq[k] == m->seq) {
-          r = k;
-          break;
-        }
-      }
-      if (r == t.num_rows) {
-        ++unknown;
-        continue;
-      }
-      if (seen[r]++) {
-        ++repeated;
-        continue;
-      }
-      ++received;
-      magnav_msg_GradiometerSample expected;
-      sample_of_row(&t, r, row_seq[r], &expected);
-      if (!same_sample(&expected, m)) {
-        if (differ == 0) fprintf(stderr, "cyclone_peer: row %zu differs from the file\n", r + 1);
-        ++differ;
-      }
-    }
-    if (n > 0) dds_return_loan(rd, samples, n);
-  }
+  samples_ctx_t ctx = {&t, row_seq};
+  const tally_t c = collect(rd, ws, keys, t.num_rows, timeout_s, seen, sample_key, sample_same, &ctx);
   size_t first_missing = t.num_rows;
   for (size_t r = 0; r < t.num_rows && first_missing == t.num_rows; ++r) {
     if (!seen[r]) first_missing = r;
   }
-  printf("received %zu of %zu, %zu differ, %zu repeated, %zu unknown", received, t.num_rows, differ, repeated,
-         unknown);
+  printf("received %zu of %zu, %zu differ, %zu repeated, %zu unknown", c.received, t.num_rows, c.differ, c.repeated,
+         c.unknown);
   if (first_missing < t.num_rows) printf(" (first missing: sample %zu of the file)", first_missing);
   printf("\n");
   linger_then_delete(pp);
-  return (received == t.num_rows && differ == 0 && repeated == 0 && unknown == 0) ? 0 : 1;
+  return all_once(&c, t.num_rows) ? 0 : 1;
 }
 
 static int send_samples(const char *path) {
@@ -394,17 +450,51 @@ static int send_samples(const char *path) {
   return acked == DDS_RETCODE_OK ? 0 : 1;
 }
 
+typedef struct {
+  const table_t *t;
+  int c_t, c_valid, c_reason, c_pos[3], c_cov[6];
+  size_t valid;
+} fixes_ctx_t;
+
+static void fix_key(const void *sample, uint32_t *sensor, uint64_t *second) {
+  const magnav_msg_DipoleFix *f = sample;
+  *sensor = f->sensor_id;
+  *second = f->stamp_ns;
+}
+
+static int fix_same(const void *sample, size_t r, void *ctx) {
+  static const int kCovIndex[6] = {0, 1, 2, 4, 5, 8};
+  fixes_ctx_t *c = ctx;
+  const magnav_msg_DipoleFix *f = sample;
+  const int want_valid = value(c->t, r, c->c_valid) == 1.0;
+  int same = (f->valid != 0) == want_valid && strcmp(f->reason, text(c->t, r, c->c_reason)) == 0;
+  if (want_valid) {
+    ++c->valid;
+    for (int k = 0; k < 3; ++k) same = same && same_bits(f->position[k], value(c->t, r, c->c_pos[k]));
+    for (int k = 0; k < 6; ++k) same = same && same_bits(f->covariance[kCovIndex[k]], value(c->t, r, c->c_cov[k]));
+  }
+  return same;
+}
+
 static int expect_fixes(const char *path, double timeout_s) {
   table_t t;
   if (read_table(path, &t) != 0) return 2;
-  const int c_t = column(&t, "t"), c_id = column(&t, "sensor_id"), c_valid = column(&t, "valid");
-  const int c_reason = column(&t, "reason");
-  const int c_pos[3] = {column(&t, "dipole_x"), column(&t, "dipole_y"), column(&t, "dipole_z")};
-  const int c_cov[6] = {column(&t, "cov_xx"), column(&t, "cov_xy"), column(&t, "cov_xz"),
-                        column(&t, "cov_yy"), column(&t, "cov_yz"), column(&t, "cov_zz")};
-  static const int kCovIndex[6] = {0, 1, 2, 4, 5, 8};
+  fixes_ctx_t ctx = {&t,
+                     column(&t, "t"),
+                     column(&t, "valid"),
+                     column(&t, "reason"),
+                     {column(&t, "dipole_x"), column(&t, "dipole_y"), column(&t, "dipole_z")},
+                     {column(&t, "cov_xx"), column(&t, "cov_xy"), column(&t, "cov_xz"), column(&t, "cov_yy"),
+                      column(&t, "cov_yz"), column(&t, "cov_zz")},
+                     0};
+  const int c_id = column(&t, "sensor_id");
+  row_key_t *keys = calloc(t.num_rows, sizeof(row_key_t));
   int *seen = calloc(t.num_rows, sizeof(int));
-  if (!seen) return 3;
+  if (!keys || !seen) return 3;
+  for (size_t r = 0; r < t.num_rows; ++r) {
+    keys[r] = (row_key_t){(uint32_t)value(&t, r, c_id), seconds_to_nanos(value(&t, r, ctx.c_t)), r};
+  }
+  qsort(keys, t.num_rows, sizeof *keys, row_key_cmp);
   const dds_entity_t pp = participant();
   const dds_entity_t rd = reader_on(pp, &magnav_msg_DipoleFix_desc, "magnav/dipole_fix", 1);
   const dds_entity_t ws = waitset_for(pp, rd);
@@ -425,52 +515,11 @@ static int expect_fixes(const char *path, double timeout_s) {
   printf("ready\n");
   fflush(stdout);
 
-  size_t received = 0, differ = 0, repeated = 0, unknown = 0, valid = 0;
-  const dds_time_t deadline = dds_time() + (dds_duration_t)(timeout_s * 1e9);
-  void *samples[TAKE_MAX];
-  dds_sample_info_t infos[TAKE_MAX];
-  while (received < t.num_rows && dds_time() < deadline) {
-    const int n = take_some(rd, ws, samples, infos);
-    for (int i = 0; i < n; ++i) {
-      if (!infos[i].valid_data) continue;
-      const magnav_msg_DipoleFix *f = samples[i];
-      size_t r = t.num_rows;
-      for (size_t k = 0; k < t.num_rows; ++k) {
-        if ((uint32_t)value(&t, k, c_id) == f->sensor_id && seconds_to_nanos(value(&t, k, c_t)) == f->stamp_ns) {
-          r = k;
-          break;
-        }
-      }
-      if (r == t.num_rows) {
-        ++unknown;
-        continue;
-      }
-      if (seen[r]++) {
-        ++repeated;
-        continue;
-      }
-      ++received;
-      const int want_valid = value(&t, r, c_valid) == 1.0;
-      int same = (f->valid != 0) == want_valid && strcmp(f->reason, text(&t, r, c_reason)) == 0;
-      if (want_valid) {
-        ++valid;
-        for (int k = 0; k < 3; ++k) same = same && same_bits(f->position[k], value(&t, r, c_pos[k]));
-        for (int k = 0; k < 6; ++k) same = same && same_bits(f->covariance[kCovIndex[k]], value(&t, r, c_cov[k]));
-      }
-      if (!same) {
-        if (differ == 0) {
-          fprintf(stderr, "cyclone_peer: the fix of row %zu (t = %s) differs from the offline result\n", r + 1,
-                  text(&t, r, c_t));
-        }
-        ++differ;
-      }
-    }
-    if (n > 0) dds_return_loan(rd, samples, n);
-  }
-  printf("received %zu of %zu fixes (%zu valid), %zu differ, %zu repeated, %zu unknown\n", received, t.num_rows,
-         valid, differ, repeated, unknown);
+  const tally_t c = collect(rd, ws, keys, t.num_rows, timeout_s, seen, fix_key, fix_same, &ctx);
+  printf("received %zu of %zu fixes (%zu valid), %zu differ, %zu repeated, %zu unknown\n", c.received, t.num_rows,
+         ctx.valid, c.differ, c.repeated, c.unknown);
   linger_then_delete(pp);
-  return (received == t.num_rows && differ == 0 && repeated == 0 && unknown == 0) ? 0 : 1;
+  return all_once(&c, t.num_rows) ? 0 : 1;
 }
 
 int main(int argc, char **argv) {
