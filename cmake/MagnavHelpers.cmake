@@ -15,6 +15,11 @@ if(MAGNAV_SANITIZE)
   # Fast DDS 2.9.1 itself deletes an RTPSReader through a base of another size
   # (reported inside libfastrtps, not in magnav): silence that one check.
   set(MAGNAV_TEST_ENV "ASAN_OPTIONS=new_delete_type_mismatch=0")
+elseif(MAGNAV_TSAN)
+  # (The flags are set for every target in CMakeLists.txt.) Any report fails
+  # the test, the services it starts inherit the options.
+  set(MAGNAV_TEST_ENV
+    "TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=${PROJECT_SOURCE_DIR}/scripts/tsan.supp")
 endif()
 
 # magnav_library(<name> SOURCES ... DEPS ...) -> target magnav_<name>, alias magnav::<name>.

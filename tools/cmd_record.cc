@@ -177,8 +177,11 @@ class Sink {
     } catch (const std::exception&) {
     }
   }
+  // A row that arrives after Close (from a receive thread, while recording
+  // stops) is dropped.
   void Write(const std::vector<std::string>& f) {
     std::lock_guard<std::mutex> lk(mu_);
+    if (closed_) return;
     if (writer_) {
       writer_->WriteRow(f);
     } else {
@@ -192,6 +195,8 @@ class Sink {
     if (writer_) writer_->Flush();
   }
   void Close() {
+    std::lock_guard<std::mutex> lk(mu_);
+    closed_ = true;
     if (writer_) writer_->Close();
   }
 
@@ -203,6 +208,7 @@ class Sink {
   }
   std::mutex mu_;
   std::unique_ptr<CsvWriter> writer_;
+  bool closed_ = false;
   std::atomic<std::uint64_t> count_{0};
 };
 
@@ -289,10 +295,12 @@ void Run(const RecordArgs& a) {
     dds::WaitForShutdown(std::chrono::milliseconds(20));
   }
   for (Recording& r : rec) {
-    r.reader.reset();  // no callback after this
+    const std::uint64_t lost = r.lost();
+    r.lost = nullptr;  // it holds the reader too
+    r.reader.reset();  // the reader is deleted: no callback after this
     r.sink->Close();
-    if (r.lost() > 0) {
-      std::fprintf(stderr, "record: %llu sample(s) lost on magnav/%s\n", static_cast<unsigned long long>(r.lost()),
+    if (lost > 0) {
+      std::fprintf(stderr, "record: %llu sample(s) lost on magnav/%s\n", static_cast<unsigned long long>(lost),
                    r.topic.c_str());
     }
     if (r.repeats->repeats() > 0) {
