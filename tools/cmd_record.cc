@@ -192,7 +192,7 @@ class Sink {
   std::uint64_t count() const { return count_.load(); }
   void Flush() {
     std::lock_guard<std::mutex> lk(mu_);
-    if (writer_) writer_->Flush();
+    if (writer_ && !closed_) writer_->Flush();
   }
   void Close() {
     std::lock_guard<std::mutex> lk(mu_);

@@ -19,6 +19,7 @@
 
 #include <set>
 
+#include <atomic>
 #include <deque>
 #include <map>
 #include <memory>
@@ -90,7 +91,8 @@ class TrackerNode {
   std::deque<std::uint32_t> ended_;                   // ended tracks still registered, oldest first
   static constexpr std::size_t kKeptEndedTracks = 50;
   double fed_until_s_ = -1e300;
-  std::uint64_t dropped_late_ = 0, rejected_ = 0, fixes_rejected_ = 0;
+  // Written under mu_ by the receive threads, read by the stats line without it.
+  std::atomic<std::uint64_t> dropped_late_{0}, rejected_{0}, fixes_rejected_{0};
   // Estimates go out from the writer's own thread with flow control: a burst
   // (a restart rebuilding tracks from the history) is not overwritten in the
   // KEEP_LAST 10 history before the readers have it (queued_writer.h).
