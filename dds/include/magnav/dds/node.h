@@ -116,9 +116,14 @@ class Writer {
     // its history (1000 samples per key) releases the samples one by one while
     // its heartbeat event walks the history for gaps under the same mutex; under
     // ThreadSanitizer a test process spent over 12 minutes there (CI,
-    // 2026-11-25). What the writer held is gone with it either way.
-    std::size_t removed = 0;
-    writer_->clear_history(&removed);
+    // 2026-11-25). What a VOLATILE or TRANSIENT_LOCAL writer held is gone with
+    // it either way; a durable one (TRANSIENT, config/durable/) keeps its
+    // history in its store for the next process, so it is left alone.
+    const auto durability = writer_->get_qos().durability().kind;
+    if (durability == fdds::VOLATILE_DURABILITY_QOS || durability == fdds::TRANSIENT_LOCAL_DURABILITY_QOS) {
+      std::size_t removed = 0;
+      writer_->clear_history(&removed);
+    }
     node_publisher_->delete_datawriter(writer_);
   }
   Writer(const Writer&) = delete;
