@@ -232,8 +232,8 @@ Recording Subscribe(dds::Node& node, const std::string& topic, const std::string
   r.repeats = std::make_shared<dds::RepeatFilter>();
   r.repeats->SetLogName("record: magnav/" + topic + " key");
   dds::RepeatFilter* repeats = r.repeats.get();
-  std::shared_ptr<dds::Reader<M>> reader = node.CreateReader<M>([sink, count, repeats](const M& m, const auto&) {
-    if ((count == 0 || sink->count() < count) && repeats->First(m)) sink->Write(Row(m));
+  std::shared_ptr<dds::Reader<M>> reader = node.CreateReader<M>([sink, count, repeats](const M& m, const auto& info) {
+    if ((count == 0 || sink->count() < count) && repeats->First(m, info)) sink->Write(Row(m));
   });
   r.lost = [reader] { return reader->stats().lost.load(); };
   r.reader = reader;

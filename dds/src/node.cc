@@ -1,5 +1,6 @@
 #include "magnav/dds/node.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cstdlib>
 #include <fstream>
@@ -175,6 +176,7 @@ Node::Node(const NodeOptions& options) {
   LoadProfiles(options.profiles_file.empty() ? EnvOr("MAGNAV_DDS_PROFILES", "") : options.profiles_file);
   domain_id_ = options.domain_id ? *options.domain_id : DomainIdFromEnvironment();
   ros2_names_ = options.ros2_names ? *options.ros2_names : Ros2NamesFromEnvironment();
+  any_writer_ = options.any_writer;
   const std::string profile = options.participant_profile.empty()
                                   ? EnvOr("MAGNAV_DDS_PARTICIPANT", "magnav_loopback")
                                   : options.participant_profile;
@@ -240,6 +242,28 @@ fdds::DataReaderQos ReaderQos(fdds::Subscriber* sub, const std::string& profile)
     throw DdsError("data_reader profile '" + profile + "' not found in the loaded XML profiles");
   }
   return q;
+}
+
+std::optional<fdds::DataReaderQos> AnyWriterQos(const fdds::DataReaderQos& q) {
+  if (q.reliability().kind == fdds::BEST_EFFORT_RELIABILITY_QOS &&
+      q.durability().kind == fdds::VOLATILE_DURABILITY_QOS) {
+    return std::nullopt;
+  }
+  fdds::DataReaderQos any = q;
+  any.reliability().kind = fdds::BEST_EFFORT_RELIABILITY_QOS;
+  any.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+  return any;
+}
+
+WriterGuid GuidOf(const eprosima::fastrtps::rtps::GUID_t& guid) {
+  WriterGuid g{};
+  std::copy(std::begin(guid.guidPrefix.value), std::end(guid.guidPrefix.value), g.begin());
+  std::copy(std::begin(guid.entityId.value), std::end(guid.entityId.value), g.begin() + 12);
+  return g;
+}
+
+WriterGuid GuidOf(const eprosima::fastrtps::rtps::InstanceHandle_t& handle) {
+  return GuidOf(eprosima::fastrtps::rtps::iHandle2GUID(handle));
 }
 
 const char* QosPolicyName(int policy_id) {

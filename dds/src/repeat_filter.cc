@@ -6,7 +6,17 @@
 
 namespace magnav::dds {
 
-bool RepeatFilter::First(const MessageId& id) {
+std::uint64_t WriterHash(const eprosima::fastdds::dds::SampleInfo& info) {
+  const auto& g = info.sample_identity.writer_guid();
+  std::string_view bytes[2] = {
+      std::string_view(reinterpret_cast<const char*>(g.guidPrefix.value), sizeof g.guidPrefix.value),
+      std::string_view(reinterpret_cast<const char*>(g.entityId.value), sizeof g.entityId.value)};
+  std::uint64_t h = std::hash<std::string_view>{}(bytes[0]);
+  h ^= std::hash<std::string_view>{}(bytes[1]) + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2);
+  return h == 0 ? 1 : h;  // 0 means "unknown writer"
+}
+
+bool RepeatFilter::First(const MessageId& id, const MessageOrigin& origin) {
   std::lock_guard<std::mutex> lk(mu_);
   if (keys_.size() >= max_keys_ && !keys_.count(id.key)) {
     auto oldest = keys_.begin();
@@ -17,8 +27,21 @@ bool RepeatFilter::First(const MessageId& id) {
   }
   PerKey& k = keys_[id.key];
   k.last_use = ++uses_;
-  if (!k.seen.insert(id).second) {
-    ++repeats_;
+  const auto [it, inserted] = k.seen.emplace(id, origin);
+  if (!inserted) {
+    const MessageOrigin& first = it->second;
+    if (first.payload == origin.payload) {
+      ++repeats_;
+      return false;
+    }
+    if (first.writer == origin.writer && origin.writer != 0) return true;  // the same writer's next message
+    ++conflicts_;
+    if (!std::exchange(k.conflict_logged, true)) {
+      spdlog::error("{} {}: two producers send different messages with the same seq {} and time stamp {} ns: "
+                    "the first is kept, the other dropped (two drivers or replays with one id? further conflicts "
+                    "of this key are only counted)",
+                    log_name_.empty() ? std::string("key") : log_name_, id.key, id.seq, id.stamp_ns);
+    }
     return false;
   }
   if (id.sequenced) FollowSequence(id, k);
@@ -37,6 +60,25 @@ void RepeatFilter::Forget(const MessageId& id) {
 }
 
 void RepeatFilter::FollowSequence(const MessageId& id, PerKey& k) {
+  if (k.unsequenced) return;
+  if (id.seq == 0 && k.has_next && k.next_seq == 1) {
+    // Its seq stayed 0 for two messages: a producer that does not number them.
+    k.unsequenced = true;
+    if (!log_name_.empty()) {
+      spdlog::info("{} {}: seq stays 0 (the producer does not number its samples): no gaps are counted for it",
+                   log_name_, id.key);
+    }
+    return;
+  }
+  if (k.has_next && id.seq > k.next_seq && id.seq - k.next_seq > kMaxSeqStep) {
+    ++wild_steps_;
+    if (!log_name_.empty() && !std::exchange(k.gap_logged, true)) {
+      spdlog::warn("{} {}: seq jumped from {} to {} (more than {}: not counted as missing)", log_name_, id.key,
+                   k.next_seq - 1, id.seq, kMaxSeqStep);
+    }
+    k.next_seq = id.seq + 1;
+    return;
+  }
   if (k.has_next && id.seq > k.next_seq) {
     const std::uint64_t skipped = id.seq - k.next_seq;
     missing_ += skipped;

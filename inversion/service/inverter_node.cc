@@ -72,12 +72,12 @@ void InverterNode::Start(dds::Node& node) {
   repeats_.SetLogName("magnav-inverter: magnav/gradiometer sensor");
   writer_ = node.CreateWriter<dds::msg::DipoleFix>();
   reader_ = node.CreateReader<dds::msg::GradiometerSample>(
-      [this](const dds::msg::GradiometerSample& m, const auto&) { OnSample(m); });
+      [this](const dds::msg::GradiometerSample& m, const auto& info) { OnSample(m, info); });
 }
 
-void InverterNode::OnSample(const dds::msg::GradiometerSample& m) {
+void InverterNode::OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info) {
   // A sample seen before (a restarted producer's history) already has its fix.
-  if (!repeats_.First(m)) return;
+  if (!repeats_.First(m, info)) return;
   GradiometerSample s = dds::FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   DipoleFix fix;

@@ -44,7 +44,7 @@ class InverterNode {
 
  private:
   void Start(dds::Node& node);
-  void OnSample(const dds::msg::GradiometerSample& m);
+  void OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info);
 
   std::mutex mu_;  // the middleware may call the listener from several receive threads
   dds::SampleDoor door_{"magnav-inverter"};

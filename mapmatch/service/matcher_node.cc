@@ -46,9 +46,9 @@ MatcherNode::MatcherNode(dds::Node& node, const GeoGrid& grid, std::size_t layer
       schedule_(options.fix_every_m, options.filter.max_step_deg) {
   repeats_.SetLogName("magnav-matcher: magnav/magnetometer sensor");
   writer_ = node.CreateWriter<dds::msg::MapFix>();
-  nav_reader_ = node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto&) { OnNav(m); });
+  nav_reader_ = node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto& info) { OnNav(m, info); });
   mag_reader_ = node.CreateReader<dds::msg::MagnetometerSample>(
-      [this](const dds::msg::MagnetometerSample& m, const auto&) { OnSample(m); });
+      [this](const dds::msg::MagnetometerSample& m, const auto& info) { OnSample(m, info); });
 }
 
 FilterCounters MatcherNode::filter_counters() const {
@@ -63,9 +63,9 @@ void MatcherNode::Skip(const std::string& why, double t_s) {
   }
 }
 
-void MatcherNode::OnNav(const dds::msg::VesselNav& m) {
+void MatcherNode::OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info) {
   if (m.vessel_id() != options_.vehicle_id || m.source() == dds::msg::NAV_GNSS) return;
-  if (!nav_repeats_.First(m)) return;
+  if (!nav_repeats_.First(m, info)) return;
   std::lock_guard<std::mutex> lk(mu_);
   const double lat = m.geodetic()[0], lon = m.geodetic()[1];
   if (!std::isfinite(lat) || !std::isfinite(lon)) {
@@ -76,9 +76,9 @@ void MatcherNode::OnNav(const dds::msg::VesselNav& m) {
   Drain();
 }
 
-void MatcherNode::OnSample(const dds::msg::MagnetometerSample& m) {
+void MatcherNode::OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info) {
   if (m.sensor_id() != options_.sensor_id) return;
-  if (!repeats_.First(m)) return;
+  if (!repeats_.First(m, info)) return;
   std::lock_guard<std::mutex> lk(mu_);
   if (stepped_ && m.stamp_ns() <= last_step_ns_) {
     return Skip("magnetometer sample not later than the last step", NanosToSeconds(m.stamp_ns()));

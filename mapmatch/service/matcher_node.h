@@ -74,8 +74,8 @@ class MatcherNode {
   FilterCounters filter_counters() const;
 
  private:
-  void OnNav(const dds::msg::VesselNav& m);
-  void OnSample(const dds::msg::MagnetometerSample& m);
+  void OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info);
+  void OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info);
   void Drain();                                // mu_ held
   void Skip(const std::string& why, double t_s);  // mu_ held
 

@@ -10,12 +10,16 @@
 #include <bit>
 #include <cstring>
 #include <filesystem>
+#include <map>
+#include <thread>
 #include <fstream>
 #include <set>
 #include <sstream>
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
@@ -376,6 +380,137 @@ TEST(Dds, RepeatFilterCountsSequenceGapsAndStepsBack) {
   EXPECT_TRUE(f.First(a));
   EXPECT_TRUE(f.First(b));
   EXPECT_EQ(f.missing(), 6u);  // samples are sequenced
+}
+
+// Conflicting producers (issue 22 item 5): the same (key, seq, stamp) with
+// another payload from another writer keeps the first and is counted; from
+// the same writer it is a new message. A driver whose seq stays 0 is not
+// followed; a wild seq jump is not counted as missing samples.
+TEST(Dds, RepeatFilterKeepsTheFirstOfConflictingProducers) {
+  RepeatFilter f;
+  const MessageId id{1, 5, 50, true};
+  EXPECT_TRUE(f.First(id, MessageOrigin{11, 100}));
+  EXPECT_FALSE(f.First(id, MessageOrigin{22, 100}));  // a restarted producer's same message: a repeat
+  EXPECT_EQ(f.repeats(), 1u);
+  EXPECT_EQ(f.conflicts(), 0u);
+  EXPECT_FALSE(f.First(id, MessageOrigin{22, 200}));  // another writer, another payload: conflict
+  EXPECT_EQ(f.conflicts(), 1u);
+  EXPECT_TRUE(f.First(id, MessageOrigin{11, 300}));  // the first writer's next message (coarse clock)
+  EXPECT_EQ(f.repeats(), 1u);
+  // Payload hashes of real messages: equal for equal messages only.
+  msg::GradiometerSample a = testing::PatternSample(2, 7), b = a;
+  EXPECT_EQ(PayloadHash(a), PayloadHash(b));
+  b.B()[1] += 1e-12;
+  EXPECT_NE(PayloadHash(a), PayloadHash(b));
+  // A driver that leaves seq at 0: neither gaps nor restarts.
+  RepeatFilter g;
+  for (std::uint64_t k = 0; k < 50; ++k) EXPECT_TRUE(g.First(MessageId{3, 0, 1000 + k, true}, MessageOrigin{5, k}));
+  EXPECT_EQ(g.missing(), 0u);
+  EXPECT_EQ(g.restarts(), 0u);
+  // A wild seq (10^18 on the wire): not 10^18 missing samples.
+  RepeatFilter h;
+  EXPECT_TRUE(h.First(MessageId{4, 1, 10, true}));
+  EXPECT_TRUE(h.First(MessageId{4, 1000000000000000000ULL, 20, true}));
+  EXPECT_EQ(h.missing(), 0u);
+  EXPECT_EQ(h.wild_steps(), 1u);
+}
+
+// The reader pair's filter: a writer the profile's reader matches is served
+// by it alone; a sample handed on once is never handed on again (by either
+// reader), however the two interleave; history repair (numbers far below the
+// newest) passes once; memory per writer is a fixed window.
+TEST(Dds, DeliveryFilterHandsOnEachWriterSampleOnce) {
+  using V = DeliveryFilter::Verdict;
+  DeliveryFilter f;
+  const WriterGuid ours{1}, stock{2};
+  // Before the profile's reader matched `ours`, the companion hands on 100..110.
+  for (std::uint64_t sn = 100; sn <= 110; ++sn) EXPECT_EQ(f.Offer(true, ours, sn), V::kDeliver);
+  f.Matched(false, ours, +1);
+  f.Matched(true, ours, +1);
+  f.Matched(true, stock, +1);
+  EXPECT_EQ(f.matched_writers(), 2);
+  EXPECT_EQ(f.companion_only_writers(), 1);
+  // Now the companion's copies of `ours` are dropped; the profile's reader
+  // repairs the history 1..110 and goes on: 100..110 only once.
+  EXPECT_EQ(f.Offer(true, ours, 111), V::kServedByProfileReader);
+  int delivered = 0, duplicates = 0;
+  for (std::uint64_t sn = 1; sn <= 120; ++sn) {
+    const V v = f.Offer(false, ours, sn);
+    delivered += v == V::kDeliver;
+    duplicates += v == V::kDuplicate;
+  }
+  EXPECT_EQ(delivered, 109);  // 1..99 and 111..120
+  EXPECT_EQ(duplicates, 11);
+  // A stock writer: companion only, every number once.
+  for (std::uint64_t sn = 1; sn <= 50; ++sn) EXPECT_EQ(f.Offer(true, stock, sn), V::kDeliver);
+  EXPECT_EQ(f.Offer(true, stock, 25), V::kDuplicate);
+  // Far below the window: history, passes once.
+  EXPECT_EQ(f.Offer(true, stock, 1000000), V::kDeliver);
+  EXPECT_EQ(f.Offer(true, stock, 3), V::kDeliver);
+  f.Matched(true, stock, -1);
+  EXPECT_EQ(f.matched_writers(), 1);
+}
+
+// Any writer's QoS (issue 22 item 1): writers with a stock driver's QoS —
+// RELIABLE/VOLATILE (Cyclone DDS's default), BEST_EFFORT/VOLATILE (ROS 2's
+// sensor data) — and magnav's own RELIABLE/TRANSIENT_LOCAL, all at once on
+// one topic: a magnav reader hears every sample of each exactly once, and
+// reports no incompatible QoS. Before, the stock writers were refused
+// ("incompatible QoS: durability", "reliability").
+TEST(Dds, WritersOfAnyQosAreHeardOnceEach) {
+  namespace rtps = eprosima::fastrtps::rtps;
+  constexpr std::uint64_t kPerWriter = 300;
+  const int domain = TestDomain();
+  std::mutex mu;
+  std::map<std::pair<std::uint32_t, std::uint64_t>, int> seen;
+  Node node(TestNode("dds_test_any_qos"));
+  auto reader = node.CreateReader<msg::GradiometerSample>([&](const msg::GradiometerSample& s, const auto&) {
+    std::lock_guard<std::mutex> lk(mu);
+    ++seen[{s.sensor_id(), s.seq()}];
+  });
+  ASSERT_TRUE(reader->has_companion());
+  // A plain Fast DDS participant (no magnav code) with hand-made QoS.
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  fdds::DomainParticipant* pp = factory->create_participant_with_profile(domain, "magnav_loopback");
+  ASSERT_NE(pp, nullptr);
+  fdds::TypeSupport type(new msg::GradiometerSamplePubSubType());
+  ASSERT_EQ(type.register_type(pp), eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK);
+  fdds::Topic* topic = pp->create_topic("magnav/gradiometer", type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+  fdds::Publisher* pub = pp->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  std::vector<fdds::DataWriter*> writers;
+  for (int kind = 0; kind < 3; ++kind) {
+    fdds::DataWriterQos q = fdds::DATAWRITER_QOS_DEFAULT;
+    q.reliability().kind = kind == 1 ? fdds::BEST_EFFORT_RELIABILITY_QOS : fdds::RELIABLE_RELIABILITY_QOS;
+    q.durability().kind = kind == 2 ? fdds::TRANSIENT_LOCAL_DURABILITY_QOS : fdds::VOLATILE_DURABILITY_QOS;
+    q.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+    writers.push_back(pub->create_datawriter(topic, q));
+    ASSERT_NE(writers.back(), nullptr);
+  }
+  ASSERT_TRUE(reader->WaitForMatched(3, 20s));
+  for (int kind = 0; kind < 3; ++kind) {
+    fdds::PublicationMatchedStatus st;
+    for (int k = 0; k < 200 && (writers[kind]->get_publication_matched_status(st), st.current_count) < 1; ++k) {
+      std::this_thread::sleep_for(10ms);
+    }
+  }
+  // Paced (a sensor's rate): a best-effort burst would test socket buffers.
+  for (std::uint64_t i = 0; i < kPerWriter; ++i) {
+    for (int kind = 0; kind < 3; ++kind) {
+      msg::GradiometerSample m = testing::PatternSample(static_cast<std::uint32_t>(kind), i);
+      ASSERT_TRUE(writers[kind]->write(&m));
+    }
+    if (i % 20 == 0) std::this_thread::sleep_for(1ms);
+  }
+  EXPECT_TRUE(reader->WaitForSamples(3 * kPerWriter, 20s)) << reader->stats().samples.load();
+  std::this_thread::sleep_for(200ms);  // anything twice would come now
+  pp->delete_contained_entities();
+  factory->delete_participant(pp);
+  std::lock_guard<std::mutex> lk(mu);
+  EXPECT_EQ(seen.size(), 3 * kPerWriter);
+  for (const auto& [key, n] : seen) EXPECT_EQ(n, 1) << "sensor " << key.first << " seq " << key.second;
+  EXPECT_EQ(reader->stats().samples.load(), 3 * kPerWriter);
+  EXPECT_EQ(reader->stats().incompatible_qos.load(), 0u);
+  EXPECT_EQ(reader->stats().via_any_writer.load() >= 2 * kPerWriter, true) << reader->stats().via_any_writer.load();
 }
 
 // A tracker running for weeks: track ids are never reused, so the track

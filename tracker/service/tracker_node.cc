@@ -66,14 +66,14 @@ TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options,
                                                                         5, std::chrono::seconds(2));
   if (options_.tracker.track.init.source != InitSource::kSamples) {
     fix_reader_ =
-        node.CreateReader<dds::msg::DipoleFix>([this](const dds::msg::DipoleFix& m, const auto&) { OnFix(m); });
+        node.CreateReader<dds::msg::DipoleFix>([this](const dds::msg::DipoleFix& m, const auto& info) { OnFix(m, info); });
   }
   reader_ = node.CreateReader<dds::msg::GradiometerSample>(
-      [this](const dds::msg::GradiometerSample& m, const auto&) { OnSample(m); });
+      [this](const dds::msg::GradiometerSample& m, const auto& info) { OnSample(m, info); });
 }
 
-void TrackerNode::OnFix(const dds::msg::DipoleFix& m) {
-  if (!fix_repeats_.First(m)) return;  // a restarted inverter's fix of a sample already answered
+void TrackerNode::OnFix(const dds::msg::DipoleFix& m, const dds::fdds::SampleInfo& info) {
+  if (!fix_repeats_.First(m, info)) return;  // a restarted inverter's fix of a sample already answered
   const DipoleFix f = FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   try {
@@ -84,8 +84,8 @@ void TrackerNode::OnFix(const dds::msg::DipoleFix& m) {
   }
 }
 
-void TrackerNode::OnSample(const dds::msg::GradiometerSample& m) {
-  if (!repeats_.First(m)) return;
+void TrackerNode::OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info) {
+  if (!repeats_.First(m, info)) return;
   GradiometerSample s = dds::FromMsg(m);
   if (door_.Check(s) != SampleDefect::kNone) {
     repeats_.Forget(m);  // a refused sample must not make a later good one look like a repeat

@@ -73,8 +73,8 @@ class TrackerNode {
   int num_live_tracks() const;  // confirmed or tentative now
 
  private:
-  void OnSample(const dds::msg::GradiometerSample& m);
-  void OnFix(const dds::msg::DipoleFix& m);
+  void OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info);
+  void OnFix(const dds::msg::DipoleFix& m, const dds::fdds::SampleInfo& info);
   void Feed(const GradiometerSample& s);  // mu_ held
   // mu_ held; logs starts and ends, unregisters ended tracks' keys if asked.
   void Publish(const std::vector<TrackOutput>& estimates, bool unregister_ended = true);

@@ -39,6 +39,7 @@
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include "magnav/dds/delivery_filter.h"
 #include "magnav/dds/topics.h"
 
 namespace magnav::dds {
@@ -59,6 +60,11 @@ struct NodeOptions {
   // DDS layers use), so ROS 2 tools and nodes with the same message layout see magnav's topics.
   // Unset = $MAGNAV_ROS2_NAMES ("1" on, "0" or unset off). docs/INTEROP.md.
   std::optional<bool> ros2_names;
+  // Readers also match writers of any reliability and durability (a
+  // BEST_EFFORT/VOLATILE companion beside the profile's reader, see Reader).
+  // Off: only writers compatible with the reader profile match (benchmarks
+  // measure the companion's cost this way).
+  bool any_writer = true;
 
   bool IsValid(std::string* error) const;
 };
@@ -80,6 +86,11 @@ struct EndpointStats {
   std::atomic<std::uint64_t> bad_payloads{0};     // received payloads that are not CDR of the type (skipped)
   std::atomic<int> matched{0};                  // currently matched peers
   std::atomic<std::uint64_t> flow_timeouts{0};  // writer flow control: readers not acknowledging in time
+  // Readers with an any-writer companion (Reader): samples dropped because
+  // the other DataReader had handed on the same (writer GUID, RTPS seq)
+  // already, and samples handed on from writers only the companion matched.
+  std::atomic<std::uint64_t> duplicates{0};
+  std::atomic<std::uint64_t> via_any_writer{0};
 };
 
 namespace internal {
@@ -100,6 +111,11 @@ void LogFlowTimeout(const std::string& topic, std::chrono::milliseconds timeout)
 void LogCallbackError(const std::string& topic, const char* what);
 // ROS 2's DDS name of a type: "magnav::msg::GradiometerSample" -> "magnav::msg::dds_::GradiometerSample_".
 std::string Ros2TypeName(const std::string& type_name);
+// The any-writer companion's QoS: `q` with BEST_EFFORT and VOLATILE; none if
+// `q` already is both (it then matches every writer itself).
+std::optional<fdds::DataReaderQos> AnyWriterQos(const fdds::DataReaderQos& q);
+WriterGuid GuidOf(const eprosima::fastrtps::rtps::GUID_t& guid);
+WriterGuid GuidOf(const eprosima::fastrtps::rtps::InstanceHandle_t& handle);
 bool WaitUntil(std::mutex& mu, std::condition_variable& cv, const std::function<bool()>& pred,
                std::chrono::milliseconds timeout);
 }  // namespace internal
@@ -223,37 +239,55 @@ class Writer {
 // A typed reader on one topic; the callback runs on a middleware thread for
 // every sample received. An exception thrown by the callback is caught,
 // logged and counted: one bad sample never stops the reader.
+//
+// Any writer's QoS. A reader listens with two DataReaders: the profile's
+// (RELIABLE, TRANSIENT_LOCAL for magnav's streams: losses repaired, a
+// transient-local writer's history after a restart) and, unless the profile
+// already is BEST_EFFORT and VOLATILE or NodeOptions::any_writer is off, an
+// "any writer" companion with the same history and limits but BEST_EFFORT and
+// VOLATILE, which matches every writer: a stock driver's RELIABLE/VOLATILE
+// (Cyclone DDS's default) or BEST_EFFORT (ROS 2's sensor-data QoS). A writer
+// the profile's reader matches is served by it alone; each sample is handed
+// on once, by writer GUID and RTPS sequence number (DeliveryFilter). The
+// callback is never called from two threads at once.
 template <class M>
 class Reader {
  public:
   using Callback = std::function<void(const M&, const fdds::SampleInfo&)>;
   ~Reader() {
-    if (reader_) {
-      reader_->set_listener(nullptr);
-      node_subscriber_->delete_datareader(reader_);
+    for (Endpoint* e : {&profile_, &companion_}) {
+      if (e->reader) {
+        e->reader->set_listener(nullptr);
+        node_subscriber_->delete_datareader(e->reader);
+      }
     }
   }
   Reader(const Reader&) = delete;
   Reader& operator=(const Reader&) = delete;
 
+  // Waits until at least n writers are matched (each counted once, by either DataReader).
   bool WaitForMatched(int n, std::chrono::milliseconds timeout) {
-    return internal::WaitUntil(listener_.mu, listener_.cv, [&] { return stats_.matched.load() >= n; }, timeout);
+    return internal::WaitUntil(mu_, cv_, [&] { return stats_.matched.load() >= n; }, timeout);
   }
   // Waits until at least n samples have been received in total.
   bool WaitForSamples(std::uint64_t n, std::chrono::milliseconds timeout) {
-    return internal::WaitUntil(listener_.mu, listener_.cv, [&] { return stats_.samples.load() >= n; }, timeout);
+    return internal::WaitUntil(mu_, cv_, [&] { return stats_.samples.load() >= n; }, timeout);
   }
   const EndpointStats& stats() const { return stats_; }
   const std::string& topic() const { return topic_; }
-  // The QoS in force (from the profile).
-  fdds::DataReaderQos qos() const { return reader_->get_qos(); }
+  // The QoS in force (the profile's reader).
+  fdds::DataReaderQos qos() const { return profile_.reader->get_qos(); }
+  // Whether the any-writer companion exists.
+  bool has_companion() const { return has_companion_; }
+  // Writers matched by the companion only (best-effort or volatile ones).
+  int companion_only_writers() const { return filter_.companion_only_writers(); }
 
  private:
   friend class Node;
-  struct Listener : fdds::DataReaderListener {
+  struct Endpoint : fdds::DataReaderListener {
     Reader* self = nullptr;
-    std::mutex mu;
-    std::condition_variable cv;
+    bool companion = false;
+    fdds::DataReader* reader = nullptr;
     M sample;
     void on_data_available(fdds::DataReader* r) override {
       fdds::SampleInfo info;
@@ -266,56 +300,101 @@ class Reader {
         // NO_DATA although more samples may follow: count it and take on
         // (stopping here left the samples behind it until the next arrival).
         if (internal::TakeDeserializeFailure()) {
-          if (self->stats_.bad_payloads++ == 0) internal::LogBadPayload(self->topic_);
+          // Which writer sent it is not known: the companion counts only
+          // while it serves writers of its own (else both would count the
+          // payload of a writer both match).
+          if (!companion || self->filter_.companion_only_writers() > 0) {
+            if (self->stats_.bad_payloads++ == 0) internal::LogBadPayload(self->topic_);
+          }
           continue;
         }
         if (rc != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) break;
         if (!info.valid_data) continue;
-        try {
-          if (self->callback_) self->callback_(sample, info);
-        } catch (const std::exception& e) {
-          ++self->stats_.callback_errors;
-          internal::LogCallbackError(self->topic_, e.what());
-        } catch (...) {
-          ++self->stats_.callback_errors;
-          internal::LogCallbackError(self->topic_, "unknown exception");
-        }
-        {
-          std::lock_guard<std::mutex> lk(mu);
-          ++self->stats_.samples;
-        }
-        cv.notify_all();
+        self->Deliver(companion, sample, info);
       }
     }
     void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& s) override {
+      self->filter_.Matched(companion, internal::GuidOf(s.last_publication_handle), s.current_count_change);
       {
-        std::lock_guard<std::mutex> lk(mu);
-        self->stats_.matched = s.current_count;
+        std::lock_guard<std::mutex> lk(self->mu_);
+        self->stats_.matched = self->filter_.matched_writers();
       }
-      cv.notify_all();
+      self->cv_.notify_all();
     }
     void on_sample_lost(fdds::DataReader*, const fdds::SampleLostStatus& s) override {
-      self->stats_.lost = static_cast<std::uint64_t>(s.total_count);
+      // Best-effort delivery of a writer the profile's reader serves is
+      // dropped anyway: the companion's losses count only for its own writers.
+      if (companion && self->filter_.companion_only_writers() == 0) return;
+      self->lost_[companion] = static_cast<std::uint64_t>(s.total_count);
+      self->stats_.lost = self->lost_[0] + self->lost_[1];
       internal::LogLost(self->topic_, s.total_count, s.total_count_change);
     }
     void on_requested_incompatible_qos(fdds::DataReader*, const fdds::RequestedIncompatibleQosStatus& s) override {
+      // With a companion, a writer the profile's reader cannot match (a
+      // volatile or best-effort one) is the companion's: only the
+      // companion's incompatibilities are real.
+      if (!companion && self->has_companion()) return;
       ++self->stats_.incompatible_qos;
       internal::LogIncompatible(self->topic_, "reader", s.last_policy_id);
     }
   };
-  Reader(fdds::Subscriber* sub, fdds::Topic* topic, const std::string& profile, Callback cb)
+  Reader(fdds::Subscriber* sub, fdds::Topic* topic, const std::string& profile, bool any_writer, Callback cb)
       : node_subscriber_(sub), callback_(std::move(cb)) {
     topic_ = topic->get_name();
-    listener_.self = this;
-    reader_ = sub->create_datareader(topic, internal::ReaderQos(sub, profile), &listener_);
-    if (!reader_) throw DdsError("cannot create a reader on '" + topic_ + "' with profile '" + profile + "'");
+    profile_.self = companion_.self = this;
+    companion_.companion = true;
+    const fdds::DataReaderQos qos = internal::ReaderQos(sub, profile);
+    const std::optional<fdds::DataReaderQos> any = any_writer ? internal::AnyWriterQos(qos) : std::nullopt;
+    has_companion_ = any.has_value();  // before either reader exists: their listeners read it
+    // The profile's reader first, so that it usually matches a writer both
+    // can match before the companion does.
+    profile_.reader = sub->create_datareader(topic, qos, &profile_);
+    if (!profile_.reader) throw DdsError("cannot create a reader on '" + topic_ + "' with profile '" + profile + "'");
+    if (any) {
+      companion_.reader = sub->create_datareader(topic, *any, &companion_);
+      if (!companion_.reader) {
+        profile_.reader->set_listener(nullptr);
+        sub->delete_datareader(profile_.reader);
+        throw DdsError("cannot create the any-writer reader on '" + topic_ + "'");
+      }
+    }
+  }
+  void Deliver(bool companion, const M& m, const fdds::SampleInfo& info) {
+    std::lock_guard<std::mutex> deliver(deliver_mu_);
+    const auto verdict = filter_.Offer(companion, internal::GuidOf(info.sample_identity.writer_guid()),
+                                       info.sample_identity.sequence_number().to64long());
+    if (verdict == DeliveryFilter::Verdict::kServedByProfileReader) return;
+    if (verdict == DeliveryFilter::Verdict::kDuplicate) {
+      ++stats_.duplicates;
+      return;
+    }
+    if (companion) ++stats_.via_any_writer;
+    try {
+      if (callback_) callback_(m, info);
+    } catch (const std::exception& e) {
+      ++stats_.callback_errors;
+      internal::LogCallbackError(topic_, e.what());
+    } catch (...) {
+      ++stats_.callback_errors;
+      internal::LogCallbackError(topic_, "unknown exception");
+    }
+    {
+      std::lock_guard<std::mutex> lk(mu_);
+      ++stats_.samples;
+    }
+    cv_.notify_all();
   }
   fdds::Subscriber* node_subscriber_;
-  fdds::DataReader* reader_ = nullptr;
   std::string topic_;
   Callback callback_;
   EndpointStats stats_;
-  Listener listener_;
+  DeliveryFilter filter_;
+  bool has_companion_ = false;
+  std::atomic<std::uint64_t> lost_[2] = {0, 0};
+  std::mutex deliver_mu_;  // one callback at a time, and the filter's verdict with it
+  std::mutex mu_;          // for the waits
+  std::condition_variable cv_;
+  Endpoint profile_, companion_;
 };
 
 class Node {
@@ -340,7 +419,7 @@ class Node {
                                           const std::string& topic_name = TopicTraits<M>::kTopic,
                                           const std::string& profile = TopicTraits<M>::kReaderProfile) {
     fdds::Topic* t = GetTopic(WireTopicName(topic_name), RegisterType<M>());
-    return std::unique_ptr<Reader<M>>(new Reader<M>(subscriber_, t, profile, std::move(cb)));
+    return std::unique_ptr<Reader<M>>(new Reader<M>(subscriber_, t, profile, any_writer_, std::move(cb)));
   }
 
  private:
@@ -359,6 +438,7 @@ class Node {
 
   int domain_id_ = 0;
   bool ros2_names_ = false;
+  bool any_writer_ = true;
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;
   fdds::Subscriber* subscriber_ = nullptr;
