@@ -1,5 +1,7 @@
 #include "localizer_node.h"
 
+#include <chrono>
+
 #include <spdlog/spdlog.h>
 
 #include <cmath>
@@ -63,13 +65,14 @@ const LocalizerNodeOptions& Checked(const LocalizerNodeOptions& o) {
 }  // namespace
 
 LocalizerNode::LocalizerNode(dds::Node& node, const LocalizerNodeOptions& options)
-    : localizer_(Checked(options).vessel, options.sensors, options.localizer, options.stream) {
+    : localizer_(Checked(options).vessel, options.sensors, options.localizer, options.stream),
+      vessel_id_(options.vessel_id) {
   repeats_.SetLogName("magnav-localizer: magnav/magnetometer sensor");
   writer_ = node.CreateWriter<dds::msg::SensorPositionEstimate>();
   nav_reader_ =
-      node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto&) { OnNav(m); });
+      node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto& info) { OnNav(m, info); });
   mag_reader_ = node.CreateReader<dds::msg::MagnetometerSample>(
-      [this](const dds::msg::MagnetometerSample& m, const auto&) { OnSample(m); });
+      [this](const dds::msg::MagnetometerSample& m, const auto& info) { OnSample(m, info); });
 }
 
 std::uint64_t LocalizerNode::consumed() const {
@@ -87,10 +90,22 @@ void LocalizerNode::Skip(SampleCheck why, const std::string& stream, std::uint32
   }
 }
 
-void LocalizerNode::OnSample(const dds::msg::MagnetometerSample& m) {
-  if (!repeats_.First(m)) return;
+namespace {
+double WallClock_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+}  // namespace
+
+void LocalizerNode::Tick() {
+  std::lock_guard<std::mutex> lk(mu_);
+  localizer_.Tick(WallClock_s());
+}
+
+void LocalizerNode::OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info) {
+  if (!repeats_.First(m, info)) return;
   const MagSample s = FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
+  localizer_.Tick(WallClock_s());
   const SampleCheck c = localizer_.Add(s);
   if (c != SampleCheck::kOk) {
     repeats_.Forget(m);
@@ -98,10 +113,23 @@ void LocalizerNode::OnSample(const dds::msg::MagnetometerSample& m) {
   }
 }
 
-void LocalizerNode::OnNav(const dds::msg::VesselNav& m) {
-  if (!nav_repeats_.First(m)) return;
+void LocalizerNode::OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info) {
+  if (m.vessel_id() != vessel_id_ || m.source() != dds::msg::NAV_GNSS) {
+    // Another vessel's navigation, or an INS / other source: not the
+    // friendly vessel's GNSS (fusing it would pull the vessel state).
+    ++ignored_;
+    std::lock_guard<std::mutex> lk(mu_);
+    if (!std::exchange(warned_ignored_, true)) {
+      spdlog::warn("magnav-localizer: vessel_nav of vessel {} source {} ignored: only vessel {}'s GNSS fixes are "
+                   "used (--vessel-id; further ones are only counted)",
+                   m.vessel_id(), static_cast<int>(m.source()), vessel_id_);
+    }
+    return;
+  }
+  if (!nav_repeats_.First(m, info)) return;
   const GnssFix f = FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
+  localizer_.Tick(WallClock_s());
   const SampleCheck c = localizer_.Add(f);
   if (c != SampleCheck::kOk) {
     nav_repeats_.Forget(m);

@@ -26,7 +26,18 @@ struct LocalizerNodeOptions {
   Vessel vessel;
   std::vector<SensorPrior> sensors;
   LocalizerOptions localizer;
-  StreamOptions stream;
+  // Live streams merge by per-stream watermark (stream.h): a restart's
+  // histories and unpaced replays merge exactly, a quiet stream stops
+  // holding the others after idle_timeout_s.
+  StreamOptions stream = [] {
+    StreamOptions s;
+    s.merge = StreamMerge::kWatermark;
+    return s;
+  }();
+  // The friendly vessel's VesselNav: only this vessel_id, and only GNSS
+  // fixes (NAV_GNSS); any other VesselNav (another vessel, an INS) is
+  // ignored and counted.
+  std::uint32_t vessel_id = 0;
 
   bool IsValid(std::string* error) const;
 };
@@ -44,11 +55,15 @@ class LocalizerNode {
   void Publish();
   // End of stream: hands everything buffered to the EKF, then publishes.
   void Flush();
+  // The wall clock for the stream merge (call every few tens of ms).
+  void Tick();
   bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
 
   std::uint64_t samples_received() const { return mag_reader_->stats().samples.load(); }
   std::uint64_t fixes_received() const { return nav_reader_->stats().samples.load(); }
   std::uint64_t skipped() const { return skipped_; }
+  // VesselNav of another vessel or source (not used).
+  std::uint64_t ignored() const { return ignored_; }
   // Messages seen before (a restarted producer's history: dropped before
   // the door, so that the EKF never takes one twice) and sequence numbers
   // of magnetometer samples that never arrived.
@@ -58,8 +73,8 @@ class LocalizerNode {
   std::uint64_t published() const { return writer_->stats().samples.load(); }
 
  private:
-  void OnSample(const dds::msg::MagnetometerSample& m);
-  void OnNav(const dds::msg::VesselNav& m);
+  void OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info);
+  void OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info);
   void Skip(SampleCheck why, const std::string& stream, std::uint32_t key, double t_s);  // mu_ held
 
   mutable std::mutex mu_;
@@ -67,6 +82,9 @@ class LocalizerNode {
   std::set<std::uint32_t> warned_sensors_;
   bool warned_gnss_ = false;
   std::atomic<std::uint64_t> skipped_{0};
+  std::atomic<std::uint64_t> ignored_{0};
+  std::uint32_t vessel_id_ = 0;
+  bool warned_ignored_ = false;
   dds::RepeatFilter repeats_;      // magnetometer samples
   dds::RepeatFilter nav_repeats_;  // vessel_nav
   std::unique_ptr<dds::Writer<dds::msg::SensorPositionEstimate>> writer_;

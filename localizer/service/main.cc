@@ -32,8 +32,22 @@ int main(int argc, char** argv) {
   magnav::cli::AddVec3Option(app, "--moment-body", &moment, "vessel body moment, A*m^2 (required)");
   app.add_option("--vessel-z", vessel_z_m, "vessel depth (NED z), m (required)")->required();
   app.add_option("--sigma-b", sigma_B_T, "magnetometer noise per axis, T (required)")->required();
+  std::string merge = "watermark";
+  app.add_option("--merge", merge,
+                 "how the streams (each sensor, the GNSS) are merged in time: watermark (an item waits until every "
+                 "live stream has reached its time; restarts and unpaced replays merge exactly) or delay (an item "
+                 "waits until one --reorder-delay newer has arrived)")
+      ->check(CLI::IsMember({"watermark", "delay"}))
+      ->capture_default_str();
+  app.add_option("--idle-timeout", opt.stream.idle_timeout_s,
+                 "watermark: a stream silent this long (wall clock, s) stops holding the others")
+      ->capture_default_str();
   app.add_option("--reorder-delay", opt.stream.reorder_delay_s,
-                 "hold samples this long (sample time, s) to order the two streams");
+                 "delay: hold samples this long (sample time, s) to order the streams")
+      ->capture_default_str();
+  app.add_option("--vessel-id", opt.vessel_id,
+                 "the friendly vessel's vessel_id: only its GNSS VesselNav fixes are used")
+      ->capture_default_str();
   app.add_option("--q-position", opt.localizer.process.position_m_per_sqrt_s, "position random walk, m/sqrt(s)");
   app.add_option("--q-speed", opt.localizer.process.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)");
   app.add_option("--q-heading", opt.localizer.process.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)");
@@ -48,6 +62,7 @@ int main(int argc, char** argv) {
   return magnav::dds::RunService("magnav-localizer", [&] {
     if (!moment.set) throw InputError("--moment-body MX,MY,MZ is required (A*m^2, body frame): no default moment");
     opt.vessel = {moment.value(), vessel_z_m};
+    opt.stream.merge = merge == "delay" ? localizer::StreamMerge::kReorderDelay : localizer::StreamMerge::kWatermark;
     opt.localizer.sigma_B_T = sigma_B_T;
     opt.sensors = localizer::ReadDeploymentFile(deployment);
     magnav::dds::InstallShutdownHandlers();
@@ -60,15 +75,17 @@ int main(int argc, char** argv) {
     auto next_publish = Clock::now() + period(publish_period_s);
     auto next_stats = Clock::now() + period(stats_period_s);
     while (!magnav::dds::WaitForShutdown(std::chrono::milliseconds(50))) {
+      loc.Tick();
       if (Clock::now() >= next_publish) {
         loc.Publish();
         next_publish += period(publish_period_s);
       }
       if (stats_period_s > 0 && Clock::now() >= next_stats) {
         spdlog::info("magnav-localizer: {} magnetometer + {} vessel_nav samples in, {} used, {} skipped, {} "
-                     "repeated, {} missing (sequence gaps), {} estimates out",
+                     "repeated, {} missing (sequence gaps), {} vessel_nav of other vessels or sources ignored, {} "
+                     "estimates out",
                      loc.samples_received(), loc.fixes_received(), loc.consumed(), loc.skipped(), loc.repeated(),
-                     loc.missing(), loc.published());
+                     loc.missing(), loc.ignored(), loc.published());
         next_stats += period(stats_period_s);
       }
     }

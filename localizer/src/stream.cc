@@ -13,6 +13,14 @@ bool StreamOptions::IsValid(std::string* error) const {
     if (error) *error = "reorder_delay_s must be >= 0";
     return false;
   }
+  if (!(idle_timeout_s > 0.0) || !std::isfinite(idle_timeout_s)) {
+    if (error) *error = "idle_timeout_s must be finite and > 0";
+    return false;
+  }
+  if (max_pending < 1) {
+    if (error) *error = "max_pending must be >= 1";
+    return false;
+  }
   if (!(init_window_s > 0.0) || !std::isfinite(init_window_s)) {
     if (error) *error = "init_window_s must be finite and > 0";
     return false;
@@ -29,6 +37,8 @@ StreamingLocalizer::StreamingLocalizer(const Vessel& vessel, const std::vector<S
   if (sensors.empty()) throw InputError("localizer: no sensor");
   pass_.vessel = vessel;
   pass_.sensors = sensors;
+  streams_[-1] = {};
+  for (const auto& p : sensors) streams_[p.sensor_id] = {};
 }
 
 StreamingLocalizer::~StreamingLocalizer() = default;
@@ -40,30 +50,56 @@ double StreamingLocalizer::time() const {
 SampleCheck StreamingLocalizer::Add(const MagSample& sample) {
   const SampleCheck c = gate_.Check(sample);
   if (c != SampleCheck::kOk) return c;
-  return Buffer(sample.t_s, 1, sample);
+  return Buffer(sample.t_s, 1, sample.sensor_id, sample);
 }
 
 SampleCheck StreamingLocalizer::Add(const GnssFix& fix) {
   const SampleCheck c = gate_.Check(fix);
   if (c != SampleCheck::kOk) return c;
-  return Buffer(fix.t_s, 0, fix);
+  return Buffer(fix.t_s, 0, -1, fix);
 }
 
-SampleCheck StreamingLocalizer::Buffer(double t_s, int kind, Item item) {
+SampleCheck StreamingLocalizer::Buffer(double t_s, int kind, std::int64_t stream, Item item) {
   if (t_s < consumed_until_) {
     ++late_;
     return SampleCheck::kTimeBackwards;
   }
-  pending_.emplace(Key{t_s, kind, arrivals_++}, std::move(item));
+  pending_.emplace(Key{t_s, kind, stream < 0 ? 0 : stream, arrivals_++}, std::move(item));
   newest_t_ = std::max(newest_t_, t_s);
+  StreamState& st = streams_[stream];
+  st.last_t = std::max(st.last_t, t_s);
+  st.last_arrival = now_s_;
+  if (std::isnan(first_arrival_s_)) first_arrival_s_ = now_s_;
   Release(false);
   return SampleCheck::kOk;
+}
+
+void StreamingLocalizer::Tick(double now_s) {
+  now_s_ = now_s;
+  if (stream_.merge == StreamMerge::kWatermark && !pending_.empty()) Release(false);
+}
+
+double StreamingLocalizer::ReleasableUntil() const {
+  if (stream_.merge == StreamMerge::kReorderDelay) return newest_t_ - stream_.reorder_delay_s;
+  // Without a clock every stream counts as live.
+  const bool clock = std::isfinite(now_s_);
+  double live = std::numeric_limits<double>::infinity(), all = std::numeric_limits<double>::infinity();
+  bool any_live = false;
+  for (const auto& [id, st] : streams_) {
+    const double arrival = std::isnan(st.last_arrival) ? first_arrival_s_ : st.last_arrival;
+    const bool seen = !std::isnan(st.last_arrival);
+    if (seen) all = std::min(all, st.last_t);
+    if (clock && !std::isnan(arrival) && now_s_ - arrival > stream_.idle_timeout_s) continue;  // quiet
+    any_live = true;
+    live = std::min(live, st.last_t);
+  }
+  return any_live ? live : all;
 }
 
 bool StreamingLocalizer::TryStart(bool final) {
   if (pending_.empty()) return false;
   const double t0 = std::get<0>(pending_.begin()->first);
-  if (!final && newest_t_ - t0 < stream_.init_window_s + stream_.reorder_delay_s) return false;
+  if (!final && ReleasableUntil() - t0 < stream_.init_window_s && pending_.size() < stream_.max_pending) return false;
   std::vector<GnssFix> fixes;
   for (const auto& [key, item] : pending_) {
     if (const auto* f = std::get_if<GnssFix>(&item)) fixes.push_back(*f);
@@ -85,8 +121,9 @@ bool StreamingLocalizer::TryStart(bool final) {
   }
   // No usable fixes at the start: slide the start forward.
   if (!final) {
-    while (!pending_.empty() && newest_t_ - std::get<0>(pending_.begin()->first) >=
-                                    stream_.init_window_s + stream_.reorder_delay_s) {
+    const double until = ReleasableUntil();
+    while (!pending_.empty() && (until - std::get<0>(pending_.begin()->first) >= stream_.init_window_s ||
+                                 pending_.size() > stream_.max_pending)) {
       pending_.erase(pending_.begin());
       ++dropped_before_start_;
     }
@@ -96,7 +133,9 @@ bool StreamingLocalizer::TryStart(bool final) {
 
 void StreamingLocalizer::Release(bool all) {
   if (!ekf_ && !TryStart(all)) return;
-  while (!pending_.empty() && (all || newest_t_ - std::get<0>(pending_.begin()->first) >= stream_.reorder_delay_s)) {
+  const double until = ReleasableUntil();
+  while (!pending_.empty() &&
+         (all || std::get<0>(pending_.begin()->first) <= until || pending_.size() > stream_.max_pending)) {
     Consume(pending_.begin()->second);
     pending_.erase(pending_.begin());
   }

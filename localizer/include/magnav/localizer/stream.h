@@ -2,7 +2,8 @@
 // over a whole file): samples and fixes arrive one by one, possibly a little
 // out of order across sensors and the GNSS; each is checked at the door
 // (InputGate), held in a short reorder buffer, and handed to the EKF in time
-// order (fixes before samples at equal times, then arrival order). The vessel
+// order (fixes before samples at equal times, then by sensor id, then arrival
+// order). The vessel
 // is started from the GNSS fixes of the first `init_window_s` (ekf.h
 // InitialVesselFromGnss). Nothing that fails a check reaches the EKF.
 //
@@ -24,10 +25,34 @@
 
 namespace magnav::localizer {
 
+// How the streams (each sensor's samples, the GNSS fixes) are merged in time
+// before the EKF takes them.
+enum class StreamMerge {
+  // An item is handed on once an item reorder_delay_s newer (sample time) has
+  // arrived on any stream, or at Flush. For streams that arrive merged
+  // already (a file; RunEkf hands everything on at Flush).
+  kReorderDelay,
+  // Per-stream watermark: an item is handed on once every live stream has
+  // sent an item at least as new. A stream that has sent nothing for
+  // idle_timeout_s of wall-clock time (Tick) does not hold the others (a
+  // quiet or dead sensor); a stream not seen yet holds them for
+  // idle_timeout_s from the first arrival (two topics' histories that arrive
+  // one after the other after a restart). When every stream is quiet, items
+  // up to the oldest stream's last time are handed on. Independent of
+  // arrival pace: unpaced replays and a service's restart merge exactly.
+  kWatermark,
+};
+
 struct StreamOptions {
-  // An item is handed to the EKF once an item this much newer (sample time,
-  // s) has arrived, or at Flush. Infinity = only at Flush.
+  StreamMerge merge = StreamMerge::kReorderDelay;
+  // kReorderDelay: an item is handed to the EKF once an item this much newer
+  // (sample time, s) has arrived, or at Flush. Infinity = only at Flush.
   double reorder_delay_s = 1.0;
+  // kWatermark: a stream silent this long (wall clock, s) stops holding the others.
+  double idle_timeout_s = 2.0;
+  // At most this many items wait (memory bound); beyond it the oldest is
+  // handed on whatever the merge rule says.
+  std::size_t max_pending = 1000000;
   // The vessel is started from the fixes within this many s of the first
   // item; the stream is held until that window (plus the reorder delay) has
   // passed.
@@ -50,6 +75,10 @@ class StreamingLocalizer {
   SampleCheck Add(const GnssFix& fix);
   // Hands everything buffered to the EKF (end of stream).
   void Flush();
+  // kWatermark: the wall clock (s, any monotonic origin) for idle streams;
+  // items arriving get this time. Call it often (the service: every 50 ms
+  // and before every Add); it hands on what a newly idle stream held.
+  void Tick(double now_s);
 
   bool initialized() const { return ekf_ != nullptr; }
   // Time of the EKF (s); −inf before it starts.
@@ -68,8 +97,13 @@ class StreamingLocalizer {
 
  private:
   using Item = std::variant<MagSample, GnssFix>;
-  using Key = std::tuple<double, int, std::uint64_t>;  // time, 0 = fix / 1 = sample, arrival
-  SampleCheck Buffer(double t_s, int kind, Item item);
+  // Time, 0 = fix / 1 = sample, sensor id (0 for fixes), arrival: at equal
+  // times the order does not depend on arrival across sensors (a relay or
+  // another vendor may interleave sensors differently), so live = offline.
+  using Key = std::tuple<double, int, std::int64_t, std::uint64_t>;
+  SampleCheck Buffer(double t_s, int kind, std::int64_t stream, Item item);
+  // Items up to this time may be handed on now.
+  double ReleasableUntil() const;
   void Release(bool all);
   bool TryStart(bool final);
   void Consume(const Item& item);
@@ -80,6 +114,13 @@ class StreamingLocalizer {
   StreamOptions stream_;
   InputGate gate_;
   std::map<Key, Item> pending_;
+  struct StreamState {
+    double last_t = -std::numeric_limits<double>::infinity();  // sample time of its newest item
+    double last_arrival = std::numeric_limits<double>::quiet_NaN();  // wall clock; NaN: not seen yet
+  };
+  std::map<std::int64_t, StreamState> streams_;  // -1: the GNSS; else the sensor id
+  double now_s_ = std::numeric_limits<double>::quiet_NaN();
+  double first_arrival_s_ = std::numeric_limits<double>::quiet_NaN();
   std::uint64_t arrivals_ = 0;
   double newest_t_ = -std::numeric_limits<double>::infinity();
   double consumed_until_ = -std::numeric_limits<double>::infinity();
