@@ -63,4 +63,12 @@ function(magnav_service_test name)
   magnav_test(${name} SOURCES ${ARG_SOURCES} DEPS ${ARG_DEPS} magnav::dds LABELS ${ARG_LABELS} TIMEOUT 180)
   target_compile_definitions(${name} PRIVATE MAGNAV_SERVICE_BIN="$<TARGET_FILE:${ARG_SERVICE}>")
   add_dependencies(${name} ${ARG_SERVICE})
+  # A stock-QoS driver in front of the service (tests/support/stock_relay.h),
+  # where Cyclone DDS was found (tests/interop defines the target first).
+  get_property(peer GLOBAL PROPERTY MAGNAV_CYCLONE_PEER_TARGET)
+  if(peer)
+    target_compile_definitions(${name} PRIVATE MAGNAV_CYCLONE_PEER="$<TARGET_FILE:${peer}>"
+      MAGNAV_CYCLONE_CONFIG="${PROJECT_SOURCE_DIR}/config/cyclonedds_loopback.xml")
+    add_dependencies(${name} ${peer})
+  endif()
 endfunction()

@@ -10,6 +10,12 @@
 #                    and finds it bit for bit equal to `magnav invert` of the
 #                    same file. Then magnav -> Cyclone: `magnav replay` of the
 #                    pass, every sample received bit for bit.
+#   stock_writers    Cyclone writers with a stock driver's QoS feed magnav-inverter:
+#                    Cyclone's default writer QoS (RELIABLE, VOLATILE) and ROS
+#                    2's sensor-data QoS (BEST_EFFORT, VOLATILE), each paced at
+#                    2000 samples/s; every sample gets its fix, bit for bit
+#                    the offline `magnav invert` (the service's readers used
+#                    to refuse both: "incompatible QoS: durability").
 #   ros2_names       The first half of both_directions with ROS 2 topic and
 #                    type names on both sides ($MAGNAV_ROS2_NAMES=1).
 #   startup          The start-up race of issue 14, repeated: a Cyclone reader
@@ -60,6 +66,24 @@ both_directions)
   cat "$WORK/samples.log"
   if [ "$rc" -ne 0 ]; then echo "FAIL: magnav replay -> Cyclone"; exit 1; fi
   echo "ok: magnav replay -> Cyclone: every sample bit for bit"
+  ;;
+stock_writers)
+  "$BIN/magnav" invert --input "$PASS" --method ted-egt --output "$WORK/offline.csv" >/dev/null
+  for qos in default sensor_data; do
+    "$BIN/magnav-inverter" --b0 "$B0" --stats-period 0 >"$WORK/inverter_$qos.log" 2>&1 & inv=$!; pids+=($inv)
+    "$PEER" expect-fixes "$WORK/offline.csv" 60 >"$WORK/fixes_$qos.log" 2>&1 & fixes=$!
+    wait_ready "$WORK/fixes_$qos.log"
+    "$PEER" send-samples "$PASS" "$qos" >"$WORK/send_$qos.log" 2>&1 \
+      || { echo "FAIL: cyclone_peer send-samples ($qos)"; cat "$WORK/send_$qos.log"; exit 1; }
+    rc=0; wait "$fixes" || rc=$?
+    echo "$qos writer: $(cat "$WORK/fixes_$qos.log")"
+    kill -TERM "$inv"; wait "$inv" || true
+    if [ "$rc" -ne 0 ]; then echo "FAIL: a $qos Cyclone writer -> magnav-inverter"; cat "$WORK/inverter_$qos.log"; exit 1; fi
+    if grep -q "incompatible QoS" "$WORK/inverter_$qos.log"; then
+      echo "FAIL: magnav-inverter reported incompatible QoS for a $qos writer"; cat "$WORK/inverter_$qos.log"; exit 1
+    fi
+  done
+  echo "ok: stock Cyclone writers (default RELIABLE/VOLATILE, sensor-data BEST_EFFORT) -> magnav-inverter: every fix equals the offline magnav invert"
   ;;
 ros2_names)
   # ROS 2 names on both sides (MAGNAV_ROS2_NAMES=1): Cyclone -> magnav-inverter

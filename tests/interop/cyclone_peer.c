@@ -16,10 +16,25 @@
  *       "received R of N, M differ, D repeated" at the end. Exit 0 iff all N
  *       came, none differ, none repeated. The reader is RELIABLE and
  *       TRANSIENT_LOCAL (docs/INTEROP.md), or VOLATILE with "volatile".
- *   cyclone_peer send-samples FILE
+ *   cyclone_peer send-samples FILE [magnav|default|sensor_data]
  *       Publishes every row of FILE on magnav/gradiometer (sigma_B and sigma_T
  *       from the file's "# sigma_B_T:" and "# sigma_T_Tpm:" lines) once a
- *       reader is matched, then waits until it has acknowledged them all.
+ *       reader is matched, then waits until it has acknowledged them all. The
+ *       writer's QoS: magnav's (RELIABLE, TRANSIENT_LOCAL; the default), or a
+ *       stock driver's: Cyclone DDS's default writer QoS (RELIABLE, VOLATILE,
+ *       KEEP_LAST 1: dds_create_writer with no QoS) or ROS 2's sensor-data QoS
+ *       (BEST_EFFORT, VOLATILE, KEEP_LAST 5). The stock ones are paced at
+ *       2000 samples/s, as a sensor would be.
+ *   cyclone_peer relay QOS TOPICS FROM_DOMAIN RATE QUIET_S [READERS]
+ *       A stock driver in front of magnav: reads TOPICS (comma-separated, of
+ *       gradiometer, magnetometer, vessel_nav) on FROM_DOMAIN with magnav's
+ *       QoS (RELIABLE, TRANSIENT_LOCAL, KEEP_ALL) and writes every sample as it
+ *       is, in the order taken, to the same topic on $MAGNAV_DOMAIN_ID with
+ *       writer QoS QOS (default or sensor_data as above), at most RATE
+ *       samples/s. Prints "ready" once each writer has matched READERS readers
+ *       (default 1); ends
+ *       QUIET_S seconds after the last sample (once one came), printing
+ *       "relayed N samples".
  *   cyclone_peer expect-fixes FILE TIMEOUT_S
  *       Subscribes magnav/dipole_fix, prints "ready" once a writer (the
  *       service) is matched, and waits for one fix per row of FILE,
@@ -30,6 +45,7 @@
  * Exit codes: 0 ok, 1 the check failed, 2 usage or input error, 3 DDS error.
  */
 #include <math.h>
+#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -213,6 +229,42 @@ static dds_qos_t *endpoint_qos(int transient_local, int keep_all) {
   dds_data_representation_id_t xcdr1 = DDS_DATA_REPRESENTATION_XCDR1;
   dds_qset_data_representation(q, 1, &xcdr1);
   return q;
+}
+
+/* A stock driver's writer QoS by name: NULL for magnav's own (caller
+ * decides), Cyclone's default (no QoS given), or ROS 2's sensor-data QoS. */
+typedef enum { QOS_MAGNAV, QOS_DEFAULT, QOS_SENSOR_DATA, QOS_UNKNOWN } qos_kind_t;
+
+static qos_kind_t qos_kind(const char *name) {
+  if (strcmp(name, "magnav") == 0) return QOS_MAGNAV;
+  if (strcmp(name, "default") == 0) return QOS_DEFAULT;
+  if (strcmp(name, "sensor_data") == 0) return QOS_SENSOR_DATA;
+  return QOS_UNKNOWN;
+}
+
+static dds_entity_t stock_writer(dds_entity_t pp, dds_entity_t topic, qos_kind_t kind) {
+  if (kind == QOS_MAGNAV) {
+    dds_qos_t *q = endpoint_qos(1, 1);
+    const dds_entity_t wr = dds_create_writer(pp, topic, q, NULL);
+    dds_delete_qos(q);
+    return wr;
+  }
+  if (kind == QOS_DEFAULT) return dds_create_writer(pp, topic, NULL, NULL);
+  dds_qos_t *q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_BEST_EFFORT, 0);
+  dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
+  dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 5);
+  const dds_entity_t wr = dds_create_writer(pp, topic, q, NULL);
+  dds_delete_qos(q);
+  return wr;
+}
+
+/* Sleeps until `n` samples fit a rate of `rate` per second since `start`. */
+static void pace(dds_time_t start, size_t n, double rate) {
+  if (rate <= 0) return;
+  const dds_time_t due = start + (dds_duration_t)((double)n / rate * 1e9);
+  const dds_time_t now = dds_time();
+  if (due > now) dds_sleepfor(due - now);
 }
 
 /* The topic, with magnav's names or, when $MAGNAV_ROS2_NAMES=1, ROS 2's:
@@ -405,7 +457,7 @@ static int expect_samples(const char *path, double timeout_s, int transient_loca
   return all_once(&c, t.num_rows) ? 0 : 1;
 }
 
-static int send_samples(const char *path) {
+static int send_samples(const char *path, qos_kind_t kind) {
   table_t t;
   if (read_table(path, &t) != 0) return 2;
   if (isnan(t.sigma_B) || isnan(t.sigma_T)) {
@@ -415,9 +467,7 @@ static int send_samples(const char *path) {
   const int c_id = column(&t, "sensor_id");
   const dds_entity_t pp = participant();
   const dds_entity_t topic = topic_on(pp, &magnav_msg_GradiometerSample_desc, "magnav/gradiometer");
-  dds_qos_t *q = endpoint_qos(1, 1);
-  const dds_entity_t wr = dds_create_writer(pp, topic, q, NULL);
-  dds_delete_qos(q);
+  const dds_entity_t wr = stock_writer(pp, topic, kind);
   if (topic < 0 || wr < 0) {
     fprintf(stderr, "cyclone_peer: cannot create the writer\n");
     return 3;
@@ -432,10 +482,15 @@ static int send_samples(const char *path) {
     fprintf(stderr, "cyclone_peer: no reader of magnav/gradiometer within 30 s\n");
     return 1;
   }
+  /* A stock driver's samples come at a sensor's pace: a burst into a
+   * best-effort path would test the socket buffers, not magnav. */
+  const double rate = kind == QOS_MAGNAV ? 0.0 : 2000.0;
+  const dds_time_t start = dds_time();
   uint64_t seq[1024] = {0};
   for (size_t r = 0; r < t.num_rows; ++r) {
     const uint32_t id = (uint32_t)value(&t, r, c_id);
     if (id >= 1024) return 2;
+    pace(start, r, rate);
     magnav_msg_GradiometerSample m;
     sample_of_row(&t, r, seq[id]++, &m);
     const dds_return_t rc = dds_write(wr, &m);
@@ -522,15 +577,132 @@ static int expect_fixes(const char *path, double timeout_s) {
   return all_once(&c, t.num_rows) ? 0 : 1;
 }
 
+/* ---- relay: a stock writer in front of magnav ---- */
+
+static volatile sig_atomic_t stop_requested = 0;
+static void on_signal(int sig) {
+  (void)sig;
+  stop_requested = 1;
+}
+
+typedef struct {
+  const char *name;
+  const dds_topic_descriptor_t *desc;
+} topic_kind_t;
+
+static const topic_kind_t kRelayTopics[] = {
+    {"gradiometer", &magnav_msg_GradiometerSample_desc},
+    {"magnetometer", &magnav_msg_MagnetometerSample_desc},
+    {"vessel_nav", &magnav_msg_VesselNav_desc},
+};
+
+static int relay(qos_kind_t kind, const char *topics, dds_domainid_t from, double rate, double quiet_s,
+                 int min_readers) {
+  if (kind == QOS_UNKNOWN) return 2;
+  const char *env = getenv("MAGNAV_DOMAIN_ID");
+  const dds_domainid_t to = env ? (dds_domainid_t)strtoul(env, NULL, 10) : 0;
+  const dds_entity_t pp_in = dds_create_participant(from, NULL, NULL);
+  const dds_entity_t pp_out = dds_create_participant(to, NULL, NULL);
+  if (pp_in < 0 || pp_out < 0) {
+    fprintf(stderr, "cyclone_peer: cannot create the participants on domains %u and %u\n", (unsigned)from,
+            (unsigned)to);
+    return 3;
+  }
+  dds_entity_t readers[8], writers[8];
+  int n = 0;
+  char list[256];
+  snprintf(list, sizeof list, "%s", topics);
+  for (char *name = strtok(list, ","); name; name = strtok(NULL, ",")) {
+    const topic_kind_t *k = NULL;
+    for (size_t i = 0; i < sizeof kRelayTopics / sizeof kRelayTopics[0]; ++i) {
+      if (strcmp(kRelayTopics[i].name, name) == 0) k = &kRelayTopics[i];
+    }
+    if (!k || n == 8) {
+      fprintf(stderr, "cyclone_peer: cannot relay topic '%s'\n", name);
+      return 2;
+    }
+    char topic_name[64];
+    snprintf(topic_name, sizeof topic_name, "magnav/%s", k->name);
+    readers[n] = reader_on(pp_in, k->desc, topic_name, 1);
+    writers[n] = stock_writer(pp_out, topic_on(pp_out, k->desc, topic_name), kind);
+    if (writers[n] < 0) {
+      fprintf(stderr, "cyclone_peer: cannot create the writer of %s\n", topic_name);
+      return 3;
+    }
+    ++n;
+  }
+  const dds_entity_t ws = dds_create_waitset(pp_in);
+  for (int i = 0; i < n; ++i) dds_waitset_attach(ws, dds_create_readcondition(readers[i], DDS_ANY_STATE), readers[i]);
+  /* A volatile writer's samples before a reader matched are gone: ready once
+   * every writer has min_readers readers (the service, recorders), at most 30 s. */
+  for (int i = 0; i < n; ++i) {
+    dds_publication_matched_status_t st = {0};
+    const dds_time_t deadline = dds_time() + DDS_SECS(30);
+    while ((int)st.current_count < min_readers && dds_time() < deadline) {
+      dds_get_publication_matched_status(writers[i], &st);
+      dds_sleepfor(DDS_MSECS(10));
+    }
+    if ((int)st.current_count < min_readers) {
+      fprintf(stderr, "cyclone_peer: too few readers of the relayed topic %d on domain %u within 30 s\n", i, (unsigned)to);
+      return 1;
+    }
+  }
+  signal(SIGTERM, on_signal);
+  signal(SIGINT, on_signal);
+  printf("ready\n");
+  fflush(stdout);
+  size_t relayed = 0;
+  dds_time_t start = 0, last = 0;
+  void *samples[TAKE_MAX];
+  dds_sample_info_t infos[TAKE_MAX];
+  while (!stop_requested) {
+    dds_waitset_wait(ws, NULL, 0, DDS_MSECS(100));
+    int got_any = 0;
+    for (int i = 0; i < n; ++i) {
+      memset(samples, 0, sizeof samples);
+      const int got = dds_take(readers[i], samples, infos, TAKE_MAX, TAKE_MAX);
+      for (int j = 0; j < got; ++j) {
+        if (!infos[j].valid_data) continue;
+        if (relayed == 0) start = dds_time();
+        pace(start, relayed, rate);
+        if (dds_write(writers[i], samples[j]) != DDS_RETCODE_OK) {
+          fprintf(stderr, "cyclone_peer: dds_write failed\n");
+          return 3;
+        }
+        ++relayed;
+        got_any = 1;
+      }
+      if (got > 0) dds_return_loan(readers[i], samples, got);
+    }
+    if (got_any) last = dds_time();
+    if (relayed > 0 && !got_any && dds_time() - last > (dds_duration_t)(quiet_s * 1e9)) break;
+  }
+  for (int i = 0; i < n; ++i) dds_wait_for_acks(writers[i], DDS_SECS(10));
+  printf("relayed %zu samples\n", relayed);
+  fflush(stdout);
+  linger_then_delete(pp_out);
+  dds_delete(pp_in);
+  return 0;
+}
+
 int main(int argc, char **argv) {
   if (argc >= 4 && strcmp(argv[1], "expect-samples") == 0) {
     const int tl = !(argc == 5 && strcmp(argv[4], "volatile") == 0);
     return expect_samples(argv[2], atof(argv[3]), tl);
   }
-  if (argc == 3 && strcmp(argv[1], "send-samples") == 0) return send_samples(argv[2]);
+  if ((argc == 3 || argc == 4) && strcmp(argv[1], "send-samples") == 0) {
+    const qos_kind_t kind = argc == 4 ? qos_kind(argv[3]) : QOS_MAGNAV;
+    if (kind == QOS_UNKNOWN) return 2;
+    return send_samples(argv[2], kind);
+  }
+  if ((argc == 7 || argc == 8) && strcmp(argv[1], "relay") == 0) {
+    return relay(qos_kind(argv[2]), argv[3], (dds_domainid_t)strtoul(argv[4], NULL, 10), atof(argv[5]),
+                 atof(argv[6]), argc == 8 ? atoi(argv[7]) : 1);
+  }
   if (argc == 4 && strcmp(argv[1], "expect-fixes") == 0) return expect_fixes(argv[2], atof(argv[3]));
   fprintf(stderr,
-          "usage: cyclone_peer expect-samples FILE TIMEOUT_S [volatile] | send-samples FILE | "
-          "expect-fixes FILE TIMEOUT_S\n");
+          "usage: cyclone_peer expect-samples FILE TIMEOUT_S [volatile] | send-samples FILE "
+          "[magnav|default|sensor_data] | expect-fixes FILE TIMEOUT_S | relay default|sensor_data TOPICS "
+          "FROM_DOMAIN RATE QUIET_S [READERS]\n");
   return 2;
 }

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -19,6 +20,7 @@
 #include "magnav/core/units.h"
 #include "magnav/dds/node.h"
 #include "magnav/localizer/ekf.h"
+#include "stock_relay.h"
 #include "subprocess.h"
 #include "test_data.h"
 
@@ -170,8 +172,13 @@ namespace {
 // The whole run through the tools: `magnav replay --magnetometer --gnss` feeds
 // the service, `magnav record --topic sensor_position` keeps what it
 // publishes, and the last recorded row of every sensor equals the offline
-// `magnav localize --method ekf` row.
-TEST(LocalizerService, ReplayedAndRecordedRunEqualsTheOfflineCommand) {
+// `magnav localize --method ekf` row. With `stock_qos` ("default": Cyclone
+// DDS's RELIABLE/VOLATILE writer; "sensor_data": ROS 2's BEST_EFFORT/VOLATILE)
+// the replay goes to another domain and a Cyclone relay writes every sample
+// again with that QoS to the service's, paced (replay at 100×, ≤ 20000
+// samples/s): the service (and the recorders of its input) hear only a stock
+// writer, and the result must be the same.
+void ReplayedAndRecordedRunEqualsTheOfflineCommand(const char* stock_qos) {
   const int domain = testing::TestDomainId();
   const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}};
   const std::string dir = testing::TempDir();
@@ -195,13 +202,32 @@ TEST(LocalizerService, ReplayedAndRecordedRunEqualsTheOfflineCommand) {
   testing::Subprocess record_mag({MAGNAV_BIN, "record", "--topic", "magnetometer", "--count", "44432", "--output",
                                   dir + "/mag.csv"},
                                  env, /*merge_stderr=*/true);
-  const auto [replay_rc, replay_out] = testing::RunCommand(
-      {MAGNAV_BIN, "replay", "--magnetometer", m, "--gnss", g, "--speed", "0", "--wait-readers", "2"}, env, 120s);
+  std::optional<testing::StockRelay> relay;
+  std::vector<std::string> replay = {MAGNAV_BIN, "replay", "--magnetometer", m, "--gnss", g, "--speed", "0",
+                                     "--wait-readers", "2"};
+  std::map<std::string, std::string> replay_env = env;
+  if (stock_qos) {
+    relay.emplace(stock_qos, "magnetometer,vessel_nav", domain, 20000.0, /*readers=*/2);
+    ASSERT_TRUE(relay->ready());
+    replay_env["MAGNAV_DOMAIN_ID"] = std::to_string(testing::StockRelay::InputDomain(domain));
+    replay[7] = "100";  // --speed: both streams in time order, as live
+    replay[9] = "1";    // --wait-readers: the relay
+  }
+  const auto [replay_rc, replay_out] = testing::RunCommand(replay, replay_env, 120s);
   ASSERT_EQ(replay_rc, 0) << replay_out;
+  if (relay) {
+    int relay_rc = 0;
+    const std::string relay_out = relay->Finish(60s, &relay_rc);
+    ASSERT_EQ(relay_rc, 0) << relay_out;
+    EXPECT_NE(relay_out.find("relayed 45543 samples"), std::string::npos) << relay_out;
+  }
   EXPECT_NE(replay_out.find("replayed 44432 magnetometer samples and 1111 vessel_nav fixes"), std::string::npos)
       << replay_out;
   service.Signal(SIGTERM);
   ASSERT_EQ(service.Wait(30s), 0) << service.ReadAll();
+  const std::string service_log = service.ReadAll();
+  SCOPED_TRACE(service_log);
+  EXPECT_NE(service_log.find(" 0 skipped"), std::string::npos);
   std::this_thread::sleep_for(1s);  // the final estimates reach the recorder
   record.Signal(SIGTERM);
   ASSERT_EQ(record.Wait(30s), 0) << record.ReadAll();
@@ -245,6 +271,17 @@ TEST(LocalizerService, ReplayedAndRecordedRunEqualsTheOfflineCommand) {
     }
   }
 }
+
+TEST(LocalizerService, ReplayedAndRecordedRunEqualsTheOfflineCommand) { ReplayedAndRecordedRunEqualsTheOfflineCommand(nullptr); }
+
+class LocalizerStockWriter : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(LocalizerStockWriter, EverySampleCountsAsFromMagnavsOwnWriter) {
+  if (!testing::StockRelay::Available()) GTEST_SKIP() << "Cyclone DDS not found at configure time: no stock peer";
+  ReplayedAndRecordedRunEqualsTheOfflineCommand(GetParam());
+}
+
+INSTANTIATE_TEST_SUITE_P(Qos, LocalizerStockWriter, ::testing::Values("default", "sensor_data"));
 
 }  // namespace
 }  // namespace magnav::localizer

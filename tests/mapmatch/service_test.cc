@@ -11,12 +11,15 @@
 #include <functional>
 #include <thread>
 
+#include <optional>
+
 #include <gtest/gtest.h>
 
 #include "magnav/core/csv.h"
 #include "magnav/mapmatch/fix_schedule.h"
 #include "magnav/mapmatch/particle_filter.h"
 #include "matcher_node.h"
+#include "stock_relay.h"
 #include "subprocess.h"
 #include "test_data.h"
 
@@ -57,7 +60,13 @@ Expected Offline(const std::string& path_file, ParticleFilterKind kind, const Pa
   return e;
 }
 
-TEST(MatcherService, ReplayedRunsFixesEqualTheOfflineFilters) {
+// `magnav replay --map-path` feeds the service, `magnav record --topic
+// map_fix` keeps its fixes: they equal the library's filter offline. With
+// `stock_qos` ("default": Cyclone DDS's RELIABLE/VOLATILE writer;
+// "sensor_data": ROS 2's BEST_EFFORT/VOLATILE) the replay goes to another
+// domain and a Cyclone relay writes every sample again with that QoS to the
+// service's: the fixes must be the same.
+void ReplayedRunsFixesEqualTheOfflineFilters(const char* stock_qos) {
   const int domain = testing::TestDomainId();
   const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}};
   const std::string dir = testing::TempDir();
@@ -77,10 +86,23 @@ TEST(MatcherService, ReplayedRunsFixesEqualTheOfflineFilters) {
   testing::Subprocess record({MAGNAV_BIN, "record", "--topic", "map_fix", "--count",
                               std::to_string(want.steps.size()), "--output", dir + "/fixes.csv"},
                              env, /*merge_stderr=*/true);
+  std::optional<testing::StockRelay> relay;
+  std::map<std::string, std::string> replay_env = env;
+  if (stock_qos) {
+    relay.emplace(stock_qos, "magnetometer,vessel_nav", domain, 20000.0);
+    ASSERT_TRUE(relay->ready());
+    replay_env["MAGNAV_DOMAIN_ID"] = std::to_string(testing::StockRelay::InputDomain(domain));
+  }
   const auto [rc, out] = testing::RunCommand({MAGNAV_BIN, "replay", "--map-path", path, "--reference-field", ref_exact,
                                               "--step-period", "0.03", "--speed", "1", "--wait-readers", "1", "--wait", "20"},
-                                             env, 120s);
+                                             replay_env, 120s);
   ASSERT_EQ(rc, 0) << out;
+  if (relay) {
+    int relay_rc = 0;
+    const std::string relay_out = relay->Finish(60s, &relay_rc);
+    ASSERT_EQ(relay_rc, 0) << relay_out;
+    EXPECT_NE(relay_out.find("relayed 300 samples"), std::string::npos) << relay_out;
+  }
   EXPECT_NE(out.find("replayed 150 magnetometer samples and 150 vessel_nav fixes"), std::string::npos) << out;
   ASSERT_EQ(record.Wait(60s), 0) << record.ReadAll();
   service.Signal(SIGTERM);
@@ -101,6 +123,17 @@ TEST(MatcherService, ReplayedRunsFixesEqualTheOfflineFilters) {
     EXPECT_EQ(t.number(r, t.column("cov_nn")), CovarianceNorthEast_m2(d)[0]);
   }
 }
+
+TEST(MatcherService, ReplayedRunsFixesEqualTheOfflineFilters) { ReplayedRunsFixesEqualTheOfflineFilters(nullptr); }
+
+class MatcherStockWriter : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(MatcherStockWriter, FixesEqualTheOfflineFilters) {
+  if (!testing::StockRelay::Available()) GTEST_SKIP() << "Cyclone DDS not found at configure time: no stock peer";
+  ReplayedRunsFixesEqualTheOfflineFilters(GetParam());
+}
+
+INSTANTIATE_TEST_SUITE_P(Qos, MatcherStockWriter, ::testing::Values("default", "sensor_data"));
 
 // The door, in process: what the node ignores (other vehicle, other sensor,
 // GNSS), skips and counts (no geodetic position, a reading before the first

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <limits>
 #include <mutex>
+#include <optional>
 
 #include <gtest/gtest.h>
 
@@ -24,6 +25,7 @@
 #include "magnav/tracker/multi_tracker.h"
 #include "tracker_node.h"
 #include "two_vessels.h"
+#include "stock_relay.h"
 #include "subprocess.h"
 #include "test_data.h"
 
@@ -55,13 +57,16 @@ std::pair<double, int> RmsWithin30m(const std::vector<msg::TrackEstimate>& got, 
 // flow control: without it a burst longer than the keep-last history of 1000
 // overwrites samples the service has not taken yet, its listeners waiting
 // while the tracker solves).
+// With `write_domain` the samples go to that domain (a StockRelay carries
+// them on to the service's).
 struct TestPeer {
-  explicit TestPeer(int domain) : node(Options(domain)) {
+  explicit TestPeer(int domain, std::optional<int> write_domain = std::nullopt) : node(Options(domain)) {
     reader = node.CreateReader<msg::TrackEstimate>([this](const msg::TrackEstimate& e, const auto&) {
       std::lock_guard<std::mutex> lk(mu);
       got.push_back(e);
     });
-    writer = node.CreateWriter<msg::GradiometerSample>();
+    if (write_domain) in_node = std::make_unique<dds::Node>(Options(*write_domain));
+    writer = (in_node ? *in_node : node).CreateWriter<msg::GradiometerSample>();
     writer->SetFlowControl(500, 20s);
   }
   static dds::NodeOptions Options(int domain) {
@@ -95,6 +100,7 @@ struct TestPeer {
   }
 
   dds::Node node;
+  std::unique_ptr<dds::Node> in_node;  // the samples' domain, when relayed
   std::mutex mu;
   std::vector<msg::TrackEstimate> got;
   std::unique_ptr<dds::Reader<msg::TrackEstimate>> reader;
@@ -172,6 +178,42 @@ TEST(TrackerService, PublishesTheLibraryEstimatesForAPass) {
   ASSERT_GT(n, 300);
   EXPECT_LT(rms, 0.3);
 }
+
+// A stock driver's writer (Cyclone DDS's default RELIABLE/VOLATILE QoS, or ROS
+// 2's sensor-data BEST_EFFORT/VOLATILE), paced at 2000 samples/s, feeds the
+// service: it publishes exactly the library's estimates for every sample, as
+// it does for magnav's own writer (the service's readers once refused both:
+// "incompatible QoS").
+class TrackerStockWriter : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(TrackerStockWriter, EverySampleGivesTheLibrarysEstimates) {
+  if (!testing::StockRelay::Available()) GTEST_SKIP() << "Cyclone DDS not found at configure time: no stock peer";
+  const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
+  const std::vector<TrackOutput> want = LibraryTracks(file.samples, *file.B0);
+  ASSERT_GT(want.size(), 1000u);
+  const int domain = testing::TestDomainId();
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--b0", "2e-05,1e-06,4.5e-05", "--stats-period", "0"},
+                              {{"MAGNAV_DOMAIN_ID", std::to_string(domain)}}, /*merge_stderr=*/true);
+  testing::StockRelay relay(GetParam(), "gradiometer", domain, 2000.0);
+  ASSERT_TRUE(relay.ready());
+  std::vector<msg::TrackEstimate> got;
+  {
+    TestPeer peer(domain, testing::StockRelay::InputDomain(domain));
+    EXPECT_TRUE(peer.writer->WaitForMatched(1, 20s));
+    EXPECT_TRUE(peer.reader->WaitForMatched(1, 20s));
+    got = peer.SendAndStop(file.samples, want.size(), &service);
+  }
+  int rc = 0;
+  const std::string relay_log = relay.Finish(30s, &rc);
+  EXPECT_EQ(rc, 0) << relay_log;
+  EXPECT_NE(relay_log.find("relayed 2001 samples"), std::string::npos) << relay_log;
+  const std::string log = service.ReadAll();
+  EXPECT_EQ(log.find("incompatible QoS"), std::string::npos) << log;
+  ExpectSameEstimates(got, want);
+}
+
+INSTANTIATE_TEST_SUITE_P(Qos, TrackerStockWriter, ::testing::Values("default", "sensor_data"));
+
 
 // With --init-from dipole_fix the service starts its track only from the
 // fixes it receives on magnav/dipole_fix (here the inverter library's on the
