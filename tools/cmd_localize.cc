@@ -4,6 +4,7 @@
 #include <cmath>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include "commands.h"
@@ -23,6 +24,7 @@ struct LocalizeArgs {
   std::string vessel_start;
   double sigma_B_T = 0.0;  // 0: from the file
   std::string loss = LossTypeName(localizer::LocalizerOptions{}.magnetometer_loss);
+  std::string gnss_loss = LossTypeName(localizer::LocalizerOptions{}.gnss_loss);
   localizer::LocalizerOptions options;
 };
 
@@ -42,6 +44,9 @@ void RunLocalize(LocalizeArgs a) {
   }
   if (!ParseLossType(a.loss, &a.options.magnetometer_loss)) {
     throw InputError("--loss: expected huber, cauchy or trivial, got '" + a.loss + "'");
+  }
+  if (!ParseLossType(a.gnss_loss, &a.options.gnss_loss)) {
+    throw InputError("--gnss-loss: expected huber, cauchy or trivial, got '" + a.gnss_loss + "'");
   }
   if (!a.vessel_start.empty()) {
     const auto v = ParseNumberList(a.vessel_start);
@@ -64,6 +69,15 @@ void RunLocalize(LocalizeArgs a) {
   }
   double known = 0.0;
   for (const auto& e : out.sensors) known += e.crlb_known_trajectory_m2.trace() / static_cast<double>(out.sensors.size());
+  // Never a non-finite number written as a result (exit 3, nothing written).
+  for (const auto& e : out.sensors) {
+    if (!e.p_SinW_m.allFinite() || !e.cov_xy_m2.allFinite() || !e.crlb_joint_m2.allFinite()) {
+      throw std::runtime_error("localize: the estimate of sensor " + std::to_string(e.sensor_id) +
+                               " is not finite (x " + FormatNumber(e.p_SinW_m.x()) + ", y " +
+                               FormatNumber(e.p_SinW_m.y()) + "; " + out.summary.BriefReport() + "); nothing written");
+    }
+  }
+  if (!std::isfinite(known)) throw std::runtime_error("localize: the known-trajectory bound is not finite; nothing written");
   const Eigen::Vector3d& m = f.pass.vessel.m_B_Am2;
   CsvWriter w(a.output, {"sensor_id", "x", "y", "z", "sigma_x", "sigma_y", "crlb_x", "crlb_y"},
               {{"source", a.measurements},
@@ -112,6 +126,14 @@ void AddLocalizeCommand(CLI::App& app) {
       ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
   cmd->add_option("--loss-scale", args->options.magnetometer_loss_scale_sigma,
                   "batch: robust loss scale, in sigmas of the sample residual");
+  cmd->add_option("--gnss-loss", args->gnss_loss, "batch: robust loss on each GNSS fix: huber, cauchy or trivial")
+      ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
+  cmd->add_option("--gnss-loss-scale", args->options.gnss_loss_scale_sigma,
+                  "batch: GNSS robust loss scale, in sigmas of the fix residual");
+  cmd->add_option("--gate-probability", args->options.gate_probability,
+                  "outlier gate per update (chi-square probability): the EKF refuses a magnetometer or GNSS update "
+                  "beyond it, the batch counts residuals beyond it; 1 = no gate")
+      ->capture_default_str();
   auto& q = args->options.process;
   cmd->add_option("--q-position", q.position_m_per_sqrt_s, "position random walk, m/sqrt(s)");
   cmd->add_option("--q-speed", q.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)");

@@ -23,7 +23,7 @@ CrlbResult ComputeCrlb(const Pass& pass, const LocalizerOptions& options, const 
   out.joint.assign(m, Eigen::Matrix2d::Zero());
   out.known_trajectory.assign(m, Eigen::Matrix2d::Zero());
   Eigen::SparseMatrix<double> H;
-  if (!internal::Information(g, internal::Pack(g, trajectory, sensors_xy), nullptr, &H)) return out;
+  if (!internal::Information(g, internal::Pack(g, trajectory, sensors_xy), nullptr, nullptr, &H)) return out;
   if (!internal::SensorMarginalCovariance(g, H, &out.joint_full)) return out;
   if (!internal::KnownTrajectoryCovariances(g, H, &out.known_trajectory)) return out;
   for (std::size_t j = 0; j < m; ++j) {

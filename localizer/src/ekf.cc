@@ -18,29 +18,53 @@ double GnssSigma(const GnssFix& fix, const LocalizerOptions& options) {
 
 bool InitialVesselFromGnss(const std::vector<GnssFix>& fixes, double t0_s, const LocalizerOptions& options,
                            VesselVector* x0, VesselCovariance* P0, double window_s) {
-  // Straight line p(t) = a + b (t − t0) by least squares over the window.
-  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
-  Eigen::Matrix<double, 2, 2> rhs = Eigen::Matrix2d::Zero();  // columns x, y
-  double t_min = INFINITY, t_max = -INFINITY, var = 0.0;
-  int n = 0;
+  // Straight line p(t) = a + b (t − t0) by least squares over the window;
+  // then the fix farthest off the line is dropped and the line refitted while
+  // it is beyond the outlier gate (options.gate_probability, 2 dof), so that
+  // one wild fix cannot place the start (and with it every gate) kilometres off.
+  std::vector<const GnssFix*> used;
   for (const GnssFix& f : fixes) {
     if (f.t_s < t0_s - window_s || f.t_s > t0_s + window_s) continue;
-    const double dt = f.t_s - t0_s;
-    const double sigma = GnssSigma(f, options);
-    if (!(sigma > 0.0)) continue;
-    const double w = 1.0 / (sigma * sigma);
-    const Eigen::Vector2d phi(1.0, dt);
-    A += w * phi * phi.transpose();
-    rhs += w * phi * f.p_xy_m.transpose();
-    t_min = std::min(t_min, f.t_s);
-    t_max = std::max(t_max, f.t_s);
-    var = std::max(var, sigma * sigma);
-    ++n;
+    if (!(GnssSigma(f, options) > 0.0)) continue;
+    used.push_back(&f);
   }
-  if (n < 2 || t_max - t_min < 2.0) return false;
-  const Eigen::LDLT<Eigen::Matrix2d> ldlt(A);
-  const Eigen::Matrix2d coef = ldlt.solve(rhs);  // row 0: position at t0, row 1: velocity
-  const Eigen::Matrix2d cov = ldlt.solve(Eigen::Matrix2d::Identity());
+  const double gate = ChiSquareQuantile(options.gate_probability, 2);
+  Eigen::Matrix2d coef, cov;
+  double var = 0.0;
+  for (;;) {
+    Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+    Eigen::Matrix<double, 2, 2> rhs = Eigen::Matrix2d::Zero();  // columns x, y
+    double t_min = INFINITY, t_max = -INFINITY;
+    var = 0.0;
+    for (const GnssFix* f : used) {
+      const double sigma = GnssSigma(*f, options);
+      const double w = 1.0 / (sigma * sigma);
+      const Eigen::Vector2d phi(1.0, f->t_s - t0_s);
+      A += w * phi * phi.transpose();
+      rhs += w * phi * f->p_xy_m.transpose();
+      t_min = std::min(t_min, f->t_s);
+      t_max = std::max(t_max, f->t_s);
+      var = std::max(var, sigma * sigma);
+    }
+    if (used.size() < 2 || t_max - t_min < 2.0) return false;
+    const Eigen::LDLT<Eigen::Matrix2d> ldlt(A);
+    coef = ldlt.solve(rhs);  // row 0: position at t0, row 1: velocity
+    cov = ldlt.solve(Eigen::Matrix2d::Identity());
+    if (used.size() < 3) break;
+    std::size_t worst = 0;
+    double worst_r2 = -1.0;
+    for (std::size_t i = 0; i < used.size(); ++i) {
+      const Eigen::Vector2d fit = coef.row(0).transpose() + (used[i]->t_s - t0_s) * coef.row(1).transpose();
+      const double sigma = GnssSigma(*used[i], options);
+      const double r2 = (used[i]->p_xy_m - fit).squaredNorm() / (sigma * sigma);
+      if (r2 > worst_r2) {
+        worst_r2 = r2;
+        worst = i;
+      }
+    }
+    if (!(worst_r2 > gate)) break;
+    used.erase(used.begin() + static_cast<std::ptrdiff_t>(worst));
+  }
   const Eigen::Vector2d vel = coef.row(1).transpose();
   *x0 << coef(0, 0), coef(0, 1), vel.norm(), std::atan2(vel.y(), vel.x()), 0.0;
   P0->setZero();
@@ -57,7 +81,13 @@ bool InitialVesselFromGnss(const std::vector<GnssFix>& fixes, double t0_s, const
 
 LocalizerEkf::LocalizerEkf(const Vessel& vessel, const std::vector<SensorPrior>& sensors, double t0_s,
                            const VesselVector& x0, const VesselCovariance& P0, const LocalizerOptions& options)
-    : vessel_(vessel), sensors_(sensors), options_(options), t_s_(t0_s) {
+    : vessel_(vessel),
+      sensors_(sensors),
+      options_(options),
+      t_s_(t0_s),
+      gate_magnetometer_nis_(ChiSquareQuantile(options.gate_probability, 3)),
+      gate_gnss_nis_(ChiSquareQuantile(options.gate_probability, 2)),
+      magnetometer_gate_(sensors.size()) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("localizer options: " + why);
   const int n = 5 + 2 * static_cast<int>(sensors.size());
@@ -84,12 +114,15 @@ bool LocalizerEkf::Predict(double t_s) {
   const double dt = t_s - t_s_;
   if (dt == 0.0) return true;
   VesselCovariance F;
-  x_.head<5>() = PropagateVessel(x_.head<5>(), dt, &F);
+  const VesselVector x_new = PropagateVessel(x_.head<5>(), dt, &F);
   const int n = static_cast<int>(x_.size());
   // Only the vessel rows and columns change: P_vv = F P_vv Fᵀ + Q, P_sv = P_sv Fᵀ
   // (lower storage: the sensor-vessel block is below the vessel block).
   const VesselCovariance Pvv = P_.topLeftCorner<5, 5>();  // kept full
   const VesselCovariance Pvv_new = F * Pvv * F.transpose() + ProcessCovariance(options_.process, dt);
+  // A step no float can hold (t 1e300 s ahead): refused, nothing changed.
+  if (!x_new.allFinite() || !F.allFinite() || !Pvv_new.allFinite()) return false;
+  x_.head<5>() = x_new;
   P_.topLeftCorner<5, 5>() = 0.5 * (Pvv_new + Pvv_new.transpose());
   if (n > 5) P_.bottomLeftCorner(n - 5, 5) = P_.bottomLeftCorner(n - 5, 5) * F.transpose();
   t_s_ = t_s;
@@ -128,7 +161,34 @@ Eigen::MatrixXd LocalizerEkf::Columns(int c, int w) const {
 
 Eigen::MatrixXd LocalizerEkf::covariance() const { return P_.selfadjointView<Eigen::Lower>(); }
 
+bool LocalizerEkf::Gate(double nis, double threshold, GateState* stream) {
+  last_nis_ = nis;
+  if (!std::isfinite(nis)) {
+    last_outcome_ = Outcome::kFailed;
+    return false;
+  }
+  if (nis <= threshold) {
+    *stream = GateState{};  // closes an open gate
+  } else if (stream->open) {
+    ++gate_releases_;
+  } else if (options_.gate_release_after > 0 && stream->refused_in_a_row >= options_.gate_release_after) {
+    // A run of refusals: the filter, not the data, is off (the linearised S
+    // of the first passes over a sensor metres off understates its
+    // innovations). Open this stream's gate until an update fits again.
+    stream->open = true;
+    ++gate_releases_;
+  } else {
+    ++stream->refused_in_a_row;
+    ++(stream == &gnss_gate_ ? rejected_gnss_ : rejected_magnetometer_);
+    last_outcome_ = Outcome::kRejected;
+    return false;
+  }
+  last_outcome_ = Outcome::kApplied;
+  return true;
+}
+
 bool LocalizerEkf::Update(const MagSample& sample) {
+  last_outcome_ = Outcome::kFailed;
   const int c = Column(sample.sensor_id);
   if (c < 0 || !sample.B_T.allFinite() || !Predict(sample.t_s)) return false;
   const int j = (c - 5) / 2;
@@ -144,14 +204,22 @@ bool LocalizerEkf::Update(const MagSample& sample) {
   const Eigen::LLT<Eigen::Matrix3d> llt(S);
   if (llt.info() != Eigen::Success) return false;
   const Eigen::Vector3d innovation = sample.B_T - predicted;
+  if (!Gate(innovation.dot(llt.solve(innovation)), gate_magnetometer_nis_,
+            &magnetometer_gate_[static_cast<std::size_t>(j)])) {
+    return false;
+  }
   const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
-  last_nis_ = innovation.dot(llt.solve(innovation));
+  if (!K.allFinite()) {
+    last_outcome_ = Outcome::kFailed;
+    return false;
+  }
   x_.noalias() += K * innovation;
   JosephUpdate(U, K, llt.matrixL().toDenseMatrix());
   return true;
 }
 
 bool LocalizerEkf::Update(const GnssFix& fix) {
+  last_outcome_ = Outcome::kFailed;
   const double sigma = GnssSigma(fix, options_);
   if (!(sigma > 0.0) || !fix.p_xy_m.allFinite() || !Predict(fix.t_s)) return false;
   const Eigen::MatrixXd U = Columns(0, 2);  // H = [I2 0]
@@ -161,7 +229,12 @@ bool LocalizerEkf::Update(const GnssFix& fix) {
   const Eigen::LLT<Eigen::Matrix2d> llt(S);
   if (llt.info() != Eigen::Success) return false;
   const Eigen::Vector2d innovation = fix.p_xy_m - x_.head<2>();
+  if (!Gate(innovation.dot(llt.solve(innovation)), gate_gnss_nis_, &gnss_gate_)) return false;
   const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
+  if (!K.allFinite()) {
+    last_outcome_ = Outcome::kFailed;
+    return false;
+  }
   x_.noalias() += K * innovation;
   JosephUpdate(U, K, llt.matrixL().toDenseMatrix());
   return true;

@@ -65,7 +65,7 @@ std::vector<double> Pack(const Graph& g, const std::vector<VesselVector>& trajec
 }
 
 bool Information(const Graph& g, const std::vector<double>& params, const ceres::LossFunction* magnetometer_loss,
-                 Eigen::SparseMatrix<double>* H) {
+                 const ceres::LossFunction* gnss_loss, Eigen::SparseMatrix<double>* H) {
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(g.factors.size() * 60);
   Eigen::VectorXd e;
@@ -84,9 +84,12 @@ bool Information(const Graph& g, const std::vector<double>& params, const ceres:
     }
     if (!f.cost->Evaluate(p.data(), e.data(), jac.data())) return false;
     double w = 1.0;
-    if (magnetometer_loss != nullptr && f.kind == Factor::Kind::kMagnetometer) {
+    const ceres::LossFunction* loss = f.kind == Factor::Kind::kMagnetometer ? magnetometer_loss
+                                      : f.kind == Factor::Kind::kGnss       ? gnss_loss
+                                                                            : nullptr;
+    if (loss != nullptr) {
       double rho[3];
-      magnetometer_loss->Evaluate(e.squaredNorm(), rho);
+      loss->Evaluate(e.squaredNorm(), rho);
       w = std::max(rho[1], 0.0);
     }
     for (std::size_t a = 0; a < nb; ++a) {
@@ -104,6 +107,20 @@ bool Information(const Graph& g, const std::vector<double>& params, const ceres:
   H->resize(g.num_params(), g.num_params());
   H->setFromTriplets(triplets.begin(), triplets.end());
   return true;
+}
+
+int CountBeyond(const Graph& g, const std::vector<double>& params, Factor::Kind kind, double threshold) {
+  int count = 0;
+  Eigen::VectorXd e;
+  std::vector<const double*> p;
+  for (const Factor& f : g.factors) {
+    if (f.kind != kind) continue;
+    e.resize(f.cost->num_residuals());
+    p.clear();
+    for (int b : f.blocks) p.push_back(&params[static_cast<std::size_t>(g.offset(b))]);
+    if (!f.cost->Evaluate(p.data(), e.data(), nullptr) || !(e.squaredNorm() <= threshold)) ++count;
+  }
+  return count;
 }
 
 bool SensorMarginalCovariance(const Graph& g, const Eigen::SparseMatrix<double>& H, Eigen::MatrixXd* cov) {

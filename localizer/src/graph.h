@@ -47,13 +47,15 @@ std::vector<double> Pack(const Graph& g, const std::vector<VesselVector>& trajec
                          const std::vector<Eigen::Vector2d>& sensors_xy);
 
 // Gauss-Newton information Σ JᵀJ over the factors at `params` (the Fisher
-// information when the residuals are whitened). `magnetometer_loss`, if not
-// null, reweights each magnetometer factor by ρ'(‖e‖²) (as Ceres does).
-// `sensor_terms_only`: only magnetometer and prior factors, i.e. the
-// information on the sensors when the trajectory is known (its sensor block).
-// Returns false if a factor cannot be evaluated.
+// information when the residuals are whitened). `magnetometer_loss` and
+// `gnss_loss`, if not null, reweight each magnetometer / GNSS factor by
+// ρ'(‖e‖²) (as Ceres does). Returns false if a factor cannot be evaluated.
 bool Information(const Graph& g, const std::vector<double>& params, const ceres::LossFunction* magnetometer_loss,
-                 Eigen::SparseMatrix<double>* H);
+                 const ceres::LossFunction* gnss_loss, Eigen::SparseMatrix<double>* H);
+
+// Factors of one kind whose whitened squared residual ‖e‖² at `params`
+// exceeds `threshold` (a factor that cannot be evaluated counts too).
+int CountBeyond(const Graph& g, const std::vector<double>& params, Factor::Kind kind, double threshold);
 
 // Covariance of the sensor block (last 2M parameters) of the inverse of H,
 // by eliminating the trajectory block (sparse LDLᵀ of the block-tridiagonal

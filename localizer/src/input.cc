@@ -28,6 +28,28 @@ double Metres(const CsvTable& c, std::size_t row, std::size_t col) {
 
 bool BInRange(const Eigen::Vector3d& B_T) { return B_T.cwiseAbs().maxCoeff() <= kMaxAbsB_T; }
 
+// A time (s) within kMaxAbsTime_s, not going backwards and at most
+// kMaxTimeStep_s after `previous` (NaN: the first row), else an error naming the cell.
+double Time(const CsvTable& c, std::size_t row, std::size_t col, double previous) {
+  const double t = c.number(row, col);
+  const std::string& name = c.header()[col];
+  if (std::abs(t) > kMaxAbsTime_s) {
+    throw InputError(Where(c, row, name) + FormatNumber(t) + " s is out of range (|t| > " +
+                     FormatNumber(kMaxAbsTime_s) + " s)");
+  }
+  if (std::isnan(previous)) return t;
+  if (t < previous) {
+    throw InputError(Where(c, row, name) + "time goes backwards (" + FormatNumber(t) + " s after " +
+                     FormatNumber(previous) + " s; rows must be ordered by t)");
+  }
+  if (t - previous > kMaxTimeStep_s) {
+    throw InputError(Where(c, row, name) + "time jumps " + FormatNumber(t - previous) + " s ahead of the previous row (" +
+                     FormatNumber(t) + " s after " + FormatNumber(previous) + " s; more than " +
+                     FormatNumber(kMaxTimeStep_s) + " s: a broken time, or two passes in one file)");
+  }
+  return t;
+}
+
 }  // namespace
 
 int Pass::SensorIndex(std::uint32_t sensor_id) const {
@@ -95,7 +117,7 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
     pass.samples.reserve(m.num_rows());
     for (std::size_t i = 0; i < m.num_rows(); ++i) {
       MagSample s;
-      s.t_s = m.number(i, t);
+      s.t_s = Time(m, i, t, pass.samples.empty() ? NAN : pass.samples.back().t_s);
       s.sensor_id = m.uint32(i, id);
       s.B_T = {m.number(i, bx), m.number(i, by), m.number(i, bz)};
       for (int k = 0; k < 3; ++k) {
@@ -109,10 +131,6 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
       if (k < 0) {
         throw InputError(Where(m, i, "sensor_id") + "sensor " + std::to_string(s.sensor_id) +
                          " is not in the deployment file " + deployment_path);
-      }
-      if (!pass.samples.empty() && s.t_s < pass.samples.back().t_s) {
-        throw InputError(Where(m, i, "t") + "time goes backwards (" + FormatNumber(s.t_s) + " s after " +
-                         FormatNumber(pass.samples.back().t_s) + " s; rows must be ordered by t)");
       }
       seen[static_cast<std::size_t>(k)] = 1;
       pass.samples.push_back(s);
@@ -131,14 +149,16 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
     const std::size_t t = g.column("t"), x = g.column("x"), y = g.column("y"), s = g.column("sigma");
     for (std::size_t i = 0; i < g.num_rows(); ++i) {
       GnssFix f;
-      f.t_s = g.number(i, t);
+      f.t_s = Time(g, i, t, pass.gnss.empty() ? NAN : pass.gnss.back().t_s);
+      const double first = pass.samples.front().t_s, last = pass.samples.back().t_s;
+      if (f.t_s < first - kMaxTimeStep_s || f.t_s > last + kMaxTimeStep_s) {
+        throw InputError(Where(g, i, "t") + FormatNumber(f.t_s) + " s is more than " + FormatNumber(kMaxTimeStep_s) +
+                         " s outside the measurements' time span [" + FormatNumber(first) + ", " +
+                         FormatNumber(last) + "] s (" + measurements_path + ")");
+      }
       f.p_xy_m = {Metres(g, i, x), Metres(g, i, y)};
       f.sigma_m = Metres(g, i, s);
       if (!(f.sigma_m > 0.0)) throw InputError(Where(g, i, "sigma") + "must be > 0");
-      if (!pass.gnss.empty() && f.t_s < pass.gnss.back().t_s) {
-        throw InputError(Where(g, i, "t") + "time goes backwards (" + FormatNumber(f.t_s) + " s after " +
-                         FormatNumber(pass.gnss.back().t_s) + " s; rows must be ordered by t)");
-      }
       pass.gnss.push_back(f);
     }
   }

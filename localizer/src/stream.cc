@@ -146,7 +146,9 @@ void StreamingLocalizer::Consume(const Item& item) {
   consumed_until_ = t;
   const bool ok = std::visit([this](const auto& x) { return ekf_->Update(x); }, item);
   if (!ok) {
-    ++failed_;
+    // Neither is in the pass the bounds are computed on, nor in the
+    // trajectory (the batch maps a start onto its own epochs by time).
+    ++(ekf_->last_outcome() == LocalizerEkf::Outcome::kRejected ? rejected_ : failed_);
     return;
   }
   ++consumed_;
@@ -187,8 +189,21 @@ Localization StreamingLocalizer::Result() const {
   out.trajectory = trajectory_;
   out.summary.magnetometer_updates = static_cast<int>(pass_.samples.size());
   out.summary.gnss_updates = static_cast<int>(pass_.gnss.size());
-  out.summary.converged = failed_ == 0 && ekf_->covariance().allFinite();
-  out.summary.message = failed_ == 0 ? "every sample used" : std::to_string(failed_) + " updates failed";
+  out.summary.magnetometer_outliers = static_cast<int>(ekf_->rejected_magnetometer());
+  out.summary.gnss_outliers = static_cast<int>(ekf_->rejected_gnss());
+  out.summary.gate_releases = static_cast<int>(ekf_->gate_releases());
+  out.summary.gate_probability = options_.gate_probability;
+  out.summary.converged = failed_ == 0 && ekf_->covariance().allFinite() && ekf_->state().allFinite();
+  if (failed_ == 0 && rejected_ == 0) {
+    out.summary.message = "every sample used";
+  } else {
+    out.summary.message.clear();
+    if (rejected_ > 0) out.summary.message = std::to_string(rejected_) + " updates refused by the NIS gate";
+    if (failed_ > 0) {
+      if (!out.summary.message.empty()) out.summary.message += ", ";
+      out.summary.message += std::to_string(failed_) + " updates failed (not applied)";
+    }
+  }
   out.crlb_joint_m2 = AttachCrlb(pass_, options_, trajectory_, &out.sensors).joint_full;
   out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

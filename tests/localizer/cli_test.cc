@@ -111,6 +111,9 @@ TEST(LocalizeCli, BadInputExitsTwoNamingFileLineAndField) {
       {"missing noise level", "# moment_body_Am2: 1, 2, 3\n# vessel_z_m: 0\nt,sensor_id,B_x,B_y,B_z\n" + good_rows,
        "no magnetometer noise level", {}},
       {"bad method", head + good_rows, "--method", {"--method", "kalman"}},
+      // A broken time as the last row (time does not go backwards there): before, exit 0 with every number -nan.
+      {"time 1e300", head + good_rows + "1e300,0,1e-9,0,0\n", "m.csv:7: column 't': 1e+300 s is out of range", {}},
+      {"time jump", head + good_rows + "7200,0,1e-9,0,0\n", "m.csv:7: column 't': time jumps 7200 s ahead", {}},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
@@ -125,6 +128,17 @@ TEST(LocalizeCli, BadInputExitsTwoNamingFileLineAndField) {
     const auto [rc, out] = Localize(args);
     EXPECT_EQ(rc, 2) << out;
     EXPECT_NE(out.find(c.expect), std::string::npos) << out;
+  }
+  // A GNSS fix an hour beyond the measurements' span.
+  {
+    const std::string m = Write(dir + "/m.csv", head + good_rows);
+    const std::string g = Write(dir + "/g2.csv", "t,x,y,sigma\n0,0,0,3\n1,2,0,3\n1800,4,0,3\n3602,4,0,3\n");
+    const auto [rc, out] = Localize({"--measurements", m, "--deployment", deploy, "--gnss", g, "--method", "ekf",
+                                     "--output", dir + "/out.csv"});
+    EXPECT_EQ(rc, 2) << out;
+    EXPECT_NE(out.find("g2.csv:5: column 't': 3602 s is more than 3600 s outside the measurements' time span"),
+              std::string::npos)
+        << out;
   }
   // Without GNSS the vessel's start is unknown: refused, not guessed.
   const std::string m = Write(dir + "/m.csv", head + good_rows);

@@ -66,7 +66,7 @@ TEST(LocalizerHeldOut, DefaultsReachTheBoundAndTheirCovarianceHoldsOverDraws) {
     const Draw d = Simulate(100 + static_cast<std::uint64_t>(r));
     const Localization ekf = RunEkf(d.pass, opt);
     const Localization batch = SolveBatch(d.pass, opt, &ekf);
-    ASSERT_TRUE(batch.summary.converged) << batch.summary.BriefReport();
+    ASSERT_TRUE(batch.summary.converged) << batch.summary.BriefReport() << " / " << ekf.summary.BriefReport();
     const Localization* l[2] = {&ekf, &batch};
     for (int m = 0; m < 2; ++m) {
       Eigen::VectorXd e(12);

@@ -130,6 +130,8 @@ std::vector<BadInput> Corpus() {
                ":6: column 'sensor_id': sensor 9 is not in the deployment file"});
   c.push_back({Kind::kMeasurements, "measurements_time_backwards.csv", ":6: column 't': time goes backwards"});
   c.push_back({Kind::kMeasurements, "measurements_B_in_nT.csv", ":6: column 'B_x': 21000 T is out of range"});
+  c.push_back({Kind::kMeasurements, "measurements_time_1e300.csv", ":9: column 't': 1e+300 s is out of range"});
+  c.push_back({Kind::kMeasurements, "measurements_time_jump.csv", ":9: column 't': time jumps 7200 s ahead"});
   c.push_back({Kind::kDeployment, "deployment_header_only.csv", ":1: no data rows"});
   c.push_back({Kind::kDeployment, "deployment_duplicate_sensor.csv", ":4: column 'sensor_id': sensor 1 listed twice"});
   c.push_back({Kind::kDeployment, "deployment_text_in_number.csv", ":3: column 'y': 'zero' is not a finite number"});
@@ -139,6 +141,7 @@ std::vector<BadInput> Corpus() {
   c.push_back({Kind::kGnss, "gnss_time_backwards.csv", ":4: column 't': time goes backwards"});
   c.push_back({Kind::kGnss, "gnss_position_1e12.csv", ":3: column 'x': 5e+12 m is out of range"});
   c.push_back({Kind::kGnss, "gnss_inf.csv", ":3: column 'x': 'inf' is not a finite number"});
+  c.push_back({Kind::kGnss, "gnss_time_1e300.csv", ":4: column 't': 1e+300 s is out of range"});
   return c;
 }
 

@@ -32,8 +32,10 @@ double GnssSigma(const GnssFix& fix, const LocalizerOptions& options);
 // Initial vessel state at time t0_s from the GNSS fixes of the first
 // `window_s` seconds after t0 (straight-line least-squares fit: position,
 // speed, heading; turn rate 0) and its covariance (position σ from the fit,
-// speed/heading/turn-rate σ from options.initial). False if fewer than two
-// fixes span at least 2 s in that window.
+// speed/heading/turn-rate σ from options.initial). Fixes off the line beyond
+// the outlier gate (options.gate_probability) are dropped one by one, worst
+// first, and the line refitted. False if fewer than two fixes span at least
+// 2 s in that window.
 bool InitialVesselFromGnss(const std::vector<GnssFix>& fixes, double t0_s, const LocalizerOptions& options,
                            VesselVector* x0, VesselCovariance* P0, double window_s = 10.0);
 
@@ -45,12 +47,26 @@ class LocalizerEkf {
                const VesselCovariance& P0, const LocalizerOptions& options);
 
   // Moves the state to t_s (≥ time()). False (state unchanged) if t_s is
-  // earlier than time() or not finite.
+  // earlier than time() or not finite, or if the predicted state or
+  // covariance would not be finite (e.g. a time 1e300 s ahead).
   bool Predict(double t_s);
-  // Predicts to the sample's time and updates. False (state unchanged) for an
-  // unknown sensor, a non-finite value or a sample earlier than time().
+  // Predicts to the sample's time and updates. False if not applied:
+  // kFailed for an unknown sensor, a non-finite value, a sample earlier than
+  // time() or a failed prediction (state unchanged), or a singular innovation
+  // covariance (state predicted to the sample's time); kRejected (state
+  // predicted to the sample's time, not updated) when the normalised
+  // innovation squared is beyond the gate (LocalizerOptions::gate_probability,
+  // gate_release_after). last_outcome() tells which.
   bool Update(const MagSample& sample);
   bool Update(const GnssFix& fix);
+
+  enum class Outcome { kApplied, kRejected, kFailed };
+  Outcome last_outcome() const { return last_outcome_; }
+  // Updates refused by the gate so far, and those applied beyond it (a
+  // stream's gate opened by a run of refusals, LocalizerOptions::gate_release_after).
+  std::uint64_t rejected_magnetometer() const { return rejected_magnetometer_; }
+  std::uint64_t rejected_gnss() const { return rejected_gnss_; }
+  std::uint64_t gate_releases() const { return gate_releases_; }
 
   double time() const { return t_s_; }
   int num_sensors() const { return static_cast<int>(sensors_.size()); }
@@ -60,7 +76,8 @@ class LocalizerEkf {
   VesselVector vessel_state() const { return x_.head<5>(); }
   // Current estimate of every sensor (covariance; the bounds are left zero).
   std::vector<SensorEstimate> SensorEstimates() const;
-  // Normalised innovation squared of the last magnetometer update.
+  // Normalised innovation squared of the last magnetometer or GNSS update
+  // (applied or refused).
   double last_nis() const { return last_nis_; }
 
  private:
@@ -68,6 +85,14 @@ class LocalizerEkf {
   // Columns c .. c+w−1 of the full covariance, from the lower triangle.
   Eigen::MatrixXd Columns(int c, int w) const;
   void JosephUpdate(const Eigen::MatrixXd& U, const Eigen::MatrixXd& K, const Eigen::MatrixXd& L_S);
+  // The outlier gate of one stream (a sensor, or the GNSS).
+  struct GateState {
+    int refused_in_a_row = 0;
+    bool open = false;  // after a run of refusals, until an update fits
+  };
+  // The gate on one update of a stream with NIS `nis` against `threshold`:
+  // true to apply it; counts refusals and releases, sets last_outcome_.
+  bool Gate(double nis, double threshold, GateState* stream);
 
   Vessel vessel_;
   std::vector<SensorPrior> sensors_;
@@ -76,6 +101,12 @@ class LocalizerEkf {
   Eigen::VectorXd x_;
   Eigen::MatrixXd P_;
   double last_nis_ = 0.0;
+  double gate_magnetometer_nis_;  // χ² quantiles (3 and 2 dof) of options_.gate_probability
+  double gate_gnss_nis_;
+  std::vector<GateState> magnetometer_gate_;  // per sensor
+  GateState gnss_gate_;
+  Outcome last_outcome_ = Outcome::kApplied;
+  std::uint64_t rejected_magnetometer_ = 0, rejected_gnss_ = 0, gate_releases_ = 0;
 };
 
 // The whole pass through the EKF, as a stream (stream.h StreamingLocalizer,

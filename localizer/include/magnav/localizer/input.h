@@ -31,11 +31,19 @@ struct PassFile {
 // Reads and checks a deployment file (the service takes only this one).
 std::vector<SensorPrior> ReadDeploymentFile(const std::string& path);
 
+// Time limits of the files (s). A pass is minutes to hours long: a row more
+// than kMaxTimeStep_s after the previous row of its file, or a GNSS fix more
+// than that outside the measurements' time span, is a broken time (1e300, a
+// stamp in ns or from another clock), not a pass; |t| beyond kMaxAbsTime_s
+// (317 years: Unix and GPS seconds fit) is refused outright.
+inline constexpr double kMaxTimeStep_s = 3600.0;
+inline constexpr double kMaxAbsTime_s = 1e10;
+
 // Reads and checks the files. `moment_body_Am2` overrides the measurements
 // file's "# moment_body_Am2:" line; without either the call refuses (no
 // default moment). `gnss_path` may be empty (no fixes). Checks: finite
-// numbers within the readers' limits (|B_i| ≤ 1 T, positions and σ ≤ 1e7 m),
-// known sensor ids, time not going backwards, positive sigmas, no
+// numbers within the readers' limits (|B_i| ≤ 1 T, positions and σ ≤ 1e7 m,
+// the time limits above), known sensor ids, time not going backwards, positive sigmas, no
 // duplicate sensor in the deployment, every deployed sensor measured at least
 // once, the vessel depth stated.
 PassFile ReadPassFiles(const std::string& measurements_path, const std::string& deployment_path,

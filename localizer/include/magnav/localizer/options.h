@@ -63,6 +63,27 @@ struct LocalizerOptions {
   // bounds the pull of a spike.
   LossType magnetometer_loss = LossType::kHuber;
   double magnetometer_loss_scale_sigma = 3.0;
+  // Batch: the same for each GNSS fix (2-vector, whitened): one fix 9e6 m off
+  // pulls like a 3σ residual, not like a 3e6σ one.
+  LossType gnss_loss = LossType::kHuber;
+  double gnss_loss_scale_sigma = 3.0;
+  // Outlier gate, as a probability per update. EKF: a magnetometer (3 dof) or
+  // GNSS (2 dof) update whose normalised innovation squared (innovation
+  // covariance S = H P Hᵀ + R, so a large P during convergence widens the gate)
+  // exceeds the χ² quantile of this probability is refused and counted; at
+  // 0.9999 the gate is NIS > 21.1 (3 dof) / 18.4 (2 dof): a valid update is
+  // refused once in 10⁴. Batch: residuals beyond the same quantile at the
+  // solution are counted as outliers (the robust losses above bound their
+  // pull; nothing is removed). 1 = no gate (every update applied).
+  double gate_probability = 0.9999;
+  // EKF: after this many refused updates in a row of one stream (a sensor, or
+  // the GNSS), that stream's gate opens: its updates are applied whatever
+  // their NIS until one falls within the gate again. A run of refusals means
+  // the filter, not the data, is off: on the first pass over a sensor metres
+  // off, the linearised S understates the innovations (NIS 25-80 on a held-out
+  // draw while the EKF locks on) and a closed gate would lock the filter out
+  // for good. A single outlier never makes a run. 0 = never open.
+  int gate_release_after = 5;
   // Batch: Ceres trust-region iterations and tolerances.
   int max_num_iterations = 50;
   double function_tolerance = 1e-10;
@@ -74,5 +95,10 @@ struct LocalizerOptions {
 
   bool IsValid(std::string* error) const;
 };
+
+// The χ² quantile of `probability` with `dof` degrees of freedom (dof ≥ 1,
+// probability in (0, 1)); +inf for probability ≥ 1. The gates of
+// LocalizerOptions::gate_probability.
+double ChiSquareQuantile(double probability, int dof);
 
 }  // namespace magnav::localizer

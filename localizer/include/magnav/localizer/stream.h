@@ -92,7 +92,8 @@ class StreamingLocalizer {
 
   std::uint64_t consumed() const { return consumed_; }   // items the EKF took
   std::uint64_t late() const { return late_; }           // refused: older than consumed
-  std::uint64_t failed() const { return failed_; }       // EKF refused (e.g. singular)
+  std::uint64_t failed() const { return failed_; }       // EKF refused (e.g. singular, time 1e300 s ahead)
+  std::uint64_t rejected() const { return rejected_; }   // refused by the EKF's NIS gate (outliers)
   std::uint64_t dropped_before_start() const { return dropped_before_start_; }
 
  private:
@@ -129,7 +130,7 @@ class StreamingLocalizer {
   Pass pass_;
   std::vector<double> epoch_t_;
   std::vector<VesselVector> trajectory_;
-  std::uint64_t consumed_ = 0, late_ = 0, failed_ = 0, dropped_before_start_ = 0;
+  std::uint64_t consumed_ = 0, late_ = 0, failed_ = 0, rejected_ = 0, dropped_before_start_ = 0;
 };
 
 }  // namespace magnav::localizer

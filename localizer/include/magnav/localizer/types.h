@@ -86,10 +86,21 @@ struct Summary {
   double final_cost = 0.0;
   double solve_time_s = 0.0;  // wall time of the estimator (and its covariance)
   double crlb_time_s = 0.0;   // wall time of the bound
-  int magnetometer_updates = 0;
-  int gnss_updates = 0;
+  int magnetometer_updates = 0;  // ekf: samples applied; batch: samples in the pass
+  int gnss_updates = 0;          // ekf: fixes applied; batch: fixes in the pass
+  // Outliers (LocalizerOptions::gate_probability). EKF: updates refused by
+  // the NIS gate (not in the *_updates counts); batch: residuals beyond the
+  // same χ² gate at the solution (down-weighted by the robust losses, not
+  // removed).
+  int magnetometer_outliers = 0;
+  int gnss_outliers = 0;
+  // EKF: updates applied although beyond the gate, their stream's gate
+  // opened by a run of LocalizerOptions::gate_release_after refusals.
+  int gate_releases = 0;
+  double gate_probability = 0.0;  // the gate the outliers were counted with
   std::string message;
-  // One line: "method batch, converged, iterations 7, cost 1.2e+05 -> 6.6e+04, time 0.41 s, ...".
+  // One line: "method batch, converged, iterations 7, cost 1.2e+05 -> 6.6e+04, magnetometer samples 44432,
+  // gnss fixes 1111, outliers: magnetometer 0, gnss 1 (gate p 0.9999), time 0.41 s ...".
   std::string BriefReport() const;
 };
 
