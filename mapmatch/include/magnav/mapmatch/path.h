@@ -21,13 +21,16 @@ struct MatchPath {
   std::vector<double> measured_nT;     // the measured value of the map's layer
 
   std::size_t size() const { return lat_deg.size(); }
-  // Throws InputError if the vectors differ in size, the path is empty or a
-  // position is not finite.
+  // Throws InputError if the vectors differ in size, the path is empty, a
+  // position is not finite or beyond the limits of core/limits.h (|lat| > 90,
+  // |lon| > 360 deg), or a finite measurement is beyond |1e6| nT.
   void Check() const;
 };
 
 // Reads `k,ins_lat,ins_lon` and the measurement column (by name; other
-// columns ignored). Every bad field is an InputError with file, line, column.
+// columns ignored). Every bad field is an InputError with file, line, column:
+// text, NaN or inf, and values beyond the limits of core/limits.h (|lat| > 90,
+// |lon| > 360 deg, |measurement| > 1e6 nT).
 MatchPath ReadMatchPath(const std::string& path, const std::string& meas_column);
 
 struct MatchResult {
