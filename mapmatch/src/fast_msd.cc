@@ -124,6 +124,7 @@ bool FastMsdOptions::IsValid(std::string* error) const {
   if (max_iterations_per_round < 1) return Fail(error, "max_iterations_per_round must be >= 1");
   if (rounds < 1) return Fail(error, "rounds must be >= 1");
   if (!internal::ValidOnMapFraction(min_on_map_fraction, error)) return false;
+  if (!internal::ValidOutlierSigmas(outlier_sigmas, error)) return false;
   if (!(std::isfinite(search_window_deg) && search_window_deg >= 0.0)) {
     return Fail(error, "search_window_deg must be finite and >= 0 (0 = no coarse stage)");
   }
@@ -134,8 +135,15 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
                          const FastMsdOptions& options) {
   internal::CheckInputs(grid, layer, path, options, "fast-msd");
   MatchResult r = internal::StartResult("fast-msd", "msd at the matched points, nT^2", path);
-  const std::vector<std::size_t> finite = internal::FiniteMeasurements(path, &r);
+  // Robust residuals (match_common.h): readings the map cannot explain
+  // (rule 1) have no data term in any round; see the rounds for rule 2.
+  const std::vector<std::size_t> all_finite = internal::FiniteMeasurements(path, &r);
+  const std::vector<std::size_t> finite =
+      internal::WithinMapRange(grid, layer, path, all_finite, options.outlier_sigmas, &r);
   if (!internal::EnoughPoints(finite, 2, &r)) return r;
+  std::vector<char> usable(path.size(), 0);
+  for (std::size_t p : finite) usable[p] = 1;
+  const internal::RobustSpread readings = internal::ReadingSpread(path, finite);
   const std::size_t n = path.size();
   std::vector<double> ref_lat = path.lat_deg, ref_lon = path.lon_deg;
   if (options.search_window_deg > 0.0) {
@@ -143,6 +151,7 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
     coarse.metric = CorrelationMetric::kMsd;
     coarse.search_window_deg = options.search_window_deg;
     coarse.min_on_map_fraction = options.min_on_map_fraction;
+    coarse.outlier_sigmas = options.outlier_sigmas;
     const MatchResult c = MatchCorrelation(grid, layer, path, coarse);
     if (c.points_used == 0) {
       r.reason = "coarse stage: " + c.reason;
@@ -159,13 +168,22 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
   for (int round = 0; round < options.rounds; ++round) {
     std::size_t on = 0;
     for (std::size_t i = 0; i < n; ++i) {
-      const auto s = std::isfinite(path.measured_nT[i]) ? grid.Sample(layer, ref_lat[i], ref_lon[i]) : std::nullopt;
+      const auto s = usable[i] ? grid.Sample(layer, ref_lat[i], ref_lon[i]) : std::nullopt;
       lin.data[i] = s.has_value();
       if (s) {
         lin.g_lat[i] = s->dvalue_dlat_nT_per_deg;
         lin.g_lon[i] = s->dvalue_dlon_nT_per_deg;
         lin.resid[i] = s->value_nT - path.measured_nT[i];
         ++on;
+      }
+    }
+    // Robust residuals (match_common.h rule 2): a residual beyond
+    // outlier_sigmas · σ_l (the readings' spread) is no position error: that
+    // point has no data term this round (it follows its neighbours, like a
+    // point off the map).
+    if (options.outlier_sigmas > 0.0) {
+      for (std::size_t i = 0; i < n; ++i) {
+        if (lin.data[i] && std::abs(lin.resid[i]) > options.outlier_sigmas * readings.sigma) lin.data[i] = 0;
       }
     }
     if (static_cast<double>(on) < options.min_on_map_fraction * static_cast<double>(finite.size()) || on == 0) {
@@ -208,11 +226,17 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
   }
   r.lat_deg = ref_lat;
   r.lon_deg = ref_lon;
+  // Score over the points on the map, residuals beyond k·σ_l left out (counted).
   double sum2 = 0.0;
   int on = 0;
   for (std::size_t p : finite) {
     if (const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p])) {
-      sum2 += (s->value_nT - path.measured_nT[p]) * (s->value_nT - path.measured_nT[p]);
+      const double d = s->value_nT - path.measured_nT[p];
+      if (options.outlier_sigmas > 0.0 && std::abs(d) > options.outlier_sigmas * readings.sigma) {
+        ++r.points_outlier;
+        continue;
+      }
+      sum2 += d * d;
       ++on;
     }
   }

@@ -62,7 +62,8 @@ std::string MatchResult::BriefReport() const {
                   FormatNumber(score) + " (" + score_name + "), " +
                   (converged ? std::string("converged") : "not converged: " + reason) + ", used " +
                   std::to_string(points_used) + "/" + std::to_string(n) + ", off map " +
-                  std::to_string(points_off_map) + ", bad measurement " + std::to_string(points_bad_measurement);
+                  std::to_string(points_off_map) + ", bad measurement " + std::to_string(points_bad_measurement) +
+                  ", outliers " + std::to_string(points_outlier);
   if (converged && !reason.empty()) s += " (" + reason + ")";
   if (!notes.empty()) s += "; " + notes;
   return s;

@@ -157,6 +157,7 @@ std::vector<BadInput> Corpus() {
   c.push_back({Kind::kMatchPath, "mappath_1e308.csv", ":7: column 'meas_nT': 1e+308 nT is out of range"});
   c.push_back({Kind::kMatchPath, "mappath_5e9nT.csv", ":7: column 'meas_nT': 5e+09 nT is out of range"});
   c.push_back({Kind::kMatchPath, "mappath_lat_95.csv", ":5: column 'ins_lat': 95 deg is out of range"});
+  c.push_back({Kind::kMatchPath, "mappath_off_map.csv", ": fast-msd: the path is entirely off the map"});
   return c;
 }
 

@@ -58,12 +58,20 @@ struct FastMsdOptions {
   double min_on_map_fraction = 0.3;
   // Coarse MSD translation search ±window (deg) before the rounds; 0 = none.
   double search_window_deg = 0.0;
+  // Robust residuals, in both stages: in each round a point whose residual
+  // m_i − l_i is beyond outlier_sigmas robust sigmas (1.4826·MAD over the
+  // round's points, at least 1 nT) of the median has no data term (it follows
+  // its neighbours, as a point off the map does); the coarse stage leaves such
+  // points out of its search (correlation.h); the score leaves out the points
+  // that are outliers at the matched path (MatchResult::points_outlier).
+  // 0 = off (every point's squared residual counts, as in the paper).
+  double outlier_sigmas = 5.0;
 
   bool IsValid(std::string* error) const;
 };
 
 // iterations = Jacobi iterations over all rounds (direct solver: one per round); score = MSD (nT²) at the
-// matched points on the map; converged = every round's Jacobi met epsilon.
+// matched points on the map, outliers left out; converged = every round's Jacobi met epsilon.
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                          const FastMsdOptions& options = {});
 

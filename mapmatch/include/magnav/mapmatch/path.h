@@ -48,10 +48,14 @@ struct MatchResult {
   int points_used = 0;
   int points_off_map = 0;
   int points_bad_measurement = 0;
+  // Points whose residual was beyond the method's outlier threshold (robust
+  // residuals: their data term was dropped; not in points_used).
+  int points_outlier = 0;
   // Settings the method derived rather than took (e.g. the field scale), for the summary.
   std::string notes;
 
-  // "method icp, iterations 12, score 0.0123 (rms distance, deg), converged, used 60/60, off map 0, bad 0"
+  // "method icp, iterations 12, score 0.0123 (rms distance, deg), converged, used 60/60, off map 0,
+  // bad measurement 0, outliers 0"
   std::string BriefReport() const;
 };
 
