@@ -2,8 +2,10 @@
 // measured field against a geomagnetic map (mapmatch/): single points, ICP,
 // ICCP, MMA, MAD/MSD/PROD/NPROD correlation, fast MSD, and the sequential
 // particle filters (pf, afpf) run over the path.
+#include <cmath>
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -22,6 +24,7 @@ struct MatchArgs {
   std::string solver = "direct";
   std::string diagnostics;  // pf, afpf: per-step CSV
   bool icp_3d = false;
+  double outlier_sigmas = 5.0;
   double search_window_deg = 0.0;  // 0 = not given
   mapmatch::MatchOptions options;
 };
@@ -34,6 +37,8 @@ const char* UpdateName(mapmatch::StepUpdate u) {
       return "bad_measurement";
     case mapmatch::StepUpdate::kAllOffMap:
       return "all_off_map";
+    case mapmatch::StepUpdate::kOutlier:
+      return "outlier";
   }
   return "?";
 }
@@ -76,23 +81,42 @@ void RunMatch(MatchArgs a) {
   const mapmatch::MatchPath path = mapmatch::ReadMatchPath(a.path, a.meas_column);
   const bool filter = *method == mapmatch::Method::kPf || *method == mapmatch::Method::kAfpf;
   if (!a.diagnostics.empty() && !filter) throw InputError("--diagnostics: only for pf and afpf");
+  // A path entirely off the map: exit 2, naming the path file.
+  try {
+    mapmatch::RequirePathNearMap(*method, grid, path, a.options);
+  } catch (const InputError& e) {
+    throw InputError(a.path + ": " + e.what());
+  }
   std::vector<mapmatch::StepDiagnostics> steps;
-  const mapmatch::MatchResult r =
-      filter ? mapmatch::MatchParticleFilter(*method == mapmatch::Method::kPf ? mapmatch::ParticleFilterKind::kPf
-                                                                              : mapmatch::ParticleFilterKind::kAfpf,
-                                             grid, 0, path, a.options.particle_filter, &steps)
-             : mapmatch::Match(*method, grid, 0, path, a.options);
+  // The status is reviewed (match.h ReviewResult).
+  const mapmatch::MatchResult r = mapmatch::Match(*method, grid, 0, path, a.options, filter ? &steps : nullptr);
+  // A result with a non-finite number is never written as a success: the
+  // inputs passed the door, so it is this program's fault (exit 3).
+  for (std::size_t p = 0; p < path.size(); ++p) {
+    if (!std::isfinite(r.lat_deg[p]) || !std::isfinite(r.lon_deg[p])) {
+      throw std::runtime_error(a.method + " gave a non-finite position at k = " + std::to_string(path.k[p]) +
+                               " (" + r.BriefReport() + "); nothing written");
+    }
+  }
   if (!a.diagnostics.empty()) WriteDiagnostics(a.diagnostics, path, steps);
+  std::vector<char> on_map(path.size());
+  int off_map = 0;
+  for (std::size_t p = 0; p < path.size(); ++p) {
+    on_map[p] = grid.Contains(r.lat_deg[p], r.lon_deg[p]);
+    off_map += !on_map[p];
+  }
   // CsvWriter writes beside the output and renames on Close: a reader never sees half a file.
-  CsvWriter w(a.output, {"k", "lat", "lon"},
+  CsvWriter w(a.output, {"k", "lat", "lon", "on_map"},
               {{"map", a.map},
                {"value_column", a.value_column},
                {"path", a.path},
                {"meas_column", a.meas_column},
-               {"frame", "matched position, latitude/longitude in degrees (WGS84)"},
+               {"frame", "matched position, latitude/longitude in degrees (WGS84); on_map 1 inside the map's grid"},
+               {"off_map_points", std::to_string(off_map) + " of " + std::to_string(path.size())},
                {"summary", r.BriefReport()}});
   for (std::size_t p = 0; p < path.size(); ++p) {
-    w.WriteRow({std::to_string(path.k[p]), FormatNumber(r.lat_deg[p]), FormatNumber(r.lon_deg[p])});
+    w.WriteRow({std::to_string(path.k[p]), FormatNumber(r.lat_deg[p]), FormatNumber(r.lon_deg[p]),
+                on_map[p] ? "1" : "0"});
   }
   w.Close();
 }
@@ -119,8 +143,18 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--search-window", args->search_window_deg,
                   "half-width of the translation search, deg: required by mad|msd|prod|nprod; with fast-msd, "
                   "the coarse MSD stage (none without it)");
-  cmd->add_option("--output", args->output, "k,lat,lon (deg) of the matched path and a '# summary:' line")
+  cmd->add_option("--output", args->output,
+                  "k,lat,lon (deg) of the matched path, on_map (1 inside the map's grid, 0 off it), a "
+                  "'# off_map_points:' count and a '# summary:' line")
       ->required();
+  cmd->add_option("--max-correction", args->options.max_correction_deg,
+                  "largest correction (deg) a result may make and still be called converged (the prior on the "
+                  "INS error); 0 = the method's own: 2 x --search-window, 2 x the pf/afpf prior half-width, else "
+                  "the INS path's size");
+  cmd->add_option("--outlier-sigmas", args->outlier_sigmas,
+                  "robust residuals of every method: a reading whose residual is beyond this many robust sigmas "
+                  "(1.4826 MAD) is left out (counted as outliers in the summary); pf/afpf: a reading beyond this "
+                  "many sigmas of the whole cloud's prediction is skipped; 0 = off");
   mapmatch::MatchOptions& o = args->options;
   cmd->add_option("--tolerance", o.point.tolerance_nT, "point: half-width of the value window, nT");
   cmd->add_option("--field-scale", o.icp.field_scale_deg_per_nT,
@@ -156,6 +190,9 @@ void AddMatchCommand(CLI::App& app) {
     a.options.mma.closest_point_subdivision = a.options.icp.closest_point_subdivision;
     a.options.iccp.convergence_tau = a.options.icp.convergence_tau;
     a.options.iccp.max_iterations = a.options.icp.max_iterations;
+    a.options.icp.outlier_sigmas = a.options.iccp.outlier_sigmas = a.options.mma.outlier_sigmas =
+        a.options.correlation.outlier_sigmas = a.options.fast_msd.outlier_sigmas =
+            a.options.particle_filter.outlier_sigmas = a.outlier_sigmas;
     RunMatch(a);
   });
 }

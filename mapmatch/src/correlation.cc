@@ -35,8 +35,10 @@ struct Best {
 // Scores every shift (a, b) in [-A, A] x [-B, B] of the points; updates *best
 // with a strictly better score (ties keep the earlier: the smaller rotation,
 // then the smaller shift). Returns whether it did.
+// `clip` (nT; infinity = none): MAD and MSD count a residual beyond it as
+// `clip` (a truncated loss: one spike weighs the same at every shift).
 bool SearchShifts(const GeoGrid& grid, std::size_t layer, const std::vector<CellPoint>& pts, int A, int B,
-                  std::size_t needed, CorrelationMetric metric, Best* best) {
+                  std::size_t needed, CorrelationMetric metric, double clip, Best* best) {
   const GridAxis& la = grid.lat();
   const GridAxis& lo = grid.lon();
   const double* val = grid.values(layer).data();
@@ -54,9 +56,9 @@ bool SearchShifts(const GeoGrid& grid, std::size_t layer, const std::vector<Cell
         if (i < 0 || j < 0 || i > la.count - 2 || j > lo.count - 2) continue;
         const double* c = val + static_cast<std::size_t>(i) * n_lon + j;
         const double m = q.w00 * c[0] + q.w01 * c[1] + q.w10 * c[n_lon] + q.w11 * c[n_lon + 1];
-        const double d = q.measured_nT - m;
+        const double d = std::min(std::abs(q.measured_nT - m), clip);
         ++n_on;
-        s_abs += std::abs(d);
+        s_abs += d;
         s_sq += d * d;
         s_lm += q.measured_nT * m;
         s_mm += m * m;
@@ -117,6 +119,7 @@ bool CorrelationOptions::IsValid(std::string* error) const {
     return Fail(error, "search_window_deg must be finite and > 0 (it must cover the INS error; no default)");
   }
   if (!internal::ValidOnMapFraction(min_on_map_fraction, error)) return false;
+  if (!internal::ValidOutlierSigmas(outlier_sigmas, error)) return false;
   if (!(std::isfinite(rotation_window_deg) && rotation_window_deg >= 0.0 && rotation_window_deg <= 180.0)) {
     return Fail(error, "rotation_window_deg must be in [0, 180] (0 = no rotation search)");
   }
@@ -132,8 +135,15 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
                                                                          : "nT^2";
   MatchResult r = internal::StartResult(CorrelationMetricName(options.metric),
                                         std::string(CorrelationMetricName(options.metric)) + ", " + unit, path);
-  const std::vector<std::size_t> used = internal::FiniteMeasurements(path, &r);
+  // Robust residuals (match_common.h rules 1-3): readings the map cannot
+  // explain are left out; residuals are clipped at k·σ_l in the search;
+  // points beyond k robust sigmas at the answer are left out and the search repeated.
+  const std::vector<std::size_t> finite = internal::FiniteMeasurements(path, &r);
+  const std::vector<std::size_t> used = internal::WithinMapRange(grid, layer, path, finite, options.outlier_sigmas, &r);
   if (!internal::EnoughPoints(used, 1, &r)) return r;
+  const internal::RobustSpread readings = internal::ReadingSpread(path, used);
+  const double clip = options.outlier_sigmas > 0.0 ? options.outlier_sigmas * readings.sigma
+                                                   : std::numeric_limits<double>::infinity();
   const GridAxis& la = grid.lat();
   const GridAxis& lo = grid.lon();
   const int A = static_cast<int>(std::floor(options.search_window_deg / la.step_deg + 1e-9));
@@ -152,26 +162,70 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
     return std::array<double, 2>{c_lat + std::cos(theta_rad) * a - std::sin(theta_rad) * b,
                                  c_lon + std::sin(theta_rad) * a + std::cos(theta_rad) * b};
   };
-  const std::size_t needed =
-      static_cast<std::size_t>(std::ceil(options.min_on_map_fraction * static_cast<double>(used.size()) - 1e-9));
-  Best best;
-  best.score = Maximised(options.metric) ? -std::numeric_limits<double>::infinity()
-                                         : std::numeric_limits<double>::infinity();
-  int best_rot = 0;
-  std::vector<CellPoint> pts(used.size());
-  for (int k = 0; k <= 2 * n_rot; ++k) {
-    const int rot = k % 2 == 0 ? k / 2 : -(k + 1) / 2;  // 0, -1, 1, -2, 2, ...: ties keep the smaller angle
-    const double theta = rot * options.rotation_step_deg * M_PI / 180.0;
-    for (std::size_t c = 0; c < used.size(); ++c) {
-      const auto x = rotated(used[c], theta);
-      const double fi = (x[0] - la.first_deg) / la.step_deg, fj = (x[1] - lo.first_deg) / lo.step_deg;
-      const double bi = std::floor(fi), bj = std::floor(fj);
-      const double u = fi - bi, v = fj - bj;
-      pts[c] = {static_cast<int>(bi), static_cast<int>(bj), (1 - u) * (1 - v), (1 - u) * v, u * (1 - v), u * v,
-                path.measured_nT[used[c]]};
+  // One search over the points `idx` (indices into the path): the best shift and rotation.
+  struct Search {
+    Best best;
+    int rot = 0;
+  };
+  const auto cell_point = [&](std::size_t p, double theta) {
+    const auto x = rotated(p, theta);
+    const double fi = (x[0] - la.first_deg) / la.step_deg, fj = (x[1] - lo.first_deg) / lo.step_deg;
+    const double bi = std::floor(fi), bj = std::floor(fj);
+    const double u = fi - bi, v = fj - bj;
+    // PROD and NPROD weigh each reading by its value: a reading is held within the clip of the readings' median.
+    const double l = Maximised(options.metric)
+                         ? std::clamp(path.measured_nT[p], readings.median - clip, readings.median + clip)
+                         : path.measured_nT[p];
+    return CellPoint{static_cast<int>(bi), static_cast<int>(bj), (1 - u) * (1 - v), (1 - u) * v, u * (1 - v), u * v, l};
+  };
+  const auto search = [&](const std::vector<std::size_t>& idx) {
+    const std::size_t needed =
+        static_cast<std::size_t>(std::ceil(options.min_on_map_fraction * static_cast<double>(idx.size()) - 1e-9));
+    Search out;
+    out.best.score = Maximised(options.metric) ? -std::numeric_limits<double>::infinity()
+                                               : std::numeric_limits<double>::infinity();
+    std::vector<CellPoint> pts(idx.size());
+    for (int k = 0; k <= 2 * n_rot; ++k) {
+      const int rot = k % 2 == 0 ? k / 2 : -(k + 1) / 2;  // 0, -1, 1, -2, 2, ...: ties keep the smaller angle
+      const double theta = rot * options.rotation_step_deg * M_PI / 180.0;
+      for (std::size_t c = 0; c < idx.size(); ++c) pts[c] = cell_point(idx[c], theta);
+      if (SearchShifts(grid, layer, pts, A, B, needed, options.metric, clip, &out.best)) out.rot = rot;
     }
-    if (SearchShifts(grid, layer, pts, A, B, needed, options.metric, &best)) best_rot = rot;
+    return out;
+  };
+  // Robust residuals (match_common.h): search, judge every usable point's
+  // residual at the best shift, search again without the outliers, until the
+  // set of outliers repeats (at most kPasses searches).
+  constexpr int kPasses = 3;
+  std::vector<std::size_t> inliers = used;
+  std::vector<char> outlier(path.size(), 0);
+  Search found = search(inliers);
+  for (int pass = 1; pass < kPasses && found.best.found && options.outlier_sigmas > 0.0; ++pass) {
+    const double theta = found.rot * options.rotation_step_deg * M_PI / 180.0;
+    std::vector<std::pair<std::size_t, double>> resid;  // (point, measured − map) at the best shift, on the map
+    for (std::size_t p : used) {
+      const CellPoint q = cell_point(p, theta);
+      const int i = q.i + found.best.a, j = q.j + found.best.b;
+      if (i < 0 || j < 0 || i > la.count - 2 || j > lo.count - 2) continue;
+      const double* c = grid.values(layer).data() + static_cast<std::size_t>(i) * lo.count + j;
+      resid.emplace_back(p, q.measured_nT - (q.w00 * c[0] + q.w01 * c[1] + q.w10 * c[lo.count] + q.w11 * c[lo.count + 1]));
+    }
+    std::vector<double> values;
+    for (const auto& pr : resid) values.push_back(pr.second);
+    const internal::RobustSpread spread = internal::RobustSpreadOf(values, internal::kOutlierSigmaFloor_nT);
+    std::vector<char> next(path.size(), 0);
+    for (const auto& [p, d] : resid) next[p] = internal::IsOutlier(d, spread, options.outlier_sigmas);
+    if (next == outlier) break;
+    outlier = next;
+    inliers.clear();
+    for (std::size_t p : used) {
+      if (!outlier[p]) inliers.push_back(p);
+    }
+    found = search(inliers);
   }
+  const Best& best = found.best;
+  const int best_rot = found.rot;
+  r.points_outlier += static_cast<int>(used.size() - inliers.size());
   r.iterations = (2 * A + 1) * (2 * B + 1) * (2 * n_rot + 1);
   if (!best.found) {
     r.points_used = 0;
@@ -181,7 +235,7 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
   }
   r.score = best.score;
   r.points_used = static_cast<int>(best.on);
-  r.points_off_map = static_cast<int>(used.size() - best.on);
+  r.points_off_map = static_cast<int>(inliers.size() - best.on);
   const double theta = best_rot * options.rotation_step_deg * M_PI / 180.0;
   for (std::size_t p = 0; p < path.size(); ++p) {
     const auto x = rotated(p, theta);

@@ -124,6 +124,7 @@ bool FastMsdOptions::IsValid(std::string* error) const {
   if (max_iterations_per_round < 1) return Fail(error, "max_iterations_per_round must be >= 1");
   if (rounds < 1) return Fail(error, "rounds must be >= 1");
   if (!internal::ValidOnMapFraction(min_on_map_fraction, error)) return false;
+  if (!internal::ValidOutlierSigmas(outlier_sigmas, error)) return false;
   if (!(std::isfinite(search_window_deg) && search_window_deg >= 0.0)) {
     return Fail(error, "search_window_deg must be finite and >= 0 (0 = no coarse stage)");
   }
@@ -134,8 +135,15 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
                          const FastMsdOptions& options) {
   internal::CheckInputs(grid, layer, path, options, "fast-msd");
   MatchResult r = internal::StartResult("fast-msd", "msd at the matched points, nT^2", path);
-  const std::vector<std::size_t> finite = internal::FiniteMeasurements(path, &r);
+  // Robust residuals (match_common.h): readings the map cannot explain
+  // (rule 1) have no data term in any round; see the rounds for rule 2.
+  const std::vector<std::size_t> all_finite = internal::FiniteMeasurements(path, &r);
+  const std::vector<std::size_t> finite =
+      internal::WithinMapRange(grid, layer, path, all_finite, options.outlier_sigmas, &r);
   if (!internal::EnoughPoints(finite, 2, &r)) return r;
+  std::vector<char> usable(path.size(), 0);
+  for (std::size_t p : finite) usable[p] = 1;
+  const internal::RobustSpread readings = internal::ReadingSpread(path, finite);
   const std::size_t n = path.size();
   std::vector<double> ref_lat = path.lat_deg, ref_lon = path.lon_deg;
   if (options.search_window_deg > 0.0) {
@@ -143,6 +151,7 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
     coarse.metric = CorrelationMetric::kMsd;
     coarse.search_window_deg = options.search_window_deg;
     coarse.min_on_map_fraction = options.min_on_map_fraction;
+    coarse.outlier_sigmas = options.outlier_sigmas;
     const MatchResult c = MatchCorrelation(grid, layer, path, coarse);
     if (c.points_used == 0) {
       r.reason = "coarse stage: " + c.reason;
@@ -152,67 +161,128 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
     ref_lon = c.lon_deg;
     r.notes = "coarse stage: " + c.notes + (c.converged ? "" : " (" + c.reason + ")");
   }
-  std::vector<double> e_lat(n), e_lon(n);
-  Linearisation lin(n);
-  bool all_converged = true;
+  const std::vector<double> start_lat = ref_lat, start_lon = ref_lon;
+  // The rounds from the start with the points of `use` (returns whether every round converged).
   int rounds_done = 0;
-  for (int round = 0; round < options.rounds; ++round) {
-    std::size_t on = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const auto s = std::isfinite(path.measured_nT[i]) ? grid.Sample(layer, ref_lat[i], ref_lon[i]) : std::nullopt;
-      lin.data[i] = s.has_value();
-      if (s) {
-        lin.g_lat[i] = s->dvalue_dlat_nT_per_deg;
-        lin.g_lon[i] = s->dvalue_dlon_nT_per_deg;
-        lin.resid[i] = s->value_nT - path.measured_nT[i];
-        ++on;
+  const auto run_rounds = [&](const std::vector<char>& use) {
+    ref_lat = start_lat;
+    ref_lon = start_lon;
+    rounds_done = 0;
+    r.reason.clear();
+    std::vector<double> e_lat(n), e_lon(n);
+    Linearisation lin(n);
+    bool all_converged = true;
+    for (int round = 0; round < options.rounds; ++round) {
+      std::size_t on = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const auto s = use[i] ? grid.Sample(layer, ref_lat[i], ref_lon[i]) : std::nullopt;
+        lin.data[i] = s.has_value();
+        if (s) {
+          lin.g_lat[i] = s->dvalue_dlat_nT_per_deg;
+          lin.g_lon[i] = s->dvalue_dlon_nT_per_deg;
+          lin.resid[i] = s->value_nT - path.measured_nT[i];
+          ++on;
+        }
+      }
+      // Robust residuals (match_common.h rule 2): a residual beyond
+      // outlier_sigmas · σ_l (the readings' spread) is no position error: that
+      // point has no data term this round (it follows its neighbours, like a
+      // point off the map).
+      if (options.outlier_sigmas > 0.0) {
+        for (std::size_t i = 0; i < n; ++i) {
+          if (lin.data[i] && std::abs(lin.resid[i]) > options.outlier_sigmas * readings.sigma) lin.data[i] = 0;
+        }
+      }
+      if (static_cast<double>(on) < options.min_on_map_fraction * static_cast<double>(finite.size()) || on == 0) {
+        all_converged = false;
+        r.reason = "round " + std::to_string(round + 1) + ": only " + std::to_string(on) + " of " +
+                   std::to_string(finite.size()) + " points on the map (needs " +
+                   FormatNumber(options.min_on_map_fraction) + "); stopped there";
+        break;
+      }
+      const double lambda =
+          options.lambda_nT2_per_deg2 *
+          (options.rounds > 1 ? std::pow(options.lambda_first_round_factor,
+                                         static_cast<double>(options.rounds - 1 - round) / (options.rounds - 1))
+                              : 1.0);
+      std::fill(e_lat.begin(), e_lat.end(), 0.0);
+      std::fill(e_lon.begin(), e_lon.end(), 0.0);
+      bool round_converged = true;
+      if (options.solver == FastMsdSolver::kJacobi) {
+        const auto [iterations, converged] = JacobiRound(lin, lambda, options, &e_lat, &e_lon);
+        r.iterations += iterations;
+        round_converged = converged;
+      } else {
+        DirectRound(lin, lambda, &e_lat, &e_lon);
+        ++r.iterations;
+      }
+      ++rounds_done;
+      double step2 = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        ref_lat[i] += e_lat[i];
+        ref_lon[i] += e_lon[i];
+        step2 += e_lat[i] * e_lat[i] + e_lon[i] * e_lon[i];
+      }
+      if (!round_converged) {
+        all_converged = false;
+        r.reason = "round " + std::to_string(round + 1) + ": Jacobi change still >= epsilon after " +
+                   std::to_string(options.max_iterations_per_round) + " iterations";
+      }
+      // Nothing left to re-linearise (only once λ has reached its final value).
+      if (lambda == options.lambda_nT2_per_deg2 && step2 / static_cast<double>(n) < options.epsilon_deg2) break;
+    }
+    return all_converged;
+  };
+  bool all_converged = run_rounds(usable);
+  // Robust residuals (match_common.h rule 3): each point's leave-one-out
+  // residual — its reading against the map at the mean of its neighbours'
+  // matched positions (the path is smooth; a point's own data term can bend
+  // the path onto a wrong reading, its neighbours' positions cannot) — beyond
+  // outlier_sigmas robust sigmas (1.4826·MAD, at least 1 nT) of their median:
+  // the point is left out and the rounds run again, once, from the same start.
+  if (options.outlier_sigmas > 0.0 && n >= 3) {
+    std::vector<std::pair<std::size_t, double>> resid;
+    // Where the neighbours put point p: their mean inside, a straight-line extrapolation at the ends.
+    const auto from_neighbours = [&](const std::vector<double>& x, std::size_t p) {
+      if (p == 0) return 2.0 * x[1] - x[2];
+      if (p == n - 1) return 2.0 * x[n - 2] - x[n - 3];
+      return 0.5 * (x[p - 1] + x[p + 1]);
+    };
+    for (std::size_t p : finite) {
+      if (const auto s = grid.Sample(layer, from_neighbours(ref_lat, p), from_neighbours(ref_lon, p))) {
+        resid.emplace_back(p, s->value_nT - path.measured_nT[p]);
       }
     }
-    if (static_cast<double>(on) < options.min_on_map_fraction * static_cast<double>(finite.size()) || on == 0) {
-      all_converged = false;
-      r.reason = "round " + std::to_string(round + 1) + ": only " + std::to_string(on) + " of " +
-                 std::to_string(finite.size()) + " points on the map (needs " +
-                 FormatNumber(options.min_on_map_fraction) + "); stopped there";
-      break;
+    std::vector<double> values;
+    for (const auto& pr : resid) values.push_back(pr.second);
+    const internal::RobustSpread spread = internal::RobustSpreadOf(values, internal::kOutlierSigmaFloor_nT);
+    std::vector<char> use = usable;
+    int dropped = 0;
+    for (const auto& [p, d] : resid) {
+      if (internal::IsOutlier(d, spread, options.outlier_sigmas)) use[p] = 0, ++dropped;
     }
-    const double lambda =
-        options.lambda_nT2_per_deg2 *
-        (options.rounds > 1 ? std::pow(options.lambda_first_round_factor,
-                                       static_cast<double>(options.rounds - 1 - round) / (options.rounds - 1))
-                            : 1.0);
-    std::fill(e_lat.begin(), e_lat.end(), 0.0);
-    std::fill(e_lon.begin(), e_lon.end(), 0.0);
-    bool round_converged = true;
-    if (options.solver == FastMsdSolver::kJacobi) {
-      const auto [iterations, converged] = JacobiRound(lin, lambda, options, &e_lat, &e_lon);
-      r.iterations += iterations;
-      round_converged = converged;
-    } else {
-      DirectRound(lin, lambda, &e_lat, &e_lon);
-      ++r.iterations;
+    if (dropped > 0) {
+      all_converged = run_rounds(use);
+      usable = use;
+      r.points_outlier += dropped;
+      r.notes += std::string(r.notes.empty() ? "" : "; ") + "refit without " + std::to_string(dropped) +
+                 " outlier" + (dropped == 1 ? "" : "s");
     }
-    ++rounds_done;
-    double step2 = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      ref_lat[i] += e_lat[i];
-      ref_lon[i] += e_lon[i];
-      step2 += e_lat[i] * e_lat[i] + e_lon[i] * e_lon[i];
-    }
-    if (!round_converged) {
-      all_converged = false;
-      r.reason = "round " + std::to_string(round + 1) + ": Jacobi change still >= epsilon after " +
-                 std::to_string(options.max_iterations_per_round) + " iterations";
-    }
-    // Nothing left to re-linearise (only once λ has reached its final value).
-    if (lambda == options.lambda_nT2_per_deg2 && step2 / static_cast<double>(n) < options.epsilon_deg2) break;
   }
   r.lat_deg = ref_lat;
   r.lon_deg = ref_lon;
+  // Score over the points on the map (the refit's outliers and residuals beyond k·σ_l left out, counted).
   double sum2 = 0.0;
   int on = 0;
   for (std::size_t p : finite) {
+    if (!usable[p]) continue;
     if (const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p])) {
-      sum2 += (s->value_nT - path.measured_nT[p]) * (s->value_nT - path.measured_nT[p]);
+      const double d = s->value_nT - path.measured_nT[p];
+      if (options.outlier_sigmas > 0.0 && std::abs(d) > options.outlier_sigmas * readings.sigma) {
+        ++r.points_outlier;
+        continue;
+      }
+      sum2 += d * d;
       ++on;
     }
   }

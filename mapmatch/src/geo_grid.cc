@@ -9,11 +9,20 @@
 
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
+#include "magnav/core/limits.h"
 
 namespace magnav::mapmatch {
 namespace {
 
 std::string Num(double v) { return FormatNumber(v); }
+
+// The door (core/limits.h): "WHERE: column 'NAME': V UNIT is out of range (...)".
+void CheckLimit(const Limit& limit, double value, const std::string& where, const std::string& column,
+                const char* field_word = "column") {
+  if (!WithinLimit(limit, value)) {
+    throw InputError(where + ": " + field_word + " '" + column + "': " + OutOfRange(limit, value));
+  }
+}
 
 // One node as read from a file, with the line it came from.
 struct FileNode {
@@ -142,6 +151,14 @@ GeoGrid::GeoGrid(GridAxis lat, GridAxis lon, std::vector<std::string> layer_name
     throw InputError("map: grid steps must be > 0 and the origin finite");
   }
   if (names_.empty() || names_.size() != values_.size()) throw InputError("map: one name per layer needed");
+  for (const auto& [axis, limit] : {std::pair{&lat_, &kLimitLatitude}, std::pair{&lon_, &kLimitLongitude}}) {
+    if (!WithinLimit(*limit, axis->first_deg) || !WithinLimit(*limit, axis->last_deg())) {
+      throw InputError("map: " + std::string(limit->quantity) + " axis " + Num(axis->first_deg) + " .. " +
+                       Num(axis->last_deg()) + " deg: " + OutOfRange(*limit, std::abs(axis->first_deg) > limit->max_abs
+                                                                                     ? axis->first_deg
+                                                                                     : axis->last_deg()));
+    }
+  }
   for (std::size_t l = 0; l < names_.size(); ++l) {
     if (std::count(names_.begin(), names_.end(), names_[l]) != 1) {
       throw InputError("map: layer '" + names_[l] + "' given twice");
@@ -156,6 +173,11 @@ GeoGrid::GeoGrid(GridAxis lat, GridAxis lon, std::vector<std::string> layer_name
       if (!std::isfinite(v)) {
         throw InputError(Hole("map", names_[l], lat_.at(static_cast<int>(k / lon_.count)),
                               lon_.at(static_cast<int>(k % lon_.count))));
+      }
+      if (!WithinLimit(kLimitMapValue, v)) {
+        throw InputError("map: layer '" + names_[l] + "' at lat " + Num(lat_.at(static_cast<int>(k / lon_.count))) +
+                         ", lon " + Num(lon_.at(static_cast<int>(k % lon_.count))) + ": " +
+                         OutOfRange(kLimitMapValue, v));
       }
       lo = std::min(lo, v);
       hi = std::max(hi, v);
@@ -230,11 +252,15 @@ GeoGrid ReadGeoGridCsv(const std::string& path, const std::vector<std::string>& 
   nodes.reserve(t.num_rows());
   for (std::size_t r = 0; r < t.num_rows(); ++r) {
     FileNode n{t.number(r, c_lat), t.number(r, c_lon), t.line_of(r), {}};
+    const std::string where = path + ":" + std::to_string(t.line_of(r));
+    CheckLimit(kLimitLatitude, n.lat_deg, where, lat_column);
+    CheckLimit(kLimitLongitude, n.lon_deg, where, lon_column);
     for (std::size_t l = 0; l < cols.size(); ++l) {
       if (IsNanText(t.text(r, cols[l]))) {
         throw InputError(Hole(path + ":" + std::to_string(t.line_of(r)), value_columns[l], n.lat_deg, n.lon_deg));
       }
       n.values.push_back(t.number(r, cols[l]));
+      CheckLimit(kLimitMapValue, n.values.back(), where, value_columns[l]);
     }
     nodes.push_back(std::move(n));
   }
@@ -267,6 +293,8 @@ GeoGrid ReadGeoGridXyz(const std::string& path, const std::string& layer_name) {
                          "' is not a number");
       }
       v[k] = *x;
+      static const Limit* kLimit[3] = {&kLimitLongitude, &kLimitLatitude, &kLimitMapValue};
+      CheckLimit(*kLimit[k], v[k], path + ":" + std::to_string(line_no), kField[k], "field");
     }
     if (ss >> extra) {
       throw InputError(path + ":" + std::to_string(line_no) + ": more than 3 fields (expected 'lon lat value')");

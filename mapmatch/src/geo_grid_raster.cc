@@ -2,11 +2,14 @@
 // reads): an optional build feature (MAGNAV_WITH_GDAL). Without it the reader
 // refuses with a message saying how to get it.
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "magnav/core/csv.h"
 #include "magnav/core/error.h"
+#include "magnav/core/limits.h"
 #include "magnav/mapmatch/geo_grid.h"
 
 #ifdef MAGNAV_WITH_GDAL
@@ -97,6 +100,42 @@ struct Geometry {
   int width = 0, height = 0;
 };
 
+// GDAL drivers of rasters stored as text: every cell is written out, so the
+// file holds at least kMinTextBytesPerCell bytes per cell.
+bool TextRaster(GDALDatasetH d) {
+  const GDALDriverH driver = GDALGetDatasetDriver(d);
+  if (driver == nullptr) return false;
+  const std::string name = GDALGetDriverShortName(driver);
+  for (const char* text : {"AAIGrid", "GRASSASCIIGrid", "XYZ", "ISG", "GSAG"}) {
+    if (name == text) return true;
+  }
+  return false;
+}
+
+// The grid a header claims, refused before a byte of it is allocated: beyond
+// the cap of core/limits.h (kLimitMapCells), or, for a text raster, more cells
+// than the file's bytes could hold (a 107-byte .asc header claiming
+// 16384 x 16384 cells made the reader allocate 2.1 GB before it failed).
+void CheckClaimedSize(GDALDatasetH d, int width, int height, const std::string& where) {
+  const double cells = static_cast<double>(width) * static_cast<double>(height);
+  const std::string claim = std::to_string(height) + " rows x " + std::to_string(width) + " columns";
+  if (cells > kLimitMapCells.max_abs) {
+    throw InputError(where + ": the header claims " + claim + " = " + FormatNumber(cells) +
+                     " cells, more than the map cap of " + FormatNumber(kLimitMapCells.max_abs) + " (" +
+                     kLimitMapCells.why + ")");
+  }
+  if (TextRaster(d)) {
+    std::error_code ec;
+    const char* file = GDALGetDescription(d);
+    const auto bytes = std::filesystem::file_size(file != nullptr ? file : "", ec);
+    if (!ec && cells * kMinTextBytesPerCell > static_cast<double>(bytes)) {
+      throw InputError(where + ": the header claims " + claim + " = " + FormatNumber(cells) + " cells, but the file has " +
+                       std::to_string(bytes) + " bytes (a text raster needs at least " +
+                       FormatNumber(kMinTextBytesPerCell) + " per cell): a truncated file or a wrong header");
+    }
+  }
+}
+
 Geometry GeometryOf(GDALDatasetH d, const std::string& where) {
   double gt[6];
   if (GDALGetGeoTransform(d, gt) != CE_None) throw InputError(where + ": no georeferencing (geotransform)");
@@ -115,6 +154,7 @@ Geometry GeometryOf(GDALDatasetH d, const std::string& where) {
   g.width = GDALGetRasterXSize(d);
   g.height = GDALGetRasterYSize(d);
   if (g.width < 2 || g.height < 2) throw InputError(where + ": a map needs at least 2 x 2 nodes");
+  CheckClaimedSize(d, g.width, g.height, where);
   // GDAL's geotransform locates pixel corners; a map node is a pixel centre.
   g.lon = {gt[0] + 0.5 * gt[1], gt[1], g.width};
   if (gt[5] < 0.0) {
@@ -156,6 +196,11 @@ GeoGrid ReadGeoGridRaster(const std::string& path, const std::vector<std::string
       const int i = g.flip_rows ? g.height - 1 - r : r;  // latitude index, ascending
       for (int j = 0; j < g.width; ++j) {
         const double x = raw[static_cast<std::size_t>(r) * g.width + j];
+        if (std::isfinite(x) && !(has_nodata && x == nodata) && !WithinLimit(kLimitMapValue, x)) {
+          throw InputError(path + ": layer '" + layers[l] + "': row " + std::to_string(r) + ", column " +
+                           std::to_string(j) + " (lat " + FormatNumber(g.lat.at(i)) + ", lon " +
+                           FormatNumber(g.lon.at(j)) + "): " + OutOfRange(kLimitMapValue, x));
+        }
         if (!std::isfinite(x) || (has_nodata && x == nodata)) {
           throw InputError(path + ": layer '" + layers[l] + "': hole (no data) at lat " +
                            std::to_string(g.lat.at(i)) + ", lon " + std::to_string(g.lon.at(j)) +

@@ -29,6 +29,10 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!(resample_ess_fraction >= 0.0 && resample_ess_fraction <= 1.0)) {
     return Fail(error, "resample_ess_fraction must be in [0, 1]");
   }
+  if (!(outlier_sigmas == 0.0 || (std::isfinite(outlier_sigmas) && outlier_sigmas >= 2.0))) {
+    return Fail(error, "outlier_sigmas must be 0 (off) or finite and >= 2");
+  }
+  if (max_consecutive_outliers < 0) return Fail(error, "max_consecutive_outliers must be >= 0");
   if (!(std::isfinite(off_map_sigmas) && off_map_sigmas >= 0.0)) {
     return Fail(error, "off_map_sigmas must be finite and >= 0");
   }
@@ -231,6 +235,25 @@ class Filter final : public SequentialMatcher {
       evidence += p_[i].weight * std::exp(loglik_[i]);
       if (on) w_on += p_[i].weight, r1 += p_[i].weight * r, r2 += p_[i].weight * r * r;
     }
+    // The outlier gate (see outlier_sigmas): a reading no particle's prediction explains is skipped.
+    if (o_.outlier_sigmas > 0.0 && w_on > 0.5 && consecutive_outliers_ < o_.max_consecutive_outliers) {
+      const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0);
+      if (mean * mean > o_.outlier_sigmas * o_.outlier_sigmas * (sigma_ * sigma_ + spread)) {
+        d->update = StepUpdate::kOutlier;
+        ++counters_.outliers;
+        ++consecutive_outliers_;
+        // The divergence rule still hears of it, as a residual of outlier_sigmas: one spike
+        // cannot make the filter lost (25 against a mean of 9 over 10 updates), a run of
+        // "outliers" (a lost filter, not a spike) does within 4 steps.
+        d->nis = evidence > 0.0 ? -2.0 * std::log(evidence) : std::numeric_limits<double>::infinity();
+        nis_window_.push_back(std::min(d->nis, o_.outlier_sigmas * o_.outlier_sigmas));
+        if (static_cast<int>(nis_window_.size()) > o_.divergence_window) nis_window_.pop_front();
+        d->ess = Ess();
+        d->lost = Lost();
+        return;
+      }
+    }
+    consecutive_outliers_ = 0;
     if (adaptive_ && w_on > 0.5) {
       // (mean residual)² and the cloud's spread of predicted map values:
       // E[(z − m̄)²] = σ² + Var(m) for a consistent filter.
@@ -477,6 +500,7 @@ class Filter final : public SequentialMatcher {
   std::mt19937_64 rng_;
   double inv_two_var_ = 0.0, off_map_loglik_ = 0.0;
   bool initialised_ = false;
+  int consecutive_outliers_ = 0;  // readings skipped in a row by the outlier gate
   double prev_lat_ = 0.0, prev_lon_ = 0.0;
   std::vector<Particle> p_;
   std::vector<double> logw_, loglik_;
@@ -524,6 +548,7 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   r.points_used = c.updates;
   r.points_off_map = c.all_off_map;
   r.points_bad_measurement = c.bad_measurements;
+  r.points_outlier = c.outliers;
   r.converged = !filter->lost();
   if (!r.converged) {
     r.reason = "lost (mean NIS over the last " + std::to_string(options.divergence_window) + " updates > " +

@@ -47,12 +47,13 @@ TEST(MatchCli, OutputIsTheLibrarysMatchedPath) {
     o.fast_msd.search_window_deg = 0.15;
     const MatchResult lib = Match(*ParseMethod(method), grid, 0, p, o);
     const CsvTable t = CsvTable::Read(out);
-    ASSERT_EQ(t.header(), (std::vector<std::string>{"k", "lat", "lon"}));
+    ASSERT_EQ(t.header(), (std::vector<std::string>{"k", "lat", "lon", "on_map"}));
     ASSERT_EQ(t.num_rows(), p.size());
     for (std::size_t r = 0; r < t.num_rows(); ++r) {
       EXPECT_EQ(t.integer(r, 0), p.k[r]);
       EXPECT_EQ(t.number(r, 1), lib.lat_deg[r]);
       EXPECT_EQ(t.number(r, 2), lib.lon_deg[r]);
+      EXPECT_EQ(t.integer(r, 3), grid.Contains(lib.lat_deg[r], lib.lon_deg[r]) ? 1 : 0);
     }
     ASSERT_TRUE(t.has_param("summary"));
     EXPECT_EQ(t.params().at("summary"), lib.BriefReport());
@@ -131,19 +132,16 @@ TEST(MatchCli, ReadsAnNgdcTextMapLikeItsCsv) {
   EXPECT_EQ(a.params().at("summary"), b.params().at("summary"));
 }
 
-TEST(MatchCli, AnOffMapPathIsReportedNotHidden) {
-  // Every INS point far outside the map: fast MSD leaves the path as it was
-  // and the summary says why.
+TEST(MatchCli, AnOffMapPathIsRefused) {
+  // Every INS point far outside the map: exit 2 naming the path file, no
+  // output (it used to be written, "not converged", with exit 0).
   const std::string dir = testing::TempDir();
   WriteText(dir + "/far.csv", "k,ins_lat,ins_lon,meas_nT\n0,50,65,40000\n1,50.1,65.1,40010\n2,50.2,65.2,40020\n");
   const auto [code, text] = RunMatch(Args(testing::ReferencePath("map_wmm_0p5deg.csv"), "F_nT", dir + "/far.csv", "meas_nT",
                                      "fast-msd", dir + "/out.csv"));
-  ASSERT_EQ(code, 0) << text;
-  const CsvTable t = CsvTable::Read(dir + "/out.csv");
-  const std::string summary = t.params().at("summary");
-  EXPECT_NE(summary.find("not converged"), std::string::npos) << summary;
-  EXPECT_NE(summary.find("off map 3"), std::string::npos) << summary;
-  EXPECT_EQ(t.number(0, 1), 50.0);
+  EXPECT_EQ(code, 2) << text;
+  EXPECT_NE(text.find(dir + "/far.csv: fast-msd: the path is entirely off the map"), std::string::npos) << text;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out.csv"));
 }
 
 TEST(MatchCli, ParticleFiltersWriteTheLibrarysRunAndItsDiagnostics) {
@@ -165,8 +163,9 @@ TEST(MatchCli, ParticleFiltersWriteTheLibrarysRunAndItsDiagnostics) {
     o.seed = 5;
     o.measurement_sigma_nT = 6.0;
     std::vector<StepDiagnostics> steps;
-    const MatchResult lib = MatchParticleFilter(method == "pf" ? ParticleFilterKind::kPf : ParticleFilterKind::kAfpf,
-                                                grid, 0, p, o, &steps);
+    MatchOptions mo;  // the tool's entry point: Match (the filter's run, its status reviewed)
+    mo.particle_filter = o;
+    const MatchResult lib = Match(*ParseMethod(method), grid, 0, p, mo, &steps);
     const CsvTable t = CsvTable::Read(out);
     ASSERT_EQ(t.num_rows(), p.size());
     for (std::size_t r = 0; r < t.num_rows(); ++r) {

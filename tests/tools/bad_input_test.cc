@@ -26,7 +26,8 @@ std::string Bad(const std::string& name) { return testing::TestDataDir() + "/bad
 // How a command is run on one bad file of one kind; `out` is the output path.
 enum class Kind {
   kInvert, kTrack, kTrackFixes, kEstimate, kTruth, kMeasurements, kDeployment, kGnss,
-  kReplay, kReplayMeasurements, kReplayGnss  // DDS builds: the file is read before any DDS entity is made
+  kReplay, kReplayMeasurements, kReplayGnss,  // DDS builds: the file is read before any DDS entity is made
+  kMatchMap, kMatchPath  // magnav match: the bad file as --map (with mappath_ok.csv) or --path (with map_ok.csv)
 };
 
 std::vector<std::string> Command(Kind kind, const std::string& file, const std::string& out) {
@@ -56,6 +57,12 @@ std::vector<std::string> Command(Kind kind, const std::string& file, const std::
       return {kMagnav, "replay", "--magnetometer", file, "--wait-readers", "0"};
     case Kind::kReplayGnss:
       return {kMagnav, "replay", "--magnetometer", Bad("measurements_ok.csv"), "--gnss", file, "--wait-readers", "0"};
+    case Kind::kMatchMap:
+      return {kMagnav, "match", "--map", file, "--value-column", "anomaly_nT", "--path", Bad("mappath_ok.csv"),
+              "--meas-column", "meas_nT", "--method", "fast-msd", "--output", out};
+    case Kind::kMatchPath:
+      return {kMagnav, "match", "--map", Bad("map_ok.csv"), "--value-column", "anomaly_nT", "--path", file,
+              "--meas-column", "meas_nT", "--method", "fast-msd", "--output", out};
   }
   return {};
 }
@@ -142,6 +149,18 @@ std::vector<BadInput> Corpus() {
   c.push_back({Kind::kGnss, "gnss_position_1e12.csv", ":3: column 'x': 5e+12 m is out of range"});
   c.push_back({Kind::kGnss, "gnss_inf.csv", ":3: column 'x': 'inf' is not a finite number"});
   c.push_back({Kind::kGnss, "gnss_time_1e300.csv", ":4: column 't': 1e+300 s is out of range"});
+  // Map matching: maps of every format and map paths (limits: core/limits.h).
+  c.push_back({Kind::kMatchMap, "map_node_1e308.csv", ":10: column 'anomaly_nT': 1e+308 nT is out of range"});
+#ifdef MAGNAV_WITH_GDAL
+  c.push_back({Kind::kMatchMap, "map_asc_16384x16384.asc",
+               " (layer 'anomaly_nT'): the header claims 16384 rows x 16384 columns"});
+  c.push_back({Kind::kMatchMap, "map_asc_30000x30000.asc",
+               " (layer 'anomaly_nT'): the header claims 30000 rows x 30000 columns"});
+#endif
+  c.push_back({Kind::kMatchPath, "mappath_1e308.csv", ":7: column 'meas_nT': 1e+308 nT is out of range"});
+  c.push_back({Kind::kMatchPath, "mappath_5e9nT.csv", ":7: column 'meas_nT': 5e+09 nT is out of range"});
+  c.push_back({Kind::kMatchPath, "mappath_lat_95.csv", ":5: column 'ins_lat': 95 deg is out of range"});
+  c.push_back({Kind::kMatchPath, "mappath_off_map.csv", ": fast-msd: the path is entirely off the map"});
   return c;
 }
 

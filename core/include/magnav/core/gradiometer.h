@@ -9,6 +9,8 @@
 
 #include <Eigen/Core>
 
+#include "magnav/core/limits.h"
+
 namespace magnav {
 
 struct GradiometerSample {
@@ -21,14 +23,13 @@ struct GradiometerSample {
   double sigma_T = 0.0;                        // 1-σ noise per element, T/m (0 = unknown)
 };
 
-// Largest magnitudes a sample may hold (per element): beyond them a value is
-// not a reading (1e308, or nT/µT/km written where T/m are meant). B up to 1 T
-// (a dipole 1 m away gives 1e-2 T: the reference cases reach 5e-3 T), a
-// gradient up to 10 T/m, positions up to 10 000 km. Files (ReadGradiometerFile)
-// and the wire (CheckSample) apply the same limits.
-inline constexpr double kMaxAbsPosition_m = 1e7;
-inline constexpr double kMaxAbsB_T = 1.0;
-inline constexpr double kMaxAbsT_Tpm = 10.0;
+// Largest magnitudes a sample may hold (per element): kMaxAbsPosition_m,
+// kMaxAbsB_T, kMaxAbsT_Tpm of the project's one table of limits
+// (core/limits.h). Beyond them a value is not a reading (1e308, or nT/µT/km
+// written where T/m are meant). B up to 1 T (a dipole 1 m away gives 1e-2 T:
+// the reference cases reach 5e-3 T), a gradient up to 10 T/m, positions up to
+// 10 000 km. Files (ReadGradiometerFile) and the wire (CheckSample) apply the
+// same limits.
 
 // What is wrong with a sample, checked at the door before any estimator sees
 // it (CheckSample). Stable snake_case names (SampleDefectName): "" for kNone.

@@ -42,6 +42,12 @@ struct CorrelationOptions {
   // translation search. 0 = translations only.
   double rotation_window_deg = 0.0;
   double rotation_step_deg = 0.5;
+  // Robust residuals: after the search, a point whose residual at the best
+  // shift is beyond outlier_sigmas robust sigmas (1.4826·MAD, at least 1 nT)
+  // of the median is left out and the search run again (at most 3 searches,
+  // until the outliers repeat); counted in MatchResult::points_outlier. So one
+  // spike cannot pull the shift towards where the map is high. 0 = off.
+  double outlier_sigmas = 5.0;
 
   bool IsValid(std::string* error) const;
 };

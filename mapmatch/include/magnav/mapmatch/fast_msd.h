@@ -58,12 +58,25 @@ struct FastMsdOptions {
   double min_on_map_fraction = 0.3;
   // Coarse MSD translation search ±window (deg) before the rounds; 0 = none.
   double search_window_deg = 0.0;
+  // Robust residuals, in both stages (match_common.h): a reading outside the
+  // map's range (± a quarter of it) has no data term at all; in each round a
+  // residual m_i − l_i beyond outlier_sigmas · σ_l (σ_l = 1.4826·MAD of the
+  // path's readings, at least 1 nT) has none that round (the point follows
+  // its neighbours, as a point off the map does); after the rounds, a point
+  // whose leave-one-out residual (its reading against the map where its
+  // neighbours' matched positions put it) is beyond outlier_sigmas robust
+  // sigmas of the others' is left out and the rounds run again once from the
+  // same start (a point's own data term can bend the path onto a wrong
+  // reading, its neighbours cannot). The coarse stage is the robust
+  // correlation (correlation.h). Counted in MatchResult::points_outlier.
+  // 0 = off (every point's squared residual counts, as in the paper).
+  double outlier_sigmas = 5.0;
 
   bool IsValid(std::string* error) const;
 };
 
 // iterations = Jacobi iterations over all rounds (direct solver: one per round); score = MSD (nT²) at the
-// matched points on the map; converged = every round's Jacobi met epsilon.
+// matched points on the map, outliers left out; converged = every round's Jacobi met epsilon.
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                          const FastMsdOptions& options = {});
 

@@ -45,6 +45,12 @@ struct IcpOptions {
   // of the 16 WMM rows (WMM 0.5° F: 0.40° against 0.80°), a larger one on
   // the 4 WMM 0.5° X rows and from the crustal 0.1° offset.
   bool planar_motion = true;
+  // Robust residuals (trimmed ICP): in each iteration a point whose closest
+  // distance is beyond outlier_sigmas robust sigmas (1.4826·MAD of the
+  // distances, at least half a grid step) above the median is left out of
+  // that iteration's fit (a +1000 nT spike puts its point 1000·scale deg off
+  // every node); counted in MatchResult::points_outlier. 0 = off.
+  double outlier_sigmas = 5.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -60,6 +66,7 @@ MatchResult MatchIcp(const GeoGrid& grid, std::size_t layer, const MatchPath& pa
 struct IccpOptions {
   double convergence_tau = 1e-5;
   int max_iterations = 100;
+  double outlier_sigmas = 5.0;  // as IcpOptions (distances to the contours)
 
   bool IsValid(std::string* error) const;
 };
@@ -74,6 +81,9 @@ MatchResult MatchIccp(const GeoGrid& grid, std::size_t layer, const MatchPath& p
 struct MmaOptions {
   double field_scale_deg_per_nT = 0.0;  // as IcpOptions
   int closest_point_subdivision = 1;    // as IcpOptions
+  // Robust residuals: a point whose closest-node distance is beyond this many
+  // robust sigmas (as IcpOptions) is left out of the affine fit. 0 = off.
+  double outlier_sigmas = 5.0;
 
   bool IsValid(std::string* error) const;
 };

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "magnav/mapmatch/correlation.h"
 #include "magnav/mapmatch/fast_msd.h"
@@ -35,9 +36,42 @@ struct MatchOptions {
   CorrelationOptions correlation;
   FastMsdOptions fast_msd;
   ParticleFilterOptions particle_filter;  // pf and afpf
+  // The largest correction (deg) a result may make and still be called
+  // converged (the prior on the INS error); 0 = the method's own reach
+  // (PlausibleCorrectionDeg).
+  double max_correction_deg = 0.0;
 };
 
+// How far (deg) a method looks for the path from its INS positions: the
+// search window (mad|msd|prod|nprod, fast-msd's coarse stage), the prior's
+// half-width (pf, afpf), else 0 (the others start from the INS positions).
+double SearchReachDeg(Method method, const MatchOptions& options);
+
+// The largest correction (deg, any point) a result may make and still be
+// called converged: max_correction_deg if given; else 2 × the search window
+// (mad|msd|prod|nprod, fast-msd with a coarse stage: the shift plus as much
+// again for the per-point drift), 2 × the prior's half-width (pf, afpf); else
+// (point, icp, iccp, mma, fast-msd without a coarse stage, which refine a
+// path from where the INS put it) the diagonal of the INS path's bounding
+// box, at least 2 grid cells: a correction larger than the path itself is a
+// match somewhere else, not a correction.
+double PlausibleCorrectionDeg(Method method, const GeoGrid& grid, const MatchPath& path, const MatchOptions& options);
+
+// Throws InputError "METHOD: the path is entirely off the map: ..." when none
+// of the path's INS points lies within SearchReachDeg of the map's grid.
+void RequirePathNearMap(Method method, const GeoGrid& grid, const MatchPath& path, const MatchOptions& options);
+
+// Runs one method over the path (steps: pf, afpf's per-step diagnostics).
+// At the door: RequirePathNearMap. Then the status is reviewed (ReviewResult).
 MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const MatchPath& path,
-                  const MatchOptions& options);
+                  const MatchOptions& options, std::vector<StepDiagnostics>* steps = nullptr);
+
+// No "converged" that is not: a result with a non-finite position, one that
+// moves a point further than `max_correction_deg`, or one whose median
+// |map − measurement| over its points on the map is no smaller than the INS
+// path's is set not converged, with the reason (the method's own reason, if
+// any, is kept after it).
+void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path, double max_correction_deg,
+                  MatchResult* result);
 
 }  // namespace magnav::mapmatch

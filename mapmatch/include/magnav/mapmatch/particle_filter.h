@@ -161,6 +161,19 @@ struct ParticleFilterOptions {
   double regularization_bandwidth = 0.0;
   // Off-map likelihood floor, in σ of residual.
   double off_map_sigmas = 3.0;
+  // One reading's influence is bounded (a gate on the innovation): a reading
+  // whose residual from the cloud's predicted map value, z − m̄, is beyond
+  // outlier_sigmas · sqrt(σ² + V) (σ the likelihood σ, V the cloud's spread
+  // of predicted map values) fits no particle: it is skipped (counted,
+  // StepUpdate::kOutlier) and neither weights the particles nor enters the
+  // adaptive σ; the divergence rule counts it as an NIS of outlier_sigmas²
+  // (one spike cannot make the filter lost, a run of them does within 4
+  // steps). Without it one +1000 nT spike gives the particles where the map
+  // is highest all the weight. After max_consecutive_outliers skipped
+  // readings in a row the next is applied whatever it says (a filter that is
+  // lost must not gate away the readings that would show it). 0 = off.
+  double outlier_sigmas = 5.0;
+  int max_consecutive_outliers = 3;
   // An INS increment longer than this (deg) is a jump, not applied.
   double max_step_deg = 0.01;
   // Divergence rule (see above).
@@ -200,7 +213,9 @@ struct Particle {
 };
 
 // What happened to a step's measurement.
-enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap };
+// kOutlier: the reading was beyond outlier_sigmas of the whole cloud's
+// prediction and skipped (ParticleFilterOptions::outlier_sigmas).
+enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap, kOutlier };
 
 // Diagnostics after one step.
 struct StepDiagnostics {
@@ -222,7 +237,7 @@ struct StepDiagnostics {
 
 struct FilterCounters {
   int steps = 0, updates = 0, bad_measurements = 0, all_off_map = 0, ins_jumps = 0, resamples = 0,
-      lost_steps = 0, reinitialisations = 0, tempered_updates = 0;
+      lost_steps = 0, reinitialisations = 0, tempered_updates = 0, outliers = 0;
 };
 
 // The common interface of the PF and the AFPF.

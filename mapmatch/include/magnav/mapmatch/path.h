@@ -21,13 +21,16 @@ struct MatchPath {
   std::vector<double> measured_nT;     // the measured value of the map's layer
 
   std::size_t size() const { return lat_deg.size(); }
-  // Throws InputError if the vectors differ in size, the path is empty or a
-  // position is not finite.
+  // Throws InputError if the vectors differ in size, the path is empty, a
+  // position is not finite or beyond the limits of core/limits.h (|lat| > 90,
+  // |lon| > 360 deg), or a finite measurement is beyond |1e6| nT.
   void Check() const;
 };
 
 // Reads `k,ins_lat,ins_lon` and the measurement column (by name; other
-// columns ignored). Every bad field is an InputError with file, line, column.
+// columns ignored). Every bad field is an InputError with file, line, column:
+// text, NaN or inf, and values beyond the limits of core/limits.h (|lat| > 90,
+// |lon| > 360 deg, |measurement| > 1e6 nT).
 MatchPath ReadMatchPath(const std::string& path, const std::string& meas_column);
 
 struct MatchResult {
@@ -45,10 +48,14 @@ struct MatchResult {
   int points_used = 0;
   int points_off_map = 0;
   int points_bad_measurement = 0;
+  // Points whose residual was beyond the method's outlier threshold (robust
+  // residuals: their data term was dropped; not in points_used).
+  int points_outlier = 0;
   // Settings the method derived rather than took (e.g. the field scale), for the summary.
   std::string notes;
 
-  // "method icp, iterations 12, score 0.0123 (rms distance, deg), converged, used 60/60, off map 0, bad 0"
+  // "method icp, iterations 12, score 0.0123 (rms distance, deg), converged, used 60/60, off map 0,
+  // bad measurement 0, outliers 0"
   std::string BriefReport() const;
 };
 
