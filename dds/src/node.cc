@@ -321,6 +321,18 @@ void LogBadPayload(const std::string& topic) {
       topic);
 }
 
+void LogCompanion(const std::string& topic, bool made) {
+  if (made) {
+    spdlog::info("dds: a writer on '{}' is volatile or best-effort: its samples are taken by a best-effort, volatile "
+                 "companion reader (docs/PROTOCOL.md, \"Any writer's QoS\")",
+                 topic);
+  } else {
+    spdlog::error("dds: cannot create the best-effort companion reader on '{}': volatile or best-effort writers "
+                  "are not heard",
+                  topic);
+  }
+}
+
 void LogCallbackError(const std::string& topic, const char* what) {
   spdlog::error("dds: handler of a sample on '{}' failed: {} (sample skipped)", topic, what);
 }

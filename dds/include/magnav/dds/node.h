@@ -25,6 +25,7 @@
 #include <stdexcept>
 #include <set>
 #include <string>
+#include <thread>
 #include <utility>
 
 #include <fastdds/dds/core/status/StatusMask.hpp>
@@ -109,6 +110,8 @@ std::string WithoutProfiles(std::string xml, const std::set<std::string>& names)
 void LogLost(const std::string& topic, int total, int change);
 void LogFlowTimeout(const std::string& topic, std::chrono::milliseconds timeout);
 void LogCallbackError(const std::string& topic, const char* what);
+// The any-writer companion of a reader was made (or could not be).
+void LogCompanion(const std::string& topic, bool made);
 // ROS 2's DDS name of a type: "magnav::msg::GradiometerSample" -> "magnav::msg::dds_::GradiometerSample_".
 std::string Ros2TypeName(const std::string& type_name);
 // The any-writer companion's QoS: `q` with BEST_EFFORT and VOLATILE; none if
@@ -240,21 +243,30 @@ class Writer {
 // every sample received. An exception thrown by the callback is caught,
 // logged and counted: one bad sample never stops the reader.
 //
-// Any writer's QoS. A reader listens with two DataReaders: the profile's
-// (RELIABLE, TRANSIENT_LOCAL for magnav's streams: losses repaired, a
-// transient-local writer's history after a restart) and, unless the profile
-// already is BEST_EFFORT and VOLATILE or NodeOptions::any_writer is off, an
-// "any writer" companion with the same history and limits but BEST_EFFORT and
-// VOLATILE, which matches every writer: a stock driver's RELIABLE/VOLATILE
-// (Cyclone DDS's default) or BEST_EFFORT (ROS 2's sensor-data QoS). A writer
-// the profile's reader matches is served by it alone; each sample is handed
-// on once, by writer GUID and RTPS sequence number (DeliveryFilter). The
-// callback is never called from two threads at once.
+// Any writer's QoS. A reader listens with its profile's DataReader (RELIABLE,
+// TRANSIENT_LOCAL for magnav's streams: losses repaired, a transient-local
+// writer's history after a restart) and, as soon as a writer appears that
+// this reader cannot match for its reliability or durability (a stock
+// driver's RELIABLE/VOLATILE — Cyclone DDS's default — or BEST_EFFORT — ROS
+// 2's sensor-data QoS), an "any writer" companion with the same history and
+// limits but BEST_EFFORT and VOLATILE, which matches every writer. The
+// companion is made then (on its own thread, not in the middleware's
+// callback) and kept: in a field with magnav writers only there is none,
+// and no sample comes twice. While it exists, a writer both DataReaders
+// match is served by the profile's alone and each sample is handed on once,
+// by writer GUID and RTPS sequence number (DeliveryFilter). Not made when the
+// profile already is BEST_EFFORT and VOLATILE or NodeOptions::any_writer is
+// off. The callback is never called from two threads at once.
 template <class M>
 class Reader {
  public:
   using Callback = std::function<void(const M&, const fdds::SampleInfo&)>;
   ~Reader() {
+    {
+      std::lock_guard<std::mutex> lk(companion_mu_);
+      closing_ = true;
+    }
+    if (companion_thread_.joinable()) companion_thread_.join();
     for (Endpoint* e : {&profile_, &companion_}) {
       if (e->reader) {
         e->reader->set_listener(nullptr);
@@ -277,8 +289,19 @@ class Reader {
   const std::string& topic() const { return topic_; }
   // The QoS in force (the profile's reader).
   fdds::DataReaderQos qos() const { return profile_.reader->get_qos(); }
-  // Whether the any-writer companion exists.
+  // Whether the any-writer companion exists (made when the first writer
+  // this reader's profile cannot match appears).
   bool has_companion() const { return has_companion_; }
+  // Makes the companion now rather than when the first writer needs it: for
+  // a consumer that expects stock writers and must not lose their first
+  // samples while the companion is made. No-op when it cannot have one.
+  void ListenToAnyWriter() {
+    if (any_qos_) StartCompanion();
+  }
+  // Waits until the companion exists.
+  bool WaitForCompanion(std::chrono::milliseconds timeout) {
+    return internal::WaitUntil(mu_, cv_, [&] { return has_companion_.load(); }, timeout);
+  }
   // Writers matched by the companion only (best-effort or volatile ones).
   int companion_only_writers() const { return filter_.companion_only_writers(); }
 
@@ -330,10 +353,17 @@ class Reader {
       internal::LogLost(self->topic_, s.total_count, s.total_count_change);
     }
     void on_requested_incompatible_qos(fdds::DataReader*, const fdds::RequestedIncompatibleQosStatus& s) override {
-      // With a companion, a writer the profile's reader cannot match (a
-      // volatile or best-effort one) is the companion's: only the
-      // companion's incompatibilities are real.
-      if (!companion && self->has_companion()) return;
+      // A writer the profile's reader cannot match for its reliability or
+      // durability (a volatile or best-effort one) is the companion's: made
+      // now if need be. Only other incompatibilities (and the companion's)
+      // are real.
+      using P = fdds::QosPolicyId_t;
+      const auto policy = static_cast<P>(s.last_policy_id);
+      if (!companion && self->any_qos_ &&
+          (policy == P::DURABILITY_QOS_POLICY_ID || policy == P::RELIABILITY_QOS_POLICY_ID)) {
+        self->StartCompanion();
+        return;
+      }
       ++self->stats_.incompatible_qos;
       internal::LogIncompatible(self->topic_, "reader", s.last_policy_id);
     }
@@ -344,20 +374,32 @@ class Reader {
     profile_.self = companion_.self = this;
     companion_.companion = true;
     const fdds::DataReaderQos qos = internal::ReaderQos(sub, profile);
-    const std::optional<fdds::DataReaderQos> any = any_writer ? internal::AnyWriterQos(qos) : std::nullopt;
-    has_companion_ = any.has_value();  // before either reader exists: their listeners read it
-    // The profile's reader first, so that it usually matches a writer both
-    // can match before the companion does.
+    any_qos_ = any_writer ? internal::AnyWriterQos(qos) : std::nullopt;  // before the reader: its listener reads it
+    topic_entity_ = topic;
     profile_.reader = sub->create_datareader(topic, qos, &profile_);
     if (!profile_.reader) throw DdsError("cannot create a reader on '" + topic_ + "' with profile '" + profile + "'");
-    if (any) {
-      companion_.reader = sub->create_datareader(topic, *any, &companion_);
+  }
+  // Makes the companion once, on a thread of its own (creating a DataReader
+  // inside a middleware callback is not safe).
+  void StartCompanion() {
+    std::lock_guard<std::mutex> lk(companion_mu_);
+    if (companion_started_ || closing_) return;
+    companion_started_ = true;
+    companion_thread_ = std::thread([this] {
+      std::lock_guard<std::mutex> lk(companion_mu_);
+      if (closing_) return;
+      companion_.reader = node_subscriber_->create_datareader(topic_entity_, *any_qos_, &companion_);
       if (!companion_.reader) {
-        profile_.reader->set_listener(nullptr);
-        sub->delete_datareader(profile_.reader);
-        throw DdsError("cannot create the any-writer reader on '" + topic_ + "'");
+        internal::LogCompanion(topic_, false);
+        return;
       }
-    }
+      {
+        std::lock_guard<std::mutex> wait_lk(mu_);
+        has_companion_ = true;
+      }
+      cv_.notify_all();
+      internal::LogCompanion(topic_, true);
+    });
   }
   void Deliver(bool companion, const M& m, const fdds::SampleInfo& info) {
     std::lock_guard<std::mutex> deliver(deliver_mu_);
@@ -389,7 +431,12 @@ class Reader {
   Callback callback_;
   EndpointStats stats_;
   DeliveryFilter filter_;
-  bool has_companion_ = false;
+  std::optional<fdds::DataReaderQos> any_qos_;  // the companion's; none: never made
+  fdds::Topic* topic_entity_ = nullptr;
+  std::atomic<bool> has_companion_{false};
+  std::mutex companion_mu_;  // companion_started_, closing_, companion_.reader while it is made
+  bool companion_started_ = false, closing_ = false;
+  std::thread companion_thread_;
   std::atomic<std::uint64_t> lost_[2] = {0, 0};
   std::mutex deliver_mu_;  // one callback at a time, and the filter's verdict with it
   std::mutex mu_;          // for the waits
