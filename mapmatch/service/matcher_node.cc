@@ -12,6 +12,7 @@ namespace magnav::mapmatch {
 
 bool MatcherNodeOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(fix_every_m) && fix_every_m >= 0.0)) return Fail(error, "fix_every_m must be finite and >= 0");
+  if (max_buffered < 1) return Fail(error, "max_buffered must be >= 1");
   if (!PositiveFinite(reference_field_nT)) {
     return Fail(error, "reference_field_nT (the map's reference field, nT) must be given, finite and > 0");
   }
@@ -63,8 +64,24 @@ void MatcherNode::Skip(const std::string& why, double t_s) {
   }
 }
 
+std::size_t MatcherNode::buffered() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return navs_.size() + pending_.size();
+}
+
+void MatcherNode::Ignore(const std::string& what) {
+  ++ignored_;
+  std::lock_guard<std::mutex> lk(ignore_mu_);
+  if (warned_ignored_.insert(what).second) {
+    spdlog::warn("magnav-matcher: {} ignored: this matcher follows vehicle {} (--vehicle-id) and sensor {} "
+                 "(--sensor-id) (further ones are only counted)",
+                 what, options_.vehicle_id, options_.sensor_id);
+  }
+}
+
 void MatcherNode::OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info) {
-  if (m.vessel_id() != options_.vehicle_id || m.source() == dds::msg::NAV_GNSS) return;
+  if (m.vessel_id() != options_.vehicle_id) return Ignore("vessel_nav of vehicle " + std::to_string(m.vessel_id()));
+  if (m.source() == dds::msg::NAV_GNSS) return Ignore("a GNSS vessel_nav (the matcher corrects an INS/DR path)");
   if (!nav_repeats_.First(m, info)) return;
   std::lock_guard<std::mutex> lk(mu_);
   const double lat = m.geodetic()[0], lon = m.geodetic()[1];
@@ -73,17 +90,32 @@ void MatcherNode::OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInf
     return Skip("vessel_nav without a finite geodetic lat/lon", NanosToSeconds(m.stamp_ns()));
   }
   navs_[m.stamp_ns()] = {lat, lon};
+  if (navs_.size() > options_.max_buffered) {
+    navs_.erase(navs_.begin());
+    Skip("vessel_nav dropped unpaired: " + std::to_string(options_.max_buffered) +
+             " wait for a magnetometer sample of sensor " + std::to_string(options_.sensor_id) +
+             " (does that sensor send?)",
+         NanosToSeconds(m.stamp_ns()));
+  }
   Drain();
 }
 
 void MatcherNode::OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info) {
-  if (m.sensor_id() != options_.sensor_id) return;
+  if (m.sensor_id() != options_.sensor_id) {
+    return Ignore("magnetometer sample of sensor " + std::to_string(m.sensor_id()));
+  }
   if (!repeats_.First(m, info)) return;
   std::lock_guard<std::mutex> lk(mu_);
   if (stepped_ && m.stamp_ns() <= last_step_ns_) {
     return Skip("magnetometer sample not later than the last step", NanosToSeconds(m.stamp_ns()));
   }
   pending_[m.stamp_ns()] = AnomalyOf(m, options_.reference_field_nT);
+  if (pending_.size() > options_.max_buffered) {
+    pending_.erase(pending_.begin());
+    Skip("magnetometer sample dropped unpaired: " + std::to_string(options_.max_buffered) +
+             " wait for a vessel_nav of vehicle " + std::to_string(options_.vehicle_id) + " (does it send?)",
+         NanosToSeconds(m.stamp_ns()));
+  }
   Drain();
 }
 

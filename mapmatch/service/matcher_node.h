@@ -43,6 +43,10 @@ struct MatcherNodeOptions {
   double reference_field_nT = std::numeric_limits<double>::quiet_NaN();
   std::uint32_t vehicle_id = 0;  // VesselNav.vessel_id followed, MapFix.vehicle_id
   std::uint32_t sensor_id = 0;   // MagnetometerSample.sensor_id used
+  // At most this many VesselNav and magnetometer samples wait to be paired
+  // (memory bound: a matcher whose sensor never sends must not grow); beyond
+  // it the oldest is dropped, counted and warned about once.
+  std::size_t max_buffered = 10000;
 
   bool IsValid(std::string* error) const;
 };
@@ -67,6 +71,10 @@ class MatcherNode {
   std::uint64_t samples_received() const { return mag_reader_->stats().samples.load(); }
   std::uint64_t steps() const { return steps_; }
   std::uint64_t skipped() const { return skipped_; }
+  // Messages of another vehicle, sensor or source (not this matcher's).
+  std::uint64_t ignored() const { return ignored_; }
+  // Messages waiting to be paired now (bounded by max_buffered each).
+  std::size_t buffered() const;
   // Messages seen before (dropped), magnetometer sequence numbers never received.
   std::uint64_t repeated() const { return repeats_.repeats() + nav_repeats_.repeats(); }
   std::uint64_t missing() const { return repeats_.missing(); }
@@ -78,6 +86,7 @@ class MatcherNode {
   void OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info);
   void Drain();                                // mu_ held
   void Skip(const std::string& why, double t_s);  // mu_ held
+  void Ignore(const std::string& what);           // once per kind, then counted
 
   MatcherNodeOptions options_;
   mutable std::mutex mu_;
@@ -88,7 +97,9 @@ class MatcherNode {
   bool stepped_ = false;
   std::uint64_t last_step_ns_ = 0;
   std::set<std::string> warned_;
-  std::atomic<std::uint64_t> steps_{0}, skipped_{0};
+  std::atomic<std::uint64_t> steps_{0}, skipped_{0}, ignored_{0};
+  std::mutex ignore_mu_;
+  std::set<std::string> warned_ignored_;
   dds::RepeatFilter repeats_;      // magnetometer samples of our sensor
   dds::RepeatFilter nav_repeats_;  // vessel_nav of our vehicle
   std::unique_ptr<dds::Writer<dds::msg::MapFix>> writer_;

@@ -183,11 +183,47 @@ TEST(MatcherService, TheDoorIgnoresSkipsAndCounts) {
   ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 6 * s, 4, g.Sample(0, lat + 0.0018, lon)->value_nT, kReferenceField_nT)));
   ASSERT_TRUE(until([&] { return matcher.steps() == 3 && fixes == 3; })) << matcher.steps() << " " << fixes;
   EXPECT_EQ(matcher.skipped(), 3u);  // before the first fix, no geodetic, not later
+  EXPECT_EQ(matcher.ignored(), 3u);  // GNSS, another vehicle, another sensor
   const FilterCounters c = matcher.filter_counters();
   EXPECT_EQ(c.steps, 3);
   EXPECT_EQ(c.bad_measurements, 1);
   EXPECT_EQ(c.updates, 2);
   EXPECT_EQ(matcher.published(), 3u);
+}
+
+// A matcher told to follow a sensor that never sends (issue 22 item 5): the
+// other sensor's samples are ignored and counted, and the INS fixes that wait
+// for a pair stay within max_buffered (before: they grew without bound and the
+// log said only "0 steps").
+TEST(MatcherService, BuffersStayBoundedWhenItsSensorNeverSends) {
+  dds::NodeOptions no;
+  no.name = "matcher_bound_test";
+  no.domain_id = testing::TestDomainId();
+  const GeoGrid g = ReadGeoGridCsv(testing::ReferencePath("map_crustal_anomaly.csv"), {"anomaly_nT"});
+  MatcherNodeOptions o;
+  o.kind = ParticleFilterKind::kPf;
+  o.filter.num_particles = 100;
+  o.reference_field_nT = kReferenceField_nT;
+  o.sensor_id = 9;  // nobody sends sensor 9
+  o.max_buffered = 50;
+  dds::Node service_node(no), peer(no);
+  MatcherNode matcher(service_node, g, 0, o);
+  auto navs = peer.CreateWriter<msg::VesselNav>();
+  auto samples = peer.CreateWriter<msg::MagnetometerSample>();
+  ASSERT_TRUE(navs->WaitForMatched(1, 20s));
+  ASSERT_TRUE(samples->WaitForMatched(1, 20s));
+  const std::uint64_t s = 1000000000ULL;
+  for (std::uint64_t k = 0; k < 400; ++k) {
+    ASSERT_TRUE(navs->Write(InsNavMsg(0, (k + 1) * s, 45.0 + 1e-5 * static_cast<double>(k), 10.0)));
+    ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, (k + 1) * s, k, 10.0, kReferenceField_nT)));
+  }
+  ASSERT_TRUE(navs->WaitForAcknowledgments(20s));
+  ASSERT_TRUE(samples->WaitForAcknowledgments(20s));
+  for (int i = 0; i < 200 && matcher.ignored() < 400; ++i) std::this_thread::sleep_for(25ms);
+  EXPECT_EQ(matcher.ignored(), 400u);
+  EXPECT_EQ(matcher.steps(), 0u);
+  EXPECT_LE(matcher.buffered(), 50u);
+  EXPECT_EQ(matcher.skipped(), 350u);  // the INS fixes dropped unpaired
 }
 
 TEST(MatcherService, BadArgumentsExit2) {
