@@ -78,6 +78,11 @@ void InverterNode::Start(dds::Node& node) {
 void InverterNode::OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info) {
   // A sample seen before (a restarted producer's history) already has its fix.
   if (!repeats_.First(m, info)) return;
+  for (const auto& admitted : guard_.Admit(m)) TakeSample(admitted);
+}
+
+// A message the time rule admitted (dds/stamp_guard.h).
+void InverterNode::TakeSample(const dds::msg::GradiometerSample& m) {
   GradiometerSample s = dds::FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   DipoleFix fix;

@@ -14,6 +14,7 @@
 #include "magnav/dds/node.h"
 #include "magnav/dds/regional_field_source.h"
 #include "magnav/dds/repeat_filter.h"
+#include "magnav/dds/stamp_guard.h"
 #include "magnav/dds/sample_door.h"
 #include "magnav/inversion/inverter.h"
 #include "magnav/inversion/particle_filter.h"
@@ -39,16 +40,20 @@ class InverterNode {
   const dds::EndpointStats& input_stats() const { return reader_->stats(); }
   std::uint64_t bad_samples() const { return door_.rejected(); }
   std::uint64_t repeated() const { return repeats_.repeats(); }
+  // Messages with a wild stamp or seq, dropped by the time rule (dds/stamp_guard.h).
+  std::uint64_t wild() const { return guard_.rejected(); }
   std::uint64_t missing() const { return repeats_.missing(); }  // sequence gaps of the samples
   const dds::RegionalFieldSource& b0() const { return *b0_; }
 
  private:
   void Start(dds::Node& node);
   void OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info);
+  void TakeSample(const dds::msg::GradiometerSample& m);
 
   std::mutex mu_;  // the middleware may call the listener from several receive threads
   dds::SampleDoor door_{"magnav-inverter"};
   dds::RepeatFilter repeats_;  // samples seen before: a restarted producer's history
+  dds::StampGuard<dds::msg::GradiometerSample> guard_{"magnav-inverter: magnav/gradiometer sensor"};  // wild stamps and seqs held, then dropped or confirmed
   std::unique_ptr<dds::RegionalFieldSource> b0_;
   std::variant<Inverter, MonteCarloTracker> engine_;
   dds::msg::FixMethod method_;

@@ -90,10 +90,10 @@ int main(int argc, char** argv) {
     magnav::dds::RunUntilShutdown(stats_period_s, [&] {
       const std::uint64_t n = inverter->processed();
       spdlog::info("magnav-inverter: {} samples ({:.0f}/s), {} fixes, {} lost, {} bad samples, {} before B0, "
-                   "{} repeated, {} missing (sequence gaps), {} handler errors",
+                   "{} repeated, {} missing (sequence gaps), {} wild stamps or seqs, {} handler errors",
                    n, (n - last) / stats_period_s, inverter->published(), inverter->input_stats().lost.load(),
                    inverter->bad_samples(), inverter->b0().waiting(), inverter->repeated(), inverter->missing(),
-                   inverter->input_stats().callback_errors.load());
+                   inverter->wild(), inverter->input_stats().callback_errors.load());
       last = n;
     });
     spdlog::info("magnav-inverter: stopping after {} samples ({} repeated, {} missing)", inverter->processed(),

@@ -75,6 +75,11 @@ LocalizerNode::LocalizerNode(dds::Node& node, const LocalizerNodeOptions& option
       [this](const dds::msg::MagnetometerSample& m, const auto& info) { OnSample(m, info); });
 }
 
+std::uint64_t LocalizerNode::outliers() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return localizer_.rejected();
+}
+
 std::uint64_t LocalizerNode::consumed() const {
   std::lock_guard<std::mutex> lk(mu_);
   return localizer_.consumed();
@@ -103,6 +108,11 @@ void LocalizerNode::Tick() {
 
 void LocalizerNode::OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info) {
   if (!repeats_.First(m, info)) return;
+  for (const auto& admitted : guard_.Admit(m)) TakeSample(admitted);
+}
+
+// A message the time rule admitted (dds/stamp_guard.h).
+void LocalizerNode::TakeSample(const dds::msg::MagnetometerSample& m) {
   const MagSample s = FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   localizer_.Tick(WallClock_s());
@@ -127,6 +137,11 @@ void LocalizerNode::OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleI
     return;
   }
   if (!nav_repeats_.First(m, info)) return;
+  for (const auto& admitted : nav_guard_.Admit(m)) TakeNav(admitted);
+}
+
+// A message the time rule admitted (dds/stamp_guard.h).
+void LocalizerNode::TakeNav(const dds::msg::VesselNav& m) {
   const GnssFix f = FromMsg(m);
   std::lock_guard<std::mutex> lk(mu_);
   localizer_.Tick(WallClock_s());

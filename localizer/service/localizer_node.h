@@ -18,6 +18,7 @@
 
 #include "magnav/dds/node.h"
 #include "magnav/dds/repeat_filter.h"
+#include "magnav/dds/stamp_guard.h"
 #include "magnav/localizer/stream.h"
 
 namespace magnav::localizer {
@@ -68,13 +69,19 @@ class LocalizerNode {
   // the door, so that the EKF never takes one twice) and sequence numbers
   // of magnetometer samples that never arrived.
   std::uint64_t repeated() const { return repeats_.repeats() + nav_repeats_.repeats(); }
+  // Messages with a wild stamp or seq, dropped by the time rule (dds/stamp_guard.h).
+  std::uint64_t wild() const { return guard_.rejected() + nav_guard_.rejected(); }
   std::uint64_t missing() const { return repeats_.missing(); }
   std::uint64_t consumed() const;
+  // Updates the EKF's NIS gate refused (outliers).
+  std::uint64_t outliers() const;
   std::uint64_t published() const { return writer_->stats().samples.load(); }
 
  private:
   void OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info);
+  void TakeSample(const dds::msg::MagnetometerSample& m);
   void OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info);
+  void TakeNav(const dds::msg::VesselNav& m);
   void Skip(SampleCheck why, const std::string& stream, std::uint32_t key, double t_s);  // mu_ held
 
   mutable std::mutex mu_;
@@ -86,7 +93,9 @@ class LocalizerNode {
   std::uint32_t vessel_id_ = 0;
   bool warned_ignored_ = false;
   dds::RepeatFilter repeats_;      // magnetometer samples
+  dds::StampGuard<dds::msg::MagnetometerSample> guard_{"magnav-localizer: magnav/magnetometer sensor"};  // wild stamps and seqs held, then dropped or confirmed
   dds::RepeatFilter nav_repeats_;  // vessel_nav
+  dds::StampGuard<dds::msg::VesselNav> nav_guard_{"magnav-localizer: magnav/vessel_nav vessel"};  // wild stamps and seqs held, then dropped or confirmed
   std::unique_ptr<dds::Writer<dds::msg::SensorPositionEstimate>> writer_;
   std::unique_ptr<dds::Reader<dds::msg::MagnetometerSample>> mag_reader_;
   std::unique_ptr<dds::Reader<dds::msg::VesselNav>> nav_reader_;

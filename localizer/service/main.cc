@@ -82,10 +82,10 @@ int main(int argc, char** argv) {
       }
       if (stats_period_s > 0 && Clock::now() >= next_stats) {
         spdlog::info("magnav-localizer: {} magnetometer + {} vessel_nav samples in, {} used, {} skipped, {} "
-                     "repeated, {} missing (sequence gaps), {} vessel_nav of other vessels or sources ignored, {} "
-                     "estimates out",
+                     "repeated, {} missing (sequence gaps), {} wild stamps or seqs, {} outliers refused by the EKF's gate, "
+                     "{} vessel_nav of other vessels or sources ignored, {} estimates out",
                      loc.samples_received(), loc.fixes_received(), loc.consumed(), loc.skipped(), loc.repeated(),
-                     loc.missing(), loc.ignored(), loc.published());
+                     loc.missing(), loc.wild(), loc.outliers(), loc.ignored(), loc.published());
         next_stats += period(stats_period_s);
       }
     }

@@ -61,10 +61,10 @@ int main(int argc, char** argv) {
       const mapmatch::FilterCounters c = matcher.filter_counters();
       spdlog::info("magnav-matcher: {} {} vessel_nav + {} magnetometer in, {} steps ({} updates, {} bad readings, "
                    "{} all off the map, {} INS jumps, {} lost steps), {} skipped, {} ignored (another vehicle, sensor "
-                   "or source), {} repeated, {} missing (sequence gaps), {} waiting, {} fixes out",
+                   "or source), {} repeated, {} missing (sequence gaps), {} wild stamps or seqs, {} waiting, {} fixes out",
                    what, matcher.navs_received(), matcher.samples_received(), matcher.steps(), c.updates,
                    c.bad_measurements, c.all_off_map, c.ins_jumps, c.lost_steps, matcher.skipped(), matcher.ignored(),
-                   matcher.repeated(), matcher.missing(), matcher.buffered(), matcher.published());
+                   matcher.repeated(), matcher.missing(), matcher.wild(), matcher.buffered(), matcher.published());
     };
     while (!magnav::dds::WaitForShutdown(std::chrono::milliseconds(50))) {
       if (stats_period_s > 0 && Clock::now() >= next_stats) {

@@ -83,6 +83,11 @@ void MatcherNode::OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInf
   if (m.vessel_id() != options_.vehicle_id) return Ignore("vessel_nav of vehicle " + std::to_string(m.vessel_id()));
   if (m.source() == dds::msg::NAV_GNSS) return Ignore("a GNSS vessel_nav (the matcher corrects an INS/DR path)");
   if (!nav_repeats_.First(m, info)) return;
+  for (const auto& admitted : nav_guard_.Admit(m)) TakeNav(admitted);
+}
+
+// A message the time rule admitted (dds/stamp_guard.h).
+void MatcherNode::TakeNav(const dds::msg::VesselNav& m) {
   std::lock_guard<std::mutex> lk(mu_);
   const double lat = m.geodetic()[0], lon = m.geodetic()[1];
   if (!std::isfinite(lat) || !std::isfinite(lon)) {
@@ -105,6 +110,11 @@ void MatcherNode::OnSample(const dds::msg::MagnetometerSample& m, const dds::fdd
     return Ignore("magnetometer sample of sensor " + std::to_string(m.sensor_id()));
   }
   if (!repeats_.First(m, info)) return;
+  for (const auto& admitted : guard_.Admit(m)) TakeSample(admitted);
+}
+
+// A message the time rule admitted (dds/stamp_guard.h).
+void MatcherNode::TakeSample(const dds::msg::MagnetometerSample& m) {
   std::lock_guard<std::mutex> lk(mu_);
   if (stepped_ && m.stamp_ns() <= last_step_ns_) {
     return Skip("magnetometer sample not later than the last step", NanosToSeconds(m.stamp_ns()));

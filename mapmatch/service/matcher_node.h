@@ -28,6 +28,7 @@
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/repeat_filter.h"
+#include "magnav/dds/stamp_guard.h"
 #include "magnav/mapmatch/fix_schedule.h"
 #include "magnav/mapmatch/geo_grid.h"
 #include "magnav/mapmatch/particle_filter.h"
@@ -77,13 +78,17 @@ class MatcherNode {
   std::size_t buffered() const;
   // Messages seen before (dropped), magnetometer sequence numbers never received.
   std::uint64_t repeated() const { return repeats_.repeats() + nav_repeats_.repeats(); }
+  // Messages with a wild stamp or seq, dropped by the time rule (dds/stamp_guard.h).
+  std::uint64_t wild() const { return guard_.rejected() + nav_guard_.rejected(); }
   std::uint64_t missing() const { return repeats_.missing(); }
   std::uint64_t published() const { return writer_->stats().samples.load(); }
   FilterCounters filter_counters() const;
 
  private:
   void OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info);
+  void TakeNav(const dds::msg::VesselNav& m);
   void OnSample(const dds::msg::MagnetometerSample& m, const dds::fdds::SampleInfo& info);
+  void TakeSample(const dds::msg::MagnetometerSample& m);
   void Drain();                                // mu_ held
   void Skip(const std::string& why, double t_s);  // mu_ held
   void Ignore(const std::string& what);           // once per kind, then counted
@@ -101,7 +106,9 @@ class MatcherNode {
   std::mutex ignore_mu_;
   std::set<std::string> warned_ignored_;
   dds::RepeatFilter repeats_;      // magnetometer samples of our sensor
+  dds::StampGuard<dds::msg::MagnetometerSample> guard_{"magnav-matcher: magnav/magnetometer sensor"};  // wild stamps and seqs held, then dropped or confirmed
   dds::RepeatFilter nav_repeats_;  // vessel_nav of our vehicle
+  dds::StampGuard<dds::msg::VesselNav> nav_guard_{"magnav-matcher: magnav/vessel_nav vehicle"};  // wild stamps and seqs held, then dropped or confirmed
   std::unique_ptr<dds::Writer<dds::msg::MapFix>> writer_;
   std::unique_ptr<dds::Reader<dds::msg::VesselNav>> nav_reader_;
   std::unique_ptr<dds::Reader<dds::msg::MagnetometerSample>> mag_reader_;

@@ -25,6 +25,7 @@
 #include "magnav/dds/node.h"
 #include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/shm_clean.h"
+#include "magnav/dds/stamp_guard.h"
 #include "raw_payload.h"
 #include "sample_pattern.h"
 #include "subprocess.h"
@@ -416,6 +417,40 @@ TEST(Dds, RepeatFilterKeepsTheFirstOfConflictingProducers) {
   EXPECT_TRUE(h.First(MessageId{4, 1000000000000000000ULL, 20, true}));
   EXPECT_EQ(h.missing(), 0u);
   EXPECT_EQ(h.wild_steps(), 1u);
+}
+
+// The wire's time rule (issue 25 item 1): a wild stamp or seq is held, then
+// dropped when the stream goes on from before it, or handed on with the next
+// message when that one confirms the stream really moved; 2^64-1 ns is
+// refused outright. Before: a stamp of 2^64-1 gave an estimate at 1.8e10 s.
+TEST(Dds, StampGuardHoldsWildStampsUntilTheNextSampleDecides) {
+  StampGuard<msg::GradiometerSample> g("test: gradiometer sensor");
+  auto sample = [](std::uint64_t seq, double t_s) {
+    msg::GradiometerSample m = testing::PatternSample(1, seq);
+    m.stamp_ns(static_cast<std::uint64_t>(t_s * 1e9));
+    return m;
+  };
+  EXPECT_EQ(g.Admit(sample(0, 100.0)).size(), 1u);  // a stream's start
+  EXPECT_EQ(g.Admit(sample(1, 100.1)).size(), 1u);
+  EXPECT_TRUE(g.Admit(sample(2, 5e9)).empty());     // 158 years later: held
+  EXPECT_EQ(g.Admit(sample(3, 100.3)).size(), 1u);  // the stream goes on: the suspect is dropped
+  EXPECT_EQ(g.rejected(), 1u);
+  EXPECT_TRUE(g.Admit(sample(1000000000000000000ULL, 100.4)).empty());  // seq 10^18: held
+  EXPECT_EQ(g.Admit(sample(5, 100.5)).size(), 1u);
+  EXPECT_EQ(g.rejected(), 2u);
+  msg::GradiometerSample max = sample(6, 100.6);
+  max.stamp_ns(~std::uint64_t{0});  // 2^64-1 ns: beyond 1e10 s, refused at once
+  EXPECT_TRUE(g.Admit(max).empty());
+  EXPECT_EQ(g.rejected(), 3u);
+  // A real move (a clock set forward by a day): confirmed by the next sample.
+  EXPECT_TRUE(g.Admit(sample(7, 86500.0)).empty());
+  const auto both = g.Admit(sample(8, 86500.1));
+  ASSERT_EQ(both.size(), 2u);
+  EXPECT_EQ(both[0].seq(), 7u);
+  EXPECT_EQ(both[1].seq(), 8u);
+  EXPECT_EQ(g.jumps(), 1u);
+  EXPECT_EQ(g.Admit(sample(9, 86500.2)).size(), 1u);
+  EXPECT_EQ(g.rejected(), 3u);
 }
 
 // The reader pair's filter: a writer the profile's reader matches is served

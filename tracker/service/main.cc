@@ -52,10 +52,12 @@ int main(int argc, char** argv) {
                  opt.tracker.track.window_s, flags.init_from, node.domain_id(), tracker_node.b0().Describe());
     magnav::dds::RunUntilShutdown(stats_period_s, [&] {
       spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} tracks ({} live), {} late, {} rejected, {} "
-                   "bad samples, {} before B0, {} repeated, {} missing (sequence gaps); {} fixes in, {} skipped",
+                   "bad samples, {} before B0, {} repeated, {} missing (sequence gaps), {} wild stamps or seqs; {} fixes "
+                   "in, {} skipped",
                    tracker_node.received(), tracker_node.published(), tracker_node.num_tracks(),
                    tracker_node.num_live_tracks(), tracker_node.dropped_late(), tracker_node.rejected(),
                    tracker_node.bad_samples(), tracker_node.b0().waiting(), tracker_node.repeated(), tracker_node.missing(),
+                   tracker_node.wild(),
                    tracker_node.fixes_received(), tracker_node.fixes_rejected());
     });
     tracker_node.Flush();

@@ -86,6 +86,11 @@ void TrackerNode::OnFix(const dds::msg::DipoleFix& m, const dds::fdds::SampleInf
 
 void TrackerNode::OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info) {
   if (!repeats_.First(m, info)) return;
+  for (const auto& admitted : guard_.Admit(m)) TakeSample(admitted);
+}
+
+// A message the time rule admitted (dds/stamp_guard.h).
+void TrackerNode::TakeSample(const dds::msg::GradiometerSample& m) {
   GradiometerSample s = dds::FromMsg(m);
   if (door_.Check(s) != SampleDefect::kNone) {
     repeats_.Forget(m);  // a refused sample must not make a later good one look like a repeat

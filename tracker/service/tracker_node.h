@@ -29,6 +29,7 @@
 #include "magnav/dds/queued_writer.h"
 #include "magnav/dds/regional_field_source.h"
 #include "magnav/dds/repeat_filter.h"
+#include "magnav/dds/stamp_guard.h"
 #include "magnav/dds/sample_door.h"
 #include "magnav/tracker/multi_tracker.h"
 
@@ -65,6 +66,8 @@ class TrackerNode {
   std::uint64_t rejected() const { return rejected_; }
   std::uint64_t bad_samples() const { return door_.rejected(); }
   std::uint64_t repeated() const { return repeats_.repeats() + fix_repeats_.repeats(); }
+  // Messages with a wild stamp or seq, dropped by the time rule (dds/stamp_guard.h).
+  std::uint64_t wild() const { return guard_.rejected(); }
   std::uint64_t missing() const { return repeats_.missing(); }  // sequence gaps of the samples
   const dds::RegionalFieldSource& b0() const { return *b0_; }
   std::uint64_t fixes_received() const { return fix_reader_ ? fix_reader_->stats().samples.load() : 0; }
@@ -74,6 +77,7 @@ class TrackerNode {
 
  private:
   void OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info);
+  void TakeSample(const dds::msg::GradiometerSample& m);
   void OnFix(const dds::msg::DipoleFix& m, const dds::fdds::SampleInfo& info);
   void Feed(const GradiometerSample& s);  // mu_ held
   // mu_ held; logs starts and ends, unregisters ended tracks' keys if asked.
@@ -83,6 +87,7 @@ class TrackerNode {
   mutable std::mutex mu_;
   dds::SampleDoor door_{"magnav-tracker"};
   dds::RepeatFilter repeats_;      // samples seen before: a restarted producer's history
+  dds::StampGuard<dds::msg::GradiometerSample> guard_{"magnav-tracker: magnav/gradiometer sensor"};  // wild stamps and seqs held, then dropped or confirmed
   dds::RepeatFilter fix_repeats_;  // fixes seen before: a restarted inverter's
   std::unique_ptr<dds::RegionalFieldSource> b0_;
   std::set<std::uint32_t> no_sigma_logged_;  // sensors whose missing σ was logged

@@ -41,8 +41,22 @@ inline constexpr Limit kLimitMapCells{"map grid cells (rows x columns)", 1e8, "c
 // digit and a separator): a header claiming more cells than that is refused.
 inline constexpr double kMinTextBytesPerCell = 2.0;
 
-inline constexpr std::array<Limit, 7> kLimits = {kLimitPosition, kLimitB,         kLimitT,       kLimitMapValue,
-                                                 kLimitLatitude, kLimitLongitude, kLimitMapCells};
+// Time. A pass or a live stream is minutes to months long; its samples come
+// seconds apart. Files: |t| beyond kLimitTime is refused outright, and a row
+// more than kLimitTimeStep after the previous row of its stream. On the wire
+// time has no absolute scale (a driver's clock may start anywhere), so the
+// rule there is relative (dds/stamp_guard.h): a stamp more than
+// kLimitTimeStep from its stream's last one, or a seq jump beyond
+// kLimitSeqStep, is held as suspect until the next sample confirms it.
+inline constexpr Limit kLimitTime{"time", 1e10, "s", "317 years: Unix and GPS seconds fit; 1e300 is not a time"};
+inline constexpr Limit kLimitTimeStep{"time step within a stream", 3600.0, "s",
+                                      "samples come seconds apart: a stamp in ns, from another clock, or 2^64-1"};
+inline constexpr Limit kLimitSeqStep{"sequence number step within a stream", 1e6, "",
+                                     "a million samples skipped at once is a corrupt seq (e.g. 10^18), not loss"};
+
+inline constexpr std::array<Limit, 10> kLimits = {kLimitPosition,  kLimitB,        kLimitT,    kLimitMapValue,
+                                                  kLimitLatitude,  kLimitLongitude, kLimitMapCells, kLimitTime,
+                                                  kLimitTimeStep, kLimitSeqStep};
 
 // The names the readers used before the table (kept: same values).
 inline constexpr double kMaxAbsPosition_m = kLimitPosition.max_abs;

@@ -10,6 +10,8 @@
 // Every problem throws InputError naming the file, line and column.
 #pragma once
 
+#include "magnav/core/limits.h"
+
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -36,8 +38,8 @@ std::vector<SensorPrior> ReadDeploymentFile(const std::string& path);
 // than that outside the measurements' time span, is a broken time (1e300, a
 // stamp in ns or from another clock), not a pass; |t| beyond kMaxAbsTime_s
 // (317 years: Unix and GPS seconds fit) is refused outright.
-inline constexpr double kMaxTimeStep_s = 3600.0;
-inline constexpr double kMaxAbsTime_s = 1e10;
+inline constexpr double kMaxTimeStep_s = kLimitTimeStep.max_abs;  // core/limits.h
+inline constexpr double kMaxAbsTime_s = kLimitTime.max_abs;
 
 // Reads and checks the files. `moment_body_Am2` overrides the measurements
 // file's "# moment_body_Am2:" line; without either the call refuses (no
