@@ -85,6 +85,38 @@ TEST(LocalizerBounded, ReferenceBoundWithinOnePointTwoOfTheWholePassBound) {
   }
 }
 
+// The window's item cap: past it the oldest epochs are folded early (at the
+// estimate of that time); the window never holds more than the cap plus the
+// newest epoch, and the bound stays within 1.2× of the whole-pass one.
+TEST(LocalizerBounded, WindowCapFoldsEarly) {
+  const Pass pass = test::ReferencePass().pass;
+  const LocalizerOptions opt;
+  IncrementalCrlbOptions capped;
+  capped.lag_s = 1e12;
+  capped.max_window_items = 100;
+  IncrementalCrlb crlb(pass.vessel, pass.sensors, opt, capped);
+  const Localization whole = RunEkf(pass, opt);
+  std::size_t peak = 0;
+  for (std::size_t i = 0; i < whole.trajectory.size() && i < 500; ++i) {  // feed the filtered states back
+    Eigen::VectorXd state(5 + 2 * static_cast<int>(pass.sensors.size()));
+    state.head<5>() = whole.trajectory[i];
+    for (std::size_t j = 0; j < pass.sensors.size(); ++j) {
+      state.segment<2>(5 + 2 * static_cast<int>(j)) = whole.sensors[j].p_SinW_m.head<2>();
+    }
+    for (const MagSample& s : pass.samples) {
+      if (std::abs(s.t_s - whole.trajectory_t_s[i]) <= opt.epoch_tolerance_s) crlb.Add(s, state);
+    }
+    peak = std::max(peak, crlb.window_items());
+  }
+  EXPECT_LE(peak, 100u + pass.sensors.size());
+  EXPECT_GT(crlb.folded_epochs(), 0u);
+  const Localization b = RunEkfBounded(pass, opt, capped);
+  const double ratio = RmsBound(b) / RmsBound(whole);
+  RecordProperty("cap100_over_whole_bound", std::to_string(ratio));
+  EXPECT_GT(ratio, 1.0 / 1.2);
+  EXPECT_LT(ratio, 1.2);
+}
+
 // What a stream keeps after N and after 10 N s of a racetrack survey: the
 // same in bounded mode (the reorder buffer is empty after each item here:
 // reorder delay 0), 10× in unbounded mode (so this test can fail).
