@@ -4,12 +4,16 @@
 // (tests/data/reference/localize_*.csv). Results: docs/BENCHMARKS.md.
 #include <benchmark/benchmark.h>
 
+#include <time.h>
+
 #include <cmath>
 
 #include "magnav/localizer/batch.h"
 #include "magnav/localizer/crlb.h"
 #include "magnav/localizer/ekf.h"
 #include "magnav/localizer/input.h"
+#include "magnav/localizer/stream.h"
+#include "racetrack.h"  // tests/localizer: the 6-sensor racetrack survey
 
 namespace magnav::localizer {
 namespace {
@@ -71,6 +75,68 @@ void BM_CrlbReferencePass(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(ComputeCrlb(pass, LocalizerOptions{}, est.trajectory, s));
 }
 BENCHMARK(BM_CrlbReferencePass)->Unit(benchmark::kMillisecond);
+
+// The streaming localizer at an age: a stream fed `age` s of the racetrack
+// survey (tests/localizer/racetrack.h: 6 sensors at 2 Hz + GNSS at 1 Hz = 13
+// items/s), then timed on the next `chunk` s of data with a publish
+// (Estimates(true), what magnav-localizer's Publish computes) every 5 s of
+// data, as the service at a 5 s period under a 1x replay. Counters (this
+// thread's CPU time): us_item = CPU per item (the EKF update plus, bounded, the bound's recursion),
+// ms_publish = per publish, retained = items kept (StreamingLocalizer::
+// retained_items), state_MB = those items at sizeof(MagSample) (40 B) each plus, bounded, the
+// (5 + 2M)² information: the memory that grows with uptime, or not.
+// Args: {age s, bounded 0/1}. Bounded: a 500 s chunk; unbounded: 25 s (its
+// publish costs about a second at 16000 s).
+void BM_StreamAtAge(benchmark::State& state) {
+  const double age_s = static_cast<double>(state.range(0));
+  const bool bounded = state.range(1) != 0;
+  const double chunk_s = bounded ? 500.0 : 25.0, publish_every_s = 5.0;
+  static const test::Racetrack d = test::SimulateRacetrack(16000.0 + 510.0);
+  StreamOptions so;
+  so.reorder_delay_s = 0.0;
+  so.bounded = bounded;
+  StreamingLocalizer s(d.pass.vessel, d.pass.sensors, LocalizerOptions{}, so);
+  std::size_t i = 0, g = 0;
+  const auto feed_until = [&](double t_end) {
+    for (; i < d.pass.samples.size() && d.pass.samples[i].t_s <= t_end; ++i) {
+      while (g < d.pass.gnss.size() && d.pass.gnss[g].t_s <= d.pass.samples[i].t_s) s.Add(d.pass.gnss[g++]);
+      s.Add(d.pass.samples[i]);
+    }
+  };
+  feed_until(age_s);
+  const auto cpu_s = [] {  // this thread's CPU time: the machine is shared
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+  };
+  double item_s = 0.0, publish_s = 0.0;
+  std::size_t items = 0, publishes = 0;
+  double t = age_s;
+  for (auto _ : state) {
+    for (double end = t + chunk_s; t < end; t += publish_every_s) {
+      const std::size_t before = i + g;
+      const double t0 = cpu_s();
+      feed_until(t + publish_every_s);
+      const double t1 = cpu_s();
+      benchmark::DoNotOptimize(s.Estimates(/*bounds=*/true));
+      const double t2 = cpu_s();
+      item_s += t1 - t0;
+      publish_s += t2 - t1;
+      items += i + g - before;
+      ++publishes;
+    }
+  }
+  const double m = static_cast<double>(d.pass.sensors.size());
+  state.counters["us_item"] = 1e6 * item_s / static_cast<double>(items);
+  state.counters["ms_publish"] = 1e3 * publish_s / static_cast<double>(publishes);
+  state.counters["retained"] = static_cast<double>(s.retained_items());
+  state.counters["state_MB"] =
+      (static_cast<double>(sizeof(MagSample) * s.retained_items()) + (bounded ? 8.0 * (5 + 2 * m) * (5 + 2 * m) : 0.0)) / 1e6;
+}
+BENCHMARK(BM_StreamAtAge)
+    ->ArgsProduct({{500, 8000, 16000}, {1, 0}})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace magnav::localizer

@@ -26,6 +26,7 @@ struct LocalizeArgs {
   std::string loss = LossTypeName(localizer::LocalizerOptions{}.magnetometer_loss);
   std::string gnss_loss = LossTypeName(localizer::LocalizerOptions{}.gnss_loss);
   localizer::LocalizerOptions options;
+  localizer::IncrementalCrlbOptions bound;
 };
 
 std::string Sqrt(double variance) { return FormatNumber(std::sqrt(std::max(variance, 0.0))); }
@@ -60,12 +61,15 @@ void RunLocalize(LocalizeArgs a) {
   std::string why;
   if (!a.options.IsValid(&why)) throw InputError("options: " + why);
   localizer::Localization out;
+  if (!a.bound.IsValid(&why)) throw InputError("options: " + why);
   if (a.method == "ekf") {
     out = localizer::RunEkf(f.pass, a.options);
+  } else if (a.method == "ekf-bounded") {
+    out = localizer::RunEkfBounded(f.pass, a.options, a.bound);
   } else if (a.method == "batch") {
     out = localizer::SolveBatch(f.pass, a.options);
   } else {
-    throw InputError("--method: expected ekf or batch, got '" + a.method + "'");
+    throw InputError("--method: expected ekf, ekf-bounded or batch, got '" + a.method + "'");
   }
   double known = 0.0;
   for (const auto& e : out.sensors) known += e.crlb_known_trajectory_m2.trace() / static_cast<double>(out.sensors.size());
@@ -116,9 +120,19 @@ void AddLocalizeCommand(CLI::App& app) {
                   "1-sigma of --vessel-start's position, m");
   AddVec3Option(*cmd, "--moment-body", &args->moment,
                 "vessel body moment, A*m^2 (default: the measurements file's '# moment_body_Am2:')");
-  cmd->add_option("--method", args->method, "ekf (EKF-SLAM) or batch (smoother over the whole pass)")
+  cmd->add_option("--method", args->method,
+                  "ekf (EKF-SLAM; bound over the whole pass), ekf-bounded (the same EKF, bound by a recursion over "
+                  "a window: what magnav-localizer runs, memory and cost independent of the pass length) or batch "
+                  "(smoother over the whole pass)")
       ->required()
-      ->check(CLI::IsMember({"ekf", "batch"}));
+      ->check(CLI::IsMember({"ekf", "ekf-bounded", "batch"}));
+  cmd->add_option("--bound-lag", args->bound.lag_s,
+                  "ekf-bounded: epochs older than this (s) are folded into the bound's recursion at the estimate "
+                  "of that time")
+      ->capture_default_str();
+  cmd->add_option("--bound-window-items", args->bound.max_window_items,
+                  "ekf-bounded: at most this many samples and fixes in the bound's window")
+      ->capture_default_str();
   cmd->add_option("--output", args->output, "sensor_id,x,y,z,sigma_x,sigma_y,crlb_x,crlb_y (m)")->required();
   cmd->add_option("--sigma-b", args->sigma_B_T,
                   "magnetometer noise per axis, T (default: the measurements file's '# sigma_B_T:')");

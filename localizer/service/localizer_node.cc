@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cmath>
+#include <optional>
 
 #include "magnav/core/error.h"
 #include "magnav/core/units.h"
@@ -66,7 +67,8 @@ const LocalizerNodeOptions& Checked(const LocalizerNodeOptions& o) {
 
 LocalizerNode::LocalizerNode(dds::Node& node, const LocalizerNodeOptions& options)
     : localizer_(Checked(options).vessel, options.sensors, options.localizer, options.stream),
-      vessel_id_(options.vessel_id) {
+      vessel_id_(options.vessel_id),
+      bounded_(options.stream.bounded) {
   repeats_.SetLogName("magnav-localizer: magnav/magnetometer sensor");
   writer_ = node.CreateWriter<dds::msg::SensorPositionEstimate>();
   nav_reader_ =
@@ -154,13 +156,19 @@ void LocalizerNode::TakeNav(const dds::msg::VesselNav& m) {
 
 void LocalizerNode::Publish() {
   std::vector<SensorEstimate> est;
+  std::optional<StreamingLocalizer::Snapshot> snapshot;
   double t = 0.0;
   {
     std::lock_guard<std::mutex> lk(mu_);
     if (!localizer_.initialized()) return;
-    est = localizer_.Estimates(/*bounds=*/true);
+    if (bounded_) {
+      snapshot = localizer_.TakeSnapshot();  // O(window): bounded
+    } else {
+      est = localizer_.Estimates(/*bounds=*/true);  // over the whole pass (--method ekf)
+    }
     t = localizer_.time();
   }
+  if (snapshot) est = snapshot->WithBounds();
   for (const auto& e : est) writer_->Write(ToMsg(e, t));
 }
 

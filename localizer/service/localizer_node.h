@@ -3,9 +3,11 @@
 // SensorPositionEstimate (magnav/sensor_position) out for every sensor at
 // each Publish (the main calls it at a configurable period; late joiners get
 // the last estimate per sensor from the TRANSIENT_LOCAL estimate profile).
-// The EKF runs as localizer::StreamingLocalizer — the code `magnav localize
-// --method ekf` runs — so on the same stream its final estimates are the
-// offline ones. Every sample passes the library's checks at the door; one that
+// The EKF runs as localizer::StreamingLocalizer, bounded by default — the
+// code `magnav localize --method ekf-bounded` runs (`--method ekf` with the
+// service's --method ekf) — so on the same stream its final estimates are the
+// offline ones. A publish copies the estimates and the bound's window under
+// the lock (bounded) and computes the bounds outside it. Every sample passes the library's checks at the door; one that
 // fails (non-finite, unknown sensor, time going backwards) is skipped,
 // counted, and warned about once per sensor (once for the GNSS), never fed.
 #pragma once
@@ -30,9 +32,13 @@ struct LocalizerNodeOptions {
   // Live streams merge by per-stream watermark (stream.h): a restart's
   // histories and unpaced replays merge exactly, a quiet stream stops
   // holding the others after idle_timeout_s.
+  // Bounded (StreamOptions::bounded, `magnav localize --method
+  // ekf-bounded`): memory and the cost of a sample or a publish do not grow
+  // with uptime. Unbounded (--method ekf) only for comparisons.
   StreamOptions stream = [] {
     StreamOptions s;
     s.merge = StreamMerge::kWatermark;
+    s.bounded = true;
     return s;
   }();
   // The friendly vessel's VesselNav: only this vessel_id, and only GNSS
@@ -91,6 +97,7 @@ class LocalizerNode {
   std::atomic<std::uint64_t> skipped_{0};
   std::atomic<std::uint64_t> ignored_{0};
   std::uint32_t vessel_id_ = 0;
+  bool bounded_ = true;
   bool warned_ignored_ = false;
   dds::RepeatFilter repeats_;      // magnetometer samples
   dds::StampGuard<dds::msg::MagnetometerSample> guard_{"magnav-localizer: magnav/magnetometer sensor"};  // wild stamps and seqs held, then dropped or confirmed

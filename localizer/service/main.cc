@@ -45,6 +45,18 @@ int main(int argc, char** argv) {
   app.add_option("--reorder-delay", opt.stream.reorder_delay_s,
                  "delay: hold samples this long (sample time, s) to order the streams")
       ->capture_default_str();
+  std::string method = "ekf-bounded";
+  app.add_option("--method", method,
+                 "ekf-bounded (memory and cost independent of uptime; = magnav localize --method ekf-bounded) or "
+                 "ekf (the bound over every sample ever received, for comparison only: it grows with uptime)")
+      ->check(CLI::IsMember({"ekf-bounded", "ekf"}))
+      ->capture_default_str();
+  app.add_option("--bound-lag", opt.stream.bound.lag_s,
+                 "ekf-bounded: epochs older than this (s) are folded into the bound at the estimate of that time")
+      ->capture_default_str();
+  app.add_option("--bound-window-items", opt.stream.bound.max_window_items,
+                 "ekf-bounded: at most this many samples and fixes in the bound's window")
+      ->capture_default_str();
   app.add_option("--vessel-id", opt.vessel_id,
                  "the friendly vessel's vessel_id: only its GNSS VesselNav fixes are used")
       ->capture_default_str();
@@ -64,6 +76,7 @@ int main(int argc, char** argv) {
     opt.vessel = {moment.value(), vessel_z_m};
     opt.stream.merge = merge == "delay" ? localizer::StreamMerge::kReorderDelay : localizer::StreamMerge::kWatermark;
     opt.localizer.sigma_B_T = sigma_B_T;
+    opt.stream.bounded = method == "ekf-bounded";
     opt.sensors = localizer::ReadDeploymentFile(deployment);
     magnav::dds::InstallShutdownHandlers();
     magnav::dds::Node node(dds_args.ToNodeOptions("magnav-localizer"));

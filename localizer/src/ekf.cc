@@ -253,10 +253,27 @@ std::vector<SensorEstimate> LocalizerEkf::SensorEstimates() const {
   return out;
 }
 
+namespace {
+Localization RunStream(const Pass& pass, const LocalizerOptions& options, const StreamOptions& whole_file);
+}  // namespace
+
 Localization RunEkf(const Pass& pass, const LocalizerOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
   StreamOptions whole_file;
   whole_file.reorder_delay_s = std::numeric_limits<double>::infinity();  // everything at Flush
+  return RunStream(pass, options, whole_file);
+}
+
+Localization RunEkfBounded(const Pass& pass, const LocalizerOptions& options, const IncrementalCrlbOptions& bound) {
+  StreamOptions whole_file;
+  whole_file.reorder_delay_s = std::numeric_limits<double>::infinity();  // everything at Flush
+  whole_file.bounded = true;
+  whole_file.bound = bound;
+  return RunStream(pass, options, whole_file);
+}
+
+namespace {
+Localization RunStream(const Pass& pass, const LocalizerOptions& options, const StreamOptions& whole_file) {
+  const auto t0 = std::chrono::steady_clock::now();
   StreamingLocalizer s(pass.vessel, pass.sensors, options, whole_file);
   std::size_t g = 0;
   for (const MagSample& m : pass.samples) {
@@ -274,5 +291,6 @@ Localization RunEkf(const Pass& pass, const LocalizerOptions& options) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - out.summary.crlb_time_s;
   return out;
 }
+}  // namespace
 
 }  // namespace magnav::localizer

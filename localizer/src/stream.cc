@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
 
 #include "magnav/core/error.h"
 #include "magnav/localizer/crlb.h"
@@ -25,7 +26,7 @@ bool StreamOptions::IsValid(std::string* error) const {
     if (error) *error = "init_window_s must be finite and > 0";
     return false;
   }
-  return true;
+  return bound.IsValid(error);
 }
 
 StreamingLocalizer::StreamingLocalizer(const Vessel& vessel, const std::vector<SensorPrior>& sensors,
@@ -37,6 +38,7 @@ StreamingLocalizer::StreamingLocalizer(const Vessel& vessel, const std::vector<S
   if (sensors.empty()) throw InputError("localizer: no sensor");
   pass_.vessel = vessel;
   pass_.sensors = sensors;
+  if (stream.bounded) crlb_.emplace(vessel, sensors, options, stream.bound);
   streams_[-1] = {};
   for (const auto& p : sensors) streams_[p.sensor_id] = {};
 }
@@ -152,7 +154,17 @@ void StreamingLocalizer::Consume(const Item& item) {
     return;
   }
   ++consumed_;
-  if (const auto* s = std::get_if<MagSample>(&item)) {
+  const MagSample* s = std::get_if<MagSample>(&item);
+  ++(s ? magnetometer_used_ : gnss_used_);
+  if (crlb_) {
+    if (s) {
+      crlb_->Add(*s, ekf_->state());
+    } else {
+      crlb_->Add(std::get<GnssFix>(item), ekf_->state());
+    }
+    return;
+  }
+  if (s) {
     pass_.samples.push_back(*s);
   } else {
     pass_.gnss.push_back(std::get<GnssFix>(item));
@@ -168,16 +180,54 @@ void StreamingLocalizer::Consume(const Item& item) {
 
 void StreamingLocalizer::Flush() { Release(true); }
 
+namespace {
+// The bounded bound at the estimates, written into them.
+CrlbResult AttachIncremental(const IncrementalCrlb& crlb, std::vector<SensorEstimate>* sensors) {
+  std::vector<Eigen::Vector2d> s_xy;
+  for (const auto& e : *sensors) s_xy.push_back(e.p_SinW_m.head<2>());
+  CrlbResult b = crlb.Bounds(s_xy);
+  for (std::size_t j = 0; j < sensors->size() && j < b.joint.size(); ++j) {
+    (*sensors)[j].crlb_joint_m2 = b.joint[j];
+    (*sensors)[j].crlb_known_trajectory_m2 = b.known_trajectory[j];
+  }
+  return b;
+}
+}  // namespace
+
 std::vector<SensorEstimate> StreamingLocalizer::Estimates(bool bounds) const {
   if (!ekf_) return {};
   std::vector<SensorEstimate> out = ekf_->SensorEstimates();
-  if (bounds && !trajectory_.empty()) AttachCrlb(pass_, options_, trajectory_, &out);
+  if (bounds && crlb_) {
+    if (crlb_->window_epochs() > 0) AttachIncremental(*crlb_, &out);
+  } else if (bounds && !trajectory_.empty()) {
+    AttachCrlb(pass_, options_, trajectory_, &out);
+  }
   return out;
+}
+
+StreamingLocalizer::Snapshot StreamingLocalizer::TakeSnapshot() const {
+  if (!crlb_) throw std::logic_error("StreamingLocalizer::TakeSnapshot: only in bounded mode");
+  Snapshot s;
+  if (!ekf_) return s;
+  s.sensors = ekf_->SensorEstimates();
+  s.bound = *crlb_;
+  return s;
+}
+
+std::vector<SensorEstimate> StreamingLocalizer::Snapshot::WithBounds() const {
+  std::vector<SensorEstimate> out = sensors;
+  if (bound && !out.empty() && bound->window_epochs() > 0) AttachIncremental(*bound, &out);
+  return out;
+}
+
+std::size_t StreamingLocalizer::retained_items() const {
+  return pending_.size() + (crlb_ ? crlb_->window_items() : 0) + pass_.samples.size() + pass_.gnss.size() +
+         trajectory_.size() + epoch_t_.size();
 }
 
 Localization StreamingLocalizer::Result() const {
   Localization out;
-  out.summary.method = "ekf";
+  out.summary.method = crlb_ ? "ekf-bounded" : "ekf";
   if (!ekf_) {
     out.summary.message = "not started: no GNSS fixes at the start";
     return out;
@@ -185,10 +235,10 @@ Localization StreamingLocalizer::Result() const {
   const auto t0 = std::chrono::steady_clock::now();
   out.sensors = Estimates(false);
   out.cov_sensors_m2 = ekf_->covariance().bottomRightCorner(2 * ekf_->num_sensors(), 2 * ekf_->num_sensors());
-  out.trajectory_t_s = epoch_t_;
-  out.trajectory = trajectory_;
-  out.summary.magnetometer_updates = static_cast<int>(pass_.samples.size());
-  out.summary.gnss_updates = static_cast<int>(pass_.gnss.size());
+  out.trajectory_t_s = crlb_ ? crlb_->WindowTimes() : epoch_t_;
+  out.trajectory = crlb_ ? crlb_->WindowTrajectory() : trajectory_;
+  out.summary.magnetometer_updates = static_cast<int>(magnetometer_used_);
+  out.summary.gnss_updates = static_cast<int>(gnss_used_);
   out.summary.magnetometer_outliers = static_cast<int>(ekf_->rejected_magnetometer());
   out.summary.gnss_outliers = static_cast<int>(ekf_->rejected_gnss());
   out.summary.gate_releases = static_cast<int>(ekf_->gate_releases());
@@ -204,7 +254,8 @@ Localization StreamingLocalizer::Result() const {
       out.summary.message += std::to_string(failed_) + " updates failed (not applied)";
     }
   }
-  out.crlb_joint_m2 = AttachCrlb(pass_, options_, trajectory_, &out.sensors).joint_full;
+  out.crlb_joint_m2 = crlb_ ? AttachIncremental(*crlb_, &out.sensors).joint_full
+                            : AttachCrlb(pass_, options_, trajectory_, &out.sensors).joint_full;
   out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -60,11 +60,13 @@ TEST(LocalizeCli, EkfAndBatchFilesEqualTheLibrary) {
   const std::string dir = testing::TempDir();
   const PassFile f = test::ReferencePass();
   const LocalizerOptions opt;  // σ_B = the file's 1e-9
-  for (const std::string method : {"ekf", "batch"}) {
+  for (const std::string method : {"ekf", "ekf-bounded", "batch"}) {
     SCOPED_TRACE(method);
     const auto [rc, out] = Localize(ReferenceArgs(method, dir + "/" + method + ".csv"));
     ASSERT_EQ(rc, 0) << out;
-    const Localization lib = method == "ekf" ? RunEkf(f.pass, opt) : SolveBatch(f.pass, opt);
+    const Localization lib = method == "ekf"           ? RunEkf(f.pass, opt)
+                             : method == "ekf-bounded" ? RunEkfBounded(f.pass, opt)
+                                                       : SolveBatch(f.pass, opt);
     ExpectFileEqualsLibrary(dir + "/" + method + ".csv", lib);
   }
 }

@@ -73,7 +73,7 @@ TEST(LocalizerService, SkipsBadSamplesAndPublishesTheLibrarysEkfEstimates) {
   Pass seen = file.pass;
   for (auto& s : seen.samples) s.t_s = FromMsg(SampleMsg(s)).t_s;
   for (auto& f : seen.gnss) f.t_s = FromMsg(FixMsg(f)).t_s;
-  const Localization want = RunEkf(seen, LocalizerOptions{});
+  const Localization want = RunEkfBounded(seen, LocalizerOptions{});  // the service runs the bounded EKF
 
   std::mutex mu;
   std::map<std::uint32_t, msg::SensorPositionEstimate> last;
@@ -172,7 +172,7 @@ namespace {
 // The whole run through the tools: `magnav replay --magnetometer --gnss` feeds
 // the service, `magnav record --topic sensor_position` keeps what it
 // publishes, and the last recorded row of every sensor equals the offline
-// `magnav localize --method ekf` row. With `stock_qos` ("default": Cyclone
+// `magnav localize --method ekf-bounded` row (the service's default method). With `stock_qos` ("default": Cyclone
 // DDS's RELIABLE/VOLATILE writer; "sensor_data": ROS 2's BEST_EFFORT/VOLATILE)
 // the replay goes to another domain and a Cyclone relay writes every sample
 // again with that QoS to the service's, paced (replay at 100×, ≤ 20000
@@ -186,7 +186,7 @@ void ReplayedAndRecordedRunEqualsTheOfflineCommand(const char* stock_qos) {
                     d = testing::ReferencePath("localize_deployment.csv"),
                     g = testing::ReferencePath("localize_gnss_full.csv");
   const auto [rc, out] = testing::RunCommand({MAGNAV_BIN, "localize", "--measurements", m, "--deployment", d, "--gnss",
-                                              g, "--method", "ekf", "--output", dir + "/offline.csv"},
+                                              g, "--method", "ekf-bounded", "--output", dir + "/offline.csv"},
                                              {}, 120s);
   ASSERT_EQ(rc, 0) << out;
 

@@ -22,6 +22,7 @@
 #include <Eigen/Core>
 
 #include "magnav/localizer/options.h"
+#include "magnav/localizer/crlb.h"
 #include "magnav/localizer/types.h"
 
 namespace magnav::localizer {
@@ -117,5 +118,11 @@ class LocalizerEkf {
 // (crlb.h) evaluated along the filtered trajectory, and the filtered vessel
 // state at every epoch.
 Localization RunEkf(const Pass& pass, const LocalizerOptions& options);
+
+// The same EKF as a bounded stream (StreamOptions::bounded: what
+// magnav-localizer runs; `magnav localize --method ekf-bounded`): equal
+// sensor estimates and covariances, the bounds from IncrementalCrlb (crlb.h),
+// the trajectory only the bound's last window.
+Localization RunEkfBounded(const Pass& pass, const LocalizerOptions& options, const IncrementalCrlbOptions& bound = {});
 
 }  // namespace magnav::localizer

@@ -14,10 +14,12 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <tuple>
 #include <variant>
 #include <vector>
 
+#include "magnav/localizer/crlb.h"
 #include "magnav/localizer/ekf.h"
 #include "magnav/localizer/input.h"
 #include "magnav/localizer/options.h"
@@ -57,6 +59,17 @@ struct StreamOptions {
   // item; the stream is held until that window (plus the reorder delay) has
   // passed.
   double init_window_s = 10.0;
+  // Bounded (`magnav localize --method ekf-bounded`, what magnav-localizer
+  // runs): the same EKF, but nothing is kept per consumed item; the bounds
+  // come from IncrementalCrlb (crlb.h: its window of `bound.lag_s`, at most
+  // `bound.max_window_items` items, plus a (5 + 2M)² information) instead of
+  // a solve over every item consumed. Memory and the cost of an item or of
+  // Estimates(true) do not grow with uptime. Unbounded (`--method ekf`):
+  // keeps the whole pass and its filtered trajectory, and Estimates(true)
+  // solves over all of it (the reference the bounded bound is measured
+  // against, docs/ACCURACY.md).
+  bool bounded = false;
+  IncrementalCrlbOptions bound;
 
   bool IsValid(std::string* error) const;
 };
@@ -88,7 +101,25 @@ class StreamingLocalizer {
   // (costs a sparse solve over that trajectory). Empty before the start.
   std::vector<SensorEstimate> Estimates(bool bounds) const;
   // Everything as RunEkf returns it (estimates, bounds, trajectory, summary).
+  // Bounded: the trajectory is the bound's window (its last lag_s).
   Localization Result() const;
+
+  // What Estimates(true) needs, copied (bounded: O(window), never more), so
+  // that the bounds can be computed outside the caller's lock.
+  struct Snapshot {
+    std::vector<SensorEstimate> sensors;           // without the bounds
+    std::optional<IncrementalCrlb> bound;          // bounded mode
+    // The sensors with their bounds (Estimates(true)).
+    std::vector<SensorEstimate> WithBounds() const;
+  };
+  // Bounded mode only (throws std::logic_error otherwise: the unbounded bound
+  // needs the whole pass). Empty sensors before the start.
+  Snapshot TakeSnapshot() const;
+
+  // Items kept in memory now: the reorder buffer (≤ max_pending), the
+  // bound's window (bounded) or the whole pass and trajectory (unbounded).
+  // For tests that nothing grows with uptime.
+  std::size_t retained_items() const;
 
   std::uint64_t consumed() const { return consumed_; }   // items the EKF took
   std::uint64_t late() const { return late_; }           // refused: older than consumed
@@ -126,10 +157,13 @@ class StreamingLocalizer {
   double newest_t_ = -std::numeric_limits<double>::infinity();
   double consumed_until_ = -std::numeric_limits<double>::infinity();
   std::unique_ptr<LocalizerEkf> ekf_;
-  // What the EKF consumed, for the bounds: a pass and the state per epoch.
+  // Bounded: the bound's recursion and window.
+  std::optional<IncrementalCrlb> crlb_;
+  // Unbounded: what the EKF consumed, for the bounds: a pass and the state per epoch.
   Pass pass_;
   std::vector<double> epoch_t_;
   std::vector<VesselVector> trajectory_;
+  std::uint64_t magnetometer_used_ = 0, gnss_used_ = 0;
   std::uint64_t consumed_ = 0, late_ = 0, failed_ = 0, rejected_ = 0, dropped_before_start_ = 0;
 };
 
