@@ -57,9 +57,12 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
   const bool fix_file = est != nullptr && est->has_column("valid");
   // Truth: time (ns) -> vessel -> position.
   std::map<long long, std::map<long long, Eigen::Vector3d>> truth_at;
+  std::map<long long, double> truth_t_s;  // the time as the truth file writes it
   for (std::size_t i = 0; i < truth.num_rows(); ++i) {
-    truth_at[std::llround(truth.number(i, tt) * 1e9)][truth.integer(i, vid)] =
+    const long long t_ns = std::llround(truth.number(i, tt) * 1e9);
+    truth_at[t_ns][truth.integer(i, vid)] =
         Eigen::Vector3d(truth.number(i, pt.x), truth.number(i, pt.y), truth.number(i, pt.z));
+    truth_t_s.emplace(t_ns, truth.number(i, tt));
   }
   const auto in_field = [&](const Eigen::Vector3d& p) {
     if (sensors.empty()) return true;
@@ -169,7 +172,9 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
                 main_id >= 0 && ve.instants > 0 ? ve.id_last.at(main_id) - ve.last_in_field : 0.0);
   }
   if (rows == 0 && est != nullptr) throw InputError(a.estimate + ": no usable estimate row");
-  if (est == nullptr) std::printf("the track file has no row (its summary: no track): every vessel in scope is missed\n");
+  if (est == nullptr) {
+    std::printf("the track file has no row (its summary: no track): every vessel in scope is missed\n");
+  }
   // GOSPA per truth epoch: the vessels in scope (within --max-range of a
   // sensor; all without it) against the rows above. Epochs with neither are
   // left out (as Stone Soup scores only times at which some state exists).
@@ -205,7 +210,7 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
     n_missed += static_cast<std::size_t>(g.num_missed);
     n_false += static_cast<std::size_t>(g.num_false);
     if (csv) {
-      csv->WriteRow({FormatNumber(t * 1e-9), FormatNumber(g.gospa), FormatNumber(g.localisation),
+      csv->WriteRow({FormatNumber(truth_t_s.at(t)), FormatNumber(g.gospa), FormatNumber(g.localisation),
                      FormatNumber(g.missed), FormatNumber(g.false_)});
     }
   }
@@ -360,9 +365,13 @@ Multi-vessel truth, fix file (valid column, magnav invert):
 void AddEvaluateCommand(CLI::App& app) {
   auto args = std::make_shared<EvaluateArgs>();
   CLI::App* sub = app.add_subcommand("evaluate", "Position error of estimates (invert/track/record output) against truth");
-  sub->add_option("--estimate", args->estimate, "CSV with t and dipole_x..z or x..z (and optional valid, sigma_x..z)")
+  sub->add_option("--estimate", args->estimate,
+                  "fixes (magnav invert: t, dipole_x..z, valid, sigma_x..z), a track (magnav track: t, track_id, "
+                  "x..z, sigma_x..z) or a recorded dipole_fix / track topic")
       ->required();
-  sub->add_option("--truth", args->truth, "truth CSV with t,x,y,z (e.g. magnav simulate --truth)")->required();
+  sub->add_option("--truth", args->truth,
+                  "truth CSV with t,x,y,z, or t,vessel_id,x,y,z for several vessels (magnav simulate --truth)")
+      ->required();
   sub->add_option("--max-range", args->max_range_m, "use only epochs within this horizontal range of a sensor, m")
       ->check(CLI::PositiveNumber);
   sub->add_option("--sensors", args->sensors, "sensor positions X,Y,Z[;X,Y,Z...] for --max-range");

@@ -58,6 +58,7 @@ TEST(EvaluateCli, GospaOfATinyTrackFileEqualsTheHandWorkedValue) {
   for (std::size_t k = 0; k < 3; ++k) {
     for (std::size_t c = 0; c < 5; ++c) EXPECT_NEAR(g.number(k, c), expected[k][c], 1e-12) << k << "," << c;
   }
+  EXPECT_EQ(g.text(1, 0), "0.1");  // the truth's time as written, not 1e8 ns · 1e-9
   // --gospa-c 4: a miss or a false row costs 8 m²; the 4 m pair is at c, so a miss and a false
   // row (9 + 8 + 8 = 25 m² at t = 0).
   const auto [rc2, out2] =
