@@ -3,13 +3,17 @@
 // multi-vessel truth (vessel_id column), multi-track scores per vessel.
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
+#include <string>
 
 #include "commands.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
+#include "magnav/core/gospa.h"
 #include "magnav/core/gradiometer.h"
 
 namespace magnav::tools {
@@ -19,6 +23,8 @@ struct EvaluateArgs {
   std::string estimate, truth, sensors, pass;
   double max_range_m = 0.0;  // 0 = every epoch
   double gate_m = 5.0;       // multi-track: a row farther than this from every vessel is false
+  double gospa_c_m = 10.0, gospa_p = 2.0;
+  std::string gospa_csv;     // per-epoch GOSPA, if given
 };
 
 struct Xyz {
@@ -30,24 +36,33 @@ Xyz PositionColumns(const CsvTable& t) {
   return {t.column("x"), t.column("y"), t.column("z")};
 }
 
-// Multi-track scoring (truth with vessel_id, estimates with track_id): each
-// estimate row goes to the nearest vessel at its time (3-D) or, farther than
-// the gate from all, counts as false. Per vessel over its in-field instants
-// (within max_range of a sensor, horizontally; all without --max-range):
-// coverage = share of instants with a row assigned to it, purity = share of
-// its rows carrying its most frequent track_id, RMS/max of its rows' errors;
-// overrun = last row of its main track − its last in-field instant.
-void RunMulti(const EvaluateArgs& a, const CsvTable& est, const CsvTable& truth,
+// Multi-vessel scoring (truth with vessel_id). Track files (t, track_id,
+// x..z, usable): each usable row goes to the nearest vessel at its time (3-D)
+// or, farther than the gate from all, counts as false. Per vessel over its
+// in-field instants (within max_range of a sensor, horizontally; all without
+// --max-range): coverage = share of instants with a row assigned to it,
+// purity = share of its rows carrying its most frequent track_id, RMS/max of
+// its in-field rows' errors; overrun = time of the last row of its main track
+// − its last in-field instant (> 0: the track went on after the vessel left
+// the sensors' reach; < 0: it ended before). GOSPA per truth epoch (at the
+// end; core/gospa.h). Fix files (magnav invert: a `valid` column, several fixes per
+// instant): a rejected fix (valid = 0, position possibly empty) is counted,
+// not scored; each valid fix is scored against the nearest vessel at its time.
+// `est` null: a track file with no row whose summary says "no track" (magnav
+// track found nothing to track): every vessel in scope is missed.
+void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
               const std::vector<Eigen::Vector3d>& sensors) {
-  const Xyz pe = PositionColumns(est), pt = PositionColumns(truth);
-  const std::size_t te = est.column("t"), tt = truth.column("t"), vid = truth.column("vessel_id");
-  const auto tid = est.find_column("track_id");
-  const auto usable = est.find_column("usable");
+  const Xyz pt = PositionColumns(truth);
+  const std::size_t tt = truth.column("t"), vid = truth.column("vessel_id");
+  const bool fix_file = est != nullptr && est->has_column("valid");
   // Truth: time (ns) -> vessel -> position.
   std::map<long long, std::map<long long, Eigen::Vector3d>> truth_at;
+  std::map<long long, double> truth_t_s;  // the time as the truth file writes it
   for (std::size_t i = 0; i < truth.num_rows(); ++i) {
-    truth_at[std::llround(truth.number(i, tt) * 1e9)][truth.integer(i, vid)] =
+    const long long t_ns = std::llround(truth.number(i, tt) * 1e9);
+    truth_at[t_ns][truth.integer(i, vid)] =
         Eigen::Vector3d(truth.number(i, pt.x), truth.number(i, pt.y), truth.number(i, pt.z));
+    truth_t_s.emplace(t_ns, truth.number(i, tt));
   }
   const auto in_field = [&](const Eigen::Vector3d& p) {
     if (sensors.empty()) return true;
@@ -72,20 +87,29 @@ void RunMulti(const EvaluateArgs& a, const CsvTable& est, const CsvTable& truth,
       }
     }
   }
+  // GOSPA's estimates per truth time: every scored row except those whose
+  // vessel (nearest, within the gate) is beyond --max-range.
+  std::map<long long, std::vector<Eigen::Vector3d>> gospa_est;
   std::size_t rows = 0, false_rows = 0, unmatched = 0, skipped = 0;
-  for (std::size_t i = 0; i < est.num_rows(); ++i) {
-    if (usable && est.integer(i, *usable) == 0) {
+  const std::size_t num_rows = est != nullptr ? est->num_rows() : 0;
+  const Xyz pe = est != nullptr ? PositionColumns(*est) : Xyz{0, 0, 0};
+  const std::size_t te = est != nullptr ? est->column("t") : 0;
+  const auto tid = est != nullptr ? est->find_column("track_id") : std::nullopt;
+  const auto usable =
+      est == nullptr ? std::nullopt : fix_file ? est->find_column("valid") : est->find_column("usable");
+  for (std::size_t i = 0; i < num_rows; ++i) {
+    if (usable && est->integer(i, *usable) == 0) {
       ++skipped;
       continue;
     }
     ++rows;
-    const long long t = std::llround(est.number(i, te) * 1e9);
+    const long long t = std::llround(est->number(i, te) * 1e9);
     const auto it = truth_at.find(t);
     if (it == truth_at.end()) {
       ++unmatched;
       continue;
     }
-    const Eigen::Vector3d p(est.number(i, pe.x), est.number(i, pe.y), est.number(i, pe.z));
+    const Eigen::Vector3d p(est->number(i, pe.x), est->number(i, pe.y), est->number(i, pe.z));
     long long best_v = -1;
     double best = 1e300;
     for (const auto& [v, q] : it->second) {
@@ -96,17 +120,36 @@ void RunMulti(const EvaluateArgs& a, const CsvTable& est, const CsvTable& truth,
     }
     if (best > a.gate_m) {
       ++false_rows;
+      gospa_est[t].push_back(p);
       continue;
     }
     Vessel& ve = vessels[best_v];
-    const long long id = tid ? est.integer(i, *tid) : 0;
+    const long long id = tid ? est->integer(i, *tid) : 0;
     ++ve.ids[id];
     ve.id_last[id] = std::max(ve.id_last.count(id) ? ve.id_last[id] : -1e300, t * 1e-9);
     if (!in_field(it->second.at(best_v))) continue;
+    gospa_est[t].push_back(p);
     ++ve.rows;
     ve.sum_sq += best * best;
     ve.max_err = std::max(ve.max_err, best);
     if (ve.covered_at.insert(t).second) ++ve.covered;
+  }
+  if (fix_file) {
+    std::printf("fixes %zu: valid %zu, rejected %zu (valid = 0: counted, not scored); each valid fix scored against "
+                "the nearest truth vessel at its time: %zu false (farther than %.3g m from every vessel, %.2f %%), "
+                "%zu at no truth time\n",
+                rows + skipped, rows, skipped, false_rows, a.gate_m,
+                rows > 0 ? 100.0 * false_rows / rows : 0.0, unmatched);
+    for (const auto& [v, ve] : vessels) {
+      std::printf("vessel %lld: in-field instants %zu, fixes %zu at %zu of them (coverage %.4f), RMS %.4g m, "
+                  "max %.4g m\n",
+                  v, ve.instants, ve.rows, ve.covered,
+                  ve.instants > 0 ? static_cast<double>(ve.covered) / ve.instants : 0.0,
+                  ve.rows > 0 ? std::sqrt(ve.sum_sq / ve.rows) : 0.0, ve.max_err);
+    }
+    std::printf("GOSPA: not computed for single-sample fixes (one per sensor and instant, not one per vessel)\n");
+    if (rows == 0) throw InputError(a.estimate + ": no valid fix");
+    return;
   }
   std::printf("rows %zu (+%zu not usable): %zu false (farther than %.3g m from every vessel, %.2f %%), %zu at no truth "
               "time\n",
@@ -128,18 +171,80 @@ void RunMulti(const EvaluateArgs& a, const CsvTable& est, const CsvTable& truth,
                 ve.rows > 0 ? std::sqrt(ve.sum_sq / ve.rows) : 0.0, ve.max_err,
                 main_id >= 0 && ve.instants > 0 ? ve.id_last.at(main_id) - ve.last_in_field : 0.0);
   }
-  if (rows == 0) throw InputError(a.estimate + ": no usable estimate row");
+  if (rows == 0 && est != nullptr) throw InputError(a.estimate + ": no usable estimate row");
+  if (est == nullptr) {
+    std::printf("the track file has no row (its summary: no track): every vessel in scope is missed\n");
+  }
+  // GOSPA per truth epoch: the vessels in scope (within --max-range of a
+  // sensor; all without it) against the rows above. Epochs with neither are
+  // left out (as Stone Soup scores only times at which some state exists).
+  const GospaOptions go{a.gospa_c_m, a.gospa_p};
+  std::unique_ptr<CsvWriter> csv;
+  if (!a.gospa_csv.empty()) {
+    csv = std::make_unique<CsvWriter>(
+        a.gospa_csv, std::vector<std::string>{"t", "gospa", "localisation", "missed", "false"},
+        std::vector<std::pair<std::string, std::string>>{
+            {"source", a.estimate + " against " + a.truth},
+            {"gospa", "c = " + FormatNumber(go.c_m) + " m, p = " + FormatNumber(go.p) +
+                          ", alpha = 2; gospa in m; localisation, missed, false in m^p (gospa^p is their sum)"}});
+  }
+  std::size_t epochs = 0;
+  double sum_g = 0.0, sum_loc = 0.0, sum_miss = 0.0, sum_false = 0.0, max_g = 0.0;
+  std::size_t n_missed = 0, n_false = 0;
+  const std::vector<Eigen::Vector3d> none;
+  for (const auto& [t, vs] : truth_at) {
+    std::vector<Eigen::Vector3d> x;
+    for (const auto& [v, p] : vs) {
+      if (in_field(p)) x.push_back(p);
+    }
+    const auto e = gospa_est.find(t);
+    const std::vector<Eigen::Vector3d>& y = e == gospa_est.end() ? none : e->second;
+    if (x.empty() && y.empty()) continue;
+    const GospaResult g = ComputeGospa(x, y, go);
+    ++epochs;
+    sum_g += g.gospa;
+    max_g = std::max(max_g, g.gospa);
+    sum_loc += g.localisation;
+    sum_miss += g.missed;
+    sum_false += g.false_;
+    n_missed += static_cast<std::size_t>(g.num_missed);
+    n_false += static_cast<std::size_t>(g.num_false);
+    if (csv) {
+      csv->WriteRow({FormatNumber(truth_t_s.at(t)), FormatNumber(g.gospa), FormatNumber(g.localisation),
+                     FormatNumber(g.missed), FormatNumber(g.false_)});
+    }
+  }
+  if (csv) csv->Close();
+  const double n = epochs > 0 ? static_cast<double>(epochs) : 1.0;
+  std::printf("GOSPA (c %.3g m, p %.3g, alpha 2) over %zu epochs: mean %.4g m, max %.4g m; per epoch, mean "
+              "localisation %.4g m^%.3g, missed %.4g m^%.3g (%.4g vessels), false %.4g m^%.3g (%.4g estimates)\n",
+              go.c_m, go.p, epochs, sum_g / n, max_g, sum_loc / n, go.p, sum_miss / n, go.p, n_missed / n,
+              sum_false / n, go.p, n_false / n);
+}
+
+// The `# summary:` of a file CsvTable refused for having no data row, if it
+// says "no track" (magnav track's file when nothing was to track); else "".
+std::string NoTrackSummary(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  for (int n = 0; n < 10000 && std::getline(in, line); ++n) {
+    if (line.rfind("# summary: no track", 0) == 0) return line.substr(11);
+  }
+  return "";
 }
 
 void Run(const EvaluateArgs& a) {
-  const CsvTable est = CsvTable::Read(a.estimate);
   const CsvTable truth = CsvTable::Read(a.truth);
-  const Xyz pe = PositionColumns(est), pt = PositionColumns(truth);
-  const std::size_t te = est.column("t"), tt = truth.column("t");
-  // A row marked not valid (fixes) or not usable (tracks) is not scored.
-  const auto valid_col = est.has_column("valid") ? est.find_column("valid") : est.find_column("usable");
-  const bool has_sigma = est.has_column("sigma_x");
-  const Xyz ps = has_sigma ? Xyz{est.column("sigma_x"), est.column("sigma_y"), est.column("sigma_z")} : Xyz{0, 0, 0};
+  std::optional<CsvTable> est_or_none;
+  try {
+    est_or_none = CsvTable::Read(a.estimate);
+  } catch (const InputError& e) {
+    // An empty track file is a result against a multi-vessel truth.
+    if (std::string(e.what()).find(": no data rows") == std::string::npos || !truth.has_column("vessel_id") ||
+        NoTrackSummary(a.estimate).empty()) {
+      throw;
+    }
+  }
   std::vector<Eigen::Vector3d> sensors;
   if (!a.sensors.empty() && !a.pass.empty()) throw InputError("give --sensors or --pass, not both");
   if (a.max_range_m > 0) {
@@ -156,10 +261,23 @@ void Run(const EvaluateArgs& a) {
   } else if (!a.sensors.empty() || !a.pass.empty()) {
     throw InputError("--sensors and --pass are used only with --max-range");
   }
+  if (!a.gospa_csv.empty()) {
+    RefuseOutputOverInput(a.gospa_csv, {a.estimate, a.truth, a.pass});
+    if (!truth.has_column("vessel_id") || (est_or_none && est_or_none->has_column("valid"))) {
+      throw InputError("--gospa needs a track file (not single-sample fixes) and a multi-vessel truth (vessel_id)");
+    }
+  }
   if (truth.has_column("vessel_id")) {
-    RunMulti(a, est, truth, sensors);
+    RunMulti(a, est_or_none ? &*est_or_none : nullptr, truth, sensors);
     return;
   }
+  const CsvTable& est = *est_or_none;
+  const Xyz pe = PositionColumns(est), pt = PositionColumns(truth);
+  const std::size_t te = est.column("t"), tt = truth.column("t");
+  // A row marked not valid (fixes) or not usable (tracks) is not scored.
+  const auto valid_col = est.has_column("valid") ? est.find_column("valid") : est.find_column("usable");
+  const bool has_sigma = est.has_column("sigma_x");
+  const Xyz ps = has_sigma ? Xyz{est.column("sigma_x"), est.column("sigma_y"), est.column("sigma_z")} : Xyz{0, 0, 0};
   // Truth by time, in ns to match exactly.
   std::map<long long, std::size_t> truth_at;
   for (std::size_t i = 0; i < truth.num_rows(); ++i) truth_at[std::llround(truth.number(i, tt) * 1e9)] = i;
@@ -210,14 +328,50 @@ void Run(const EvaluateArgs& a) {
   }
 }
 
+// What every printed figure means (--help; docs/ACCURACY.md "Scoring").
+constexpr const char* kEvaluateFigures = R"(Figures printed:
+One-vessel truth (t,x,y,z), estimate = fixes (magnav invert) or a track:
+  rows: estimate rows; used: compared with the truth (same t to 1 ns, valid/usable,
+    within --max-range); invalid: valid = 0 or usable = 0; no truth at that time;
+    beyond range: the true position farther than --max-range (horizontal) from every sensor.
+  position error RMS / max: sqrt(mean |p - p_true|^2) and the largest |p - p_true| over used rows, m.
+  mean NEES (diagonal sigmas, 3 dof): mean over used rows with sigma_x..z > 0 of
+    sum_i (e_i / sigma_i)^2; 3 when the sigmas are honest.
+Multi-vessel truth (vessel_id), track file (track_id):
+  rows (+ not usable): usable rows scored; each goes to the nearest vessel at its time (3-D);
+  false: farther than --gate from every vessel (share of the rows); at no truth time: no truth row at its t.
+  in-field instants: truth instants of the vessel within --max-range of a sensor (all without it).
+  coverage: share of its in-field instants with at least one row assigned to it.
+  track / purity / track ids: its most frequent track_id among its rows, that id's share of its rows,
+    the number of distinct ids among them.
+  RMS / max: error of its rows at in-field instants, m.
+  overrun: time of the last row of its main track minus its last in-field instant, s
+    (> 0: the track went on after the vessel left the sensors' reach; < 0: it ended before;
+    0 when the vessel has no row or no in-field instant).
+  GOSPA (c, p, alpha 2; Stone Soup's convention): per truth epoch, vessels in scope (in field) X against
+    the rows Y at that time (rows of an out-of-field vessel left out; false rows kept):
+    GOSPA = (min over one-to-one pairings of sum min(d,c)^p + c^p/2 per unpaired vessel or row)^(1/p), m;
+    a pair with d >= c counts as one missed vessel and one false row. localisation = sum d^p over pairs
+    with d < c, missed = c^p/2 per missed vessel, false = c^p/2 per false row (m^p, sum = GOSPA^p).
+    Printed: mean and max of GOSPA over epochs with a vessel in scope or a row, and the mean of each
+    component per epoch (with the mean number of missed vessels and false rows). --gospa FILE: per epoch.
+Multi-vessel truth, fix file (valid column, magnav invert):
+  fixes: valid and rejected (valid = 0, counted, not scored); each valid fix scored against the nearest
+  vessel at its time: false as above; per vessel: fixes at in-field instants, the instants they cover
+  (coverage), RMS / max error, m. No GOSPA (several fixes per instant).)";
+
 }  // namespace
 
 void AddEvaluateCommand(CLI::App& app) {
   auto args = std::make_shared<EvaluateArgs>();
   CLI::App* sub = app.add_subcommand("evaluate", "Position error of estimates (invert/track/record output) against truth");
-  sub->add_option("--estimate", args->estimate, "CSV with t and dipole_x..z or x..z (and optional valid, sigma_x..z)")
+  sub->add_option("--estimate", args->estimate,
+                  "fixes (magnav invert: t, dipole_x..z, valid, sigma_x..z), a track (magnav track: t, track_id, "
+                  "x..z, sigma_x..z) or a recorded dipole_fix / track topic")
       ->required();
-  sub->add_option("--truth", args->truth, "truth CSV with t,x,y,z (e.g. magnav simulate --truth)")->required();
+  sub->add_option("--truth", args->truth,
+                  "truth CSV with t,x,y,z, or t,vessel_id,x,y,z for several vessels (magnav simulate --truth)")
+      ->required();
   sub->add_option("--max-range", args->max_range_m, "use only epochs within this horizontal range of a sensor, m")
       ->check(CLI::PositiveNumber);
   sub->add_option("--sensors", args->sensors, "sensor positions X,Y,Z[;X,Y,Z...] for --max-range");
@@ -225,6 +379,16 @@ void AddEvaluateCommand(CLI::App& app) {
   sub->add_option("--gate", args->gate_m,
                   "multi-vessel truth (vessel_id): a row farther than this from every vessel is a false row, m")
       ->check(CLI::PositiveNumber);
+  sub->add_option("--gospa", args->gospa_csv,
+                  "multi-vessel truth, track file: write the GOSPA of every epoch to this CSV "
+                  "(t,gospa,localisation,missed,false)");
+  sub->add_option("--gospa-c", args->gospa_c_m, "GOSPA cut-off distance c, m")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  sub->add_option("--gospa-p", args->gospa_p, "GOSPA order p (>= 1)")
+      ->check(CLI::Range(1.0, 1e3))
+      ->capture_default_str();
+  sub->footer(kEvaluateFigures);
   sub->callback([args] { Run(*args); });
 }
 

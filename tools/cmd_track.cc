@@ -7,6 +7,7 @@
 // magnav-tracker takes them from magnav/dipole_fix.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <memory>
@@ -219,7 +220,16 @@ void RunTrack(const TrackArgs& a) {
   } else {
     throw InputError("--mode: expected batch or window, got '" + a.mode + "'");
   }
-  if (records.empty()) throw InputError(a.input + ": " + tracker::NoTrackMessage(opt, given != nullptr));
+  // Nothing to track is a result (no vessel close enough to any sensor): an
+  // empty track file whose summary says why, exit 0.
+  if (records.empty()) {
+    std::string why = tracker::NoTrackMessage(opt, given != nullptr);
+    if (a.mode == "window") {
+      why += "; " + summary;
+    }
+    std::fprintf(stderr, "magnav track: %s: %s; writing a track file with no rows\n", a.input.c_str(), why.c_str());
+    summary = why;
+  }
   WriteTracks(a.output, a.input, a.mode, rows, records, summary);
 }
 

@@ -1,0 +1,114 @@
+// `magnav evaluate` on tiny multi-vessel files whose scores are worked out by
+// hand: GOSPA per epoch and overall (c = 10 m, p = 2: a missed vessel or a
+// false row costs c²/2 = 50 m²), its CSV, and single-sample fix files with
+// rejected fixes scored against a multi-vessel truth.
+#include <cmath>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "magnav/core/csv.h"
+#include "subprocess.h"
+#include "test_data.h"
+
+namespace magnav {
+namespace {
+
+const std::string kMagnav = MAGNAV_BIN;
+
+std::pair<int, std::string> Evaluate(const std::vector<std::string>& args) {
+  std::vector<std::string> argv = {kMagnav, "evaluate"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return testing::RunCommand(argv);
+}
+
+// Two vessels standing still, 100 m apart, at three instants.
+void WriteTruth(const std::string& path) {
+  std::ofstream f(path);
+  f << "t,vessel_id,x,y,z\n";
+  for (const char* t : {"0", "0.1", "0.2"}) f << t << ",1,0,0,0\n" << t << ",2,100,0,0\n";
+}
+
+TEST(EvaluateCli, GospaOfATinyTrackFileEqualsTheHandWorkedValue) {
+  const std::string dir = testing::TempDir();
+  WriteTruth(dir + "/truth.csv");
+  // t = 0: both tracked, 3 m and 4 m off: 9 + 16 = 25 m² → GOSPA 5 m.
+  // t = 0.1: vessel 2 missed: 50 m² → √50 m. t = 0.2: both exact, one
+  // false row 50 m from each: 50 m² → √50 m. Mean (5 + 2√50)/3 = 6.3807 m.
+  std::ofstream(dir + "/track.csv") << "t,track_id,x,y,z\n"
+                                    << "0,1,0,3,0\n0,2,100,4,0\n"
+                                    << "0.1,1,0,0,0\n"
+                                    << "0.2,1,0,0,0\n0.2,2,100,0,0\n0.2,3,50,0,0\n";
+  const auto [rc, out] = Evaluate({"--estimate", dir + "/track.csv", "--truth", dir + "/truth.csv", "--gospa",
+                                   dir + "/gospa.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("GOSPA (c 10 m, p 2, alpha 2) over 3 epochs: mean 6.381 m, max 7.071 m; per epoch, mean "
+                     "localisation 8.333 m^2, missed 16.67 m^2 (0.3333 vessels), false 16.67 m^2 (0.3333 estimates)"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("1 false"), std::string::npos) << out;  // the row at 50 m, beyond the 5 m gate
+  const CsvTable g = CsvTable::Read(dir + "/gospa.csv");
+  const std::vector<std::string> header = {"t", "gospa", "localisation", "missed", "false"};
+  ASSERT_EQ(g.header(), header);
+  ASSERT_EQ(g.num_rows(), 3u);
+  const double expected[3][5] = {{0.0, 5.0, 25.0, 0.0, 0.0},
+                                 {0.1, std::sqrt(50.0), 0.0, 50.0, 0.0},
+                                 {0.2, std::sqrt(50.0), 0.0, 0.0, 50.0}};
+  for (std::size_t k = 0; k < 3; ++k) {
+    for (std::size_t c = 0; c < 5; ++c) EXPECT_NEAR(g.number(k, c), expected[k][c], 1e-12) << k << "," << c;
+  }
+  EXPECT_EQ(g.text(1, 0), "0.1");  // the truth's time as written, not 1e8 ns · 1e-9
+  // --gospa-c 4: a miss or a false row costs 8 m²; the 4 m pair is at c, so a miss and a false
+  // row (9 + 8 + 8 = 25 m² at t = 0).
+  const auto [rc2, out2] =
+      Evaluate({"--estimate", dir + "/track.csv", "--truth", dir + "/truth.csv", "--gospa-c", "4"});
+  ASSERT_EQ(rc2, 0) << out2;
+  EXPECT_NE(out2.find("mean 3.552 m"), std::string::npos) << out2;  // (5 + 2·√8)/3
+  // --gospa with a one-vessel truth is refused.
+  std::ofstream(dir + "/one.csv") << "t,x,y,z\n0,0,0,0\n";
+  const auto [rc3, out3] =
+      Evaluate({"--estimate", dir + "/track.csv", "--truth", dir + "/one.csv", "--gospa", dir + "/g2.csv"});
+  EXPECT_EQ(rc3, 2) << out3;
+}
+
+TEST(EvaluateCli, FixFilesWithRejectedFixesAreScoredAgainstTheNearestVessel) {
+  const std::string dir = testing::TempDir();
+  WriteTruth(dir + "/truth.csv");
+  // As magnav invert writes them: a rejected fix with an empty position.
+  std::ofstream(dir + "/fixes.csv") << "t,sensor_id,dipole_x,dipole_y,dipole_z,valid,reason\n"
+                                    << "0,0,,,,0,low_snr\n"
+                                    << "0,1,1,0,0,1,\n"
+                                    << "0.1,0,100,0,2,1,\n"
+                                    << "0.1,1,100,0,-2,1,\n"
+                                    << "0.2,1,30,0,0,1,\n";
+  const auto [rc, out] = Evaluate({"--estimate", dir + "/fixes.csv", "--truth", dir + "/truth.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("fixes 5: valid 4, rejected 1 (valid = 0: counted, not scored); each valid fix scored against "
+                     "the nearest truth vessel at its time: 1 false"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("vessel 1: in-field instants 3, fixes 1 at 1 of them (coverage 0.3333), RMS 1 m, max 1 m"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("vessel 2: in-field instants 3, fixes 2 at 1 of them (coverage 0.3333), RMS 2 m, max 2 m"),
+            std::string::npos)
+      << out;
+  // GOSPA needs one estimate per vessel: refused for fixes.
+  const auto [rc2, out2] =
+      Evaluate({"--estimate", dir + "/fixes.csv", "--truth", dir + "/truth.csv", "--gospa", dir + "/g.csv"});
+  EXPECT_EQ(rc2, 2) << out2;
+  EXPECT_NE(out2.find("--gospa needs a track file"), std::string::npos) << out2;
+}
+
+TEST(EvaluateCli, HelpDefinesEveryFigure) {
+  const auto [rc, out] = Evaluate({"--help"});
+  ASSERT_EQ(rc, 0) << out;
+  for (const char* w : {"coverage:", "purity", "overrun:", "GOSPA", "localisation =", "missed =", "false =",
+                        "mean NEES", "in-field instants:", "beyond range"}) {
+    EXPECT_NE(out.find(w), std::string::npos) << w;
+  }
+}
+
+}  // namespace
+}  // namespace magnav
