@@ -72,3 +72,19 @@ function(magnav_service_test name)
     add_dependencies(${name} ${peer})
   endif()
 endfunction()
+
+# A module's DDS service (the only part of a module that includes DDS
+# headers): its node as a library magnav::<module>_service (sources
+# service/<node>.cc, headers in service/) over the module's library and the
+# DDS adapter, and its thin main as the executable.
+#   magnav_service(MODULE inversion EXECUTABLE magnav-inverter NODE inverter_node)
+function(magnav_service)
+  cmake_parse_arguments(ARG "" "MODULE;EXECUTABLE;NODE" "" ${ARGN})
+  set(lib magnav_${ARG_MODULE}_service)
+  add_library(${lib} STATIC service/${ARG_NODE}.cc)
+  add_library(magnav::${ARG_MODULE}_service ALIAS ${lib})
+  target_include_directories(${lib} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/service)
+  target_link_libraries(${lib} PUBLIC magnav::${ARG_MODULE} magnav::dds PRIVATE spdlog::spdlog magnav_warnings)
+  add_executable(${ARG_EXECUTABLE} service/main.cc)
+  target_link_libraries(${ARG_EXECUTABLE} PRIVATE magnav::${ARG_MODULE}_service magnav::cli spdlog::spdlog magnav_warnings)
+endfunction()
