@@ -262,11 +262,13 @@ class Reader {
  public:
   using Callback = std::function<void(const M&, const fdds::SampleInfo&)>;
   ~Reader() {
+    std::thread maker;
     {
       std::lock_guard<std::mutex> lk(companion_mu_);
       closing_ = true;
+      maker = std::move(companion_thread_);
     }
-    if (companion_thread_.joinable()) companion_thread_.join();
+    if (maker.joinable()) maker.join();
     for (Endpoint* e : {&profile_, &companion_}) {
       if (e->reader) {
         e->reader->set_listener(nullptr);
@@ -381,13 +383,20 @@ class Reader {
   }
   // Makes the companion once, on a thread of its own (creating a DataReader
   // inside a middleware callback is not safe).
+  // companion_mu_ is held only to start or take the thread, never across a
+  // middleware call: this runs inside Fast DDS's discovery callbacks (their
+  // locks held), and create_datareader takes those locks (ThreadSanitizer
+  // found the inversion when the maker held it).
   void StartCompanion() {
     std::lock_guard<std::mutex> lk(companion_mu_);
     if (companion_started_ || closing_) return;
     companion_started_ = true;
     companion_thread_ = std::thread([this] {
-      std::lock_guard<std::mutex> lk(companion_mu_);
-      if (closing_) return;
+      {
+        std::lock_guard<std::mutex> closing_lk(companion_mu_);
+        if (closing_) return;
+      }
+      // The destructor joins this thread before it deletes anything.
       companion_.reader = node_subscriber_->create_datareader(topic_entity_, *any_qos_, &companion_);
       if (!companion_.reader) {
         internal::LogCompanion(topic_, false);
@@ -434,7 +443,7 @@ class Reader {
   std::optional<fdds::DataReaderQos> any_qos_;  // the companion's; none: never made
   fdds::Topic* topic_entity_ = nullptr;
   std::atomic<bool> has_companion_{false};
-  std::mutex companion_mu_;  // companion_started_, closing_, companion_.reader while it is made
+  std::mutex companion_mu_;  // companion_started_, closing_, companion_thread_ (never held across a middleware call)
   bool companion_started_ = false, closing_ = false;
   std::thread companion_thread_;
   std::atomic<std::uint64_t> lost_[2] = {0, 0};
