@@ -50,7 +50,10 @@ bool FromCdr(const std::string& bytes, M* m) {
   std::copy(bytes.begin(), bytes.end(), payload.data);
   payload.length = static_cast<std::uint32_t>(bytes.size());
   if (bytes.size() < 4) return false;
-  return ts.deserialize(&payload, m) && !dds::internal::TakeDeserializeFailure();
+  const bool ok = ts.deserialize(&payload, m);
+  // CheckedPubSubType marks a failure for the DDS reader: cleared here.
+  const bool failed = dds::internal::TakeDeserializeFailure();
+  return ok && !failed;
 }
 
 // Calls f(M{}) with the message type of a topic (short name).

@@ -9,6 +9,7 @@
 #include <array>
 #include <cerrno>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <string_view>
 
@@ -166,9 +167,19 @@ struct Cursor {
   }
 };
 
+// A log time: UTC when it is one (after 2001), else seconds.
 std::string FormatTime(std::uint64_t ns) {
   char b[64];
-  std::snprintf(b, sizeof b, "%.3f s", static_cast<double>(ns) * 1e-9);
+  if (ns >= 1000000000000000000ull) {
+    const std::time_t t = static_cast<std::time_t>(ns / 1000000000ull);
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char d[32];
+    std::strftime(d, sizeof d, "%Y-%m-%dT%H:%M:%S", &tm);
+    std::snprintf(b, sizeof b, "%s.%03lluZ", d, static_cast<unsigned long long>((ns / 1000000ull) % 1000));
+  } else {
+    std::snprintf(b, sizeof b, "%.3f s", static_cast<double>(ns) * 1e-9);
+  }
   return b;
 }
 
@@ -242,18 +253,14 @@ class Parser {
       const std::uint64_t len = hc.U64();
       if (first && op != kHeader) Fail("byte 8: the first record is a " + std::string(OpName(op)) + " record, not a Header");
       first = false;
-      if (len > size - pos - 9) {
-        if (len > limits_.max_record_bytes + (1ull << 20) && op != kChunk) {
-          Fail("byte " + std::to_string(pos) + ": a " + OpName(op) + " record claims " + std::to_string(len) +
-               " bytes, more than the file holds");
-        }
-        return Truncated(pos, std::string("inside a ") + OpName(op) + " record (" + std::to_string(size - pos - 9) + " of its " +
-                                  std::to_string(len) + " bytes present)");
-      }
       const std::uint64_t max = op == kChunk ? limits_.max_chunk_bytes : limits_.max_record_bytes;
       if (len > max) {
         Fail("byte " + std::to_string(pos) + ": a " + OpName(op) + " record of " + std::to_string(len) +
              " bytes is over the limit of " + std::to_string(max));
+      }
+      if (len > size - pos - 9) {
+        return Truncated(pos, std::string("inside a ") + OpName(op) + " record (" + std::to_string(size - pos - 9) + " of its " +
+                                  std::to_string(len) + " bytes present)");
       }
       at_ = pos;
       const std::string content(src_.Read(pos + 9, len));
