@@ -10,7 +10,10 @@
 #   dds     `magnav info` and `magnav export` on x.mcap (the exported
 #           gradiometer.csv holds the pass), and `replay --input x.mcap` into a
 #           fresh inverter: its valid fixes equal `magnav invert`'s offline,
-#           bit for bit.
+#           bit for bit. Then `replay --loop` of a 25-sample recording
+#           (tests/data/bad/mcap/ok.mcap) for 3 s at --speed 4, recorded as CSV
+#           (time and seq keep going up by one step across passes) and as MCAP
+#           split every 20 kB (the pieces hold every sample between them).
 # Usage: mcap_e2e_test.sh CASE BIN_DIR SOURCE_DIR VENV_DIR
 set -euo pipefail
 CASE=$1 BIN=$2 SRC=$3 VENV=$4
@@ -76,6 +79,32 @@ dds)
   valid_fixes "$WORK/fixes.csv" >"$WORK/got.txt"
   echo "replayed x.mcap: $(col "$WORK/fixes.csv" seq | wc -l) fixes, $(wc -l <"$WORK/got.txt") valid (offline $(wc -l <"$WORK/want.txt"))"
   cmp -s "$WORK/got.txt" "$WORK/want.txt" || fail "the valid fixes of the replayed recording differ from magnav invert"
+  # --loop, and --split-size.
+  "$BIN/magnav" record --output "$WORK/loop.csv" >"$WORK/record3.log" 2>&1 &
+  rec3=$!; pids+=($rec3)
+  "$BIN/magnav" record --output "$WORK/loop.mcap" --split-size 20000 >"$WORK/record4.log" 2>&1 &
+  rec4=$!; pids+=($rec4)
+  # (timeout answers 124 when it stopped the replay, as here)
+  rc=0
+  timeout -s INT 4 "$BIN/magnav" replay --input "$SRC/tests/data/bad/mcap/ok.mcap" --loop --speed 4 --wait-readers 2 \
+    --wait 20 >"$WORK/replay3.log" 2>&1 || rc=$?
+  [ "$rc" -eq 0 ] || [ "$rc" -eq 124 ] || fail "replay --loop: $(tail -1 "$WORK/replay3.log")"
+  sleep 0.5
+  kill -INT "$rec3" "$rec4"; wait "$rec3" "$rec4" || fail "record of the loop failed"
+  looped=$(col "$WORK/loop.csv" seq | wc -l)
+  [ "$looped" -gt 25 ] || fail "replay --loop sent $looped samples (not more than one pass of 25)"
+  paste -d' ' <(col "$WORK/loop.csv" t) <(col "$WORK/loop.csv" seq) |
+    awk 'NR > 1 && ($2 != s + 1 || $1 - t < 0.099 || $1 - t > 0.101) { bad = 1; print "step at row " NR ": " $0 }
+         { t = $1; s = $2 } END { exit bad }' || fail "time or seq do not go on by one step across passes"
+  pieces=$(ls "$WORK"/loop*.mcap | wc -l)
+  [ "$pieces" -ge 2 ] || fail "--split-size 20000 made $pieces file(s)"
+  split_total=0
+  for f in "$WORK"/loop*.mcap; do
+    n=$("$BIN/magnav" info "$f" | sed -n 's/^magnav\/gradiometer ([^)]*): \([0-9]*\) message.*/\1/p')
+    split_total=$((split_total + n))
+  done
+  echo "replay --loop: $looped samples, time and seq continuous; --split-size: $pieces files, $split_total samples"
+  [ "$split_total" -eq "$looped" ] || fail "the split files hold $split_total samples, the CSV $looped"
   ;;
 *) echo "unknown case $CASE"; exit 2 ;;
 esac
