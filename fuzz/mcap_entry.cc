@@ -17,13 +17,16 @@ void FuzzMcap(const std::uint8_t* data, std::size_t size) {
   limits.max_record_bytes = 64u << 20;
   try {
     std::uint64_t seen = 0;
-    const mcap::ReadSummary s = mcap::ReadBytes("fuzz.mcap", bytes, [&](const mcap::Message& m, const mcap::ReadSummary& sum) {
-      // Invariant: a message handed on has its channel (and its schema, if any).
-      const mcap::Channel* c = mcap::FindChannel(sum, m.channel_id);
-      if (!c) std::abort();
-      if (c->schema_id != 0 && !mcap::FindSchema(sum, c->schema_id)) std::abort();
-      ++seen;
-    }, limits);
+    const mcap::ReadSummary s = mcap::ReadBytes(
+        "fuzz.mcap", bytes,
+        [&](const mcap::Message& m, const mcap::ReadSummary& sum) {
+          // Invariant: a message handed on has its channel (and its schema, if any).
+          const mcap::Channel* c = mcap::FindChannel(sum, m.channel_id);
+          if (!c) std::abort();
+          if (c->schema_id != 0 && !mcap::FindSchema(sum, c->schema_id)) std::abort();
+          ++seen;
+        },
+        limits);
     if (s.messages != seen) std::abort();
   } catch (const InputError&) {
   }

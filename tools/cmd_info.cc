@@ -101,7 +101,8 @@ void Print(const std::vector<TopicStats>& topics) {
     } else {
       std::printf("\n");
     }
-    if (t.undecodable) std::printf("  %llu message(s) not CDR of the type\n", static_cast<unsigned long long>(t.undecodable));
+    if (t.undecodable)
+      std::printf("  %llu message(s) not CDR of the type\n", static_cast<unsigned long long>(t.undecodable));
   }
 }
 
@@ -138,9 +139,9 @@ void InfoMcap(const std::string& path) {
       t.keys[KeyOf(msg)].Add(static_cast<double>(msg.stamp_ns()) * 1e-9, SeqOf(msg));
     });
   });
-  std::printf("%s: MCAP (profile '%s', written by '%s'), %zu channel(s), %llu message(s) in %u chunk(s)\n", path.c_str(),
-              s.profile.c_str(), s.library.c_str(), s.channels.size(), static_cast<unsigned long long>(s.messages),
-              s.chunks);
+  std::printf("%s: MCAP (profile '%s', written by '%s'), %zu channel(s), %llu message(s) in %u chunk(s)\n",
+              path.c_str(), s.profile.c_str(), s.library.c_str(), s.channels.size(),
+              static_cast<unsigned long long>(s.messages), s.chunks);
   if (n > 0) {
     std::printf("received (log_time) over %.3f s\n", static_cast<double>(last_log - first_log) * 1e-9);
   }
@@ -172,7 +173,8 @@ void InfoCsv(const std::string& path) {
   s.name = path;
   const auto& cols = t.header();
   auto has = [&](const std::string& c) { return std::find(cols.begin(), cols.end(), c) != cols.end(); };
-  if (!has("t")) throw InputError(path + ": no column 't' (info reads recordings and passes with a time column)");
+  if (!has("t"))
+    throw InputError(path + ": no column 't' (info reads recordings and passes with a time column)");
   std::string key;
   for (const char* k : {"sensor_id", "track_id", "vehicle_id", "vessel_id", "vessel"}) {
     if (has(k)) {
@@ -180,7 +182,11 @@ void InfoCsv(const std::string& path) {
       break;
     }
   }
-  s.key_name = key.empty() ? "keys" : key == "track_id" ? "tracks" : key == "vehicle_id" ? "vehicles" : key == "sensor_id" ? "sensors" : "vessels";
+  s.key_name = key.empty()           ? "keys"
+               : key == "track_id"   ? "tracks"
+               : key == "vehicle_id" ? "vehicles"
+               : key == "sensor_id"  ? "sensors"
+                                     : "vessels";
   const std::size_t tc = t.column("t");
   const std::size_t kc = key.empty() ? 0 : t.column(key);
   const bool seq = has("seq");
@@ -210,7 +216,8 @@ void RunExport(const std::string& path, const std::string& dir) {
     if (std::filesystem::is_directory(dir)) return;
     std::error_code ec;
     made_dir = std::filesystem::create_directories(dir, ec);
-    if (ec || !std::filesystem::is_directory(dir)) throw InputError("--output-dir: cannot create directory '" + dir + "'");
+    if (ec || !std::filesystem::is_directory(dir))
+      throw InputError("--output-dir: cannot create directory '" + dir + "'");
   };
   std::map<std::uint16_t, std::unique_ptr<CsvWriter>> out;
   std::map<std::uint16_t, std::string> topic_of;
@@ -218,57 +225,63 @@ void RunExport(const std::string& path, const std::string& dir) {
   std::uint64_t skipped = 0;
   mcap::ReadSummary s;
   try {
-  s = mcap::Read(path, [&](const mcap::Message& m, const mcap::ReadSummary& sum) {
-    auto it = topic_of.find(m.channel_id);
-    if (it == topic_of.end()) {
-      const mcap::Channel* c = mcap::FindChannel(sum, m.channel_id);
-      std::string topic = c->message_encoding == "cdr" ? ShortTopic(c->topic) : "";
-      if (!topic.empty()) {
-        for (const auto& [id, other] : topic_of) {
-          if (other == topic) throw InputError(path + ": two channels of topic " + c->topic + " (export writes one CSV per topic)");
+    s = mcap::Read(path, [&](const mcap::Message& m, const mcap::ReadSummary& sum) {
+      auto it = topic_of.find(m.channel_id);
+      if (it == topic_of.end()) {
+        const mcap::Channel* c = mcap::FindChannel(sum, m.channel_id);
+        std::string topic = c->message_encoding == "cdr" ? ShortTopic(c->topic) : "";
+        if (!topic.empty()) {
+          for (const auto& [id, other] : topic_of) {
+            if (other == topic)
+              throw InputError(path + ": two channels of topic " + c->topic +
+                               " (export writes one CSV per topic)");
+          }
+          const std::string file = dir + "/" + topic + ".csv";
+          make_dir();
+          RefuseOutputOverInput(file, {path});
+          out[m.channel_id] = std::make_unique<CsvWriter>(file, Header(topic));
         }
-        const std::string file = dir + "/" + topic + ".csv";
-        make_dir();
-        RefuseOutputOverInput(file, {path});
-        out[m.channel_id] = std::make_unique<CsvWriter>(file, Header(topic));
+        it = topic_of.emplace(m.channel_id, topic).first;
       }
-      it = topic_of.emplace(m.channel_id, topic).first;
-    }
-    if (it->second.empty()) {
-      ++skipped;
-      return;
-    }
-    WithTopicType(it->second, [&](auto msg) {
-      if (!FromCdr(m.data, &msg)) {
-        throw InputError(path + ": a message on magnav/" + it->second + " (log time " + std::to_string(m.log_time) +
-                         " ns) is not CDR of " + TypeNameOf(it->second));
+      if (it->second.empty()) {
+        ++skipped;
+        return;
       }
-      out[m.channel_id]->WriteRow(Row(msg));
-      ++rows[it->second];
+      WithTopicType(it->second, [&](auto msg) {
+        if (!FromCdr(m.data, &msg)) {
+          throw InputError(path + ": a message on magnav/" + it->second + " (log time " +
+                           std::to_string(m.log_time) + " ns) is not CDR of " + TypeNameOf(it->second));
+        }
+        out[m.channel_id]->WriteRow(Row(msg));
+        ++rows[it->second];
+      });
     });
-  });
-  make_dir();
-  // A topic recorded without messages: its CSV with the header alone, as
-  // record writes it.
-  for (const mcap::Channel& c : s.channels) {
-    const std::string topic = c.message_encoding == "cdr" ? ShortTopic(c.topic) : "";
-    if (topic.empty() || topic_of.count(c.id) || rows.count(topic)) continue;
-    bool taken = false;
-    for (const auto& [id, other] : topic_of) taken = taken || other == topic;
-    if (taken) continue;
-    topic_of[c.id] = topic;
-    rows[topic] = 0;
-    out[c.id] = std::make_unique<CsvWriter>(dir + "/" + topic + ".csv", Header(topic));
-  }
-  for (auto& [id, w] : out) w->Close();
+    make_dir();
+    // A topic recorded without messages: its CSV with the header alone, as
+    // record writes it.
+    for (const mcap::Channel& c : s.channels) {
+      const std::string topic = c.message_encoding == "cdr" ? ShortTopic(c.topic) : "";
+      if (topic.empty() || topic_of.count(c.id) || rows.count(topic)) continue;
+      bool taken = false;
+      for (const auto& [id, other] : topic_of) taken = taken || other == topic;
+      if (taken) continue;
+      topic_of[c.id] = topic;
+      rows[topic] = 0;
+      out[c.id] = std::make_unique<CsvWriter>(dir + "/" + topic + ".csv", Header(topic));
+    }
+    for (auto& [id, w] : out) w->Close();
   } catch (...) {
     out.clear();  // the temporaries go
     std::error_code ec;
     if (made_dir) std::filesystem::remove(dir, ec);
     throw;
   }
-  for (const auto& [t, n] : rows) std::printf("exported %llu %s row(s) to %s/%s.csv\n", static_cast<unsigned long long>(n), t.c_str(), dir.c_str(), t.c_str());
-  if (skipped) std::fprintf(stderr, "export: %llu message(s) on channels that are not magnav topics in CDR skipped\n", static_cast<unsigned long long>(skipped));
+  for (const auto& [t, n] : rows)
+    std::printf("exported %llu %s row(s) to %s/%s.csv\n", static_cast<unsigned long long>(n), t.c_str(),
+                dir.c_str(), t.c_str());
+  if (skipped)
+    std::fprintf(stderr, "export: %llu message(s) on channels that are not magnav topics in CDR skipped\n",
+                 static_cast<unsigned long long>(skipped));
   if (!s.truncated.empty()) std::fprintf(stderr, "export: warning: %s\n", s.truncated.c_str());
 }
 
@@ -285,7 +298,8 @@ void AddInfoCommand(CLI::App& app) {
 void AddExportCommand(CLI::App& app) {
   auto path = std::make_shared<std::string>();
   auto dir = std::make_shared<std::string>();
-  CLI::App* sub = app.add_subcommand("export", "Write an MCAP recording's topics as the CSVs magnav record writes");
+  CLI::App* sub =
+      app.add_subcommand("export", "Write an MCAP recording's topics as the CSVs magnav record writes");
   sub->add_option("file", *path, "MCAP recording")->required();
   sub->add_option("--output-dir", *dir, "directory (made if missing): one TOPIC.csv per topic")->required();
   sub->callback([path, dir] { RunExport(*path, *dir); });

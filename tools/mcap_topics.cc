@@ -1,9 +1,9 @@
 #include "mcap_topics.h"
 
-#include <algorithm>
-
 #include <fastrtps/attributes/PublisherAttributes.h>
 #include <fastrtps/xmlparser/XMLProfileManager.h>
+
+#include <algorithm>
 
 #include "embedded_idl.h"
 
@@ -45,10 +45,14 @@ const char* Reliability(eprosima::fastdds::dds::ReliabilityQosPolicyKind k) {
 }
 const char* Durability(eprosima::fastdds::dds::DurabilityQosPolicyKind k) {
   switch (k) {
-    case eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS: return "volatile";
-    case eprosima::fastdds::dds::TRANSIENT_LOCAL_DURABILITY_QOS: return "transient_local";
-    case eprosima::fastdds::dds::TRANSIENT_DURABILITY_QOS: return "transient";
-    default: return "persistent";
+    case eprosima::fastdds::dds::VOLATILE_DURABILITY_QOS:
+      return "volatile";
+    case eprosima::fastdds::dds::TRANSIENT_LOCAL_DURABILITY_QOS:
+      return "transient_local";
+    case eprosima::fastdds::dds::TRANSIENT_DURABILITY_QOS:
+      return "transient";
+    default:
+      return "persistent";
   }
 }
 }  // namespace

@@ -6,11 +6,11 @@
 // (docs/PROTOCOL.md, "Recordings (MCAP)").
 #pragma once
 
+#include <fastdds/rtps/common/SerializedPayload.h>
+
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <fastdds/rtps/common/SerializedPayload.h>
 
 #include "magnav/dds/topics.h"
 #include "magnav/mcap/mcap.h"
@@ -80,10 +80,14 @@ inline std::uint32_t KeyOf(const dds::msg::TrackEstimate& m) { return m.track_id
 inline std::uint32_t KeyOf(const dds::msg::SensorPositionEstimate& m) { return m.sensor_id(); }
 inline std::uint32_t KeyOf(const dds::msg::MapFix& m) { return m.vehicle_id(); }
 inline std::int64_t SeqOf(const dds::msg::GradiometerSample& m) { return static_cast<std::int64_t>(m.seq()); }
-inline std::int64_t SeqOf(const dds::msg::MagnetometerSample& m) { return static_cast<std::int64_t>(m.seq()); }
+inline std::int64_t SeqOf(const dds::msg::MagnetometerSample& m) {
+  return static_cast<std::int64_t>(m.seq());
+}
 inline std::int64_t SeqOf(const dds::msg::DipoleFix& m) { return static_cast<std::int64_t>(m.sample_seq()); }
 template <class M>
-std::int64_t SeqOf(const M&) { return -1; }
+std::int64_t SeqOf(const M&) {
+  return -1;
+}
 inline void ShiftSeq(dds::msg::GradiometerSample& m, std::uint64_t d) { m.seq(m.seq() + d); }
 inline void ShiftSeq(dds::msg::MagnetometerSample& m, std::uint64_t d) { m.seq(m.seq() + d); }
 inline void ShiftSeq(dds::msg::DipoleFix& m, std::uint64_t d) { m.sample_seq(m.sample_seq() + d); }

@@ -2,22 +2,24 @@
 // whole, with every compression; a file cut anywhere is read up to its last
 // complete chunk with a warning; invalid content is an InputError naming the
 // file.
+#include "magnav/mcap/mcap.h"
+
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-
 #include "magnav/core/error.h"
-#include "magnav/mcap/mcap.h"
 
 namespace magnav::mcap {
 namespace {
 
 std::string TempPath(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("mcap_test_" + std::to_string(::getpid()) + "_" + name)).string();
+  return (std::filesystem::temp_directory_path() / ("mcap_test_" + std::to_string(::getpid()) + "_" + name))
+      .string();
 }
 
 std::string Slurp(const std::string& path) {

@@ -4,7 +4,9 @@
 #include "magnav/mcap/mcap.h"
 
 #include <fcntl.h>
+#include <lz4frame.h>
 #include <unistd.h>
+#include <zstd.h>
 
 #include <array>
 #include <cerrno>
@@ -12,9 +14,6 @@
 #include <ctime>
 #include <fstream>
 #include <string_view>
-
-#include <lz4frame.h>
-#include <zstd.h>
 
 #include "magnav/core/error.h"
 
@@ -43,22 +42,38 @@ enum Op : std::uint8_t {
 
 const char* OpName(std::uint8_t op) {
   switch (op) {
-    case kHeader: return "Header";
-    case kFooter: return "Footer";
-    case kSchema: return "Schema";
-    case kChannel: return "Channel";
-    case kMessage: return "Message";
-    case kChunk: return "Chunk";
-    case kMessageIndex: return "Message Index";
-    case kChunkIndex: return "Chunk Index";
-    case kAttachment: return "Attachment";
-    case kAttachmentIndex: return "Attachment Index";
-    case kStatistics: return "Statistics";
-    case kMetadata: return "Metadata";
-    case kMetadataIndex: return "Metadata Index";
-    case kSummaryOffset: return "Summary Offset";
-    case kDataEnd: return "Data End";
-    default: return "unknown";
+    case kHeader:
+      return "Header";
+    case kFooter:
+      return "Footer";
+    case kSchema:
+      return "Schema";
+    case kChannel:
+      return "Channel";
+    case kMessage:
+      return "Message";
+    case kChunk:
+      return "Chunk";
+    case kMessageIndex:
+      return "Message Index";
+    case kChunkIndex:
+      return "Chunk Index";
+    case kAttachment:
+      return "Attachment";
+    case kAttachmentIndex:
+      return "Attachment Index";
+    case kStatistics:
+      return "Statistics";
+    case kMetadata:
+      return "Metadata";
+    case kMetadataIndex:
+      return "Metadata Index";
+    case kSummaryOffset:
+      return "Summary Offset";
+    case kDataEnd:
+      return "Data End";
+    default:
+      return "unknown";
   }
 }
 
@@ -69,7 +84,8 @@ struct Buf {
   void U8(std::uint8_t v) { s.push_back(static_cast<char>(v)); }
   template <class T>
   void Le(T v) {
-    for (std::size_t i = 0; i < sizeof(T); ++i) s.push_back(static_cast<char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xff));
+    for (std::size_t i = 0; i < sizeof(T); ++i)
+      s.push_back(static_cast<char>((static_cast<std::uint64_t>(v) >> (8 * i)) & 0xff));
   }
   void U16(std::uint16_t v) { Le(v); }
   void U32(std::uint32_t v) { Le(v); }
@@ -141,7 +157,8 @@ struct Cursor {
   T Le() {
     Need(sizeof(T));
     std::uint64_t v = 0;
-    for (std::size_t i = 0; i < sizeof(T); ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(d[p + i])) << (8 * i);
+    for (std::size_t i = 0; i < sizeof(T); ++i)
+      v |= static_cast<std::uint64_t>(static_cast<unsigned char>(d[p + i])) << (8 * i);
     p += sizeof(T);
     return static_cast<T>(v);
   }
@@ -196,7 +213,9 @@ class MemorySource : public Source {
  public:
   explicit MemorySource(const std::string& b) : b_(b) {}
   std::uint64_t size() const override { return b_.size(); }
-  std::string_view Read(std::uint64_t offset, std::uint64_t n) override { return std::string_view(b_).substr(offset, n); }
+  std::string_view Read(std::uint64_t offset, std::uint64_t n) override {
+    return std::string_view(b_).substr(offset, n);
+  }
 
  private:
   const std::string& b_;
@@ -228,8 +247,8 @@ class FileSource : public Source {
 
 class Parser {
  public:
-  Parser(const std::string& name, Source& src, const std::function<void(const Message&, const ReadSummary&)>& cb,
-         const ReaderLimits& limits)
+  Parser(const std::string& name, Source& src,
+         const std::function<void(const Message&, const ReadSummary&)>& cb, const ReaderLimits& limits)
       : name_(name), src_(src), cb_(cb), limits_(limits) {}
 
   ReadSummary Run() {
@@ -251,7 +270,8 @@ class Parser {
       Cursor hc{rh};
       const std::uint8_t op = hc.U8();
       const std::uint64_t len = hc.U64();
-      if (first && op != kHeader) Fail("byte 8: the first record is a " + std::string(OpName(op)) + " record, not a Header");
+      if (first && op != kHeader)
+        Fail("byte 8: the first record is a " + std::string(OpName(op)) + " record, not a Header");
       first = false;
       const std::uint64_t max = op == kChunk ? limits_.max_chunk_bytes : limits_.max_record_bytes;
       if (len > max) {
@@ -259,8 +279,9 @@ class Parser {
              " bytes is over the limit of " + std::to_string(max));
       }
       if (len > size - pos - 9) {
-        return Truncated(pos, std::string("inside a ") + OpName(op) + " record (" + std::to_string(size - pos - 9) + " of its " +
-                                  std::to_string(len) + " bytes present)");
+        return Truncated(pos, std::string("inside a ") + OpName(op) + " record (" +
+                                  std::to_string(size - pos - 9) + " of its " + std::to_string(len) +
+                                  " bytes present)");
       }
       at_ = pos;
       const std::string content(src_.Read(pos + 9, len));
@@ -285,7 +306,9 @@ class Parser {
 
  private:
   [[noreturn]] void Fail(const std::string& what) const { throw InputError(name_ + ": " + what); }
-  std::string Where(std::uint8_t op) const { return "byte " + std::to_string(at_) + ": " + OpName(op) + " record: "; }
+  std::string Where(std::uint8_t op) const {
+    return "byte " + std::to_string(at_) + ": " + OpName(op) + " record: ";
+  }
 
   ReadSummary Truncated(std::uint64_t pos, const std::string& where) {
     MarkTruncated(pos, where);
@@ -293,12 +316,14 @@ class Parser {
   }
   void MarkTruncated(std::uint64_t pos, const std::string& where) {
     std::string missing = footer_ ? "the closing magic"
-                          : summary_start_ ? "the summary (statistics, indexes) and the footer"
-                                         : "the rest of the data section, Data End, the summary (statistics, chunk "
-                                           "and message indexes) and the footer";
+                          : summary_start_
+                              ? "the summary (statistics, indexes) and the footer"
+                              : "the rest of the data section, Data End, the summary (statistics, chunk "
+                                "and message indexes) and the footer";
     s_.truncated = name_ + ": cut short at byte " + std::to_string(pos) + " (" + where + "): read " +
-                   std::to_string(s_.chunks) + " complete chunk(s), " + std::to_string(s_.messages) + " message(s)" +
-                   (s_.messages ? " up to log time " + FormatTime(last_log_) : "") + "; missing: " + missing;
+                   std::to_string(s_.chunks) + " complete chunk(s), " + std::to_string(s_.messages) +
+                   " message(s)" + (s_.messages ? " up to log time " + FormatTime(last_log_) : "") +
+                   "; missing: " + missing;
   }
 
   void AddSchema(Schema sc, std::uint8_t op) {
@@ -315,8 +340,8 @@ class Parser {
   }
   void AddChannel(Channel c, std::uint8_t op) {
     if (c.schema_id != 0 && !FindSchema(s_, c.schema_id)) {
-      Fail(Where(op) + "channel " + std::to_string(c.id) + " refers to schema " + std::to_string(c.schema_id) +
-           ", which is not defined before it");
+      Fail(Where(op) + "channel " + std::to_string(c.id) + " refers to schema " +
+           std::to_string(c.schema_id) + ", which is not defined before it");
     }
     for (const Channel& o : s_.channels) {
       if (o.id == c.id) {
@@ -360,7 +385,8 @@ class Parser {
         m.publish_time = c.U64();
         m.data = std::string(c.Bytes(c.left()));
         if (!FindChannel(s_, m.channel_id)) {
-          Fail(Where(op) + "message on channel " + std::to_string(m.channel_id) + ", which is not defined before it");
+          Fail(Where(op) + "message on channel " + std::to_string(m.channel_id) +
+               ", which is not defined before it");
         }
         ++s_.messages;
         last_log_ = m.log_time;
@@ -428,17 +454,22 @@ class Parser {
     }
     std::string plain;
     if (*kind == Compression::kNone) {
-      if (usize != csize) Fail(Where(kChunk) + "uncompressed_size " + std::to_string(usize) + " != records length " + std::to_string(csize));
+      if (usize != csize)
+        Fail(Where(kChunk) + "uncompressed_size " + std::to_string(usize) + " != records length " +
+             std::to_string(csize));
       plain.assign(records);
     } else if (*kind == Compression::kZstd) {
       plain.resize(usize);
       const std::size_t n = ZSTD_decompress(plain.data(), plain.size(), records.data(), records.size());
       if (ZSTD_isError(n)) Fail(Where(kChunk) + "zstd: " + ZSTD_getErrorName(n));
-      if (n != usize) Fail(Where(kChunk) + "decompressed to " + std::to_string(n) + " bytes, uncompressed_size says " + std::to_string(usize));
+      if (n != usize)
+        Fail(Where(kChunk) + "decompressed to " + std::to_string(n) + " bytes, uncompressed_size says " +
+             std::to_string(usize));
     } else {
       plain.resize(usize);
       LZ4F_dctx* ctx = nullptr;
-      if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION))) Fail("lz4: cannot create a context");
+      if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION)))
+        Fail("lz4: cannot create a context");
       std::size_t in_pos = 0, out_pos = 0;
       std::size_t ret = 1;
       while (ret != 0 && in_pos < records.size() && out_pos <= plain.size()) {
@@ -455,11 +486,12 @@ class Parser {
       }
       LZ4F_freeDecompressionContext(ctx);
       if (ret != 0 || out_pos != usize) {
-        Fail(Where(kChunk) + "lz4 data decompressed to " + std::to_string(out_pos) + " bytes, uncompressed_size says " +
-             std::to_string(usize));
+        Fail(Where(kChunk) + "lz4 data decompressed to " + std::to_string(out_pos) +
+             " bytes, uncompressed_size says " + std::to_string(usize));
       }
     }
-    if (crc != 0 && Crc32(plain.data(), plain.size()) != crc) Fail(Where(kChunk) + "CRC mismatch of the uncompressed records");
+    if (crc != 0 && Crc32(plain.data(), plain.size()) != crc)
+      Fail(Where(kChunk) + "CRC mismatch of the uncompressed records");
     // The chunk is whole and checked: its records.
     const std::uint64_t chunk_at = at_;
     Cursor r{plain};
@@ -475,7 +507,8 @@ class Parser {
       }
       const std::string_view content = r.Bytes(len);
       if (op != kSchema && op != kChannel && op != kMessage) {
-        Fail(Where(kChunk) + "a " + std::string(OpName(op)) + " record inside a chunk (only Schema, Channel, Message are allowed)");
+        Fail(Where(kChunk) + "a " + std::string(OpName(op)) +
+             " record inside a chunk (only Schema, Channel, Message are allowed)");
       }
       Common(op, content);
       at_ = chunk_at;
@@ -545,7 +578,9 @@ class Parser {
     if (std::memcmp(src_.Read(next, 8).data(), kMagic, 8) != 0) {
       Fail("byte " + std::to_string(next) + ": the bytes after the footer are not the MCAP magic");
     }
-    if (next + 8 != size) Fail("byte " + std::to_string(next + 8) + ": " + std::to_string(size - next - 8) + " byte(s) after the closing magic");
+    if (next + 8 != size)
+      Fail("byte " + std::to_string(next + 8) + ": " + std::to_string(size - next - 8) +
+           " byte(s) after the closing magic");
     if (s_.statistics && s_.statistics->message_count != s_.messages) {
       Fail("the Statistics record counts " + std::to_string(s_.statistics->message_count) +
            " messages, the data section holds " + std::to_string(s_.messages));
@@ -574,9 +609,12 @@ std::optional<Compression> CompressionFromName(const std::string& name) {
 
 const char* CompressionName(Compression c) {
   switch (c) {
-    case Compression::kZstd: return "zstd";
-    case Compression::kLz4: return "lz4";
-    default: return "";
+    case Compression::kZstd:
+      return "zstd";
+    case Compression::kLz4:
+      return "lz4";
+    default:
+      return "";
   }
 }
 
@@ -613,7 +651,8 @@ Writer::Writer(const std::string& path, WriterOptions options) : path_(path), op
       if (!file_) ::close(fd);
       break;
     }
-    if (errno != EEXIST || attempt >= 100) throw InputError(path + ": cannot open file for writing (" + std::strerror(errno) + ")");
+    if (errno != EEXIST || attempt >= 100)
+      throw InputError(path + ": cannot open file for writing (" + std::strerror(errno) + ")");
   }
   if (!file_) {
     ::unlink(temp_path_.c_str());
@@ -639,7 +678,8 @@ void Writer::WriteRaw(const std::string& bytes) {
   offset_ += bytes.size();
 }
 
-std::uint16_t Writer::AddSchema(const std::string& name, const std::string& encoding, const std::string& data) {
+std::uint16_t Writer::AddSchema(const std::string& name, const std::string& encoding,
+                                const std::string& data) {
   Schema s{static_cast<std::uint16_t>(schemas_.size() + 1), name, encoding, data};
   const std::string rec = SchemaRecord(s);
   if (!chunk_.empty()) {
@@ -652,8 +692,8 @@ std::uint16_t Writer::AddSchema(const std::string& name, const std::string& enco
   return schemas_.back().id;
 }
 
-std::uint16_t Writer::AddChannel(std::uint16_t schema_id, const std::string& topic, const std::string& message_encoding,
-                                 const KeyValues& metadata) {
+std::uint16_t Writer::AddChannel(std::uint16_t schema_id, const std::string& topic,
+                                 const std::string& message_encoding, const KeyValues& metadata) {
   Channel c{static_cast<std::uint16_t>(channels_.size()), schema_id, topic, message_encoding, metadata};
   const std::string rec = ChannelRecord(c);
   if (!chunk_.empty()) {
@@ -685,7 +725,8 @@ void Writer::AddMetadata(const std::string& name, const KeyValues& values) {
 void Writer::Write(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time,
                    std::uint64_t publish_time, const void* data, std::size_t size) {
   if (closed_) return;
-  if (channel_id >= channels_.size()) throw InputError(path_ + ": internal: message on unknown channel " + std::to_string(channel_id));
+  if (channel_id >= channels_.size())
+    throw InputError(path_ + ": internal: message on unknown channel " + std::to_string(channel_id));
   if (!chunk_has_messages_) {
     chunk_start_ = chunk_end_ = log_time;
     chunk_has_messages_ = true;
@@ -719,17 +760,20 @@ void Writer::CloseChunk() {
   const char* name = CompressionName(options_.compression);
   if (options_.compression == Compression::kZstd) {
     compressed.resize(ZSTD_compressBound(chunk_.size()));
-    const std::size_t n = ZSTD_compress(compressed.data(), compressed.size(), chunk_.data(), chunk_.size(), options_.zstd_level);
+    const std::size_t n = ZSTD_compress(compressed.data(), compressed.size(), chunk_.data(), chunk_.size(),
+                                        options_.zstd_level);
     if (ZSTD_isError(n)) throw InputError(path_ + ": zstd: " + ZSTD_getErrorName(n));
     compressed.resize(n);
   } else if (options_.compression == Compression::kLz4) {
     compressed.resize(LZ4F_compressFrameBound(chunk_.size(), nullptr));
-    const std::size_t n = LZ4F_compressFrame(compressed.data(), compressed.size(), chunk_.data(), chunk_.size(), nullptr);
+    const std::size_t n =
+        LZ4F_compressFrame(compressed.data(), compressed.size(), chunk_.data(), chunk_.size(), nullptr);
     if (LZ4F_isError(n)) throw InputError(path_ + ": lz4: " + LZ4F_getErrorName(n));
     compressed.resize(n);
   }
   const std::string& records = options_.compression == Compression::kNone ? chunk_ : compressed;
-  const std::uint64_t start = chunk_has_messages_ ? chunk_start_ : 0, end = chunk_has_messages_ ? chunk_end_ : 0;
+  const std::uint64_t start = chunk_has_messages_ ? chunk_start_ : 0,
+                      end = chunk_has_messages_ ? chunk_end_ : 0;
   Buf c;
   c.U64(start);
   c.U64(end);
@@ -839,7 +883,8 @@ void Writer::Close() {
   WriteRaw(summary);
   WriteRaw(footer.s);
   WriteRaw(std::string(kMagic, 8));
-  if (std::fflush(file_) != 0 || ::fsync(::fileno(file_)) != 0) throw InputError(path_ + ": write failed (" + std::strerror(errno) + ")");
+  if (std::fflush(file_) != 0 || ::fsync(::fileno(file_)) != 0)
+    throw InputError(path_ + ": write failed (" + std::strerror(errno) + ")");
   if (std::fclose(file_) != 0) {
     file_ = nullptr;
     throw InputError(path_ + ": write failed (" + std::strerror(errno) + ")");
@@ -853,7 +898,8 @@ void Writer::Close() {
 
 // ---- Reader ----------------------------------------------------------------
 
-ReadSummary Read(const std::string& path, const std::function<void(const Message&, const ReadSummary&)>& on_message,
+ReadSummary Read(const std::string& path,
+                 const std::function<void(const Message&, const ReadSummary&)>& on_message,
                  const ReaderLimits& limits) {
   FileSource src(path);
   return Parser(path, src, on_message, limits).Run();

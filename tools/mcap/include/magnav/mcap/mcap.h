@@ -80,8 +80,8 @@ struct WriterOptions {
   int zstd_level = 1;
   // A chunk is closed once its records reach this size (and on Flush()).
   std::size_t chunk_size = 4u << 20;
-  std::string profile;   // Header profile ("" = none)
-  std::string library;   // Header library, e.g. "magnav 0.1.0"
+  std::string profile;  // Header profile ("" = none)
+  std::string library;  // Header library, e.g. "magnav 0.1.0"
 };
 
 // Writes to "PATH.tmp-PID-N" in the same directory, renamed to PATH by Close()
@@ -98,13 +98,15 @@ class Writer {
   // Returns the new schema's / channel's id (1, 2, ...). Written to the data
   // section at once (into the open chunk if one is open) and to the summary.
   std::uint16_t AddSchema(const std::string& name, const std::string& encoding, const std::string& data);
-  std::uint16_t AddChannel(std::uint16_t schema_id, const std::string& topic, const std::string& message_encoding,
-                           const KeyValues& metadata);
+  std::uint16_t AddChannel(std::uint16_t schema_id, const std::string& topic,
+                           const std::string& message_encoding, const KeyValues& metadata);
   // A Metadata record in the data section (outside chunks) and its index.
   void AddMetadata(const std::string& name, const KeyValues& values);
-  void Write(const Message& m) { Write(m.channel_id, m.sequence, m.log_time, m.publish_time, m.data.data(), m.data.size()); }
-  void Write(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time, std::uint64_t publish_time,
-             const void* data, std::size_t size);
+  void Write(const Message& m) {
+    Write(m.channel_id, m.sequence, m.log_time, m.publish_time, m.data.data(), m.data.size());
+  }
+  void Write(std::uint16_t channel_id, std::uint32_t sequence, std::uint64_t log_time,
+             std::uint64_t publish_time, const void* data, std::size_t size);
   // Closes the open chunk (with its message indexes) and hands the bytes to
   // the system: after kill -9 the temporary holds every chunk flushed.
   void Flush();
@@ -147,7 +149,7 @@ class Writer {
 // What a read found, beside the messages handed to the callback.
 struct ReadSummary {
   std::string profile, library;
-  std::vector<Schema> schemas;    // by id order of appearance
+  std::vector<Schema> schemas;  // by id order of appearance
   std::vector<Channel> channels;
   std::vector<Metadata> metadata;
   std::optional<Statistics> statistics;  // from the summary (complete files)
@@ -174,7 +176,8 @@ struct ReaderLimits {
 // summary so far (its channel and schema are in it). Invalid content throws
 // InputError "FILE: what is wrong"; a file cut short is read up to its last
 // complete chunk and the summary's `truncated` says what is missing.
-ReadSummary Read(const std::string& path, const std::function<void(const Message&, const ReadSummary&)>& on_message,
+ReadSummary Read(const std::string& path,
+                 const std::function<void(const Message&, const ReadSummary&)>& on_message,
                  const ReaderLimits& limits = {});
 // The same on bytes in memory (`name` is the file name in messages): the fuzz target.
 ReadSummary ReadBytes(const std::string& name, const std::string& bytes,
