@@ -37,4 +37,9 @@ void FuzzConfig(const std::uint8_t* data, std::size_t size);
 // checked (CheckSample, SampleDoor).
 void FuzzDdsConvert(const std::uint8_t* data, std::size_t size);
 
+// MCAP recordings: the reader (tools/mcap, mcap::ReadBytes) with every
+// message's channel and schema checked; a cut file is read with a warning,
+// anything invalid refused with InputError.
+void FuzzMcap(const std::uint8_t* data, std::size_t size);
+
 }  // namespace magnav::fuzz

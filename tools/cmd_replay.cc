@@ -7,7 +7,9 @@
 // k,ins_lat,ins_lon,meas_nT files of `magnav match`): per point a VesselNav
 // (NAV_INS, geodetic = the INS lat/lon) and a MagnetometerSample whose |B| is
 // the map's reference field plus the measured anomaly, with the same stamp
-// (docs/PROTOCOL.md), one point every --step-period seconds.
+// (docs/PROTOCOL.md), one point every --step-period seconds. Or an MCAP
+// recording (`magnav record --output FILE.mcap`): its sensor topics (or those
+// of --topic) as recorded, paced by their receive times (log_time).
 #include <unistd.h>
 
 #include <algorithm>
@@ -28,6 +30,8 @@
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
 #include "magnav/mapmatch/path.h"
+#include "magnav/mcap/mcap.h"
+#include "mcap_topics.h"
 
 namespace magnav::tools {
 namespace {
@@ -42,6 +46,7 @@ struct ReplayArgs {
   int wait_readers = 1;
   double wait_s = 10.0;
   double settle_s = 0.25;       // after the readers matched, before the first sample
+  std::vector<std::string> topics;  // MCAP input: topics to send (default: the sensor topics)
   DdsArgs dds;
 };
 
@@ -166,8 +171,171 @@ std::vector<LocalizeEvent> ReadMapRunEvents(const ReplayArgs& a) {
   return out;
 }
 
+// ---- MCAP recordings -------------------------------------------------------
+
+struct McapEvent {
+  std::size_t topic;  // index into the senders
+  std::uint64_t log_time;
+  std::string data;
+};
+
+// One topic's writer; Send decodes the recorded CDR, shifts it for a --loop
+// pass and writes it.
+struct McapSender {
+  virtual ~McapSender() = default;
+  virtual bool WaitForMatched(int n, std::chrono::milliseconds t) = 0;
+  virtual bool Send(const std::string& cdr, std::uint64_t dt_ns, int pass) = 0;
+  virtual bool WaitForAcknowledgments() = 0;
+  // Checks one recorded message (before anything is sent) and notes its
+  // key's sequence span and its stamp; false if it is not CDR of the type.
+  virtual bool Check(const std::string& cdr, std::uint64_t* stamp_ns) = 0;
+  std::string topic;
+  std::uint64_t sent = 0;
+};
+
+template <class M>
+struct TypedMcapSender : McapSender {
+  std::unique_ptr<dds::Writer<M>> writer;
+  std::unordered_map<std::uint32_t, std::pair<std::int64_t, std::int64_t>> seq_span;  // key -> (min, max)
+  bool WaitForMatched(int n, std::chrono::milliseconds t) override { return writer->WaitForMatched(n, t); }
+  bool WaitForAcknowledgments() override { return writer->WaitForAcknowledgments(std::chrono::seconds(10)); }
+  bool Check(const std::string& cdr, std::uint64_t* stamp_ns) override {
+    M m;
+    if (!FromCdr(cdr, &m)) return false;
+    *stamp_ns = m.stamp_ns();
+    const std::int64_t s = SeqOf(m);
+    if (s >= 0) {
+      auto [it, fresh] = seq_span.try_emplace(KeyOf(m), s, s);
+      if (!fresh) {
+        it->second.first = std::min(it->second.first, s);
+        it->second.second = std::max(it->second.second, s);
+      }
+    }
+    return true;
+  }
+  bool Send(const std::string& cdr, std::uint64_t dt_ns, int pass) override {
+    M m;
+    if (!FromCdr(cdr, &m)) return false;
+    if (pass > 0) {
+      m.stamp_ns(m.stamp_ns() + dt_ns);
+      auto it = seq_span.find(KeyOf(m));
+      if (it != seq_span.end()) {
+        ShiftSeq(m, static_cast<std::uint64_t>(pass) * static_cast<std::uint64_t>(it->second.second - it->second.first + 1));
+      }
+    }
+    ++sent;
+    return writer->Write(m);
+  }
+};
+
+void RunMcap(const ReplayArgs& a) {
+  std::vector<std::string> wanted = a.topics;
+  if (std::find(wanted.begin(), wanted.end(), "all") != wanted.end()) wanted = AllTopics();
+  auto selected = [&](const std::string& t) {
+    return wanted.empty() ? IsSensorTopic(t) : std::find(wanted.begin(), wanted.end(), t) != wanted.end();
+  };
+  dds::InstallShutdownHandlers();
+  dds::Node node(a.dds.ToNodeOptions("magnav_replay"));
+  std::vector<std::unique_ptr<McapSender>> senders;
+  std::unordered_map<std::uint16_t, std::size_t> sender_of;  // channel -> sender; absent = not sent
+  std::unordered_map<std::uint16_t, bool> seen;
+  std::vector<McapEvent> events;
+  std::uint64_t stamp_min = UINT64_MAX, stamp_max = 0, skipped = 0;
+  const mcap::ReadSummary summary = mcap::Read(a.input, [&](const mcap::Message& m, const mcap::ReadSummary& s) {
+    if (!seen[m.channel_id]) {
+      seen[m.channel_id] = true;
+      const mcap::Channel* c = mcap::FindChannel(s, m.channel_id);
+      const std::string topic = c->message_encoding == "cdr" ? ShortTopic(c->topic) : "";
+      if (!topic.empty() && selected(topic)) {
+        std::size_t index = senders.size();
+        for (std::size_t i = 0; i < senders.size(); ++i) {
+          if (senders[i]->topic == topic) index = i;
+        }
+        if (index == senders.size()) {
+          WithTopicType(topic, [&](auto msg) {
+            auto sender = std::make_unique<TypedMcapSender<decltype(msg)>>();
+            sender->writer = node.CreateWriter<decltype(msg)>();
+            sender->writer->SetFlowControl(500, std::chrono::seconds(10));
+            sender->topic = topic;
+            senders.push_back(std::move(sender));
+          });
+        }
+        sender_of[m.channel_id] = index;
+      }
+    }
+    auto it = sender_of.find(m.channel_id);
+    if (it == sender_of.end()) {
+      ++skipped;
+      return;
+    }
+    std::uint64_t stamp = 0;
+    if (!senders[it->second]->Check(m.data, &stamp)) {
+      throw InputError(a.input + ": a message on magnav/" + senders[it->second]->topic + " (log time " +
+                       std::to_string(m.log_time) + " ns) is not CDR of " + TypeNameOf(senders[it->second]->topic));
+    }
+    stamp_min = std::min(stamp_min, stamp);
+    stamp_max = std::max(stamp_max, stamp);
+    events.push_back({it->second, m.log_time, m.data});
+  });
+  if (!summary.truncated.empty()) std::fprintf(stderr, "replay: warning: %s\n", summary.truncated.c_str());
+  if (events.empty()) throw InputError(a.input + ": no message on the topics to replay (--topic; default: the sensor topics)");
+  // Receive order may differ from log_time order by a little (several
+  // receive threads): time order, stable.
+  std::stable_sort(events.begin(), events.end(), [](const McapEvent& x, const McapEvent& y) { return x.log_time < y.log_time; });
+  const auto wait = std::chrono::milliseconds(static_cast<long>(a.wait_s * 1000));
+  for (auto& s : senders) {
+    if (a.wait_readers > 0 && !s->WaitForMatched(a.wait_readers, wait)) {
+      throw InputError("replay: no reader of magnav/" + s->topic + " appeared within " + FormatNumber(a.wait_s) +
+                       " s (domain " + std::to_string(node.domain_id()) + ")");
+    }
+  }
+  Settle(a);
+  // --loop: each pass shifted by the span plus one interval (of log times
+  // for the pacing, of the messages' stamps for their contents).
+  auto step_after = [](std::uint64_t span, std::size_t n) { return n > 1 ? span / (n - 1) : 0; };
+  const std::uint64_t log0 = events.front().log_time;
+  const std::uint64_t log_span = events.back().log_time - log0;
+  const std::uint64_t log_period = log_span + step_after(log_span, events.size());
+  const std::uint64_t stamp_span = stamp_max - stamp_min;
+  const std::uint64_t stamp_period = stamp_span + step_after(stamp_span, events.size());
+  cli::Progress progress("replay", "messages", a.loop ? 0 : events.size());
+  const auto t0 = std::chrono::steady_clock::now();
+  std::size_t sent = 0;
+  for (int pass = 0; pass == 0 || (a.loop && !dds::ShutdownRequested()); ++pass) {
+    for (const McapEvent& e : events) {
+      if (dds::ShutdownRequested()) break;
+      if (a.speed > 0) {
+        const double at_s = static_cast<double>(e.log_time - log0 + static_cast<std::uint64_t>(pass) * log_period) * 1e-9;
+        std::this_thread::sleep_until(t0 + std::chrono::duration<double>(at_s / a.speed));
+      }
+      if (!senders[e.topic]->Send(e.data, static_cast<std::uint64_t>(pass) * stamp_period, pass)) {
+        throw InputError("replay: the middleware refused a sample");
+      }
+      progress.Update(++sent);
+    }
+  }
+  progress.Done();
+  bool acked = true;
+  for (auto& s : senders) acked = s->WaitForAcknowledgments() && acked;
+  WarnIfNotAcknowledged(acked);
+  std::string per_topic;
+  for (auto& s : senders) {
+    if (!per_topic.empty()) per_topic += ", ";
+    per_topic += std::to_string(s->sent) + " " + s->topic;
+  }
+  std::printf("replayed %zu messages (%s) from %s on domain %d\n", sent, per_topic.c_str(), a.input.c_str(),
+              node.domain_id());
+  if (skipped) std::fprintf(stderr, "replay: %llu message(s) of other topics not sent (--topic)\n", static_cast<unsigned long long>(skipped));
+}
+
 void Run(const ReplayArgs& a) {
-  if (a.loop && a.input.empty()) throw InputError("replay: --loop goes with --input (a gradiometer file)");
+  if (!a.input.empty() && (mcap::HasMcapMagic(a.input) || (a.input.size() > 5 && a.input.compare(a.input.size() - 5, 5, ".mcap") == 0))) {
+    if (!a.magnetometer.empty() || !a.map_path.empty() || !a.gnss.empty()) throw InputError("replay: an MCAP --input goes alone");
+    RunMcap(a);
+    return;
+  }
+  if (!a.topics.empty()) throw InputError("replay: --topic goes with an MCAP --input");
+  if (a.loop && a.input.empty()) throw InputError("replay: --loop goes with --input (a gradiometer file or MCAP recording)");
   if (!a.map_path.empty()) {
     if (!a.input.empty() || !a.magnetometer.empty()) throw InputError("replay: --map-path goes alone");
     RunLocalizeStreams(a, ReadMapRunEvents(a), true);
@@ -234,7 +402,15 @@ void AddReplayCommand(CLI::App& app) {
       "replay",
       "Publish a gradiometer CSV on magnav/gradiometer, localize files or a map-matching run on magnav/magnetometer + "
       "magnav/vessel_nav");
-  sub->add_option("--input", args->input, "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22)");
+  sub->add_option("--input", args->input,
+                  "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22), or an MCAP recording (magnav record --output "
+                  "FILE.mcap: its sensor topics, or --topic, paced by their receive times)");
+  sub->add_option("--topic", args->topics,
+                  "MCAP input: the topics to send (gradiometer, magnetometer, vessel_nav, dipole_fix, track, "
+                  "sensor_position, map_fix, all; default: the sensor topics gradiometer, magnetometer, vessel_nav)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position",
+                             "map_fix", "all"}));
   sub->add_option("--magnetometer", args->magnetometer,
                   "localize measurements CSV (t,sensor_id,B_x,B_y,B_z) -> magnav/magnetometer");
   sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma) -> magnav/vessel_nav");
@@ -250,7 +426,7 @@ void AddReplayCommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_flag("--loop", args->loop,
                "with --input: replay the file over and over until stopped (SIGINT/SIGTERM), each pass shifted in time "
-               "by the file's span so that time keeps going forward");
+               "by the file's span so that time keeps going forward (MCAP: sequence numbers too)");
   sub->add_option("--wait-readers", args->wait_readers, "wait for this many readers before sending");
   sub->add_option("--wait", args->wait_s, "how long to wait for readers, s");
   sub->add_option("--settle", args->settle_s,

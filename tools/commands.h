@@ -36,6 +36,9 @@ using cli::AddDdsOptions;
 using cli::DdsArgs;
 void AddReplayCommand(CLI::App& app);
 void AddRecordCommand(CLI::App& app);
+// `magnav info` and `magnav export` (cmd_info.cc): recordings, MCAP or CSV.
+void AddInfoCommand(CLI::App& app);
+void AddExportCommand(CLI::App& app);
 #endif
 
 }  // namespace magnav::tools

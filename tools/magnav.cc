@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
 #ifdef MAGNAV_WITH_DDS
   magnav::tools::AddReplayCommand(app);
   magnav::tools::AddRecordCommand(app);
+  magnav::tools::AddInfoCommand(app);
+  magnav::tools::AddExportCommand(app);
 #endif
   magnav::tools::AddInvertCommand(app);
   magnav::tools::AddEvaluateCommand(app);

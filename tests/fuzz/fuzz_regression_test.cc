@@ -48,6 +48,12 @@ void Replay(const std::string& target, Entry entry) {
 TEST(FuzzRegression, Csv) { Replay("csv", fuzz::FuzzCsv); }
 TEST(FuzzRegression, Map) { Replay("map", fuzz::FuzzMap); }
 TEST(FuzzRegression, Config) { Replay("config", fuzz::FuzzConfig); }
+// The MCAP reader on its seeds and on the bad-input corpus's MCAP files.
+TEST(FuzzRegression, Mcap) {
+  Replay("mcap", fuzz::FuzzMcap);
+  ASSERT_FALSE(Inputs("../bad/mcap").empty());
+  Replay("../bad/mcap", fuzz::FuzzMcap);
+}
 #ifdef MAGNAV_WITH_DDS
 TEST(FuzzRegression, DdsConvert) {
   ASSERT_FALSE(Inputs("dds_convert").empty());

@@ -27,7 +27,8 @@ std::string Bad(const std::string& name) { return testing::TestDataDir() + "/bad
 enum class Kind {
   kInvert, kTrack, kTrackFixes, kEstimate, kTruth, kMeasurements, kDeployment, kGnss,
   kReplay, kReplayMeasurements, kReplayGnss,  // DDS builds: the file is read before any DDS entity is made
-  kMatchMap, kMatchPath  // magnav match: the bad file as --map (with mappath_ok.csv) or --path (with map_ok.csv)
+  kMatchMap, kMatchPath,  // magnav match: the bad file as --map (with mappath_ok.csv) or --path (with map_ok.csv)
+  kInfo, kExport  // DDS builds: MCAP recordings (mcap/)
 };
 
 std::vector<std::string> Command(Kind kind, const std::string& file, const std::string& out) {
@@ -57,6 +58,10 @@ std::vector<std::string> Command(Kind kind, const std::string& file, const std::
       return {kMagnav, "replay", "--magnetometer", file, "--wait-readers", "0"};
     case Kind::kReplayGnss:
       return {kMagnav, "replay", "--magnetometer", Bad("measurements_ok.csv"), "--gnss", file, "--wait-readers", "0"};
+    case Kind::kInfo:
+      return {kMagnav, "info", file};
+    case Kind::kExport:
+      return {kMagnav, "export", file, "--output-dir", out};
     case Kind::kMatchMap:
       return {kMagnav, "match", "--map", file, "--value-column", "anomaly_nT", "--path", Bad("mappath_ok.csv"),
               "--meas-column", "meas_nT", "--method", "fast-msd", "--output", out};
@@ -116,6 +121,28 @@ std::vector<BadInput> Corpus() {
   c.push_back({Kind::kReplayMeasurements, "measurements_duplicate_column.csv", ":4: duplicate column 'B_y' in header"});
   c.push_back({Kind::kReplayGnss, "gnss_header_only.csv", ":1: no data rows"});
   c.push_back({Kind::kReplayGnss, "gnss_inf.csv", ":3: column 'x': 'inf' is not a finite number"});
+  // MCAP recordings (tests/data/bad/mcap/, from a 25-sample recording):
+  // info, export and replay refuse invalid content with exit 2.
+  const std::vector<std::pair<std::string, std::string>> mcap = {
+      {"mcap/empty.mcap", ": empty file (not MCAP)"},
+      {"mcap/bad_magic.mcap", ": not an MCAP file"},
+      {"mcap/chunk_crc_mismatch.mcap", ": byte 5796: Chunk record: CRC mismatch of the uncompressed records"},
+      {"mcap/chunk_zstd_corrupt.mcap", ": byte 6158: Chunk record: CRC mismatch of the uncompressed records"},
+      {"mcap/chunk_unknown_compression.mcap", ": byte 5800: Chunk record: unknown compression 'zzzz'"},
+      {"mcap/chunk_length_huge.mcap", ": byte 5800: a Chunk record of 4611686018427387904 bytes is over the limit"},
+      {"mcap/statistics_count_wrong.mcap", ": the Statistics record counts 26 messages, the data section holds 25"},
+      {"mcap/trailing_bytes.mcap", ": byte 15402: 4 byte(s) after the closing magic"},
+  };
+  for (const auto& [file, expected] : mcap) {
+    for (const Kind k : {Kind::kInfo, Kind::kExport, Kind::kReplay}) c.push_back({k, file, expected});
+  }
+  // Well-formed MCAP whose message is not CDR of its type: info counts it,
+  // export and replay refuse the file.
+  for (const Kind k : {Kind::kExport, Kind::kReplay}) {
+    c.push_back({k, "mcap/message_not_cdr.mcap",
+                 ": a message on magnav/gradiometer (log time 1795637612417362239 ns) is not CDR of "
+                 "magnav::msg::GradiometerSample"});
+  }
 #endif
   c.push_back({Kind::kTrack, "pass_time_backwards.csv", ":7: column 't': time goes backwards"});
   for (const Kind k : {Kind::kTrackFixes, Kind::kEstimate}) {
@@ -199,6 +226,32 @@ TEST(BadInput, EveryCommandOnEveryBadFileGivesACleanError) {
               100.0 * clean / static_cast<double>(corpus.size()));
   EXPECT_EQ(clean, static_cast<int>(corpus.size()));
 }
+
+#ifdef MAGNAV_WITH_DDS
+// An MCAP recording cut short (kill -9 of the recorder, a disk full): read up
+// to its last complete chunk, with a warning naming what is missing; exit 0.
+TEST(BadInput, TruncatedMcapIsReadUpToItsLastCompleteChunk) {
+  for (const std::string name : {"truncated_in_chunk.mcap", "truncated_after_two_chunks.mcap"}) {
+    const std::string file = Bad("mcap/" + name);
+    const std::string dir = testing::TempDir();
+    const auto [rc, out] = testing::RunCommand({kMagnav, "export", file, "--output-dir", dir + "/csv"});
+    EXPECT_EQ(rc, 0) << out;
+    EXPECT_NE(out.find("export: warning: " + file + ": cut short at byte 7506"), std::string::npos) << out;
+    EXPECT_NE(out.find("read 2 complete chunk(s), 12 message(s)"), std::string::npos) << out;
+    EXPECT_NE(out.find("missing: the rest of the data section, Data End, the summary"), std::string::npos) << out;
+    EXPECT_NE(out.find("exported 12 gradiometer row(s)"), std::string::npos) << out;
+    const auto [rc2, info] = testing::RunCommand({kMagnav, "info", file});
+    EXPECT_EQ(rc2, 0) << info;
+    EXPECT_NE(info.find("magnav/gradiometer (magnav::msg::GradiometerSample): 12 message(s)"), std::string::npos) << info;
+    EXPECT_NE(info.find("info: warning: " + file + ": cut short"), std::string::npos) << info;
+  }
+  // The whole file: no warning, every sample.
+  const auto [rc, info] = testing::RunCommand({kMagnav, "info", Bad("mcap/ok.mcap")});
+  EXPECT_EQ(rc, 0) << info;
+  EXPECT_NE(info.find("25 message(s)"), std::string::npos) << info;
+  EXPECT_EQ(info.find("warning"), std::string::npos) << info;
+}
+#endif
 
 // A directory is not a file to read.
 TEST(BadInput, ADirectoryIsRefused) {
