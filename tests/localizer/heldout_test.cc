@@ -7,6 +7,7 @@
 // Figures: docs/ACCURACY.md "Localizer, held out".
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -14,14 +15,12 @@
 #include "magnav/core/simulate.h"
 #include "magnav/localizer/batch.h"
 #include "magnav/localizer/ekf.h"
+#include "racetrack.h"
 
 namespace magnav::localizer {
 namespace {
 
-struct Draw {
-  Pass pass;
-  std::vector<Eigen::Vector2d> truth;
-};
+using Draw = test::Racetrack;  // a pass and its true sensors
 
 Draw Simulate(std::uint64_t seed) {
   PassScenario sc;
@@ -34,27 +33,7 @@ Draw Simulate(std::uint64_t seed) {
   sc.rate_hz = 2.0;
   sc.sensors = {{-80.0, -40.0, 25.0}, {0.0, -70.0, 25.0}, {70.0, -30.0, 25.0},
                 {-40.0, 15.0, 25.0},  {40.0, 20.0, 25.0}, {100.0, 60.0, 25.0}};
-  sc.B0 = Eigen::Vector3d::Zero();
-  sc.sigma_B = 1e-9;
-  sc.seed = seed;
-  const SimulatedPass sim = SimulatePass(sc);
-
-  Draw d;
-  d.pass.vessel = {sc.moment_body, 0.0};
-  std::mt19937_64 rng(seed * 7919 + 11);
-  std::normal_distribution<double> n(0.0, 1.0);
-  for (std::size_t j = 0; j < sc.sensors.size(); ++j) {
-    d.truth.push_back(sc.sensors[j].head<2>());
-    const Eigen::Vector3d guess(sc.sensors[j].x() + 10.0 * n(rng), sc.sensors[j].y() + 10.0 * n(rng), 25.0);
-    d.pass.sensors.push_back({static_cast<std::uint32_t>(j), guess, 10.0});
-  }
-  for (const auto& s : sim.samples) d.pass.samples.push_back({s.t_s, s.sensor_id, s.B});
-  for (const auto& v : sim.truth) {
-    if (std::abs(v.t_s - std::round(v.t_s)) < 1e-9) {  // GNSS at 1 Hz, σ = 2 m
-      d.pass.gnss.push_back({v.t_s, v.p_VinW.head<2>() + 2.0 * Eigen::Vector2d(n(rng), n(rng)), 2.0});
-    }
-  }
-  return d;
+  return test::PassFromScenario(sc, std::numeric_limits<double>::infinity(), seed);
 }
 
 TEST(LocalizerHeldOut, DefaultsReachTheBoundAndTheirCovarianceHoldsOverDraws) {

@@ -8,6 +8,8 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -21,28 +23,14 @@ struct Racetrack {
   std::vector<Eigen::Vector2d> truth;  // sensor (x, y), pass.sensors order
 };
 
-inline Racetrack SimulateRacetrack(double duration_s, std::uint64_t seed = 100) {
-  PassScenario sc;
-  sc.moment_body = {-15000.0, 5000.0, 20000.0};
-  sc.start_position = {-250.0, -60.0, 0.0};
-  sc.speed_mps = 2.5;
-  sc.start_heading_rad = 0.0;
-  const double loop_s = 2.0 * 200.0 + 2.0 * 20.0 * M_PI;  // two legs, two half-turns at 0.05 rad/s
-  for (double t = 0.0; t < duration_s; t += loop_s) {
-    for (const TurnSegment& s : {TurnSegment{200.0, 0.0}, TurnSegment{20.0 * M_PI, 0.05}, TurnSegment{200.0, 0.0},
-                                 TurnSegment{20.0 * M_PI, 0.05}}) {
-      sc.segments.push_back(s);
-    }
-  }
-  sc.segments.erase(sc.segments.begin(), sc.segments.begin() + 3);  // the defaults
-  sc.rate_hz = 2.0;
-  sc.sensors = {{-80.0, -40.0, 25.0}, {0.0, -70.0, 25.0}, {70.0, -30.0, 25.0},
-                {-40.0, 15.0, 25.0},  {40.0, 20.0, 25.0}, {100.0, 30.0, 25.0}};
+// The localizer's pass from a simulated scenario (no B0, 1 nT): the
+// magnetometer samples, GNSS fixes at 1 Hz with σ = 2 m, and deployment
+// guesses 10 m (1σ) off the true sensors; up to `duration_s` of data.
+inline Racetrack PassFromScenario(PassScenario sc, double duration_s, std::uint64_t seed) {
   sc.B0 = Eigen::Vector3d::Zero();
   sc.sigma_B = 1e-9;
   sc.seed = seed;
   const SimulatedPass sim = SimulatePass(sc);
-
   Racetrack d;
   d.pass.vessel = {sc.moment_body, 0.0};
   std::mt19937_64 rng(seed * 7919 + 11);
@@ -63,6 +51,26 @@ inline Racetrack SimulateRacetrack(double duration_s, std::uint64_t seed = 100) 
     }
   }
   return d;
+}
+
+inline Racetrack SimulateRacetrack(double duration_s, std::uint64_t seed = 100) {
+  PassScenario sc;
+  sc.moment_body = {-15000.0, 5000.0, 20000.0};
+  sc.start_position = {-250.0, -60.0, 0.0};
+  sc.speed_mps = 2.5;
+  sc.start_heading_rad = 0.0;
+  const double loop_s = 2.0 * 200.0 + 2.0 * 20.0 * M_PI;  // two legs, two half-turns at 0.05 rad/s
+  for (double t = 0.0; t < duration_s; t += loop_s) {
+    for (const TurnSegment& s : {TurnSegment{200.0, 0.0}, TurnSegment{20.0 * M_PI, 0.05}, TurnSegment{200.0, 0.0},
+                                 TurnSegment{20.0 * M_PI, 0.05}}) {
+      sc.segments.push_back(s);
+    }
+  }
+  sc.segments.erase(sc.segments.begin(), sc.segments.begin() + 3);  // the defaults
+  sc.rate_hz = 2.0;
+  sc.sensors = {{-80.0, -40.0, 25.0}, {0.0, -70.0, 25.0}, {70.0, -30.0, 25.0},
+                {-40.0, 15.0, 25.0},  {40.0, 20.0, 25.0}, {100.0, 30.0, 25.0}};
+  return PassFromScenario(sc, duration_s, seed);
 }
 
 }  // namespace magnav::localizer::test
