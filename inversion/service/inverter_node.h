@@ -7,6 +7,7 @@
 // the node subtracts from B: the library runs with B0_W = 0.
 #pragma once
 
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <variant>
@@ -37,6 +38,8 @@ class InverterNode {
 
   std::uint64_t processed() const { return reader_->stats().samples.load(); }
   std::uint64_t published() const { return writer_->stats().samples.load(); }
+  // At stop: until every matched reader has acknowledged every fix (bounded).
+  bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
   const dds::EndpointStats& input_stats() const { return reader_->stats(); }
   std::uint64_t bad_samples() const { return door_.rejected(); }
   std::uint64_t repeated() const { return repeats_.repeats(); }

@@ -96,6 +96,11 @@ int main(int argc, char** argv) {
                    inverter->wild(), inverter->input_stats().callback_errors.load());
       last = n;
     });
+    // Every fix already published reaches the readers before the writer goes
+    // (bounded: a dead reader is forgotten after its lease).
+    if (!inverter->WaitForAcknowledgments(std::chrono::seconds(5))) {
+      spdlog::warn("magnav-inverter: a reader did not acknowledge every fix within 5 s of the stop");
+    }
     spdlog::info("magnav-inverter: stopping after {} samples ({} repeated, {} missing)", inverter->processed(),
                  inverter->repeated(), inverter->missing());
   });
