@@ -233,6 +233,67 @@ std::string NoTrackSummary(const std::string& path) {
   return "";
 }
 
+// Sensor positions (magnav localize / magnav-localizer: sensor_id, x, y,
+// sigma_x, sigma_y, crlb_x, crlb_y) against the true sensors (sensor_id, x,
+// y): horizontal errors (z is the known deployment depth), per sensor and
+// overall, against the estimate's own sigma and the Cramér–Rao bound.
+void RunSensors(const EvaluateArgs& a, const CsvTable& est, const CsvTable& truth) {
+  if (a.max_range_m > 0 || !a.gospa_csv.empty()) {
+    throw InputError("--max-range and --gospa do not apply to sensor positions");
+  }
+  const std::size_t ie = est.column("sensor_id"), xe = est.column("x"), ye = est.column("y");
+  const std::size_t it = truth.column("sensor_id"), xt = truth.column("x"), yt = truth.column("y");
+  const bool has_sigma = est.has_column("sigma_x") && est.has_column("sigma_y");
+  const bool has_crlb = est.has_column("crlb_x") && est.has_column("crlb_y");
+  std::map<std::uint32_t, Eigen::Vector2d> truth_of;
+  for (std::size_t j = 0; j < truth.num_rows(); ++j) {
+    if (!truth_of.emplace(truth.uint32(j, it), Eigen::Vector2d(truth.number(j, xt), truth.number(j, yt))).second) {
+      throw InputError(a.truth + ": sensor " + std::to_string(truth.uint32(j, it)) + " is listed twice");
+    }
+  }
+  std::map<std::uint32_t, std::size_t> last_row;  // a recorded topic has many rows per sensor: the last counts
+  for (std::size_t i = 0; i < est.num_rows(); ++i) last_row[est.uint32(i, ie)] = i;
+  double sum_sq = 0, max_err = 0, sum_nees = 0, sum_bound_sq = 0;
+  std::size_t n = 0, nees_n = 0, within_2sigma = 0, unknown = 0;
+  std::printf("sensor  error_m  sigma_m  error/sigma  bound_m  error/bound\n");
+  for (const auto& [id, i] : last_row) {
+    const auto t = truth_of.find(id);
+    if (t == truth_of.end()) {
+      ++unknown;
+      continue;
+    }
+    const Eigen::Vector2d e = Eigen::Vector2d(est.number(i, xe), est.number(i, ye)) - t->second;
+    const double err = e.norm();
+    sum_sq += e.squaredNorm();
+    max_err = std::max(max_err, err);
+    ++n;
+    double sigma = std::nan(""), bound = std::nan("");
+    if (has_sigma) {
+      const Eigen::Vector2d s(est.number(i, est.column("sigma_x")), est.number(i, est.column("sigma_y")));
+      sigma = s.norm();
+      if ((s.array() > 0).all()) {
+        sum_nees += (e.array() / s.array()).square().sum();
+        ++nees_n;
+        within_2sigma += (e.array().abs() <= 2.0 * s.array()).all() ? 1 : 0;
+      }
+    }
+    if (has_crlb) {
+      bound = Eigen::Vector2d(est.number(i, est.column("crlb_x")), est.number(i, est.column("crlb_y"))).norm();
+      sum_bound_sq += bound * bound;
+    }
+    std::printf("%6u  %7.4f  %7.4f  %11.2f  %7.4f  %11.2f\n", id, err, sigma, err / sigma, bound, err / bound);
+  }
+  std::printf("sensors %zu scored, %zu not in the truth, %zu true sensors without an estimate\n", n, unknown,
+              truth_of.size() > n ? truth_of.size() - n : 0);
+  if (n == 0) throw InputError(a.estimate + ": no sensor could be compared with " + a.truth);
+  std::printf("position error (horizontal): RMSE %.4g m, max %.4g m\n", std::sqrt(sum_sq / n), max_err);
+  if (has_crlb) std::printf("Cramer-Rao bound (RMS over sensors): %.4g m\n", std::sqrt(sum_bound_sq / n));
+  if (nees_n > 0) {
+    std::printf("mean NEES (diagonal sigmas, 2 dof): %.3g over %zu sensors; both axes within 2 sigma: %zu of %zu\n",
+                sum_nees / nees_n, nees_n, within_2sigma, nees_n);
+  }
+}
+
 void Run(const EvaluateArgs& a) {
   const CsvTable truth = CsvTable::Read(a.truth);
   std::optional<CsvTable> est_or_none;
@@ -269,6 +330,11 @@ void Run(const EvaluateArgs& a) {
   }
   if (truth.has_column("vessel_id")) {
     RunMulti(a, est_or_none ? &*est_or_none : nullptr, truth, sensors);
+    return;
+  }
+  if (truth.has_column("sensor_id") && !truth.has_column("t")) {
+    if (!est_or_none) throw InputError(a.estimate + ": no data rows");
+    RunSensors(a, *est_or_none, truth);
     return;
   }
   const CsvTable& est = *est_or_none;
@@ -337,6 +403,14 @@ One-vessel truth (t,x,y,z), estimate = fixes (magnav invert) or a track:
   position error RMS / max: sqrt(mean |p - p_true|^2) and the largest |p - p_true| over used rows, m.
   mean NEES (diagonal sigmas, 3 dof): mean over used rows with sigma_x..z > 0 of
     sum_i (e_i / sigma_i)^2; 3 when the sigmas are honest.
+Sensor positions (estimate: magnav localize output or a recorded sensor_position topic, the last row
+of each sensor; truth: sensor_id,x,y[,z], e.g. localize_truth_sensors.csv), horizontal only (z is the
+known deployment depth):
+  per sensor: error_m = |(x,y) - truth|; sigma_m = |(sigma_x, sigma_y)|; bound_m = |(crlb_x, crlb_y)|
+    (the joint Cramer-Rao bound); error/sigma and error/bound their ratios.
+  RMSE / max over sensors, m; the bound's RMS over sensors, m.
+  mean NEES (diagonal sigmas, 2 dof): mean over sensors of (e_x/sigma_x)^2 + (e_y/sigma_y)^2 (2 when honest;
+    one pass gives one draw per sensor: a loose check); both axes within 2 sigma: count of sensors.
 Multi-vessel truth (vessel_id), track file (track_id):
   rows (+ not usable): usable rows scored; each goes to the nearest vessel at its time (3-D);
   false: farther than --gate from every vessel (share of the rows); at no truth time: no truth row at its t.
@@ -370,7 +444,8 @@ void AddEvaluateCommand(CLI::App& app) {
                   "x..z, sigma_x..z) or a recorded dipole_fix / track topic")
       ->required();
   sub->add_option("--truth", args->truth,
-                  "truth CSV with t,x,y,z, or t,vessel_id,x,y,z for several vessels (magnav simulate --truth)")
+                  "truth CSV with t,x,y,z, or t,vessel_id,x,y,z for several vessels (magnav simulate --truth), or "
+                  "sensor_id,x,y,z for sensor positions (magnav localize output as the estimate)")
       ->required();
   sub->add_option("--max-range", args->max_range_m, "use only epochs within this horizontal range of a sensor, m")
       ->check(CLI::PositiveNumber);
