@@ -44,6 +44,12 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
     return Fail(error, "min_measurement_sigma_nT must be finite, > 0 and <= measurement_sigma_nT");
   }
   if (sigma_window < 1) return Fail(error, "sigma_window must be >= 1");
+  if (!(std::isfinite(afpf_sigma_factor) && afpf_sigma_factor >= 0.0)) {
+    return Fail(error, "afpf_sigma_factor must be finite and >= 0 (0 = a fixed sigma)");
+  }
+  if (!(std::isfinite(afpf_max_sigma_nT) && afpf_max_sigma_nT >= measurement_sigma_nT)) {
+    return Fail(error, "afpf_max_sigma_nT must be finite and >= measurement_sigma_nT");
+  }
   if (!(min_update_ess_fraction >= 0.0 && min_update_ess_fraction <= 1.0)) {
     return Fail(error, "min_update_ess_fraction must be in [0, 1]");
   }
@@ -74,7 +80,7 @@ class Filter final : public SequentialMatcher {
     if (!o.IsValid(&why)) throw InputError(std::string(Name()) + " options: " + why);
     inv_two_var_ = 1.0 / (2.0 * o.measurement_sigma_nT * o.measurement_sigma_nT);
     off_map_loglik_ = -0.5 * o.off_map_sigmas * o.off_map_sigmas;
-    adaptive_ = o.adaptive_sigma && kind == ParticleFilterKind::kPf;
+    adaptive_ = kind == ParticleFilterKind::kPf ? o.adaptive_sigma : o.afpf_sigma_factor > 0.0;
   }
 
   const StepDiagnostics& Step(double ins_lat, double ins_lon, double measured_nT) override {
@@ -130,14 +136,17 @@ class Filter final : public SequentialMatcher {
 
   // The likelihood σ for this update (adaptive_sigma: from the innovations of
   // the last sigma_window updates, see the header).
+  // AFPF (afpf_sigma_factor > 0): afpf_sigma_factor × that estimate in
+  // [measurement_sigma_nT, afpf_max_sigma_nT], afpf_max_sigma_nT until the window is full.
   double CurrentSigma() const {
-    const double hi = o_.measurement_sigma_nT;
+    const bool afpf = kind_ == ParticleFilterKind::kAfpf;
+    const double hi = afpf && adaptive_ ? o_.afpf_max_sigma_nT : o_.measurement_sigma_nT;
     if (!adaptive_ || static_cast<int>(innov_.size()) < o_.sigma_window) return hi;
     double r2 = 0.0, spread = 0.0;
     for (const auto& [a, b] : innov_) r2 += a, spread += b;
-    const double var = (r2 - spread) / static_cast<double>(innov_.size());
-    const double lo = o_.min_measurement_sigma_nT;
-    return std::clamp(std::sqrt(std::max(var, 0.0)), lo, hi);
+    const double sd = std::sqrt(std::max((r2 - spread) / static_cast<double>(innov_.size()), 0.0));
+    if (afpf) return std::clamp(o_.afpf_sigma_factor * sd, o_.measurement_sigma_nT, hi);
+    return std::clamp(sd, o_.min_measurement_sigma_nT, hi);
   }
 
   void SpreadPrior(double lat, double lon) {
@@ -222,7 +231,9 @@ class Filter final : public SequentialMatcher {
     // σ rises at once (the safe side) but falls by at most a factor
     // (1 − 1/sigma_window) per update: the cloud's spread V lags σ, and a
     // sudden small σ collapses a cloud that has not yet tightened.
-    const double prev_sigma = sigma_ > 0.0 ? sigma_ : o_.measurement_sigma_nT;
+    const double prev_sigma = sigma_ > 0.0                                       ? sigma_
+                              : kind_ == ParticleFilterKind::kAfpf && adaptive_ ? o_.afpf_max_sigma_nT
+                                                                                : o_.measurement_sigma_nT;
     sigma_ = std::max(CurrentSigma(), prev_sigma * (1.0 - 1.0 / o_.sigma_window));
     inv_two_var_ = 1.0 / (2.0 * sigma_ * sigma_);
     d->sigma_nT = sigma_;
@@ -258,7 +269,9 @@ class Filter final : public SequentialMatcher {
       // (mean residual)² and the cloud's spread of predicted map values:
       // E[(z − m̄)²] = σ² + Var(m) for a consistent filter.
       const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0);
-      if (spread <= o_.measurement_sigma_nT * o_.measurement_sigma_nT) {
+      // (the AFPF: compact against its largest σ, since its own σ starts there)
+      const double compact = kind_ == ParticleFilterKind::kAfpf ? o_.afpf_max_sigma_nT : o_.measurement_sigma_nT;
+      if (spread <= compact * compact) {
         innov_.emplace_back(mean * mean, spread);
         if (static_cast<int>(innov_.size()) > o_.sigma_window) innov_.pop_front();
       } else {
@@ -511,7 +524,7 @@ class Filter final : public SequentialMatcher {
   std::deque<double> nis_window_;
   std::deque<std::pair<double, double>> innov_;  // adaptive σ: (z − m̄)², Var(m) per update
   double sigma_ = 0.0;
-  bool adaptive_ = false;  // adaptive_sigma, PF only
+  bool adaptive_ = false;  // PF: adaptive_sigma; AFPF: afpf_sigma_factor > 0
   int unique_ = 0;
   FilterCounters counters_;
   StepDiagnostics last_;
@@ -562,6 +575,10 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                  ? "adaptive in [" + FormatNumber(options.min_measurement_sigma_nT) + ", " +
                        FormatNumber(options.measurement_sigma_nT) + "] nT, last " +
                        FormatNumber(last_sigma)
+             : kind == ParticleFilterKind::kAfpf && options.afpf_sigma_factor > 0.0
+                 ? FormatNumber(options.afpf_sigma_factor) + " x the innovations' in [" +
+                       FormatNumber(options.measurement_sigma_nT) + ", " + FormatNumber(options.afpf_max_sigma_nT) +
+                       "] nT, last " + FormatNumber(last_sigma)
                  : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", lost steps " + std::to_string(c.lost_steps) +

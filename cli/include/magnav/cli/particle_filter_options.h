@@ -23,9 +23,13 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "--adaptive-sigma 0, else the largest and starting sigma");
   opt("--adaptive-sigma", &f->adaptive_sigma,
       "pf: likelihood sigma from the innovations of the last --sigma-window updates (1), in "
-      "[--min-sigma, --sigma], or fixed at --sigma (0); afpf: always fixed at --sigma");
+      "[--min-sigma, --sigma], or fixed at --sigma (0); afpf: see --afpf-sigma-factor");
   opt("--min-sigma", &f->min_measurement_sigma_nT, "pf with --adaptive-sigma 1: smallest likelihood sigma, nT");
   opt("--sigma-window", &f->sigma_window, "pf with --adaptive-sigma 1: updates in the sigma estimate");
+  opt("--afpf-sigma-factor", &f->afpf_sigma_factor,
+      "afpf: likelihood sigma = this x the innovations' sigma (last --sigma-window updates), in "
+      "[--sigma, --afpf-max-sigma]; 0 = fixed at --sigma");
+  opt("--afpf-max-sigma", &f->afpf_max_sigma_nT, "afpf: largest (and starting) adaptive likelihood sigma, nT");
   opt("--drift-sigma", &f->drift_sigma_deg, "pf, afpf: INS drift noise per step and axis, deg");
   opt("--prior-half-width", &f->prior_half_width_deg,
       "pf, afpf: uniform prior square around the first INS point (clipped to the map), deg");
