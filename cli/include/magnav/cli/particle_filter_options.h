@@ -42,6 +42,13 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
   opt("--max-step", &f->max_step_deg, "pf, afpf: a longer INS increment is a jump (not applied), deg");
   opt("--divergence-window", &f->divergence_window, "pf, afpf: updates in the divergence test");
   opt("--divergence-nis", &f->divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
+  opt("--track-check-window", &f->track_check_window,
+      "pf, afpf: updates in the track check (lost when the recent estimated track fits much better shifted "
+      "beyond 3 sigma); 0 = off");
+  opt("--track-check-every", &f->track_check_every, "pf, afpf: run the track check every this many updates");
+  opt("--track-check-chi2", &f->track_check_chi2,
+      "pf, afpf: lost when the best shift lowers the track's squared residuals by more than this x sigma_n^2");
+  opt("--track-check-step", &f->track_check_step_deg, "pf, afpf: the track check's coarse offset grid, deg");
   opt("--reinitialize-when-lost", &f->reinitialize_when_lost,
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   app.add_flag("--estimate-bias", f->estimate_bias, "pf, afpf: a map bias per particle (reading - bias vs the map)");
