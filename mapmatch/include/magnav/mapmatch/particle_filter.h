@@ -149,10 +149,11 @@ struct ParticleFilterOptions {
   // window is full (and after a re-initialisation). The rank selection of the
   // fission collapses the cloud onto whichever basin fits the last few
   // readings best, so its likelihood must be wider than the noise: at 5 nT
-  // noise and a fixed 5 nT σ it settled in a wrong basin by step 10–14 on every
-  // reference seed (second-half error 1.3–7× the INS's); 15 nT held, 10 nT
-  // lost 1 of 3 seeds; at 0.5 nT noise σ = 5 nT stays the best (15 nT: 29 %
-  // of the INS's error against 19 %). Factor 3 and the cap 15 nT: chosen on the
+  // noise and a fixed 5 nT σ it settled in a wrong basin (seed 1: by step
+  // 10–14) on 10 of 10 reference seeds (mean second-half error 10.5× and 1.07×
+  // the INS's, 0.01° / 0.1° paths); a fixed 15 nT held on 3 seeds, 10 nT
+  // lost 1 of 3; at 0.5 nT noise σ = 5 nT stays the best (15 nT: 26–30 % of
+  // the INS's error against 19 %). Factor 3 and the cap 15 nT: chosen on the
   // reference paths only (docs/ACCURACY.md, "5 nT").
   double afpf_sigma_factor = 3.0;
   double afpf_max_sigma_nT = 15.0;
