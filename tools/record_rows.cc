@@ -51,7 +51,7 @@ std::vector<std::string> Header(const std::string& topic) {
   if (topic == "map_fix") {
     // covariance (north, east) m², row-major, and its roots.
     return {"t", "vehicle_id", "method", "lat", "lon", "score", "sigma_north_m", "sigma_east_m", "cov_nn", "cov_ne",
-            "cov_en", "cov_ee"};
+            "cov_en", "cov_ee", "status"};
   }
   if (topic == "sensor_position") {
     // The columns of `magnav localize`'s output, with the estimate's time first.
@@ -98,12 +98,27 @@ std::vector<std::string> Row(const dds::msg::SensorPositionEstimate& m) {
   return f;
 }
 
+// MapFix.status as written in the CSV ("" = unknown: a publisher older than the field).
+const char* MapFixStatusName(dds::msg::MapFixStatus s) {
+  switch (s) {
+    case dds::msg::MAP_FIX_STATUS_OK:
+      return "ok";
+    case dds::msg::MAP_FIX_STATUS_LOST:
+      return "lost";
+    case dds::msg::MAP_FIX_STATUS_OFF_MAP:
+      return "off_map";
+    default:
+      return "";
+  }
+}
+
 std::vector<std::string> Row(const dds::msg::MapFix& m) {
   std::vector<std::string> f = {FormatNanosAsSeconds(m.stamp_ns()), std::to_string(m.vehicle_id()), m.method_name().c_str(),
                                 N(m.lat_deg()), N(m.lon_deg()), N(m.score()),
                                 N(std::sqrt(std::max(0.0, m.covariance()[0]))),
                                 N(std::sqrt(std::max(0.0, m.covariance()[3])))};
   Append(f, m.covariance());
+  f.push_back(MapFixStatusName(m.status()));
   return f;
 }
 

@@ -58,7 +58,9 @@ using dds::AnomalyOf;
 using dds::AnomalySampleMsg;
 using dds::InsNavMsg;
 
-// The fix: method METHOD_MC, method_name "pf"/"afpf", score = ESS, covariance (north, east) m².
+// The fix: method METHOD_PF / METHOD_AFPF, method_name "pf"/"afpf", score = ESS, covariance
+// (north, east) m², status LOST while the filter's lost-track detector is raised (StepDiagnostics::lost),
+// OFF_MAP when every particle was off the map at this step, else OK.
 dds::msg::MapFix ToMsg(const StepDiagnostics& d, ParticleFilterKind kind, std::uint32_t vehicle_id,
                        std::uint64_t stamp_ns);
 

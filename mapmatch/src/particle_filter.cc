@@ -1,6 +1,7 @@
 #include "magnav/mapmatch/particle_filter.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <deque>
 #include <limits>
@@ -38,12 +39,22 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   }
   if (!PositiveFinite(max_step_deg)) return Fail(error, "max_step_deg must be finite and > 0");
   if (divergence_window < 1) return Fail(error, "divergence_window must be >= 1");
+  if (track_check_window < 0) return Fail(error, "track_check_window must be >= 0 (0 = off)");
+  if (track_check_every < 1) return Fail(error, "track_check_every must be >= 1");
+  if (!PositiveFinite(track_check_chi2)) return Fail(error, "track_check_chi2 must be finite and > 0");
+  if (!PositiveFinite(track_check_step_deg)) return Fail(error, "track_check_step_deg must be finite and > 0");
   if (!PositiveFinite(divergence_nis)) return Fail(error, "divergence_nis must be finite and > 0");
   if (!(std::isfinite(min_measurement_sigma_nT) && min_measurement_sigma_nT > 0.0 &&
         min_measurement_sigma_nT <= measurement_sigma_nT)) {
     return Fail(error, "min_measurement_sigma_nT must be finite, > 0 and <= measurement_sigma_nT");
   }
   if (sigma_window < 1) return Fail(error, "sigma_window must be >= 1");
+  if (!(std::isfinite(afpf_sigma_factor) && afpf_sigma_factor >= 0.0)) {
+    return Fail(error, "afpf_sigma_factor must be finite and >= 0 (0 = a fixed sigma)");
+  }
+  if (!(std::isfinite(afpf_max_sigma_nT) && afpf_max_sigma_nT >= measurement_sigma_nT)) {
+    return Fail(error, "afpf_max_sigma_nT must be finite and >= measurement_sigma_nT");
+  }
   if (!(min_update_ess_fraction >= 0.0 && min_update_ess_fraction <= 1.0)) {
     return Fail(error, "min_update_ess_fraction must be in [0, 1]");
   }
@@ -74,7 +85,7 @@ class Filter final : public SequentialMatcher {
     if (!o.IsValid(&why)) throw InputError(std::string(Name()) + " options: " + why);
     inv_two_var_ = 1.0 / (2.0 * o.measurement_sigma_nT * o.measurement_sigma_nT);
     off_map_loglik_ = -0.5 * o.off_map_sigmas * o.off_map_sigmas;
-    adaptive_ = o.adaptive_sigma && kind == ParticleFilterKind::kPf;
+    adaptive_ = kind == ParticleFilterKind::kPf ? o.adaptive_sigma : o.afpf_sigma_factor > 0.0;
   }
 
   const StepDiagnostics& Step(double ins_lat, double ins_lon, double measured_nT) override {
@@ -93,6 +104,7 @@ class Filter final : public SequentialMatcher {
     }
     Update(measured_nT, &d);
     Estimate(&d);
+    if (o_.track_check_window > 0) CheckTrack(measured_nT, &d);
     if (kind_ == ParticleFilterKind::kAfpf) AdaptCount(d);
     d.particles = static_cast<int>(p_.size());
     d.unique_particles = std::min(d.unique_particles, d.particles);  // after the AFPF's trim
@@ -102,6 +114,7 @@ class Filter final : public SequentialMatcher {
         SpreadPrior(ins_lat, ins_lon);
         nis_window_.clear();
         innov_.clear();
+        track_.clear();
         sigma_ = 0.0;  // starts again at measurement_sigma_nT
         ++counters_.reinitialisations;
       }
@@ -130,14 +143,17 @@ class Filter final : public SequentialMatcher {
 
   // The likelihood σ for this update (adaptive_sigma: from the innovations of
   // the last sigma_window updates, see the header).
+  // AFPF (afpf_sigma_factor > 0): afpf_sigma_factor × that estimate in
+  // [measurement_sigma_nT, afpf_max_sigma_nT], afpf_max_sigma_nT until the window is full.
   double CurrentSigma() const {
-    const double hi = o_.measurement_sigma_nT;
+    const bool afpf = kind_ == ParticleFilterKind::kAfpf;
+    const double hi = afpf && adaptive_ ? o_.afpf_max_sigma_nT : o_.measurement_sigma_nT;
     if (!adaptive_ || static_cast<int>(innov_.size()) < o_.sigma_window) return hi;
     double r2 = 0.0, spread = 0.0;
     for (const auto& [a, b] : innov_) r2 += a, spread += b;
-    const double var = (r2 - spread) / static_cast<double>(innov_.size());
-    const double lo = o_.min_measurement_sigma_nT;
-    return std::clamp(std::sqrt(std::max(var, 0.0)), lo, hi);
+    const double sd = std::sqrt(std::max((r2 - spread) / static_cast<double>(innov_.size()), 0.0));
+    if (afpf) return std::clamp(o_.afpf_sigma_factor * sd, o_.measurement_sigma_nT, hi);
+    return std::clamp(sd, o_.min_measurement_sigma_nT, hi);
   }
 
   void SpreadPrior(double lat, double lon) {
@@ -222,7 +238,9 @@ class Filter final : public SequentialMatcher {
     // σ rises at once (the safe side) but falls by at most a factor
     // (1 − 1/sigma_window) per update: the cloud's spread V lags σ, and a
     // sudden small σ collapses a cloud that has not yet tightened.
-    const double prev_sigma = sigma_ > 0.0 ? sigma_ : o_.measurement_sigma_nT;
+    const double prev_sigma = sigma_ > 0.0                                       ? sigma_
+                              : kind_ == ParticleFilterKind::kAfpf && adaptive_ ? o_.afpf_max_sigma_nT
+                                                                                : o_.measurement_sigma_nT;
     sigma_ = std::max(CurrentSigma(), prev_sigma * (1.0 - 1.0 / o_.sigma_window));
     inv_two_var_ = 1.0 / (2.0 * sigma_ * sigma_);
     d->sigma_nT = sigma_;
@@ -258,7 +276,9 @@ class Filter final : public SequentialMatcher {
       // (mean residual)² and the cloud's spread of predicted map values:
       // E[(z − m̄)²] = σ² + Var(m) for a consistent filter.
       const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0);
-      if (spread <= o_.measurement_sigma_nT * o_.measurement_sigma_nT) {
+      // (the AFPF: compact against its largest σ, since its own σ starts there)
+      const double compact = kind_ == ParticleFilterKind::kAfpf ? o_.afpf_max_sigma_nT : o_.measurement_sigma_nT;
+      if (spread <= compact * compact) {
         innov_.emplace_back(mean * mean, spread);
         if (static_cast<int>(innov_.size()) > o_.sigma_window) innov_.pop_front();
       } else {
@@ -327,6 +347,76 @@ class Filter final : public SequentialMatcher {
     if (static_cast<int>(nis_window_.size()) < o_.divergence_window) return false;
     const double mean = std::accumulate(nis_window_.begin(), nis_window_.end(), 0.0) / nis_window_.size();
     return mean > o_.divergence_nis;
+  }
+
+  // The track check (track_check_window, see the header): does the estimated
+  // track of the last W updates, shifted as a whole by some offset o within
+  // the prior's half-width, fit its readings much better than where the filter
+  // has it? SSE(o) = Σ (z_j − m(x̂_j + o))² over the readings; o on a coarse
+  // grid, the best few refined. Lost when (SSE(0) − min SSE) / σ_n² exceeds
+  // track_check_chi2 × max(σ_n², SSE(best)/W) and the best o lies beyond 3 σ
+  // of the filter's own covariance (plus the refined grid's step). σ_n: the
+  // noise the filter sees (the PF's σ; the AFPF's σ / afpf_sigma_factor), at
+  // least 0.5 nT.
+  void CheckTrack(double z, StepDiagnostics* d) {
+    if (d->update != StepUpdate::kUpdated || !std::isfinite(z)) return;
+    track_.push_back({d->lat_deg, d->lon_deg, z});
+    if (static_cast<int>(track_.size()) > o_.track_check_window) track_.pop_front();
+    if (static_cast<int>(track_.size()) < o_.track_check_window) return;
+    if (++since_check_ < o_.track_check_every) return;
+    // Only a settled filter is checked (its 1-σ spread within the coarse grid's step): an acquiring,
+    // spread cloud's mean lies between its basins, and any shift fits better than it.
+    if (d->cov_lat_lat + d->cov_lon_lon > o_.track_check_step_deg * o_.track_check_step_deg) return;
+    since_check_ = 0;
+    auto sse = [this](double dlat, double dlon) {
+      double s = 0.0;
+      for (const auto& t : track_) {
+        const auto m = grid_.Sample(layer_, t[0] + dlat, t[1] + dlon);
+        if (!m) return std::numeric_limits<double>::infinity();  // the whole window must be on the map
+        const double r = t[2] - m->value_nT;
+        s += r * r;
+      }
+      return s;
+    };
+    const double here = sse(0.0, 0.0);
+    if (!std::isfinite(here)) return;
+    const double h = o_.prior_half_width_deg, coarse = o_.track_check_step_deg;
+    const int nc = static_cast<int>(std::floor(h / coarse));
+    std::vector<std::array<double, 3>> best;  // (sse, dlat, dlon), the 5 best coarse offsets
+    for (int i = -nc; i <= nc; ++i) {
+      for (int j = -nc; j <= nc; ++j) {
+        const double v = sse(i * coarse, j * coarse);
+        if (!std::isfinite(v)) continue;
+        if (best.size() < 5 || v < best.back()[0]) {
+          if (best.size() == 5) best.pop_back();
+          best.push_back({v, i * coarse, j * coarse});
+          std::sort(best.begin(), best.end());
+        }
+      }
+    }
+    const double fine = coarse / 5.0;
+    std::array<double, 3> top = {here, 0.0, 0.0};
+    for (const auto& b : best) {
+      for (int i = -5; i <= 5; ++i) {
+        for (int j = -5; j <= 5; ++j) {
+          const double v = sse(b[1] + i * fine, b[2] + j * fine);
+          if (v < top[0]) top = {v, b[1] + i * fine, b[2] + j * fine};
+        }
+      }
+    }
+    double sn = d->sigma_nT > 0.0 ? d->sigma_nT : o_.measurement_sigma_nT;
+    if (kind_ == ParticleFilterKind::kAfpf && adaptive_) sn /= o_.afpf_sigma_factor;
+    sn = std::max(sn, 0.5);
+    // The scale: the larger of σ_n² and the residual variance at the best offset (the noise as the
+    // best fit sees it: a track estimated step by step carries its own jitter, which no shift removes).
+    d->track_check_chi2 = (here - top[0]) / std::max(sn * sn, top[0] / static_cast<double>(track_.size()));
+    const double dist2 = top[1] * top[1] + top[2] * top[2];
+    const double reach2 = 9.0 * (d->cov_lat_lat + d->cov_lon_lon) + fine * fine;
+    if (d->track_check_chi2 > o_.track_check_chi2 && dist2 > reach2) {
+      d->lost = true;
+      d->track_check_failed = true;
+      ++counters_.track_check_failures;
+    }
   }
 
   // Systematic resampling: one uniform offset, N evenly spaced pointers.
@@ -509,9 +599,11 @@ class Filter final : public SequentialMatcher {
   std::vector<std::size_t> order_;
   std::vector<long long> cells_;
   std::deque<double> nis_window_;
+  std::deque<std::array<double, 3>> track_;  // track check: (estimate lat, lon, reading) per update
+  int since_check_ = 0;
   std::deque<std::pair<double, double>> innov_;  // adaptive σ: (z − m̄)², Var(m) per update
   double sigma_ = 0.0;
-  bool adaptive_ = false;  // adaptive_sigma, PF only
+  bool adaptive_ = false;  // PF: adaptive_sigma; AFPF: afpf_sigma_factor > 0
   int unique_ = 0;
   FilterCounters counters_;
   StepDiagnostics last_;
@@ -532,7 +624,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   auto filter = MakeParticleFilter(kind, grid, layer, options);
   if (steps != nullptr) steps->clear();
   double ess_sum = 0.0, last_sigma = options.measurement_sigma_nT;
-  long long first_lost = -1;
+  long long first_lost = -1, last_lost = -1;
+  std::size_t last_lost_step = 0, off_at_end = 0;  // off_at_end: trailing all-off-map steps
   for (std::size_t p = 0; p < path.size(); ++p) {
     const StepDiagnostics& d = filter->Step(path.lat_deg[p], path.lon_deg[p], path.measured_nT[p]);
     r.lat_deg[p] = d.lat_deg;
@@ -540,6 +633,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
     ess_sum += d.ess;
     if (d.sigma_nT > 0.0) last_sigma = d.sigma_nT;
     if (d.lost && first_lost < 0) first_lost = path.k[p];
+    if (d.lost) last_lost = path.k[p], last_lost_step = p;
+    off_at_end = d.update == StepUpdate::kAllOffMap ? off_at_end + 1 : 0;
     if (steps != nullptr) steps->push_back(d);
   }
   const FilterCounters& c = filter->counters();
@@ -549,12 +644,28 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   r.points_off_map = c.all_off_map;
   r.points_bad_measurement = c.bad_measurements;
   r.points_outlier = c.outliers;
-  r.converged = !filter->lost();
-  if (!r.converged) {
+  // Status (issue 25: no "converged" that is not): lost at the last step, or a re-initialisation
+  // that has not had 2 divergence windows to settle, is not converged. A run that was lost and has
+  // been quiet since says only that: a filter settled in a wrong basin can be quiet too.
+  const std::size_t settle = 2 * static_cast<std::size_t>(options.divergence_window);
+  const bool unsettled = last_lost >= 0 && path.size() - 1 - last_lost_step < settle;
+  // A cloud entirely off the map at the end dead-reckons on the INS: no reading checks it.
+  r.converged = !filter->lost() && !unsettled && off_at_end == 0;
+  if (off_at_end > 0 && !filter->lost()) {
+    r.reason = "off the map at the end: every particle off the map for the last " +
+               std::to_string(off_at_end) + " step(s)" +
+               " (dead-reckoning on the INS)" + (first_lost >= 0 ? "; lost at k = " + std::to_string(last_lost) : "");
+  } else if (filter->lost()) {
     r.reason = "lost (mean NIS over the last " + std::to_string(options.divergence_window) + " updates > " +
-               FormatNumber(options.divergence_nis) + ")";
+               FormatNumber(options.divergence_nis) +
+               (options.track_check_window > 0 ? ", or the track check" : "") + ")";
+  } else if (unsettled) {
+    r.reason = "lost at k = " + std::to_string(last_lost) + (options.reinitialize_when_lost ? ", re-initialised" : "") +
+               ", not settled by the end (fewer than " + std::to_string(settle) + " steps since)";
   } else if (first_lost >= 0) {
-    r.reason = "lost from k = " + std::to_string(first_lost) + ", recovered";
+    r.reason = "lost from k = " + std::to_string(first_lost) + ", last at k = " + std::to_string(last_lost) +
+               "; no lost-track alarm in the " + std::to_string(path.size() - 1 - last_lost_step) +
+               " steps since (not a proof of being on the track)";
   }
   r.notes = "particles " + std::to_string(filter->particles().size()) + " at the end, seed " +
             std::to_string(options.seed) + ", sigma " +
@@ -562,6 +673,10 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                  ? "adaptive in [" + FormatNumber(options.min_measurement_sigma_nT) + ", " +
                        FormatNumber(options.measurement_sigma_nT) + "] nT, last " +
                        FormatNumber(last_sigma)
+             : kind == ParticleFilterKind::kAfpf && options.afpf_sigma_factor > 0.0
+                 ? FormatNumber(options.afpf_sigma_factor) + " x the innovations' in [" +
+                       FormatNumber(options.measurement_sigma_nT) + ", " + FormatNumber(options.afpf_max_sigma_nT) +
+                       "] nT, last " + FormatNumber(last_sigma)
                  : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", lost steps " + std::to_string(c.lost_steps) +

@@ -327,8 +327,8 @@ double SecondHalfMeanNees(const Truth& t, const std::vector<StepDiagnostics>& st
 }
 
 // The PF's adaptive σ follows the sensor: ≈ 1 nT readings pull it from the
-// 5 nT it starts with towards 1 nT, 4 nT readings keep it near 4 nT; the AFPF
-// keeps its fixed σ.
+// 5 nT it starts with towards 1 nT, 4 nT readings keep it near 4 nT; the AFPF's
+// stays within its bounds, and is fixed with afpf_sigma_factor = 0.
 TEST(Pf, AdaptiveSigmaFollowsTheSensorNoise) {
   ParticleFilterOptions o = TestOptions();
   o.drift_sigma_deg = 0.0001;  // the synthetic runs' drift
@@ -351,6 +351,17 @@ TEST(Pf, AdaptiveSigmaFollowsTheSensorNoise) {
   }
   const Truth t = SyntheticRun(0.004, -0.003, 1, 1.0);
   std::vector<StepDiagnostics> steps;
+  // The AFPF's σ (afpf_sigma_factor × the innovations' σ, in [measurement_sigma_nT, afpf_max_sigma_nT]):
+  // it starts at the cap and, with ≈ 1 nT readings (3 × 1 nT < 5 nT), settles at measurement_sigma_nT.
+  MatchParticleFilter(ParticleFilterKind::kAfpf, SyntheticMap(), 0, t.path, o, &steps);
+  EXPECT_EQ(steps.front().sigma_nT, o.afpf_max_sigma_nT);
+  for (const StepDiagnostics& d : steps) {
+    ASSERT_GE(d.sigma_nT, o.measurement_sigma_nT);
+    ASSERT_LE(d.sigma_nT, o.afpf_max_sigma_nT);
+  }
+  for (std::size_t k = 80; k < steps.size(); ++k) EXPECT_EQ(steps[k].sigma_nT, o.measurement_sigma_nT) << k;
+  // afpf_sigma_factor = 0: fixed at measurement_sigma_nT (the filter before issue 25).
+  o.afpf_sigma_factor = 0.0;
   MatchParticleFilter(ParticleFilterKind::kAfpf, SyntheticMap(), 0, t.path, o, &steps);
   for (const StepDiagnostics& d : steps) ASSERT_EQ(d.sigma_nT, o.measurement_sigma_nT);
   o.adaptive_sigma = false;

@@ -121,7 +121,29 @@ void ReplayedRunsFixesEqualTheOfflineFilters(const char* stock_qos) {
     EXPECT_EQ(t.number(r, t.column("lon")), d.lon_deg);
     EXPECT_EQ(t.number(r, t.column("score")), d.ess);
     EXPECT_EQ(t.number(r, t.column("cov_nn")), CovarianceNorthEast_m2(d)[0]);
+    // The appended status: the offline filter's own lost / off-map state at that step.
+    EXPECT_EQ(t.text(r, t.column("status")),
+              d.lost ? "lost" : d.update == StepUpdate::kAllOffMap ? "off_map" : "ok");
   }
+}
+
+// The appended MapFix fields: the method values for pf / afpf and the status from the step's
+// diagnostics (lost outranks off the map).
+TEST(MatcherService, FixCarriesItsMethodAndStatus) {
+  StepDiagnostics d;
+  d.lat_deg = 45.0;
+  d.lon_deg = 10.0;
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kPf, 1, 0).method(), dds::msg::METHOD_PF);
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).method(), dds::msg::METHOD_AFPF);
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kPf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_OK);
+  d.update = StepUpdate::kAllOffMap;
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kPf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_OFF_MAP);
+  d.lost = true;
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_LOST);
+  d.update = StepUpdate::kUpdated;
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_LOST);
+  // A default-constructed message (a publisher older than the field) says "unknown".
+  EXPECT_EQ(dds::msg::MapFix().status(), dds::msg::MAP_FIX_STATUS_UNKNOWN);
 }
 
 TEST(MatcherService, ReplayedRunsFixesEqualTheOfflineFilters) { ReplayedRunsFixesEqualTheOfflineFilters(nullptr); }

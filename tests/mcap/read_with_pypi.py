@@ -28,6 +28,15 @@ class FixMethod(IdlEnum, typename="magnav::msg::FixMethod"):
     METHOD_MC = 3
     METHOD_TRACKER = 4
     METHOD_OTHER = 5
+    METHOD_PF = 6
+    METHOD_AFPF = 7
+
+
+class MapFixStatus(IdlEnum, typename="magnav::msg::MapFixStatus"):
+    MAP_FIX_STATUS_UNKNOWN = 0
+    MAP_FIX_STATUS_OK = 1
+    MAP_FIX_STATUS_LOST = 2
+    MAP_FIX_STATUS_OFF_MAP = 3
 
 
 class NavSource(IdlEnum, typename="magnav::msg::NavSource"):
@@ -121,6 +130,7 @@ class MapFix(IdlStruct, typename="magnav::msg::MapFix"):
     lon_deg: float64
     score: float64
     covariance: array[float64, 4]
+    status: MapFixStatus
 
 
 TYPES = {c.__name__: c for c in (GradiometerSample, MagnetometerSample, VesselNav, DipoleFix, TrackEstimate,

@@ -23,9 +23,13 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "--adaptive-sigma 0, else the largest and starting sigma");
   opt("--adaptive-sigma", &f->adaptive_sigma,
       "pf: likelihood sigma from the innovations of the last --sigma-window updates (1), in "
-      "[--min-sigma, --sigma], or fixed at --sigma (0); afpf: always fixed at --sigma");
+      "[--min-sigma, --sigma], or fixed at --sigma (0); afpf: see --afpf-sigma-factor");
   opt("--min-sigma", &f->min_measurement_sigma_nT, "pf with --adaptive-sigma 1: smallest likelihood sigma, nT");
   opt("--sigma-window", &f->sigma_window, "pf with --adaptive-sigma 1: updates in the sigma estimate");
+  opt("--afpf-sigma-factor", &f->afpf_sigma_factor,
+      "afpf: likelihood sigma = this x the innovations' sigma (last --sigma-window updates), in "
+      "[--sigma, --afpf-max-sigma]; 0 = fixed at --sigma");
+  opt("--afpf-max-sigma", &f->afpf_max_sigma_nT, "afpf: largest (and starting) adaptive likelihood sigma, nT");
   opt("--drift-sigma", &f->drift_sigma_deg, "pf, afpf: INS drift noise per step and axis, deg");
   opt("--prior-half-width", &f->prior_half_width_deg,
       "pf, afpf: uniform prior square around the first INS point (clipped to the map), deg");
@@ -38,6 +42,13 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
   opt("--max-step", &f->max_step_deg, "pf, afpf: a longer INS increment is a jump (not applied), deg");
   opt("--divergence-window", &f->divergence_window, "pf, afpf: updates in the divergence test");
   opt("--divergence-nis", &f->divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
+  opt("--track-check-window", &f->track_check_window,
+      "pf, afpf: updates in the track check (lost when the recent estimated track fits much better shifted "
+      "beyond 3 sigma); 0 = off");
+  opt("--track-check-every", &f->track_check_every, "pf, afpf: run the track check every this many updates");
+  opt("--track-check-chi2", &f->track_check_chi2,
+      "pf, afpf: lost when the best shift lowers the track's squared residuals by more than this x sigma_n^2");
+  opt("--track-check-step", &f->track_check_step_deg, "pf, afpf: the track check's coarse offset grid, deg");
   opt("--reinitialize-when-lost", &f->reinitialize_when_lost,
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   app.add_flag("--estimate-bias", f->estimate_bias, "pf, afpf: a map bias per particle (reading - bias vs the map)");

@@ -142,6 +142,21 @@ struct ParticleFilterOptions {
   bool adaptive_sigma = true;
   double min_measurement_sigma_nT = 0.5;
   int sigma_window = 20;
+  // AFPF: adaptive σ (see above; 0 = fixed at measurement_sigma_nT, the
+  // filter before issue 25): σ = afpf_sigma_factor × the innovations' σ
+  // estimate (the PF's, over sigma_window updates), clamped to
+  // [measurement_sigma_nT, afpf_max_sigma_nT]; afpf_max_sigma_nT until the
+  // window is full (and after a re-initialisation). The rank selection of the
+  // fission collapses the cloud onto whichever basin fits the last few
+  // readings best, so its likelihood must be wider than the noise: at 5 nT
+  // noise and a fixed 5 nT σ it settled in a wrong basin (seed 1: by step
+  // 10–14) on 10 of 10 reference seeds (mean second-half error 10.5× and 1.07×
+  // the INS's, 0.01° / 0.1° paths); a fixed 15 nT held on 3 seeds, 10 nT
+  // lost 1 of 3; at 0.5 nT noise σ = 5 nT stays the best (15 nT: 26–30 % of
+  // the INS's error against 19 %). Factor 3 and the cap 15 nT: chosen on the
+  // reference paths only (docs/ACCURACY.md, "5 nT").
+  double afpf_sigma_factor = 3.0;
+  double afpf_max_sigma_nT = 15.0;
   // Drift noise per step, per axis (deg). Default: the reference paths'
   // INS drift (a U(±0.0005°) step per axis, σ = 0.00029°), README §4b.
   double drift_sigma_deg = 0.0003;
@@ -179,6 +194,24 @@ struct ParticleFilterOptions {
   // Divergence rule (see above).
   int divergence_window = 10;
   double divergence_nis = 9.0;
+  // Track check (a second lost-track detector, issue 25): the divergence rule
+  // only hears readings that do not fit the cloud, and a filter in a wrong
+  // basin, or moved off the truth by an unseen INS jump, often fits them well
+  // enough. Every track_check_every updates the estimated track of the last
+  // track_check_window updates is shifted as a whole over offsets within
+  // ±prior_half_width_deg (grid track_check_step_deg, the best 5 refined 5×);
+  // the filter is lost when the best offset's sum of squared residuals is
+  // lower than the filter's own by more than track_check_chi2 σ_n² and lies
+  // beyond 3 σ of the filter's covariance (only a settled filter is checked:
+  // 1-σ spread within track_check_step_deg). 0 = off, the default: measured
+  // over 10 generated paths per regime (scripts/calibration_pf, window 20) it
+  // raised the alarm on 30–90 % of clean runs and caught 10–60 % of losses —
+  // worse than the divergence rule alone (docs/ACCURACY.md, "Lost-track
+  // detection"); kept as an option to measure, not as a detector to trust.
+  int track_check_window = 0;
+  int track_check_every = 5;
+  double track_check_chi2 = 40.0;
+  double track_check_step_deg = 0.0025;
   // On by default: on the crustal 0.01°/3 nT path 1 of 20 AFPF seeds locks
   // onto a wrong basin early; the rule flags it and a fresh prior finds the
   // track (docs/ACCURACY.md).
@@ -229,6 +262,8 @@ struct StepDiagnostics {
   double nis = 0.0;              // this update's normalised innovation (0 if no update)
   double sigma_nT = 0.0;         // the likelihood σ of this step (measurement_sigma_nT unless adaptive_sigma)
   double likelihood_exponent = 1.0;  // β of a tempered PF update (1: the reading applied in full)
+  double track_check_chi2 = 0.0;     // the track check's statistic at this step (0: not run)
+  bool track_check_failed = false;   // the track check made this step lost
   bool resampled = false;
   bool ins_jump = false;
   StepUpdate update = StepUpdate::kUpdated;
@@ -237,7 +272,7 @@ struct StepDiagnostics {
 
 struct FilterCounters {
   int steps = 0, updates = 0, bad_measurements = 0, all_off_map = 0, ins_jumps = 0, resamples = 0,
-      lost_steps = 0, reinitialisations = 0, tempered_updates = 0, outliers = 0;
+      lost_steps = 0, reinitialisations = 0, tempered_updates = 0, outliers = 0, track_check_failures = 0;
 };
 
 // The common interface of the PF and the AFPF.
