@@ -117,9 +117,9 @@ int main(int argc, char** argv) {
     loc.Flush();
     const bool saved = loc.Checkpoint();
     loc.WaitForAcknowledgments(std::chrono::seconds(5));
-    spdlog::info("magnav-localizer: stopping after {} samples used, {} skipped, {} already in the checkpoint, {} "
-                 "repeated, {} missing, {} estimates{}",
-                 loc.consumed(), loc.skipped(), loc.already_consumed(), loc.repeated(), loc.missing(), loc.published(),
+    spdlog::info("magnav-localizer: stopping after {} samples used, {} skipped, {} repeated, {} missing, {} "
+                 "estimates, {} already in the checkpoint{}",
+                 loc.consumed(), loc.skipped(), loc.repeated(), loc.missing(), loc.published(), loc.already_consumed(),
                  saved ? "; checkpoint written to " + loc.state_path() : "");
   });
 }

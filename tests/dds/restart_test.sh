@@ -187,7 +187,7 @@ localizer)
     keep
     grep -q "resumed from checkpoint" "$WORK/localizer2.log" || fail "the restarted localizer did not resume"
     ! grep -q "time goes backwards" "$WORK/localizer2.log" || fail "history taken for 'time goes backwards'"
-    read -r used skipped already < <(sed -n 's/.*stopping after \([0-9]*\) samples used, \([0-9]*\) skipped, \([0-9]*\) already.*/\1 \2 \3/p' \
+    read -r used skipped already < <(sed -n 's/.*stopping after \([0-9]*\) samples used, \([0-9]*\) skipped, .* \([0-9]*\) already in the.*/\1 \2 \3/p' \
                                      "$WORK/localizer2.log")
     got=$(rms "$WORK/positions.csv")
     diff=$(maxdiff "$WORK/positions.csv" "$WORK/offline.csv")
