@@ -5,10 +5,13 @@
 #include <spdlog/spdlog.h>
 
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <optional>
 
 #include "magnav/core/error.h"
 #include "magnav/core/units.h"
+#include "magnav/localizer/checkpoint.h"
 
 namespace magnav::localizer {
 
@@ -70,11 +73,78 @@ LocalizerNode::LocalizerNode(dds::Node& node, const LocalizerNodeOptions& option
       vessel_id_(options.vessel_id),
       bounded_(options.stream.bounded) {
   repeats_.SetLogName("magnav-localizer: magnav/magnetometer sensor");
+  if (!options.state_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(options.state_dir, ec);
+    if (ec) throw InputError("--state-dir " + options.state_dir + ": " + ec.message());
+    state_path_ = (std::filesystem::path(options.state_dir) / "magnav-localizer.state").string();
+    Resume();
+  }
   writer_ = node.CreateWriter<dds::msg::SensorPositionEstimate>();
   nav_reader_ =
       node.CreateReader<dds::msg::VesselNav>([this](const dds::msg::VesselNav& m, const auto& info) { OnNav(m, info); });
   mag_reader_ = node.CreateReader<dds::msg::MagnetometerSample>(
       [this](const dds::msg::MagnetometerSample& m, const auto& info) { OnSample(m, info); });
+}
+
+void LocalizerNode::Resume() {
+  std::string bytes;
+  try {
+    if (!ReadWholeFile(state_path_, &bytes)) {
+      spdlog::info("magnav-localizer: no checkpoint {} yet: starting fresh", state_path_);
+      return;
+    }
+    localizer_.RestoreState(DecodeCheckpoint(bytes));
+  } catch (const CheckpointError& e) {
+    const std::string aside = state_path_ + ".refused";
+    const bool kept = std::rename(state_path_.c_str(), aside.c_str()) == 0;
+    spdlog::error("magnav-localizer: checkpoint {} refused ({}): starting fresh, not from it{}", state_path_, e.what(),
+                  kept ? "; the file is kept as " + aside : "");
+    return;
+  } catch (const std::exception& e) {
+    spdlog::error("magnav-localizer: checkpoint {} not read ({}): starting fresh", state_path_, e.what());
+    return;
+  }
+  resumed_ = true;
+  resumed_until_s_ = localizer_.consumed_until();
+  spdlog::info("magnav-localizer: resumed from checkpoint {}: {} items consumed up to t = {:.3f} s; what the "
+               "writers' history sends again of those is dropped as already in the checkpoint",
+               state_path_, localizer_.consumed(), localizer_.consumed_until());
+}
+
+bool LocalizerNode::Checkpoint() {
+  if (state_path_.empty()) return false;
+  std::string payload;
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    if (!localizer_.initialized()) return false;
+    payload = localizer_.SaveState();
+  }
+  try {
+    WriteFileAtomically(state_path_, EncodeCheckpoint(payload));
+  } catch (const std::exception& e) {
+    if (!std::exchange(checkpoint_failing_, true)) {
+      spdlog::error("magnav-localizer: checkpoint not written ({}); the previous one stays (further failures are "
+                    "not logged until one succeeds)", e.what());
+    }
+    return false;
+  }
+  if (std::exchange(checkpoint_failing_, false)) spdlog::info("magnav-localizer: checkpoint written again");
+  return true;
+}
+
+std::uint64_t LocalizerNode::already_consumed() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return localizer_.already_consumed();
+}
+
+bool LocalizerNode::AlreadyConsumed(SampleCheck c) {
+  if (c != SampleCheck::kAlreadyConsumed) return false;
+  if (!std::exchange(logged_already_, true)) {
+    spdlog::info("magnav-localizer: the writers' history up to t = {:.3f} s is in the checkpoint already: dropped "
+                 "and counted as 'already in the checkpoint'", resumed_until_s_);
+  }
+  return true;
 }
 
 std::uint64_t LocalizerNode::outliers() const {
@@ -119,7 +189,7 @@ void LocalizerNode::TakeSample(const dds::msg::MagnetometerSample& m) {
   std::lock_guard<std::mutex> lk(mu_);
   localizer_.Tick(WallClock_s());
   const SampleCheck c = localizer_.Add(s);
-  if (c != SampleCheck::kOk) {
+  if (c != SampleCheck::kOk && !AlreadyConsumed(c)) {
     repeats_.Forget(m);
     Skip(c, "magnetometer", s.sensor_id, s.t_s);
   }
@@ -148,7 +218,7 @@ void LocalizerNode::TakeNav(const dds::msg::VesselNav& m) {
   std::lock_guard<std::mutex> lk(mu_);
   localizer_.Tick(WallClock_s());
   const SampleCheck c = localizer_.Add(f);
-  if (c != SampleCheck::kOk) {
+  if (c != SampleCheck::kOk && !AlreadyConsumed(c)) {
     nav_repeats_.Forget(m);
     Skip(c, "gnss", 0, f.t_s);
   }

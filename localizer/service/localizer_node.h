@@ -10,6 +10,14 @@
 // the lock (bounded) and computes the bounds outside it. Every sample passes the library's checks at the door; one that
 // fails (non-finite, unknown sensor, time going backwards) is skipped,
 // counted, and warned about once per sensor (once for the GNSS), never fed.
+//
+// With a state directory (--state-dir) the node resumes from
+// DIR/magnav-localizer.state if it holds a checkpoint of this configuration
+// (any other file is refused with the reason in the log, kept beside as
+// .refused, and the node starts fresh), and Checkpoint() writes one
+// atomically (docs/RELIABILITY.md "Delivery, crash and restart"). What the
+// writers' history sends again of what the checkpoint consumed is dropped
+// and counted as "already in the checkpoint", not skipped.
 #pragma once
 
 #include <atomic>
@@ -45,6 +53,9 @@ struct LocalizerNodeOptions {
   // fixes (NAV_GNSS); any other VesselNav (another vessel, an INS) is
   // ignored and counted.
   std::uint32_t vessel_id = 0;
+  // Checkpoints: the directory (created if missing; "" = none) of
+  // magnav-localizer.state. The main writes one every checkpoint period.
+  std::string state_dir;
 
   bool IsValid(std::string* error) const;
 };
@@ -65,6 +76,15 @@ class LocalizerNode {
   // The wall clock for the stream merge (call every few tens of ms).
   void Tick();
   bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
+  // Writes the checkpoint (atomically) if there is a state directory and the
+  // EKF has started; true if written. A failure is logged (once until one
+  // succeeds again) and the node goes on.
+  bool Checkpoint();
+  // The checkpoint file ("" without a state directory), and whether the node resumed from it.
+  const std::string& state_path() const { return state_path_; }
+  bool resumed() const { return resumed_; }
+  // Items the writers' history sent again that the checkpoint had consumed.
+  std::uint64_t already_consumed() const;
 
   std::uint64_t samples_received() const { return mag_reader_->stats().samples.load(); }
   std::uint64_t fixes_received() const { return nav_reader_->stats().samples.load(); }
@@ -88,6 +108,9 @@ class LocalizerNode {
   void TakeSample(const dds::msg::MagnetometerSample& m);
   void OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info);
   void TakeNav(const dds::msg::VesselNav& m);
+  void Resume();  // from state_path_, before the readers exist
+  // True if `c` was an item the checkpoint consumed (counted, not skipped). mu_ held.
+  bool AlreadyConsumed(SampleCheck c);
   void Skip(SampleCheck why, const std::string& stream, std::uint32_t key, double t_s);  // mu_ held
 
   mutable std::mutex mu_;
@@ -99,6 +122,11 @@ class LocalizerNode {
   std::uint32_t vessel_id_ = 0;
   bool bounded_ = true;
   bool warned_ignored_ = false;
+  std::string state_path_;
+  bool resumed_ = false;
+  double resumed_until_s_ = 0.0;  // the checkpoint's consumed-until time
+  bool logged_already_ = false;
+  bool checkpoint_failing_ = false;
   dds::RepeatFilter repeats_;      // magnetometer samples
   dds::StampGuard<dds::msg::MagnetometerSample> guard_{"magnav-localizer: magnav/magnetometer sensor"};  // wild stamps and seqs held, then dropped or confirmed
   dds::RepeatFilter nav_repeats_;  // vessel_nav

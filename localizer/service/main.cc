@@ -26,7 +26,7 @@ int main(int argc, char** argv) {
   std::string deployment;
   magnav::cli::Vec3Arg moment;
   double sigma_B_T = 0.0, vessel_z_m = std::nan("");
-  double publish_period_s = 1.0, stats_period_s = 10.0;
+  double publish_period_s = 1.0, stats_period_s = 10.0, checkpoint_period_s = 5.0;
   magnav::cli::DdsArgs dds_args;
   app.add_option("--deployment", deployment, "deployment guesses: sensor_id,x,y,z,sigma_xy (m)")->required();
   magnav::cli::AddVec3Option(app, "--moment-body", &moment, "vessel body moment, A*m^2 (required)");
@@ -67,6 +67,12 @@ int main(int argc, char** argv) {
                  "turn-rate random walk, rad/s/sqrt(s)");
   app.add_option("--publish-period", publish_period_s, "publish every sensor's estimate every N seconds (> 0)")
       ->check(CLI::PositiveNumber);
+  app.add_option("--state-dir", opt.state_dir,
+                 "checkpoint the estimator's state to DIR/magnav-localizer.state (atomically) and resume from it at "
+                 "start if it was made for this configuration (docs/RELIABILITY.md)");
+  app.add_option("--checkpoint-period", checkpoint_period_s, "with --state-dir: write a checkpoint every N seconds")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::cli::AddDdsOptions(app, &dds_args);
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;
@@ -87,24 +93,33 @@ int main(int argc, char** argv) {
     const auto period = [](double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
     auto next_publish = Clock::now() + period(publish_period_s);
     auto next_stats = Clock::now() + period(stats_period_s);
+    auto next_checkpoint = Clock::now() + period(checkpoint_period_s);
     while (!magnav::dds::WaitForShutdown(std::chrono::milliseconds(50))) {
       loc.Tick();
       if (Clock::now() >= next_publish) {
         loc.Publish();
         next_publish += period(publish_period_s);
       }
+      if (!opt.state_dir.empty() && Clock::now() >= next_checkpoint) {
+        loc.Checkpoint();
+        next_checkpoint += period(checkpoint_period_s);
+      }
       if (stats_period_s > 0 && Clock::now() >= next_stats) {
         spdlog::info("magnav-localizer: {} magnetometer + {} vessel_nav samples in, {} used, {} skipped, {} "
                      "repeated, {} missing (sequence gaps), {} wild stamps or seqs, {} outliers refused by the EKF's gate, "
-                     "{} vessel_nav of other vessels or sources ignored, {} estimates out",
+                     "{} vessel_nav of other vessels or sources ignored, {} already in the checkpoint, {} estimates out",
                      loc.samples_received(), loc.fixes_received(), loc.consumed(), loc.skipped(), loc.repeated(),
-                     loc.missing(), loc.wild(), loc.outliers(), loc.ignored(), loc.published());
+                     loc.missing(), loc.wild(), loc.outliers(), loc.ignored(), loc.already_consumed(),
+                     loc.published());
         next_stats += period(stats_period_s);
       }
     }
     loc.Flush();
+    const bool saved = loc.Checkpoint();
     loc.WaitForAcknowledgments(std::chrono::seconds(5));
-    spdlog::info("magnav-localizer: stopping after {} samples used, {} skipped, {} repeated, {} missing, {} estimates",
-                 loc.consumed(), loc.skipped(), loc.repeated(), loc.missing(), loc.published());
+    spdlog::info("magnav-localizer: stopping after {} samples used, {} skipped, {} repeated, {} missing, {} "
+                 "estimates, {} already in the checkpoint{}",
+                 loc.consumed(), loc.skipped(), loc.repeated(), loc.missing(), loc.published(), loc.already_consumed(),
+                 saved ? "; checkpoint written to " + loc.state_path() : "");
   });
 }

@@ -5,6 +5,7 @@
 
 #include "graph.h"
 #include "magnav/core/error.h"
+#include "magnav/localizer/checkpoint.h"
 #include "magnav/localizer/cost_functions.h"
 #include "magnav/localizer/ekf.h"
 
@@ -218,6 +219,78 @@ std::vector<VesselVector> IncrementalCrlb::WindowTrajectory() const {
   std::vector<VesselVector> x;
   for (const Epoch& e : window_) x.push_back(e.x);
   return x;
+}
+
+void IncrementalCrlb::SaveState(StateWriter& w) const {
+  w.Matrix(folded_.info);
+  w.U64(folded_.known.size());
+  for (const Eigen::Matrix2d& k : folded_.known) w.Matrix(k);
+  w.U8(folded_.has_state ? 1 : 0);
+  w.F64(folded_.t_s);
+  w.Matrix(folded_.x);
+  w.U64(window_.size());
+  for (const Epoch& e : window_) {
+    w.F64(e.t_s);
+    w.Matrix(e.x);
+    w.U64(e.samples.size());
+    for (const MagSample& s : e.samples) {
+      w.F64(s.t_s);
+      w.U32(s.sensor_id);
+      for (int i = 0; i < 3; ++i) w.F64(s.B_T[i]);
+    }
+    w.U64(e.fixes.size());
+    for (const GnssFix& f : e.fixes) {
+      w.F64(f.t_s);
+      w.F64(f.p_xy_m.x());
+      w.F64(f.p_xy_m.y());
+      w.F64(f.sigma_m);
+    }
+  }
+  w.U64(window_items_);
+  w.U64(folded_epochs_);
+}
+
+void IncrementalCrlb::RestoreState(StateReader& r) {
+  const std::size_t m = sensors_.size(), n = 5 + 2 * m;
+  const std::size_t max_items = bound_.max_window_items + 1;
+  auto fixed = [&r](std::size_t rows, std::size_t cols, const char* what) {
+    Eigen::MatrixXd a = r.Matrix(rows, cols);
+    if (static_cast<std::size_t>(a.rows()) != rows || static_cast<std::size_t>(a.cols()) != cols) {
+      throw CheckpointError(std::string("corrupt: bound ") + what + " of another size");
+    }
+    return a;
+  };
+  Folded f;
+  f.info = fixed(n, n, "information");
+  if (r.Count(m) != m) throw CheckpointError("corrupt: bound of another number of sensors");
+  f.known.resize(m);
+  for (Eigen::Matrix2d& k : f.known) k = fixed(2, 2, "sensor information");
+  f.has_state = r.U8() != 0;
+  f.t_s = r.F64();
+  f.x = fixed(5, 1, "vessel state");
+  std::deque<Epoch> window(r.Count(max_items));
+  for (Epoch& e : window) {
+    e.t_s = r.F64();
+    e.x = fixed(5, 1, "epoch state");
+    e.samples.resize(r.Count(max_items));
+    for (MagSample& s : e.samples) {
+      s.t_s = r.F64();
+      s.sensor_id = r.U32();
+      for (int i = 0; i < 3; ++i) s.B_T[i] = r.F64();
+    }
+    e.fixes.resize(r.Count(max_items));
+    for (GnssFix& fx : e.fixes) {
+      fx.t_s = r.F64();
+      fx.p_xy_m.x() = r.F64();
+      fx.p_xy_m.y() = r.F64();
+      fx.sigma_m = r.F64();
+    }
+  }
+  const std::uint64_t items = r.U64(), folded = r.U64();
+  folded_ = std::move(f);
+  window_ = std::move(window);
+  window_items_ = static_cast<std::size_t>(items);
+  folded_epochs_ = folded;
 }
 
 }  // namespace magnav::localizer

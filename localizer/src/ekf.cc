@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "magnav/core/error.h"
+#include "magnav/localizer/checkpoint.h"
 #include "magnav/localizer/crlb.h"
 #include "magnav/localizer/models.h"
 #include "magnav/localizer/stream.h"
@@ -292,5 +293,57 @@ Localization RunStream(const Pass& pass, const LocalizerOptions& options, const 
   return out;
 }
 }  // namespace
+
+void LocalizerEkf::SaveState(StateWriter& w) const {
+  w.F64(t_s_);
+  w.Matrix(x_);
+  w.Matrix(P_);  // as stored: the lower triangle is the covariance
+  w.F64(last_nis_);
+  w.U64(magnetometer_gate_.size());
+  for (const GateState& g : magnetometer_gate_) {
+    w.I64(g.refused_in_a_row);
+    w.U8(g.open ? 1 : 0);
+  }
+  w.I64(gnss_gate_.refused_in_a_row);
+  w.U8(gnss_gate_.open ? 1 : 0);
+  w.U8(static_cast<std::uint8_t>(last_outcome_));
+  w.U64(rejected_magnetometer_);
+  w.U64(rejected_gnss_);
+  w.U64(gate_releases_);
+}
+
+void LocalizerEkf::RestoreState(StateReader& r) {
+  const std::size_t n = 5 + 2 * sensors_.size();
+  const double t = r.F64();
+  Eigen::MatrixXd x = r.Matrix(n, 1), P = r.Matrix(n, n);
+  if (static_cast<std::size_t>(x.rows()) != n || x.cols() != 1 || static_cast<std::size_t>(P.rows()) != n ||
+      static_cast<std::size_t>(P.cols()) != n) {
+    throw CheckpointError("corrupt: EKF state of another size");
+  }
+  const double nis = r.F64();
+  if (r.Count(sensors_.size()) != sensors_.size()) throw CheckpointError("corrupt: EKF gates of another size");
+  auto gate = [&r] {
+    GateState g;
+    g.refused_in_a_row = static_cast<int>(r.I64());
+    g.open = r.U8() != 0;
+    return g;
+  };
+  std::vector<GateState> mag(sensors_.size());
+  for (GateState& g : mag) g = gate();
+  const GateState gnss = gate();
+  const std::uint8_t outcome = r.U8();
+  if (outcome > static_cast<std::uint8_t>(Outcome::kFailed)) throw CheckpointError("corrupt: EKF outcome");
+  const std::uint64_t rej_mag = r.U64(), rej_gnss = r.U64(), releases = r.U64();
+  t_s_ = t;
+  x_ = x.col(0);
+  P_ = std::move(P);
+  last_nis_ = nis;
+  magnetometer_gate_ = std::move(mag);
+  gnss_gate_ = gnss;
+  last_outcome_ = static_cast<Outcome>(outcome);
+  rejected_magnetometer_ = rej_mag;
+  rejected_gnss_ = rej_gnss;
+  gate_releases_ = releases;
+}
 
 }  // namespace magnav::localizer

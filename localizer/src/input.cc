@@ -179,6 +179,8 @@ const char* SampleCheckName(SampleCheck check) {
       return "sigma not > 0";
     case SampleCheck::kOutOfRange:
       return "value out of range";
+    case SampleCheck::kAlreadyConsumed:
+      return "already in the checkpoint";
   }
   return "?";
 }

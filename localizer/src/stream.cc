@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "magnav/core/error.h"
+#include "magnav/localizer/checkpoint.h"
 #include "magnav/localizer/crlb.h"
 
 namespace magnav::localizer {
@@ -62,6 +63,17 @@ SampleCheck StreamingLocalizer::Add(const GnssFix& fix) {
 }
 
 SampleCheck StreamingLocalizer::Buffer(double t_s, int kind, std::int64_t stream, Item item) {
+  if (restored_ && (t_s < restored_until_ ||
+                    (t_s == restored_until_ && restored_at_until_.erase({kind, stream < 0 ? 0 : stream}) > 0))) {
+    // The writers' history after a restart: in the checkpoint already. It
+    // still tells that its stream is alive and where it is.
+    ++already_consumed_;
+    StreamState& st = streams_[stream];
+    st.last_t = std::max(st.last_t, t_s);
+    st.last_arrival = now_s_;
+    if (std::isnan(first_arrival_s_)) first_arrival_s_ = now_s_;
+    return SampleCheck::kAlreadyConsumed;
+  }
   if (t_s < consumed_until_) {
     ++late_;
     return SampleCheck::kTimeBackwards;
@@ -145,6 +157,9 @@ void StreamingLocalizer::Release(bool all) {
 
 void StreamingLocalizer::Consume(const Item& item) {
   const double t = std::visit([](const auto& x) { return x.t_s; }, item);
+  if (t != consumed_until_) consumed_at_until_.clear();
+  const MagSample* sample = std::get_if<MagSample>(&item);
+  consumed_at_until_.insert({sample ? 1 : 0, sample ? static_cast<std::int64_t>(sample->sensor_id) : 0});
   consumed_until_ = t;
   const bool ok = std::visit([this](const auto& x) { return ekf_->Update(x); }, item);
   if (!ok) {
@@ -258,6 +273,169 @@ Localization StreamingLocalizer::Result() const {
                             : AttachCrlb(pass_, options_, trajectory_, &out.sensors).joint_full;
   out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
+}
+
+namespace {
+void PutSample(StateWriter& w, const MagSample& s) {
+  w.F64(s.t_s);
+  w.U32(s.sensor_id);
+  for (int i = 0; i < 3; ++i) w.F64(s.B_T[i]);
+}
+MagSample GetSample(StateReader& r) {
+  MagSample s;
+  s.t_s = r.F64();
+  s.sensor_id = r.U32();
+  for (int i = 0; i < 3; ++i) s.B_T[i] = r.F64();
+  return s;
+}
+void PutFix(StateWriter& w, const GnssFix& f) {
+  w.F64(f.t_s);
+  w.F64(f.p_xy_m.x());
+  w.F64(f.p_xy_m.y());
+  w.F64(f.sigma_m);
+}
+GnssFix GetFix(StateReader& r) {
+  GnssFix f;
+  f.t_s = r.F64();
+  f.p_xy_m.x() = r.F64();
+  f.p_xy_m.y() = r.F64();
+  f.sigma_m = r.F64();
+  return f;
+}
+// Payload tag of the stream section (after the configuration).
+constexpr std::uint32_t kStreamTag = 0x4d414552;  // "REAM"
+constexpr std::size_t kMaxCount = std::size_t{1} << 40;  // a corrupt count: refused before allocating
+}  // namespace
+
+std::string StreamingLocalizer::ConfigBytes(int part) const {
+  StateWriter w;
+  if (part == 0) {
+    for (const auto& p : sensors_) {
+      w.U32(p.sensor_id);
+      for (int i = 0; i < 3; ++i) w.F64(p.p_SinW_m[i]);
+      w.F64(p.sigma_xy_m);
+    }
+  } else if (part == 1) {
+    for (int i = 0; i < 3; ++i) w.F64(vessel_.m_B_Am2[i]);
+    w.F64(vessel_.z_m);
+  } else {
+    const LocalizerOptions& o = options_;
+    for (double v : {o.process.position_m_per_sqrt_s, o.process.speed_mps_per_sqrt_s, o.process.heading_rad_per_sqrt_s,
+                     o.process.turn_rate_radps_per_sqrt_s, o.initial.position_m, o.initial.speed_mps,
+                     o.initial.heading_rad, o.initial.turn_rate_radps, o.sigma_B_T, o.gnss_sigma_m,
+                     o.gate_probability, o.epoch_tolerance_s, stream_.bound.lag_s}) {
+      w.F64(v);
+    }
+    w.I64(o.gate_release_after);
+    w.U8(stream_.bounded ? 1 : 0);
+    w.U64(stream_.bound.max_window_items);
+  }
+  return w.bytes();
+}
+
+std::string StreamingLocalizer::SaveState() const {
+  StateWriter w;
+  for (int part = 0; part < 3; ++part) w.Bytes(ConfigBytes(part));
+  w.U32(kStreamTag);
+  w.F64(consumed_until_);
+  w.U64(consumed_at_until_.size());
+  for (const auto& [kind, id] : consumed_at_until_) {
+    w.U8(static_cast<std::uint8_t>(kind));
+    w.I64(id);
+  }
+  for (std::uint64_t c : {consumed_, late_, failed_, rejected_, dropped_before_start_, magnetometer_used_, gnss_used_,
+                          already_consumed_}) {
+    w.U64(c);
+  }
+  w.U8(ekf_ ? 1 : 0);
+  if (ekf_) ekf_->SaveState(w);
+  w.U8(crlb_ ? 1 : 0);
+  if (crlb_) {
+    crlb_->SaveState(w);
+  } else {
+    w.U64(pass_.samples.size());
+    for (const auto& s : pass_.samples) PutSample(w, s);
+    w.U64(pass_.gnss.size());
+    for (const auto& f : pass_.gnss) PutFix(w, f);
+    w.U64(epoch_t_.size());
+    for (std::size_t i = 0; i < epoch_t_.size(); ++i) {
+      w.F64(epoch_t_[i]);
+      w.Matrix(trajectory_[i]);
+    }
+  }
+  return w.bytes();
+}
+
+void StreamingLocalizer::RestoreState(const std::string& payload) {
+  if (arrivals_ > 0 || ekf_ || restored_) {
+    throw std::logic_error("StreamingLocalizer::RestoreState: only into a new localizer");
+  }
+  StateReader r(payload);
+  static const char* const kParts[3] = {
+      "another deployment (sensor ids, positions or sigmas differ)", "another vessel (moment or depth differ)",
+      "other estimator options (noise, gate, method or bound differ)"};
+  for (int part = 0; part < 3; ++part) {
+    if (r.Bytes(payload.size()) != ConfigBytes(part)) {
+      throw CheckpointError(std::string("made for ") + kParts[part]);
+    }
+  }
+  if (r.U32() != kStreamTag) throw CheckpointError("corrupt: no stream section");
+  const double until = r.F64();
+  std::set<std::pair<int, std::int64_t>> at_until;
+  for (std::size_t i = r.Count(sensors_.size() + 1); i > 0; --i) {
+    const int kind = r.U8();
+    at_until.insert({kind, r.I64()});
+  }
+  std::uint64_t counters[8];
+  for (auto& c : counters) c = r.U64();
+  std::unique_ptr<LocalizerEkf> ekf;
+  if (r.U8() != 0) {
+    ekf = std::make_unique<LocalizerEkf>(vessel_, sensors_, 0.0, VesselVector::Zero(), VesselCovariance::Identity(),
+                                         options_);
+    ekf->RestoreState(r);
+  }
+  const bool bounded = r.U8() != 0;
+  if (bounded != stream_.bounded) throw CheckpointError("made for " + std::string(kParts[2]));
+  std::optional<IncrementalCrlb> crlb;
+  Pass pass = pass_;
+  std::vector<double> epoch_t;
+  std::vector<VesselVector> trajectory;
+  if (bounded) {
+    crlb.emplace(vessel_, sensors_, options_, stream_.bound);
+    crlb->RestoreState(r);
+  } else {
+    pass.samples.resize(r.Count(kMaxCount / 48));
+    for (auto& s : pass.samples) s = GetSample(r);
+    pass.gnss.resize(r.Count(kMaxCount / 32));
+    for (auto& f : pass.gnss) f = GetFix(r);
+    const std::size_t epochs = r.Count(kMaxCount / 64);
+    for (std::size_t i = 0; i < epochs; ++i) {
+      epoch_t.push_back(r.F64());
+      const Eigen::MatrixXd x = r.Matrix(5, 1);
+      if (x.rows() != 5 || x.cols() != 1) throw CheckpointError("corrupt: trajectory state of another size");
+      trajectory.push_back(x);
+    }
+  }
+  if (!r.at_end()) throw CheckpointError("corrupt: bytes after the state");
+  if (!ekf && std::isfinite(until)) throw CheckpointError("corrupt: consumed items but no EKF");
+  consumed_until_ = until;
+  consumed_at_until_ = at_until;
+  restored_ = true;
+  restored_until_ = until;
+  restored_at_until_ = std::move(at_until);
+  consumed_ = counters[0];
+  late_ = counters[1];
+  failed_ = counters[2];
+  rejected_ = counters[3];
+  dropped_before_start_ = counters[4];
+  magnetometer_used_ = counters[5];
+  gnss_used_ = counters[6];
+  already_consumed_ = counters[7];
+  ekf_ = std::move(ekf);
+  crlb_ = std::move(crlb);
+  pass_ = std::move(pass);
+  epoch_t_ = std::move(epoch_t);
+  trajectory_ = std::move(trajectory);
 }
 
 }  // namespace magnav::localizer

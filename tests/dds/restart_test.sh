@@ -21,6 +21,21 @@
 #             dds/queued_writer.h), and the estimates within 30 m of the
 #             sensor have an RMS error below 0.5 m (uninterrupted: 0.11 m).
 #             Every process must still be running when it is stopped.
+#   localizer magnav-localizer --state-dir killed 10 s into a 20 s replay of
+#             the reference localize pass (1110 s of data at --speed 55) and
+#             restarted 0.3 s later with the same state directory. It
+#             checkpoints every 1 s (--checkpoint-period 1: the writers'
+#             history of 1000 samples per sensor holds 200 s of data, 3.6 s
+#             at this speed, and must reach back past the checkpoint; at the
+#             default 5 s the live rate leaves 200 s of margin). Passes when
+#             the restarted localizer resumed from the checkpoint, dropped
+#             the history it held as "already in the checkpoint" (none
+#             skipped, no "time goes backwards"), and its final estimates
+#             (recorded by a recorder never restarted) have an RMS error
+#             against the truth within 1.2x of the uninterrupted run's
+#             (`magnav localize --method ekf-bounded`, which a live run
+#             equals to 1e-9 m: LocalizerService.ReplayedAndRecorded...); the
+#             largest difference from it is printed.
 # Each case runs $MAGNAV_RESTART_RUNS times (default 2; `MAGNAV_RESTART_RUNS=20`
 # for the 20-in-a-row check of issue 15).
 # Usage: restart_test.sh CASE BIN_DIR SOURCE_DIR
@@ -121,6 +136,68 @@ tracker)
     [ "$dups" -eq 0 ] || fail "estimates repeated"
     [ -z "$lost" ] || fail "the recorder lost $lost estimates (the restarted tracker's burst overwrote them)"
     awk -v r="$rms" 'BEGIN { exit !(r != "" && r < 0.5) }' || fail "RMS $rms m"
+  done
+  ;;
+localizer)
+  M="$SRC/tests/data/reference/localize_measurements.csv" G="$SRC/tests/data/reference/localize_gnss_full.csv"
+  D="$SRC/tests/data/reference/localize_deployment.csv" T="$SRC/tests/data/reference/localize_truth_sensors.csv"
+  "$BIN/magnav" localize --measurements "$M" --deployment "$D" --gnss "$G" --method ekf-bounded \
+    --output "$WORK/offline.csv" >/dev/null
+  # rms FILE: RMS horizontal error of the last estimate per sensor against the truth.
+  rms() {
+    awk -F, 'FNR == 1 { f++ } /^#/ { next }
+             !h[f] { for (i = 1; i <= NF; i++) c[f, $i] = i; h[f] = 1; next }
+             f == 1 { tx[$c[1, "sensor_id"]] = $c[1, "x"]; ty[$c[1, "sensor_id"]] = $c[1, "y"] }
+             f == 2 { x[$c[2, "sensor_id"]] = $c[2, "x"]; y[$c[2, "sensor_id"]] = $c[2, "y"] }
+             END { for (id in tx) { if (!(id in x)) { print "missing"; exit } s += (x[id] - tx[id]) ^ 2 + (y[id] - ty[id]) ^ 2; n++ }
+                   printf "%.6f\n", sqrt(s / n) }' "$T" "$1"
+  }
+  # maxdiff A B: largest |difference| of x, y of the last estimate per sensor.
+  maxdiff() {
+    awk -F, 'FNR == 1 { f++ } /^#/ { next }
+             !h[f] { for (i = 1; i <= NF; i++) c[f, $i] = i; h[f] = 1; next }
+             { x[f, $c[f, "sensor_id"]] = $c[f, "x"]; y[f, $c[f, "sensor_id"]] = $c[f, "y"]; ids[$c[f, "sensor_id"]] = 1 }
+             END { for (id in ids) { d = x[1, id] - x[2, id]; if (d < 0) d = -d; if (d > m) m = d
+                                     d = y[1, id] - y[2, id]; if (d < 0) d = -d; if (d > m) m = d }
+                   printf "%.3g\n", m }' "$1" "$2"
+  }
+  want=$(rms "$WORK/offline.csv")
+  LOC=("$BIN/magnav-localizer" --deployment "$D" --moment-body 30000,2000,10000 --vessel-z 0 --sigma-b 1e-9
+       --stats-period 0 --state-dir "$WORK/state" --checkpoint-period 1)
+  for run in $(seq "$RUNS"); do
+    rm -rf "$WORK/state" "$WORK/positions.csv"
+    "$BIN/magnav" record --topic sensor_position --output "$WORK/positions.csv" >"$WORK/record.log" 2>&1 &
+    rec=$!; pids+=($rec)
+    "${LOC[@]}" >"$WORK/localizer1.log" 2>&1 &
+    loc1=$!; pids+=($loc1)
+    start=$(date +%s.%N)
+    "$BIN/magnav" replay --magnetometer "$M" --gnss "$G" --speed 55 --wait-readers 1 --wait 20 >"$WORK/replay.log" 2>&1 &
+    rp=$!; pids+=($rp)
+    sleep 10
+    [ -s "$WORK/state/magnav-localizer.state" ] || fail "no checkpoint written 10 s into the run"
+    restart "$loc1" "$WORK/localizer2.log" "${LOC[@]}"
+    loc2=$restarted
+    wait "$rp" || fail "replay stopped: $(tail -1 "$WORK/replay.log")"
+    took=$(echo "$(date +%s.%N) - $start" | bc)
+    sleep 2
+    alive "$loc2" magnav-localizer && alive "$rec" "magnav record"
+    kill -TERM "$loc2"; wait "$loc2" || fail "the restarted localizer failed"
+    sleep 1  # its final estimates reach the recorder
+    kill -TERM "$rec"; wait "$rec" || fail "record failed"
+    keep
+    grep -q "resumed from checkpoint" "$WORK/localizer2.log" || fail "the restarted localizer did not resume"
+    ! grep -q "time goes backwards" "$WORK/localizer2.log" || fail "history taken for 'time goes backwards'"
+    read -r used skipped already < <(sed -n 's/.*stopping after \([0-9]*\) samples used, \([0-9]*\) skipped, .* \([0-9]*\) already in the.*/\1 \2 \3/p' \
+                                     "$WORK/localizer2.log")
+    got=$(rms "$WORK/positions.csv")
+    diff=$(maxdiff "$WORK/positions.csv" "$WORK/offline.csv")
+    echo "run $run: replay took ${took%???????} s; restarted localizer resumed, ${already:-?} items of the history" \
+         "already in the checkpoint, ${skipped:-?} skipped, ${used:-?} used in all; final RMS error $got m" \
+         "(uninterrupted $want m), largest difference from the uninterrupted estimates $diff m"
+    [ "${skipped:-1}" -eq 0 ] || fail "$skipped samples skipped"
+    [ "${already:-0}" -gt 0 ] || fail "no history dropped as already in the checkpoint"
+    awk -v g="$got" -v w="$want" 'BEGIN { exit !(g != "missing" && g <= 1.2 * w) }' \
+      || fail "final RMS error $got m, more than 1.2 x the uninterrupted $want m"
   done
   ;;
 *) echo "unknown case $CASE"; exit 2 ;;

@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -19,6 +20,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/units.h"
 #include "magnav/dds/node.h"
+#include "magnav/localizer/checkpoint.h"
 #include "magnav/localizer/ekf.h"
 #include "stock_relay.h"
 #include "subprocess.h"
@@ -282,6 +284,73 @@ TEST_P(LocalizerStockWriter, EverySampleCountsAsFromMagnavsOwnWriter) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Qos, LocalizerStockWriter, ::testing::Values("default", "sensor_data"));
+
+// --state-dir: a checkpoint of this configuration is resumed from; one that is
+// corrupt, truncated, of another version or another configuration is refused
+// with the reason, kept aside as .refused, and the service starts fresh (and
+// does not crash). The restart itself: Dds.RestartAfterKill_localizer.
+std::string StartWithCheckpoint(const std::string& dir, const std::string& file, bool* renamed) {
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  WriteFileAtomically(dir + "/magnav-localizer.state", file);
+  testing::Subprocess service({MAGNAV_SERVICE_BIN, "--deployment", testing::ReferencePath("localize_deployment.csv"),
+                               "--moment-body", "30000,2000,10000", "--vessel-z", "0", "--sigma-b", "1e-9",
+                               "--stats-period", "0", "--state-dir", dir},
+                              {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}}, /*merge_stderr=*/true);
+  std::string line, log;
+  while (!(line = service.ReadLine()).empty() && line.find("checkpoint") == std::string::npos) log += line;
+  service.Signal(SIGTERM);
+  EXPECT_EQ(service.Wait(30s), 0) << log << line << service.ReadAll();
+  *renamed = std::filesystem::exists(dir + "/magnav-localizer.state.refused");
+  return line;
+}
+
+TEST(LocalizerService, ResumesFromItsCheckpointAndRefusesABadOne) {
+  const PassFile d = test::ReferencePass();
+  StreamOptions so;
+  so.bounded = true;
+  so.merge = StreamMerge::kWatermark;
+  auto checkpoint = [&](const Pass& pass) {
+    StreamingLocalizer s(pass.vessel, pass.sensors, LocalizerOptions{}, so);
+    std::size_t g = 0;
+    for (std::size_t i = 0; i < 4000; ++i) {
+      while (g < pass.gnss.size() && pass.gnss[g].t_s <= pass.samples[i].t_s) s.Add(pass.gnss[g++]);
+      s.Add(pass.samples[i]);
+    }
+    return EncodeCheckpoint(s.SaveState());
+  };
+  const std::string good = checkpoint(d.pass);
+  const std::string dir = testing::TempDir() + "/state";
+  bool renamed = false;
+  std::string line = StartWithCheckpoint(dir, good, &renamed);
+  EXPECT_NE(line.find("resumed from checkpoint"), std::string::npos) << line;
+  EXPECT_FALSE(renamed);
+  // The clean stop wrote it again (still a checkpoint of this configuration).
+  std::string again;
+  ASSERT_TRUE(ReadWholeFile(dir + "/magnav-localizer.state", &again));
+  EXPECT_NO_THROW(DecodeCheckpoint(again));
+
+  std::string flipped = good, v2 = good;
+  flipped[flipped.size() / 2] ^= 1;
+  v2[8] = 2;
+  Pass moved = d.pass;
+  moved.sensors[0].p_SinW_m.y() += 5.0;
+  const std::pair<const char*, std::string> bad[] = {
+      {"corrupt: checksum mismatch", flipped},
+      {"truncated", good.substr(0, good.size() / 3)},
+      {"format version 2", v2},
+      {"made for another deployment", checkpoint(moved)},
+      {"no MAGNAVLC magic", "garbage"},
+  };
+  for (const auto& [why, file] : bad) {
+    SCOPED_TRACE(why);
+    line = StartWithCheckpoint(dir, file, &renamed);
+    EXPECT_NE(line.find("refused ("), std::string::npos) << line;
+    EXPECT_NE(line.find(why), std::string::npos) << line;
+    EXPECT_NE(line.find("starting fresh"), std::string::npos) << line;
+    EXPECT_TRUE(renamed);
+  }
+}
 
 }  // namespace
 }  // namespace magnav::localizer

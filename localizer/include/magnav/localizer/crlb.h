@@ -27,6 +27,9 @@
 
 namespace magnav::localizer {
 
+class StateWriter;
+class StateReader;
+
 // The epochs of a pass: times at which the estimators keep a vessel state
 // (samples and fixes within options.epoch_tolerance_s of an epoch's first
 // time share it). A trajectory handed to ComputeCrlb has one state per epoch.
@@ -101,6 +104,12 @@ class IncrementalCrlb {
   // The vessel state at each epoch of the window (time order).
   std::vector<double> WindowTimes() const;
   std::vector<VesselVector> WindowTrajectory() const;
+
+  // Checkpoint (checkpoint.h): the folded information and the window, bit
+  // for bit. RestoreState needs the same vessel, sensors and options; throws
+  // CheckpointError if the bytes do not fit (state untouched).
+  void SaveState(StateWriter& w) const;
+  void RestoreState(StateReader& r);
 
  private:
   struct Epoch {

@@ -27,6 +27,9 @@
 
 namespace magnav::localizer {
 
+class StateWriter;
+class StateReader;
+
 // The 1-σ (m) a fix is used with: options.gnss_sigma_m if set, else the fix's.
 double GnssSigma(const GnssFix& fix, const LocalizerOptions& options);
 
@@ -80,6 +83,13 @@ class LocalizerEkf {
   // Normalised innovation squared of the last magnetometer or GNSS update
   // (applied or refused).
   double last_nis() const { return last_nis_; }
+
+  // Checkpoint (checkpoint.h): everything that changes after construction
+  // (time, state, covariance, gate states, counters), bit for bit.
+  void SaveState(StateWriter& w) const;
+  // Into an EKF made with the same vessel, sensors and options (any t0, x0,
+  // P0). Throws CheckpointError if the bytes do not fit (state untouched).
+  void RestoreState(StateReader& r);
 
  private:
   int Column(std::uint32_t sensor_id) const;  // −1 if unknown

@@ -55,7 +55,10 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
 // kOutOfRange: finite but a value no instrument gives, the limits the file
 // readers hold to (core/gradiometer.h): |B_i| > kMaxAbsB_T (1 T: nT or µT
 // sent as T), a GNSS position or σ beyond kMaxAbsPosition_m (1e7 m).
-enum class SampleCheck { kOk, kNonFinite, kUnknownSensor, kTimeBackwards, kBadSigma, kOutOfRange };
+// kAlreadyConsumed: StreamingLocalizer only, an item a restored checkpoint
+// has consumed already (older than its consumed-until time; a restarted
+// service gets it again from the writers' history): not an error.
+enum class SampleCheck { kOk, kNonFinite, kUnknownSensor, kTimeBackwards, kBadSigma, kOutOfRange, kAlreadyConsumed };
 const char* SampleCheckName(SampleCheck check);
 
 // The door for live samples (the service): a sample is accepted only if it is

@@ -15,6 +15,8 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
+#include <string>
 #include <tuple>
 #include <variant>
 #include <vector>
@@ -83,7 +85,10 @@ class StreamingLocalizer {
 
   // kOk: accepted (buffered). Anything else: refused, state untouched:
   // non-finite, unknown sensor, older than the same stream's last sample, or
-  // older than what the EKF has already consumed (kTimeBackwards).
+  // older than what the EKF has already consumed (kTimeBackwards), or, after
+  // RestoreState, consumed already by the checkpoint (kAlreadyConsumed:
+  // older than its consumed-until time, or at that time from a stream whose
+  // item of that time it consumed; counted in already_consumed()).
   SampleCheck Add(const MagSample& sample);
   SampleCheck Add(const GnssFix& fix);
   // Hands everything buffered to the EKF (end of stream).
@@ -116,6 +121,30 @@ class StreamingLocalizer {
   // needs the whole pass). Empty sensors before the start.
   Snapshot TakeSnapshot() const;
 
+  // Checkpoint (checkpoint.h; docs/RELIABILITY.md): the payload of a
+  // checkpoint file (EncodeCheckpoint) with everything the estimator needs to
+  // go on: the configuration it was made for (vessel, sensors, estimator
+  // options), the consumed-until time, the counters, the EKF's state and
+  // covariance, the bound's folded information and window (bounded) or the
+  // pass consumed so far (unbounded), every double bit for bit. Not saved:
+  // the items waiting in the merge buffer (newer than consumed-until; a
+  // restarted service gets them again from the writers' history, a caller
+  // of the library feeds them again) and the door's and merge's arrival
+  // state (wall clock of another process).
+  std::string SaveState() const;
+  // Into a localizer made with the same vessel, sensors and estimator
+  // options, before anything was added (std::logic_error otherwise). Throws
+  // CheckpointError with the reason (corrupt, truncated, made for another
+  // configuration) and leaves the localizer as it was. Afterwards, items the
+  // checkpoint consumed are refused as kAlreadyConsumed and the rest are
+  // merged and consumed as they would have been without the restart: the
+  // final estimates are those of an uninterrupted run, bit for bit, when the
+  // same items arrive.
+  void RestoreState(const std::string& payload);
+  bool restored() const { return restored_; }
+  // Consumed-until time (s) of the EKF: every item older than this is in the state.
+  double consumed_until() const { return consumed_until_; }
+
   // Items kept in memory now: the reorder buffer (≤ max_pending), the
   // bound's window (bounded) or the whole pass and trajectory (unbounded).
   // For tests that nothing grows with uptime.
@@ -126,6 +155,8 @@ class StreamingLocalizer {
   std::uint64_t failed() const { return failed_; }       // EKF refused (e.g. singular, time 1e300 s ahead)
   std::uint64_t rejected() const { return rejected_; }   // refused by the EKF's NIS gate (outliers)
   std::uint64_t dropped_before_start() const { return dropped_before_start_; }
+  // Refused after RestoreState as consumed by the checkpoint already (kAlreadyConsumed).
+  std::uint64_t already_consumed() const { return already_consumed_; }
 
  private:
   using Item = std::variant<MagSample, GnssFix>;
@@ -139,6 +170,8 @@ class StreamingLocalizer {
   void Release(bool all);
   bool TryStart(bool final);
   void Consume(const Item& item);
+  // The configuration a checkpoint is made for: vessel, sensors, estimator options.
+  std::string ConfigBytes(int part) const;
 
   Vessel vessel_;
   std::vector<SensorPrior> sensors_;
@@ -165,6 +198,14 @@ class StreamingLocalizer {
   std::vector<VesselVector> trajectory_;
   std::uint64_t magnetometer_used_ = 0, gnss_used_ = 0;
   std::uint64_t consumed_ = 0, late_ = 0, failed_ = 0, rejected_ = 0, dropped_before_start_ = 0;
+  // The streams (0 = fix / 1 = sample, sensor id; 0 for the GNSS) whose
+  // item at consumed_until_ the EKF has taken.
+  std::set<std::pair<int, std::int64_t>> consumed_at_until_;
+  // After RestoreState: the checkpoint's consumed-until time and streams.
+  bool restored_ = false;
+  double restored_until_ = -std::numeric_limits<double>::infinity();
+  std::set<std::pair<int, std::int64_t>> restored_at_until_;
+  std::uint64_t already_consumed_ = 0;
 };
 
 }  // namespace magnav::localizer
