@@ -290,9 +290,6 @@ Recording SubscribeMcap(dds::Node& node, const std::string& topic, std::size_t i
   return r;
 }
 
-const std::vector<std::string> kTopics = {"gradiometer",  "dipole_fix",      "track",  "magnetometer",
-                                          "vessel_nav",   "sensor_position", "map_fix"};
-
 bool IsMcap(const RecordArgs& a) {
   if (!a.format.empty()) return a.format == "mcap";
   return a.output.size() > 5 && a.output.compare(a.output.size() - 5, 5, ".mcap") == 0;
@@ -316,7 +313,7 @@ mcap::KeyValues RecordingMetadata(const RecordArgs& a, const dds::Node& node) {
 
 void Run(const RecordArgs& a) {
   std::vector<std::string> topics = a.topics.empty() ? std::vector<std::string>{"gradiometer"} : a.topics;
-  if (std::find(topics.begin(), topics.end(), "all") != topics.end()) topics = kTopics;
+  if (std::find(topics.begin(), topics.end(), "all") != topics.end()) topics = AllTopics();
   std::sort(topics.begin(), topics.end());
   topics.erase(std::unique(topics.begin(), topics.end()), topics.end());
   const bool mcap_out = IsMcap(a);
@@ -410,8 +407,7 @@ void AddRecordCommand(CLI::App& app) {
                   "gradiometer (default), dipole_fix, track, magnetometer, vessel_nav, sensor_position, map_fix, or all; "
                   "several (repeated, or comma-separated) with --output-dir or --output FILE.mcap")
       ->delimiter(',')
-      ->check(CLI::IsMember({"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position",
-                             "map_fix", "all"}));
+      ->check(CLI::IsMember(TopicChoices()));
   sub->add_option("--output", args->output,
                   "CSV file, or - for standard output. The rows go to OUTPUT.tmp-PID-N, renamed to OUTPUT when "
                   "recording stops (SIGINT/SIGTERM, --count, --duration or an error): OUTPUT only ever holds "

@@ -409,8 +409,7 @@ void AddReplayCommand(CLI::App& app) {
                   "MCAP input: the topics to send (gradiometer, magnetometer, vessel_nav, dipole_fix, track, "
                   "sensor_position, map_fix, all; default: the sensor topics gradiometer, magnetometer, vessel_nav)")
       ->delimiter(',')
-      ->check(CLI::IsMember({"gradiometer", "dipole_fix", "track", "magnetometer", "vessel_nav", "sensor_position",
-                             "map_fix", "all"}));
+      ->check(CLI::IsMember(TopicChoices()));
   sub->add_option("--magnetometer", args->magnetometer,
                   "localize measurements CSV (t,sensor_id,B_x,B_y,B_z) -> magnav/magnetometer");
   sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma) -> magnav/vessel_nav");

@@ -15,6 +15,12 @@ const std::vector<std::string>& AllTopics() {
   return t;
 }
 
+std::vector<std::string> TopicChoices() {
+  std::vector<std::string> c = AllTopics();
+  c.push_back("all");
+  return c;
+}
+
 bool IsSensorTopic(const std::string& topic) {
   return topic == "gradiometer" || topic == "magnetometer" || topic == "vessel_nav";
 }

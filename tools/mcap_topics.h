@@ -20,6 +20,8 @@ namespace magnav::tools {
 // Topic names without "magnav/": gradiometer, dipole_fix, track, magnetometer,
 // vessel_nav, sensor_position, map_fix.
 const std::vector<std::string>& AllTopics();
+// AllTopics() and "all": what --topic of record and replay accepts.
+std::vector<std::string> TopicChoices();
 // The sensor topics replay sends by default.
 bool IsSensorTopic(const std::string& topic);
 // "magnav/gradiometer" or "rt/magnav/gradiometer" -> "gradiometer"; "" for others.
