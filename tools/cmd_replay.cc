@@ -403,16 +403,20 @@ void AddReplayCommand(CLI::App& app) {
       "Publish a gradiometer CSV on magnav/gradiometer, localize files or a map-matching run on magnav/magnetometer + "
       "magnav/vessel_nav");
   sub->add_option("--input", args->input,
-                  "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22), or an MCAP recording (magnav record --output "
-                  "FILE.mcap: its sensor topics, or --topic, paced by their receive times)");
+                  "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22; a CSV recording's DIR/gradiometer.csv from `magnav record "
+                  "--output-dir DIR` is one: its extra columns are ignored), or an MCAP recording (magnav record --output "
+                  "FILE.mcap: its sensor topics, or --topic, paced by their receive times). A CSV recording directory "
+                  "is not taken whole: give its files (--input DIR/gradiometer.csv, or --magnetometer "
+                  "DIR/magnetometer.csv --gnss DIR/vessel_nav.csv)");
   sub->add_option("--topic", args->topics,
                   "MCAP input: the topics to send (gradiometer, magnetometer, vessel_nav, dipole_fix, track, "
                   "sensor_position, map_fix, all; default: the sensor topics gradiometer, magnetometer, vessel_nav)")
       ->delimiter(',')
       ->check(CLI::IsMember(TopicChoices()));
   sub->add_option("--magnetometer", args->magnetometer,
-                  "localize measurements CSV (t,sensor_id,B_x,B_y,B_z) -> magnav/magnetometer");
-  sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma) -> magnav/vessel_nav");
+                  "localize measurements CSV (t,sensor_id,B_x,B_y,B_z; or a CSV recording's magnetometer.csv) -> "
+                  "magnav/magnetometer");
+  sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma; or a CSV recording's vessel_nav.csv) -> magnav/vessel_nav");
   sub->add_option("--map-path", args->map_path,
                   "map-matching run (k,ins_lat,ins_lon and --meas-column, as `magnav match` reads) -> magnav/vessel_nav "
                   "(INS, geodetic) + magnav/magnetometer (|B| = --reference-field + anomaly)");
