@@ -53,7 +53,7 @@ enum class RejectReason {
   kNotInitialized,   // used by the Monte-Carlo runner before its prior exists
   kUnknownSigma,     // Monte-Carlo: σ_T unknown, the filter cannot weigh the sample
   kNoRegionalField,  // the regional field B0 of this sensor is not known (yet)
-  kOutOfRange,       // the door: a position, B or T beyond core's kMaxAbs* limits (not a reading)
+  kOutOfRange,       // the door: a position, B or T beyond core's limits (core/limits.h) (not a reading)
 };
 // Stable snake_case names ("weak_signal", ...); "" for kNone.
 const char* RejectReasonName(RejectReason reason);
