@@ -243,7 +243,7 @@ void Error(const PlotArgs& a, GnuplotFigure* fig) {
   plots.insert(plots.end(), lines.begin(), lines.end());
   fig->Script("set title " +
               Quote(a.title.empty() ? "position error against the truth, " + Plural(tracks.size(), "track", "tracks") +
-                                          ", with the 1-σ (3-D) band of each"
+                                          (tracks.size() == 1 ? ", with its" : ", each with its") + " 1-σ (3-D) band"
                                     : a.title));
   fig->Script("set xlabel 'time t (s)'\nset ylabel 'position error, 3-D (m)'\nset logscale y\nset format y '%g'\nset grid");
   fig->Script(kKey);
@@ -425,7 +425,8 @@ void Match(const PlotArgs& a, GnuplotFigure* fig) {
                         const std::string& title) {
     const std::string d = fig->Data(name, rows);
     plots.push_back(d + " using 1:2 with lines lw 5 lc rgb '" + casing + "' notitle");
-    plots.push_back(d + " using 1:2 with lines " + style + " title " + Quote(title));
+    plots.push_back(d + " using 1:2 with " + (name == "matched" ? "linespoints " : "lines ") + style + " title " +
+                    Quote(title));
   };
   path("ins", ins, "lw 2 lc rgb 'white'", "black", "INS");
   if (!truth.empty()) path("true", truth, "lw 2 dt (5,3) lc rgb 'black'", "white", "true");
@@ -437,7 +438,7 @@ void Match(const PlotArgs& a, GnuplotFigure* fig) {
       r.push_back({east(m.number(i, m.column("lon"))), north(m.number(i, m.column("lat")))});
     }
     fixes = r.size();
-    path("matched", r, "lw 2.5 " + PaletteColour(1), "white", "matched");
+    path("matched", r, "lw 2.5 pt 7 ps 0.7 " + PaletteColour(1), "white", "matched");
   }
   std::string layer = LayerLabel(a.value_column);
   layer = layer.substr(0, layer.rfind(" ("));
