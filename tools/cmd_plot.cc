@@ -141,7 +141,8 @@ std::string VesselName(const Truth& truth, long long v) {
 }
 
 // The truth paths, dashed: a vessel paired with a track in that track's
-// colour (colour_of_vessel), the others grey.
+// colour (colour_of_vessel), the others dark grey, each with its own dash
+// pattern.
 void PlotTruthPaths(const Truth& truth, const std::map<long long, std::string>& colour_of_vessel,
                     const std::map<long long, long long>& track_of_vessel, GnuplotFigure* fig,
                     std::vector<std::string>* plots) {
@@ -152,8 +153,9 @@ void PlotTruthPaths(const Truth& truth, const std::map<long long, std::string>& 
     const auto t = track_of_vessel.find(v);
     std::string name = VesselName(truth, v) + (truth.has_vessel_id ? " (truth)" : "");
     if (t != track_of_vessel.end()) name += ", track " + std::to_string(t->second);
-    plots->push_back(d + " using 1:2 with lines dt (8,5) lw 2 " +
-                     (c != colour_of_vessel.end() ? c->second : "lc rgb 'gray40' dt " + std::to_string(2 + k % 4)) +
+    plots->push_back(d + " using 1:2 with lines lw 2 " +
+                     (c != colour_of_vessel.end() ? c->second + " dt (8,5)"
+                                                  : "lc rgb '#404040' dt " + std::to_string(2 + k % 4)) +
                      " title " + Quote(name));
     ++k;
   }
@@ -268,14 +270,8 @@ void Fixes(const PlotArgs& a, GnuplotFigure* fig) {
     }
   }
   std::vector<std::string> plots;
-  if (!a.truth.empty()) {
-    const Truth truth = ReadTruth(a.truth);
-    std::map<long long, std::string> black;
-    for (const auto& [v, rows] : truth.paths) black[v] = "lc rgb 'black'";
-    PlotTruthPaths(truth, black, {}, fig, &plots);
-  }
   // Rejected fixes by reason (open markers, palette colours 2..), then the
-  // accepted ones (filled, palette colour 1) last, on top.
+  // accepted ones (filled, palette colour 1) over them.
   const int kOpen[] = {6, 4, 8, 12, 2, 1};
   int k = 0;
   std::size_t accepted = 0, total = 0;
@@ -294,6 +290,9 @@ void Fixes(const PlotArgs& a, GnuplotFigure* fig) {
     plots.push_back(fig->Data("accepted", drawn.at("accepted")) + " using 1:2 with points pt 7 ps 0.6 " +
                     PaletteColour(0) + " title " + Quote("accepted (" + std::to_string(accepted) + ")"));
   }
+  // The truth last, over the fixes (which would hide it), dark grey (the
+  // colours are the fixes'), one dash pattern per vessel.
+  if (!a.truth.empty()) PlotTruthPaths(ReadTruth(a.truth), {}, {}, fig, &plots);
   std::string note;
   std::size_t not_drawn = 0;
   for (const auto& [reason, n] : undrawn) {
