@@ -10,6 +10,7 @@
 #include <set>
 #include <string>
 
+#include "association.h"
 #include "commands.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
@@ -110,14 +111,9 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
       continue;
     }
     const Eigen::Vector3d p(est->number(i, pe.x), est->number(i, pe.y), est->number(i, pe.z));
-    long long best_v = -1;
-    double best = 1e300;
-    for (const auto& [v, q] : it->second) {
-      if ((p - q).norm() < best) {
-        best = (p - q).norm();
-        best_v = v;
-      }
-    }
+    const auto nearest = FindNearestVessel(it->second, p);  // association.h, shared with magnav plot
+    const long long best_v = nearest ? nearest->vessel_id : -1;
+    const double best = nearest ? nearest->distance_m : 1e300;
     if (best > a.gate_m) {
       ++false_rows;
       gospa_est[t].push_back(p);
