@@ -222,7 +222,7 @@ INSTANTIATE_TEST_SUITE_P(Qos, TrackerStockWriter, ::testing::Values("default", "
 // samples (an inverter running ahead), so the order in which the two streams
 // reach the tracker is fixed and its estimates are exactly the library's fed
 // the same way (interleaved order: tracker_initialize_test). Its own fixes
-// would start the track at 55 s; the inverter's first valid fix is at 67.7 s.
+// would start the track at 55 s; the inverter's first valid fix is at 68.5 s.
 TEST(TrackerService, StartsFromTheInvertersFixes) {
   const int domain = testing::TestDomainId();
   const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_ship_1sensor_fluxgate.csv"));
