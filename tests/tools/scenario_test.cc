@@ -33,14 +33,14 @@ b0 = [2e-5, 1e-6, 4.5e-5]
 grid = [2, 2, 30]
 drift_nt_per_min = 6
 
-[vessel.3]
+[vessel.3]   # on turn segments
 moment = [2000, 300, 800]
 start = [-60, -5, -5]
 velocity = [1.2, 0.1]
 turns = [40, 0, 30, 0.03]
 
-[vessel.9]
-t0 = 10
+[vessel.9]  # on waypoints, changing depth
+t0 = 10  # s
 moment = [420000, 0, 150000]
 speed = 3
 waypoints = [-200, 120, -12, 0, 120, -12, 100, 60, -8]

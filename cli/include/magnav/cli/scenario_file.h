@@ -90,6 +90,21 @@ inline FieldScenario ParseScenario(const std::string& text, const std::string& n
   using namespace scenario_detail;
   std::string body = text;
   if (body.rfind("\xEF\xBB\xBF", 0) == 0) body.erase(0, 3);
+  // A comment after a section header ("[vessel.1]  # the AUV") is cut here:
+  // CLI11 2.1 reads it as part of the section name (after a value it drops it).
+  {
+    std::istringstream lines(body);
+    std::string line, cleaned;
+    while (std::getline(lines, line)) {
+      std::string head = line;
+      CLI::detail::ltrim(head);
+      if (!head.empty() && head.front() == '[' && head.find('#') != std::string::npos) {
+        line = head.substr(0, head.find('#'));
+      }
+      cleaned += line + "\n";
+    }
+    body = cleaned;
+  }
   std::istringstream in(body);
   std::vector<CLI::ConfigItem> items;
   try {
