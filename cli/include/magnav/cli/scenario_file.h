@@ -150,7 +150,8 @@ inline FieldScenario ParseScenario(const std::string& text, const std::string& n
         const auto g = Numbers(top, k, item.inputs);
         if (g.size() != 3 || g[0] < 1 || g[1] < 1 || g[0] != std::floor(g[0]) || g[1] != std::floor(g[1]) ||
             g[0] * g[1] > 10000 || !(g[2] > 0.0)) {
-          throw InputError(top + "'grid': expected [NX, NY, SPACING_M] (whole NX, NY >= 1, NX*NY <= 10000, spacing > 0)");
+          throw InputError(top +
+                           "'grid': expected [NX, NY, SPACING_M] (whole NX, NY >= 1, NX*NY <= 10000, spacing > 0)");
         }
         sc.sensors = SensorGrid(static_cast<int>(g[0]), static_cast<int>(g[1]), g[2]);
         has_grid = true;
@@ -182,7 +183,9 @@ inline FieldScenario ParseScenario(const std::string& text, const std::string& n
     const auto vid = static_cast<std::uint32_t>(*id);
     if (!vessel_keys.count(vid)) order.push_back(vid);
     auto& keys = vessel_keys[vid];
-    if (keys.count(item.name)) throw InputError(top + "[vessel." + item.parents[1] + "] '" + item.name + "' given twice");
+    if (keys.count(item.name)) {
+      throw InputError(top + "[vessel." + item.parents[1] + "] '" + item.name + "' given twice");
+    }
     keys[item.name] = item.inputs;
   }
   if (has_grid && has_sensors) throw InputError(top + "'grid' and 'sensors': give one of them");
@@ -223,7 +226,9 @@ inline FieldScenario ParseScenario(const std::string& text, const std::string& n
         v.segments = {{One(where, k, inputs), 0.0}};
       } else if (k == "turns") {
         const auto t = Numbers(where, k, inputs);
-        if (t.empty() || t.size() % 2 != 0) throw InputError(where + "'turns': expected DURATION_S, TURN_RATE_RPS pairs");
+        if (t.empty() || t.size() % 2 != 0) {
+          throw InputError(where + "'turns': expected DURATION_S, TURN_RATE_RPS pairs");
+        }
         v.segments.clear();
         for (std::size_t i = 0; i < t.size(); i += 2) v.segments.push_back({t[i], t[i + 1]});
       } else if (k == "waypoints") {
