@@ -6,7 +6,7 @@
 
 #include "magnav/core/error.h"
 #include "magnav/core/units.h"
-#include "magnav/dds/convert.h"
+#include "magnav/dds/convert_tracker.h"
 #include "magnav/tracker/initialize.h"
 
 namespace magnav::tracker {
@@ -17,34 +17,6 @@ bool TrackerNodeOptions::IsValid(std::string* error) const {
     return false;
   }
   return tracker.IsValid(error);
-}
-
-dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B, const Eigen::Matrix3d& cov_m_B,
-                              std::uint32_t track_id) {
-  dds::msg::TrackEstimate m;
-  m.track_id(track_id);
-  m.stamp_ns(SecondsToNanos(e.t_s));
-  m.position({e.p_VinW.x(), e.p_VinW.y(), e.p_VinW.z()});
-  const Eigen::Vector3d v = e.v_VinW();
-  m.velocity({v.x(), v.y(), v.z()});
-  m.heading(e.heading_rad);
-  m.turn_rate(e.turn_rate_radps);
-  std::array<double, 9> cov{}, cov_m{};
-  m.usable(e.usable);
-  if (e.usable && e.has_covariance) {
-    for (int k = 0; k < 9; ++k) cov[k] = e.cov_state(k / 3, k % 3);
-  }
-  for (int k = 0; k < 9; ++k) cov_m[k] = cov_m_B(k / 3, k % 3);
-  m.covariance(cov);
-  m.moment_body({m_B.x(), m_B.y(), m_B.z()});
-  m.moment_covariance(cov_m);
-  m.num_sensors(static_cast<std::uint32_t>(e.num_samples));
-  return m;
-}
-
-DipoleFix FromMsg(const dds::msg::DipoleFix& m) {
-  return MakeFix(NanosToSeconds(m.stamp_ns()), m.sensor_id(), {m.position()[0], m.position()[1], m.position()[2]},
-                 m.valid());
 }
 
 namespace {

@@ -25,6 +25,7 @@
 #include <memory>
 #include <mutex>
 
+#include "magnav/dds/convert_tracker.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/queued_writer.h"
 #include "magnav/dds/regional_field_source.h"
@@ -42,11 +43,10 @@ struct TrackerNodeOptions {
   bool IsValid(std::string* error) const;
 };
 
-dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B, const Eigen::Matrix3d& cov_m_B,
-                              std::uint32_t track_id);
-// A magnav/dipole_fix message as the initialiser takes it (snr is set
-// by the tracker from the matching sample).
-DipoleFix FromMsg(const dds::msg::DipoleFix& m);
+// Estimate -> magnav/track and magnav/dipole_fix -> the fix the initialiser
+// takes: dds/convert_tracker.h (magnav::dds_tracker).
+using dds::FromMsg;
+using dds::ToMsg;
 
 class TrackerNode {
  public:
