@@ -18,6 +18,7 @@
 # the first and the last hour of data: CPU s per s of data and mean RSS; a
 # service whose last hour is above 1.5x its first, or that lost samples, makes
 # this script exit 1 and is named. Plot: OUT/soak_services.png (gnuplot).
+# SOAK_CHAINS="field localizer matcher" (the default) runs fewer if given.
 # Not in CI.
 #   bench/soak.sh [HOURS=3] [OUT=out/soak]
 # e.g. SOAK_SPEED_FIELD=20 bench/soak.sh 3 out/soak
@@ -28,6 +29,9 @@ cd "$(dirname "$0")/.."
 HOURS=${1:-3}; OUT=${2:-out/soak}
 SPEED_FIELD=${SOAK_SPEED_FIELD:-20}; SPEED_LOC=${SOAK_SPEED_LOCALIZER:-60}; SPEED_MATCH=${SOAK_SPEED_MATCHER:-60}
 SAMPLE_S=${SOAK_SAMPLE_S:-2}
+CHAINS=${SOAK_CHAINS:-field localizer matcher}
+has() { [[ " $CHAINS " == *" $1 "* ]]; }
+SERVICES=$(for c in $CHAINS; do case $c in field) echo -n "inverter tracker ";; *) echo -n "$c ";; esac; done)
 BIN=${MAGNAV_BUILD_DIR:-build}/bin
 D=${MAGNAV_DOMAIN_ID:-$(( $$ % 150 + 10 ))}
 unset MAGNAV_DDS_PROFILES MAGNAV_DDS_PARTICIPANT MAGNAV_DOMAIN_ID
@@ -35,10 +39,10 @@ B0=2e-05,1e-06,4.5e-05  # bench/soak_data.py's
 MAP=tests/data/reference/map_crustal_anomaly.csv
 F0=$(python3 -c 'import math; print(repr(math.hypot(22838.121767602996, 1452.8242542037194, 41845.01475649571)))')
 mkdir -p "$OUT"
-echo "# soak: $HOURS h of data per chain; field ${SPEED_FIELD}x, localizer ${SPEED_LOC}x, matcher ${SPEED_MATCH}x;" \
+echo "# soak ($CHAINS): $HOURS h of data per chain; field ${SPEED_FIELD}x, localizer ${SPEED_LOC}x, matcher ${SPEED_MATCH}x;" \
   "$(date -u '+%F %H:%M') UTC, $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg); domains $D-$((D + 2))" \
   | tee "$OUT/summary.txt"
-python3 bench/soak_data.py "$BIN/magnav" "$OUT" "$HOURS"
+python3 bench/soak_data.py "$BIN/magnav" "$OUT" "$HOURS" "$CHAINS"
 H=$(python3 -c "print('%g' % float('$HOURS'))")
 
 pids=()
@@ -65,36 +69,47 @@ replay() {
   echo "$start $(date +%s.%N)" >"$OUT/${name}_replay.times"
 }
 
-# field: inverter + tracker
-env MAGNAV_DOMAIN_ID=$D "$BIN/magnav-inverter" --b0 "$B0" --stats-period 20 >"$OUT/inverter.log" 2>&1 & inv=$!; pids+=($inv)
-env MAGNAV_DOMAIN_ID=$D "$BIN/magnav-tracker" --b0 "$B0" --stats-period 20 >"$OUT/tracker.log" 2>&1 & trk=$!; pids+=($trk)
-# localizer
-env MAGNAV_DOMAIN_ID=$((D + 1)) "$BIN/magnav-localizer" --deployment "$OUT/racetrack_deployment.csv" \
-  --moment-body -15000,5000,20000 --vessel-z 0 --sigma-b 1e-9 --publish-period 5 --stats-period 20 \
-  >"$OUT/localizer.log" 2>&1 & loc=$!; pids+=($loc)
-# matcher
-env MAGNAV_DOMAIN_ID=$((D + 2)) "$BIN/magnav-matcher" --map "$MAP" --value-column anomaly_nT --reference-field "$F0" \
-  --method afpf --fix-every 200 --stats-period 20 >"$OUT/matcher.log" 2>&1 & mat=$!; pids+=($mat)
-for s in inverter:$inv tracker:$trk localizer:$loc matcher:$mat; do
+svc=(); rep=()
+if has field; then
+  env MAGNAV_DOMAIN_ID=$D "$BIN/magnav-inverter" --b0 "$B0" --stats-period 20 >"$OUT/inverter.log" 2>&1 & svc+=(inverter:$!)
+  env MAGNAV_DOMAIN_ID=$D "$BIN/magnav-tracker" --b0 "$B0" --stats-period 20 >"$OUT/tracker.log" 2>&1 & svc+=(tracker:$!)
+fi
+if has localizer; then
+  env MAGNAV_DOMAIN_ID=$((D + 1)) "$BIN/magnav-localizer" --deployment "$OUT/racetrack_deployment.csv" \
+    --moment-body -15000,5000,20000 --vessel-z 0 --sigma-b 1e-9 --publish-period 5 --stats-period 20 \
+    >"$OUT/localizer.log" 2>&1 & svc+=(localizer:$!)
+fi
+if has matcher; then
+  env MAGNAV_DOMAIN_ID=$((D + 2)) "$BIN/magnav-matcher" --map "$MAP" --value-column anomaly_nT --reference-field "$F0" \
+    --method afpf --fix-every 200 --stats-period 20 >"$OUT/matcher.log" 2>&1 & svc+=(matcher:$!)
+fi
+for s in "${svc[@]}"; do
+  pids+=("${s##*:}")
   monitor "${s%%:*}" "${s##*:}" & pids+=($!)
 done
 
-replay field $D --input "$OUT/field_${H}h.csv" --speed "$SPEED_FIELD" --wait-readers 2 --wait 60 &
-r1=$!; pids+=($r1)
-replay localizer $((D + 1)) --magnetometer "$OUT/racetrack_meas_${H}h.csv" \
-  --gnss "$OUT/racetrack_gnss_${H}h.csv" --speed "$SPEED_LOC" --wait-readers 1 --wait 60 & r2=$!; pids+=($r2)
-replay matcher $((D + 2)) --map-path "$OUT/mappath_${H}h.csv" --meas-column meas_nT \
-  --reference-field "$F0" --step-period 1 --speed "$SPEED_MATCH" --wait-readers 1 --wait 60 & r3=$!; pids+=($r3)
-wait $r1 $r2 $r3
+if has field; then
+  replay field $D --input "$OUT/field_${H}h.csv" --speed "$SPEED_FIELD" --wait-readers 2 --wait 60 & rep+=($!)
+fi
+if has localizer; then
+  replay localizer $((D + 1)) --magnetometer "$OUT/racetrack_meas_${H}h.csv" \
+    --gnss "$OUT/racetrack_gnss_${H}h.csv" --speed "$SPEED_LOC" --wait-readers 1 --wait 60 & rep+=($!)
+fi
+if has matcher; then
+  replay matcher $((D + 2)) --map-path "$OUT/mappath_${H}h.csv" --meas-column meas_nT \
+    --reference-field "$F0" --step-period 1 --speed "$SPEED_MATCH" --wait-readers 1 --wait 60 & rep+=($!)
+fi
+pids+=("${rep[@]}")
+wait "${rep[@]}"
 # Let every service drain and log its counts (stats every 20 s), then stop them.
 sleep 25
-kill -TERM $inv $trk $loc $mat
-wait $inv $trk $loc $mat 2>/dev/null || true
+for s in "${svc[@]}"; do kill -TERM "${s##*:}"; done
+for s in "${svc[@]}"; do wait "${s##*:}" 2>/dev/null || true; done
 sleep "$SAMPLE_S"
 
 echo "# load at the end $(cut -d' ' -f1-3 /proc/loadavg)" | tee -a "$OUT/summary.txt"
 set +e
-python3 bench/soak_report.py "$OUT" "$H" "$SPEED_FIELD" "$SPEED_LOC" "$SPEED_MATCH" | tee -a "$OUT/summary.txt"
+python3 bench/soak_report.py "$OUT" "$H" "$SPEED_FIELD" "$SPEED_LOC" "$SPEED_MATCH" "$SERVICES" | tee -a "$OUT/summary.txt"
 rc=${PIPESTATUS[0]}
 set -e
 if command -v gnuplot >/dev/null; then
@@ -108,10 +123,10 @@ set grid
 set xlabel "data time (h)"
 set ylabel "CPU time per second of data (s/s), 10 min windows"
 set logscale y
-plot for [s in "inverter tracker localizer matcher"] "$OUT/".s."_series.csv" every ::1 using 1:2 with linespoints pt 7 ps 0.4 title s
+plot for [s in "$SERVICES"] "$OUT/".s."_series.csv" every ::1 using 1:2 with linespoints pt 7 ps 0.4 title s
 unset logscale y
 set ylabel "resident memory VmRSS (MB)"
-plot for [s in "inverter tracker localizer matcher"] "$OUT/".s."_series.csv" every ::1 using 1:3 with lines lw 2 title s
+plot for [s in "$SERVICES"] "$OUT/".s."_series.csv" every ::1 using 1:3 with lines lw 2 title s
 unset multiplot
 EOF
   echo "plot: $OUT/soak_services.png"

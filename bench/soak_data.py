@@ -3,7 +3,7 @@
 services"). Standard library + `magnav simulate`; the same files on every run (fixed seeds, chosen
 before any soak was run).
 
-  bench/soak_data.py MAGNAV_BIN OUT_DIR HOURS
+  bench/soak_data.py MAGNAV_BIN OUT_DIR HOURS [CHAINS="field localizer matcher"]
 
 writes into OUT_DIR (each skipped when it exists):
   field_<H>h.csv       the inverter's and tracker's input: the 3x3 field of docs' reference §5
@@ -151,13 +151,17 @@ def mappath(out, hours):
 
 
 def main():
-    if len(sys.argv) != 4:
+    if len(sys.argv) not in (4, 5):
         sys.exit(__doc__)
     magnav, out, hours = sys.argv[1], sys.argv[2], float(sys.argv[3])
+    chains = sys.argv[4].split() if len(sys.argv) == 5 else ['field', 'localizer', 'matcher']
     os.makedirs(out, exist_ok=True)
-    field(magnav, out, hours)
-    racetrack(magnav, out, hours)
-    mappath(out, hours)
+    if 'field' in chains:
+        field(magnav, out, hours)
+    if 'localizer' in chains:
+        racetrack(magnav, out, hours)
+    if 'matcher' in chains:
+        mappath(out, hours)
 
 
 if __name__ == '__main__':

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """First vs last hour of data of each service in a soak (bench/soak.sh writes its inputs).
 
-  bench/soak_report.py OUT HOURS SPEED_FIELD SPEED_LOCALIZER SPEED_MATCHER
+  bench/soak_report.py OUT HOURS SPEED_FIELD SPEED_LOCALIZER SPEED_MATCHER [SERVICES]
+
+(SERVICES: those of inverter, tracker, localizer, matcher that ran, space-separated; default all four.)
 
 Reads OUT/<service>.csv (wall_s, cpu_s, rss_kb every few seconds of wall time), OUT/<chain>_replay.times
 (the replay's start and end, wall) and the services' logs. The data time of a sample is
@@ -72,7 +74,7 @@ def counts(out, hours, service):
 
 
 def main():
-    if len(sys.argv) != 6:
+    if len(sys.argv) not in (6, 7):
         sys.exit(__doc__)
     out, hours = sys.argv[1], float(sys.argv[2])
     speeds = {'field': sys.argv[3], 'localizer': sys.argv[4], 'matcher': sys.argv[5]}
@@ -81,7 +83,10 @@ def main():
     table = ['| service | data (h) | speed (replay wall s beyond data / speed) | CPU s per s of data, first h | last h | ratio | '
              'RSS first h (MB) | last h (MB) | ratio | sent / received (lost) | output |',
              '|---|---|---|---|---|---|---|---|---|---|---|']
+    chosen = sys.argv[6].split() if len(sys.argv) == 7 else [s for s, _ in SERVICES]
     for service, chain in SERVICES:
+        if service not in chosen:
+            continue
         start, end = (float(x) for x in open(os.path.join(out, chain + '_replay.times')).read().split())
         speed = float(speeds[chain])
         extra = (end - start) - span / speed
