@@ -8,7 +8,8 @@ before any soak was run).
 writes into OUT_DIR (each skipped when it exists):
   field_<H>h.csv       the inverter's and tracker's input: the 3x3 field of docs' reference §5
                        (tensor gradiometers 40 m apart, z = 0, 10 Hz, fluxgate noise, B0 below)
-                       for HOURS, one AUV-sized vessel crossing it every 360 s (start 150 m out
+                       for HOURS (it ends with the last vessel: 5.94 h for 6), one AUV-sized
+                       vessel crossing it every 360 s (start 150 m out
                        on a random bearing, through the field within 30 m of its centre, 1.5-2.5
                        m/s, 5-8 m above, moment ~2e3 A*m^2 in a random body direction); seed 2201
   racetrack_meas_<H>h.csv, racetrack_gnss_<H>h.csv, racetrack_deployment.csv

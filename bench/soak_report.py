@@ -7,10 +7,12 @@
 
 Reads OUT/<service>.csv (wall_s, cpu_s, rss_kb every few seconds of wall time), OUT/<chain>_replay.times
 (the replay's start and end, wall) and the services' logs. The data time of a sample is
-(wall - replay end) x speed + HOURS x 3600 s: the replay sends each sample on an absolute schedule
-(first sample + data time / speed, sleep_until), after its start-up and its wait for the readers, so
-the data time is anchored at its end; its wall time beyond HOURS x 3600 / speed (start-up, the wait
-for the readers, a lag at the end) is printed beside the speed. Per service: CPU s per s of data over
+(wall - replay end) x speed + SPAN, SPAN = the input's last time - its first (HOURS x 3600 s, or a
+little less for the field, which ends with its last vessel): the replay sends each sample on an
+absolute schedule (first sample + data time / speed, sleep_until), after its start-up and its wait
+for the readers, so the data time is anchored at its end; its wall time beyond SPAN / speed
+(start-up: reading the file, the wait for the readers; a lag at the end) is printed beside the
+speed. The first hour is [0, 3600] s of data, the last [SPAN - 3600, SPAN]. Per service: CPU s per s of data over
 the first and the last hour of data (the CPU time interpolated at the hour's ends), the mean VmRSS
 over each of those hours, their ratios, and the samples sent against those the service received.
 Writes OUT/<service>_series.csv (data hour, CPU s per
@@ -39,6 +41,37 @@ def last_match(path, pattern):
         if m:
             found = m
     return found
+
+
+def first_last_t(path):
+    """The first and the last value of the first column of a CSV (comment lines skipped)."""
+    with open(path, 'rb') as f:
+        first = None
+        for line in f:
+            if line.startswith(b'#') or not line.strip():
+                continue
+            try:
+                first = float(line.split(b',')[0])
+                break
+            except ValueError:  # the header
+                continue
+        f.seek(max(0, os.path.getsize(path) - 4096))
+        last = float([l for l in f.read().splitlines() if l.strip()][-1].split(b',')[0])
+    return first, last
+
+
+def data_span(out, hours, chain):
+    """Seconds of data the chain's replay sends, first sample to last."""
+    h = '%g' % hours
+    if chain == 'field':
+        a, b = first_last_t(os.path.join(out, 'field_%sh.csv' % h))
+    elif chain == 'localizer':
+        a, b = first_last_t(os.path.join(out, 'racetrack_meas_%sh.csv' % h))
+        c, d = first_last_t(os.path.join(out, 'racetrack_gnss_%sh.csv' % h))
+        a, b = min(a, c), max(b, d)
+    else:
+        a, b = first_last_t(os.path.join(out, 'mappath_%sh.csv' % h))  # k, one step per second (--step-period 1)
+    return b - a
 
 
 def counts(out, hours, service):
@@ -78,7 +111,6 @@ def main():
         sys.exit(__doc__)
     out, hours = sys.argv[1], float(sys.argv[2])
     speeds = {'field': sys.argv[3], 'localizer': sys.argv[4], 'matcher': sys.argv[5]}
-    span = hours * 3600.0
     failed = []
     table = ['| service | data (h) | speed (replay wall s beyond data / speed) | CPU s per s of data, first h | last h | ratio | '
              'RSS first h (MB) | last h (MB) | ratio | sent / received (lost) | output |',
@@ -89,6 +121,7 @@ def main():
             continue
         start, end = (float(x) for x in open(os.path.join(out, chain + '_replay.times')).read().split())
         speed = float(speeds[chain])
+        span = data_span(out, hours, chain)
         extra = (end - start) - span / speed
         data = [r for r in csv.DictReader(open(os.path.join(out, service + '.csv'))) if r['rss_kb']]
         t = [(float(r['wall_s']) - end) * speed + span for r in data]
@@ -113,8 +146,8 @@ def main():
         rc, rm = c2 / c1 if c1 > 0 else float('inf'), m2 / m1
         sent, received, what = counts(out, hours, service)
         lost = sent - received
-        table.append('| %s | %g | %gx (%.1f s) | %.5f | %.5f | **%.2f** | %.1f | %.1f | **%.2f** | %d / %d (%d) | %s |' % (
-            service, hours, speed, extra, c1, c2, rc, m1, m2, rm, sent, received, lost, what))
+        table.append('| %s | %.2f | %gx (%.1f s) | %.5f | %.5f | **%.2f** | %.1f | %.1f | **%.2f** | %d / %d (%d) | %s |' % (
+            service, span / 3600, speed, extra, c1, c2, rc, m1, m2, rm, sent, received, lost, what))
         with open(os.path.join(out, service + '_series.csv'), 'w') as f:
             f.write('data_h,cpu_s_per_data_s,rss_mb\n')
             w = 600.0
