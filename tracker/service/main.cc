@@ -36,6 +36,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--reorder-delay", opt.reorder_delay_s, "hold samples this long (sample time, s) to order streams")
       ->capture_default_str();
+  app.add_option("--kept-ended-tracks", opt.kept_ended_tracks,
+                 "ended tracks whose last estimates a late consumer still gets; older ones are unregistered "
+                 "(memory: ~0.5 MB each)")
+      ->check(CLI::Range(0, magnav::tracker::TrackerNodeOptions::kMaxKeptEndedTracks))
+      ->capture_default_str();
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::cli::AddDdsOptions(app, &dds_args);
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;

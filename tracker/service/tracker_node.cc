@@ -16,6 +16,10 @@ bool TrackerNodeOptions::IsValid(std::string* error) const {
     if (error) *error = "reorder_delay_s must be finite and >= 0";
     return false;
   }
+  if (kept_ended_tracks < 0 || kept_ended_tracks > kMaxKeptEndedTracks) {
+    if (error) *error = "kept_ended_tracks must be in [0, " + std::to_string(kMaxKeptEndedTracks) + "]";
+    return false;
+  }
   return tracker.IsValid(error);
 }
 
@@ -122,7 +126,7 @@ int TrackerNode::num_live_tracks() const {
 void TrackerNode::Publish(const std::vector<TrackOutput>& estimates, bool unregister_ended) {
   // A track's start is logged before its first estimate goes out. Ended
   // tracks stay registered (late consumers, and the durable profile's store,
-  // keep their last estimates) until kKeptEndedTracks newer ones ended; then
+  // keep their last estimates) until kept_ended_tracks newer ones ended; then
   // the oldest is unregistered: track ids are never reused, and the writer
   // must not keep every track it ever had (track_stream: 100 keys).
   std::vector<std::uint32_t> ended;
@@ -132,7 +136,7 @@ void TrackerNode::Publish(const std::vector<TrackOutput>& estimates, bool unregi
     } else {
       spdlog::info("magnav-tracker: track {} ended at t = {} s ({})", ev.track_id, ev.t_s, ev.reason);
       ended_.push_back(ev.track_id);
-      while (unregister_ended && ended_.size() > kKeptEndedTracks) {
+      while (unregister_ended && ended_.size() > static_cast<std::size_t>(options_.kept_ended_tracks)) {
         ended.push_back(ended_.front());
         ended_.pop_front();
       }

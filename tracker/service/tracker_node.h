@@ -39,6 +39,14 @@ namespace magnav::tracker {
 struct TrackerNodeOptions {
   MultiTrackerOptions tracker;
   double reorder_delay_s = 0.25;  // s of sample time
+  // Ended tracks whose estimates stay in the writer's history (the last 1000
+  // of each, track_stream profile) for consumers that start late; older ended
+  // tracks are unregistered (their history freed). This bounds the writer's
+  // memory: ~0.45 MB per kept track of ~700 estimates (bench/soak.sh,
+  // docs/BENCHMARKS.md). At most kMaxKeptEndedTracks (the profile's 100 keys:
+  // up to 50 live tracks and the kept ended ones).
+  int kept_ended_tracks = 10;
+  static constexpr int kMaxKeptEndedTracks = 50;
 
   bool IsValid(std::string* error) const;
 };
@@ -94,7 +102,6 @@ class TrackerNode {
   MultiTracker tracker_;
   std::multimap<double, GradiometerSample> pending_;  // by time
   std::deque<std::uint32_t> ended_;                   // ended tracks still registered, oldest first
-  static constexpr std::size_t kKeptEndedTracks = 50;
   double fed_until_s_ = -1e300;
   // Written under mu_ by the receive threads, read by the stats line without it.
   std::atomic<std::uint64_t> dropped_late_{0}, rejected_{0}, fixes_rejected_{0};
