@@ -44,6 +44,16 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(track_check_chi2)) return Fail(error, "track_check_chi2 must be finite and > 0");
   if (!PositiveFinite(track_check_step_deg)) return Fail(error, "track_check_step_deg must be finite and > 0");
   if (!PositiveFinite(divergence_nis)) return Fail(error, "divergence_nis must be finite and > 0");
+  if (bias_test_window < 0) return Fail(error, "bias_test_window must be >= 0 (0 = off)");
+  if (!(std::isfinite(bias_test_chi2) && bias_test_chi2 >= 0.0)) {
+    return Fail(error, "bias_test_chi2 must be finite and >= 0 (0 = off)");
+  }
+  if (!(std::isfinite(afpf_bias_test_chi2) && afpf_bias_test_chi2 >= 0.0)) {
+    return Fail(error, "afpf_bias_test_chi2 must be finite and >= 0 (0 = off)");
+  }
+  if (!(std::isfinite(settled_sigma_deg) && settled_sigma_deg >= 0.0)) {
+    return Fail(error, "settled_sigma_deg must be finite and >= 0 (0 = off)");
+  }
   if (!(std::isfinite(min_measurement_sigma_nT) && min_measurement_sigma_nT > 0.0 &&
         min_measurement_sigma_nT <= measurement_sigma_nT)) {
     return Fail(error, "min_measurement_sigma_nT must be finite, > 0 and <= measurement_sigma_nT");
@@ -96,15 +106,28 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
   if (kind_ == ParticleFilterKind::kAfpf) AdaptCount(d);
   d.particles = static_cast<int>(p_.size());
   d.unique_particles = std::min(d.unique_particles, d.particles);  // after the AFPF's trim
+  if (bias_failed_) ++counters_.bias_test_failures;
+  // A re-initialised cloud stays lost until it has settled (settled_sigma_deg), at most
+  // 2 divergence windows.
+  if (reacquiring_ && (std::sqrt(d.cov_lat_lat + d.cov_lon_lon) < o_.settled_sigma_deg ||
+                       ++reacquiring_steps_ > 2 * o_.divergence_window)) {
+    reacquiring_ = false;
+  }
+  // The bias test alone flags but does not re-spread the cloud (see the header).
+  const bool respread = d.lost && (Diverged() || d.track_check_failed);
+  if (!d.lost && reacquiring_) d.lost = d.reacquiring = true;
   if (d.lost) {
     ++counters_.lost_steps;
-    if (o_.reinitialize_when_lost && std::isfinite(ins_lat) && std::isfinite(ins_lon)) {
+    if (respread && o_.reinitialize_when_lost && std::isfinite(ins_lat) && std::isfinite(ins_lon)) {
       SpreadPrior(ins_lat, ins_lon);
       nis_window_.clear();
+      bias_window_.clear();
       innov_.clear();
       track_.clear();
       sigma_ = 0.0;  // starts again at measurement_sigma_nT
       ++counters_.reinitialisations;
+      reacquiring_ = o_.settled_sigma_deg > 0.0;
+      reacquiring_steps_ = 0;
     }
   }
   last_ = d;
@@ -178,6 +201,7 @@ void Filter::Normalise() {
 }
 
 void Filter::Update(double z, StepDiagnostics* d) {
+  bias_failed_ = false;
   unique_ = static_cast<int>(p_.size());
   if (!std::isfinite(z)) {
     d->update = StepUpdate::kBadMeasurement;
@@ -207,6 +231,12 @@ void Filter::Update(double z, StepDiagnostics* d) {
     any_on = any_on || on;
     evidence += p_[i].weight * std::exp(loglik_[i]);
     if (on) w_on += p_[i].weight, r1 += p_[i].weight * r, r2 += p_[i].weight * r * r;
+  }
+  if (w_on > 0.5) {  // the predictive moments (lost-track detection and diagnostics)
+    const double mean = r1 / w_on;
+    d->innovation_nT = mean;
+    d->predicted_spread_nT = std::sqrt(std::max(r2 / w_on - mean * mean, 0.0));
+    RecordInnovation(mean, d->predicted_spread_nT * d->predicted_spread_nT, d);
   }
   // The outlier gate (see outlier_sigmas): a reading no particle's prediction explains is skipped.
   if (o_.outlier_sigmas > 0.0 && w_on > 0.5 && consecutive_outliers_ < o_.max_consecutive_outliers) {

@@ -59,10 +59,41 @@ double Filter::Ess() const {
   return s > 0.0 ? 1.0 / s : 0.0;
 }
 
-bool Filter::Lost() const {
+// Lost: the divergence rule (mean NIS over divergence_window updates) or the
+// innovation-bias test (RecordInnovation, this update).
+bool Filter::Lost() const { return bias_failed_ || Diverged(); }
+
+// The divergence rule: mean NIS over the last divergence_window updates > divergence_nis.
+bool Filter::Diverged() const {
   if (static_cast<int>(nis_window_.size()) < o_.divergence_window) return false;
   const double mean = std::accumulate(nis_window_.begin(), nis_window_.end(), 0.0) / nis_window_.size();
   return mean > o_.divergence_nis;
+}
+
+// The noise the filter sees (nT): the PF's likelihood σ; the AFPF's σ over
+// afpf_sigma_factor (its σ is that multiple of the innovations' estimate);
+// at least 0.5 nT.
+double Filter::NoiseSigma() const {
+  double sn = sigma_ > 0.0 ? sigma_ : o_.measurement_sigma_nT;
+  if (kind_ == ParticleFilterKind::kAfpf && adaptive_) sn /= o_.afpf_sigma_factor;
+  return std::max(sn, 0.5);
+}
+
+// The innovation-bias test (bias_test_window, see the header): this update's
+// innovation r = z − m̄ and the cloud's spread V of predicted map values (nT²)
+// join the window; B = (Σ r)² / Σ (σ_n² + V) once it is full.
+void Filter::RecordInnovation(double r, double spread2, StepDiagnostics* d) {
+  bias_failed_ = false;
+  const double threshold = kind_ == ParticleFilterKind::kAfpf ? o_.afpf_bias_test_chi2 : o_.bias_test_chi2;
+  if (o_.bias_test_window == 0 || threshold == 0.0 || !std::isfinite(r)) return;
+  const double sn = NoiseSigma();
+  bias_window_.emplace_back(r, sn * sn + spread2);
+  if (static_cast<int>(bias_window_.size()) > o_.bias_test_window) bias_window_.pop_front();
+  if (static_cast<int>(bias_window_.size()) < o_.bias_test_window) return;
+  double sum_r = 0.0, sum_var = 0.0;
+  for (const auto& [a, v] : bias_window_) sum_r += a, sum_var += v;
+  d->innovation_bias_chi2 = sum_var > 0.0 ? sum_r * sum_r / sum_var : 0.0;
+  bias_failed_ = d->innovation_bias_chi2 > threshold;
 }
 
 // The track check (track_check_window, see the header): does the estimated
@@ -177,9 +208,16 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                std::to_string(off_at_end) + " step(s)" +
                " (dead-reckoning on the INS)" + (first_lost >= 0 ? "; lost at k = " + std::to_string(last_lost) : "");
   } else if (filter->lost()) {
-    r.reason = "lost (mean NIS over the last " + std::to_string(options.divergence_window) + " updates > " +
-               FormatNumber(options.divergence_nis) +
-               (options.track_check_window > 0 ? ", or the track check" : "") + ")";
+    r.reason = filter->last().reacquiring
+                   ? std::string("lost: re-initialised, the cloud not settled by the end")
+                   : "lost (mean NIS over the last " + std::to_string(options.divergence_window) + " updates > " +
+                         FormatNumber(options.divergence_nis) +
+                         (options.bias_test_window > 0 &&
+                                  (kind == ParticleFilterKind::kAfpf ? options.afpf_bias_test_chi2
+                                                                     : options.bias_test_chi2) > 0.0
+                              ? ", or the innovation-bias test"
+                              : "") +
+                         (options.track_check_window > 0 ? ", or the track check" : "") + ")";
   } else if (unsettled) {
     r.reason = "lost at k = " + std::to_string(last_lost) + (options.reinitialize_when_lost ? ", re-initialised" : "") +
                ", not settled by the end (fewer than " + std::to_string(settle) + " steps since)";
@@ -200,7 +238,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                        "] nT, last " + FormatNumber(last_sigma)
                  : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
-            ", lost steps " + std::to_string(c.lost_steps) +
+            ", lost steps " + std::to_string(c.lost_steps) + ", bias-test alarms " +
+            std::to_string(c.bias_test_failures) +
             ", reinitialisations " + std::to_string(c.reinitialisations) +
             (kind == ParticleFilterKind::kPf ? ", tempered updates " + std::to_string(c.tempered_updates) : "");
   return r;

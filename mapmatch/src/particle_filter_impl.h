@@ -76,6 +76,9 @@ class Filter final : public SequentialMatcher {
   void Estimate(StepDiagnostics* d);
   double Ess() const;
   bool Lost() const;
+  bool Diverged() const;
+  double NoiseSigma() const;
+  void RecordInnovation(double r, double spread2, StepDiagnostics* d);
   void CheckTrack(double z, StepDiagnostics* d);
 
   ParticleFilterKind kind_;
@@ -94,6 +97,10 @@ class Filter final : public SequentialMatcher {
   std::vector<std::size_t> order_;
   std::vector<long long> cells_;
   std::deque<double> nis_window_;
+  std::deque<std::pair<double, double>> bias_window_;  // innovation-bias test: (r, σ_n² + V) per update
+  bool bias_failed_ = false;                          // the bias test fired at this update
+  bool reacquiring_ = false;                          // re-initialised and not settled yet
+  int reacquiring_steps_ = 0;                         // steps since that re-initialisation
   std::deque<std::array<double, 3>> track_;  // track check: (estimate lat, lon, reading) per update
   int since_check_ = 0;
   std::deque<std::pair<double, double>> innov_;  // adaptive σ: (z − m̄)², Var(m) per update
