@@ -190,7 +190,9 @@ TEST(PfStatus, AKidnappedAfpfLostAtItsEndNeverSaysConverged) {
     o.seed = 1;
     std::vector<StepDiagnostics> steps;
     const MatchResult r = MatchParticleFilter(ParticleFilterKind::kAfpf, Map(), 0, run.path, o, &steps);
-    if (LostAtEnd(Beyond3Sigma(run, steps))) EXPECT_FALSE(r.converged) << r.BriefReport();
+    if (LostAtEnd(Beyond3Sigma(run, steps))) {
+      EXPECT_FALSE(r.converged) << r.BriefReport();
+    }
   }
 }
 
