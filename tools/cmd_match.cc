@@ -49,7 +49,8 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
   CsvWriter w(file,
               {"k", "lat", "lon", "cov_lat_lat", "cov_lat_lon", "cov_lon_lon", "ess", "particles", "unique_particles",
                "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost", "bias_nT", "bias_sigma_nT",
-               "sigma_nT", "likelihood_exponent", "track_check_chi2"},
+               "sigma_nT", "likelihood_exponent", "track_check_chi2", "innovation_nT", "predicted_spread_nT", "innovation_bias_chi2",
+               "reacquiring"},
               {{"frame", "estimate lat/lon deg, covariance deg^2 (particle_filter.h StepDiagnostics)"}});
   for (std::size_t p = 0; p < steps.size(); ++p) {
     const mapmatch::StepDiagnostics& d = steps[p];
@@ -59,7 +60,8 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                 std::to_string(d.occupied_cells), FormatNumber(d.nis), d.resampled ? "1" : "0",
                 d.ins_jump ? "1" : "0", UpdateName(d.update), d.lost ? "1" : "0", FormatNumber(d.bias_nT),
                 FormatNumber(d.bias_sigma_nT), FormatNumber(d.sigma_nT), FormatNumber(d.likelihood_exponent),
-                FormatNumber(d.track_check_chi2)});
+                FormatNumber(d.track_check_chi2), FormatNumber(d.innovation_nT),
+                FormatNumber(d.predicted_spread_nT), FormatNumber(d.innovation_bias_chi2), d.reacquiring ? "1" : "0"});
   }
   w.Close();
 }

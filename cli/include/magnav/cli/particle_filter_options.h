@@ -49,6 +49,13 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
   opt("--track-check-chi2", &f->track_check_chi2,
       "pf, afpf: lost when the best shift lowers the track's squared residuals by more than this x sigma_n^2");
   opt("--track-check-step", &f->track_check_step_deg, "pf, afpf: the track check's coarse offset grid, deg");
+  opt("--bias-test-window", &f->bias_test_window,
+      "pf, afpf: updates in the innovation-bias test (lost when (sum r)^2 / sum(sigma_n^2 + V) > --bias-test-chi2); "
+      "0 = off");
+  opt("--bias-test-chi2", &f->bias_test_chi2, "pf: the innovation-bias test's threshold (chi-square, 1 dof; 0 = off)");
+  opt("--afpf-bias-test-chi2", &f->afpf_bias_test_chi2, "afpf: the innovation-bias test's threshold (0 = off)");
+  opt("--settled-sigma", &f->settled_sigma_deg,
+      "pf, afpf: after a re-initialisation stay lost until the cloud's 1-sigma spread is below this, deg; 0 = off");
   opt("--reinitialize-when-lost", &f->reinitialize_when_lost,
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   app.add_flag("--estimate-bias", f->estimate_bias, "pf, afpf: a map bias per particle (reading - bias vs the map)");

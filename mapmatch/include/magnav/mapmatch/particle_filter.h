@@ -97,7 +97,10 @@
 // updates exceeds divergence_nis (a tracking filter's NIS is ≈ 1 plus the
 // cloud's spread; a lost one sees the map's ±60 nT as residuals). It clears
 // when the window's mean falls back. With reinitialize_when_lost the particles
-// are then spread again over the prior square around the current INS position.
+// are then spread again over the prior square around the current INS position,
+// and the filter stays lost until the new cloud has settled (settled_sigma_deg).
+// A second rule, the innovation-bias test (bias_test_window, on for the AFPF),
+// flags a run of biased innovations without re-spreading the cloud.
 //
 // Randomness: one std::mt19937_64 seeded with `seed`; a run is reproducible
 // bit for bit on one platform (the standard library's normal distribution
@@ -106,6 +109,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -212,6 +216,38 @@ struct ParticleFilterOptions {
   int track_check_every = 5;
   double track_check_chi2 = 40.0;
   double track_check_step_deg = 0.0025;
+  // Innovation-bias test (a third lost-track detector, issue 25): a filter on
+  // the track sees zero-mean innovations z − m̄; one in a wrong basin, or
+  // moved off the truth, sees the map's level there, a bias that the
+  // likelihood σ (adaptive, rising at once) absorbs in the NIS but not in the
+  // mean. Over the last bias_test_window updates (outlier-gated readings
+  // included, the window emptied at a re-initialisation)
+  //   B = (Σ r_j)² / Σ (σ_n,j² + V_j),  r_j = z_j − m̄_j,
+  // V_j the predicted cloud's spread of map values, σ_n the noise the filter
+  // sees (the PF's σ; the AFPF's σ / afpf_sigma_factor, at least 0.5 nT), is
+  // χ²(1) for white innovations; lost when B exceeds the filter's threshold
+  // (a tracking filter's innovations are correlated over a few steps, hence
+  // thresholds far above χ²(1)'s 10.8 at p = 1e-3). The alarm sets `lost`
+  // (and the run's status) but does not re-initialise: measured, a re-spread
+  // AFPF re-acquires a smooth map worse than it was. Window 8 and thresholds
+  // chosen on the tuning paths 301–420 of tests/data/generated/pf_paths.csv
+  // only (docs/ACCURACY.md, "Lost-track detection"): the AFPF's 20 (at 12 it
+  // flagged 19 % of clean tuning runs: its cloud is a rank selection whose
+  // spread V understates its uncertainty); the PF's is 0 = off by default:
+  // at 12 (in a first version that also re-initialised on this alarm) it
+  // raised no unjustified alarm on the tuning runs but 6 of 48 clean held-out
+  // runs (13 %, target ≤ 5 %), so it stays an option to measure.
+  int bias_test_window = 8;
+  double bias_test_chi2 = 0.0;
+  double afpf_bias_test_chi2 = 20.0;
+  // After a re-initialisation the filter stays lost (StepDiagnostics::lost,
+  // reacquiring; the run's status) until its cloud has settled again: 1-σ
+  // spread √(cov_lat_lat + cov_lon_lon) below settled_sigma_deg (≈ 300 m),
+  // for at most 2 × divergence_window steps (a smooth map may never
+  // tighten a cloud that far). A re-acquiring cloud's estimate lies between
+  // basins and must not be trusted; before, the flag cleared at once and a
+  // re-acquisition that locked onto a wrong basin was never flagged. 0 = off.
+  double settled_sigma_deg = 0.003;
   // On by default: on the crustal 0.01°/3 nT path 1 of 20 AFPF seeds locks
   // onto a wrong basin early; the rule flags it and a fresh prior finds the
   // track (docs/ACCURACY.md).
@@ -263,6 +299,13 @@ struct StepDiagnostics {
   double sigma_nT = 0.0;         // the likelihood σ of this step (measurement_sigma_nT unless adaptive_sigma)
   double likelihood_exponent = 1.0;  // β of a tempered PF update (1: the reading applied in full)
   double track_check_chi2 = 0.0;     // the track check's statistic at this step (0: not run)
+  // The predictive moments of this reading over the predicted cloud's particles on the map
+  // (weights w_(k−1)): innovation z − m̄ and the spread √V of the predicted map values, nT
+  // (NaN when less than half the weight is on the map or the reading is not finite).
+  double innovation_nT = std::numeric_limits<double>::quiet_NaN();
+  double predicted_spread_nT = std::numeric_limits<double>::quiet_NaN();
+  double innovation_bias_chi2 = 0.0;  // the innovation-bias test's statistic B (0: window not full)
+  bool reacquiring = false;           // lost only because a re-initialised cloud has not settled yet
   bool track_check_failed = false;   // the track check made this step lost
   bool resampled = false;
   bool ins_jump = false;
@@ -272,7 +315,8 @@ struct StepDiagnostics {
 
 struct FilterCounters {
   int steps = 0, updates = 0, bad_measurements = 0, all_off_map = 0, ins_jumps = 0, resamples = 0,
-      lost_steps = 0, reinitialisations = 0, tempered_updates = 0, outliers = 0, track_check_failures = 0;
+      lost_steps = 0, reinitialisations = 0, tempered_updates = 0, outliers = 0, track_check_failures = 0,
+      bias_test_failures = 0;
 };
 
 // The common interface of the PF and the AFPF.

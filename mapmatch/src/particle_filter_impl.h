@@ -1,0 +1,114 @@
+// The particle filters' private class (mapmatch/src only): one Filter runs
+// the PF or the AFPF (particle_filter.h). Its member functions are split by
+// role over
+//   particle_filter.cc              options, the step (prior, prediction,
+//                                   update), the factory
+//   particle_filter_likelihood.cc   the measurement model: log-likelihood and
+//                                   the (adaptive) likelihood σ
+//   particle_filter_pf.cc           the PF strategy: tempering, resampling,
+//                                   regularisation
+//   particle_filter_afpf.cc         the AFPF strategy: fission, selection,
+//                                   adaptive count
+//   particle_filter_diagnostics.cc  estimate, ESS, lost-track detection,
+//                                   the run's status (MatchParticleFilter)
+// Units and frames as in particle_filter.h (deg, nT, deg²).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <deque>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "magnav/core/error.h"
+#include "magnav/mapmatch/geo_grid.h"
+#include "magnav/mapmatch/particle_filter.h"
+
+namespace magnav::mapmatch::internal {
+
+class Filter final : public SequentialMatcher {
+ public:
+  Filter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer, const ParticleFilterOptions& o)
+      : kind_(kind), grid_(grid), layer_(layer), o_(o), rng_(o.seed) {
+    if (layer >= grid.layer_names().size()) throw InputError(std::string(Name()) + ": layer index not in the map");
+    std::string why;
+    if (!o.IsValid(&why)) throw InputError(std::string(Name()) + " options: " + why);
+    inv_two_var_ = 1.0 / (2.0 * o.measurement_sigma_nT * o.measurement_sigma_nT);
+    off_map_loglik_ = -0.5 * o.off_map_sigmas * o.off_map_sigmas;
+    adaptive_ = kind == ParticleFilterKind::kPf ? o.adaptive_sigma : o.afpf_sigma_factor > 0.0;
+  }
+
+
+  const StepDiagnostics& Step(double ins_lat, double ins_lon, double measured_nT) override;
+  const std::vector<Particle>& particles() const override { return p_; }
+  const FilterCounters& counters() const override { return counters_; }
+  const StepDiagnostics& last() const override { return last_; }
+  ParticleFilterKind kind() const override { return kind_; }
+
+ private:
+  const char* Name() const { return ParticleFilterKindName(kind_); }
+
+  // particle_filter.cc: the step.
+  void SpreadPrior(double lat, double lon);
+  bool Predict(double lat, double lon);
+  void Normalise();
+  void Update(double z, StepDiagnostics* d);
+
+  // particle_filter_likelihood.cc: the measurement model.
+  double LogLik(double lat, double lon, double z, bool* on_map, double* residual = nullptr) const;
+  double CurrentSigma() const;
+
+  // particle_filter_pf.cc: the PF strategy.
+  double PfTemperedExponent();
+  void PfResample(StepDiagnostics* d);
+  double EssWith(double beta) const;
+  void Resample();
+  void Regularise();
+
+  // particle_filter_afpf.cc: the AFPF strategy.
+  void Fission(double z);
+  void KeepHeaviest(std::size_t n);
+  void AdaptCount(const StepDiagnostics& d);
+
+  // particle_filter_diagnostics.cc: estimate and lost-track detection.
+  void Estimate(StepDiagnostics* d);
+  double Ess() const;
+  bool Lost() const;
+  bool Diverged() const;
+  double NoiseSigma() const;
+  void RecordInnovation(double r, double spread2, StepDiagnostics* d);
+  void CheckTrack(double z, StepDiagnostics* d);
+
+  ParticleFilterKind kind_;
+  const GeoGrid& grid_;
+  std::size_t layer_;
+  ParticleFilterOptions o_;
+  std::mt19937_64 rng_;
+  double inv_two_var_ = 0.0, off_map_loglik_ = 0.0;
+  bool initialised_ = false;
+  int consecutive_outliers_ = 0;  // readings skipped in a row by the outlier gate
+  double prev_lat_ = 0.0, prev_lon_ = 0.0;
+  std::vector<Particle> p_;
+  std::vector<double> logw_, loglik_;
+  std::vector<Particle> pool_;
+  std::vector<double> pool_logw_;
+  std::vector<std::size_t> order_;
+  std::vector<long long> cells_;
+  std::deque<double> nis_window_;
+  std::deque<std::pair<double, double>> bias_window_;  // innovation-bias test: (r, σ_n² + V) per update
+  bool bias_failed_ = false;                          // the bias test fired at this update
+  bool reacquiring_ = false;                          // re-initialised and not settled yet
+  int reacquiring_steps_ = 0;                         // steps since that re-initialisation
+  std::deque<std::array<double, 3>> track_;  // track check: (estimate lat, lon, reading) per update
+  int since_check_ = 0;
+  std::deque<std::pair<double, double>> innov_;  // adaptive σ: (z − m̄)², Var(m) per update
+  double sigma_ = 0.0;
+  bool adaptive_ = false;  // PF: adaptive_sigma; AFPF: afpf_sigma_factor > 0
+  int unique_ = 0;
+  FilterCounters counters_;
+  StepDiagnostics last_;
+};
+
+}  // namespace magnav::mapmatch::internal
