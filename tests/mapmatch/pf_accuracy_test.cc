@@ -47,7 +47,12 @@ std::vector<Row> DocumentedRows() {
   std::ifstream in(std::string(MAGNAV_SOURCE_DIR) + "/docs/ACCURACY.md");
   std::vector<Row> rows;
   std::string line;
+  // The rows of the section "## Map matching II" only (other sections have
+  // pf/afpf tables of their own, e.g. the covariance calibration).
+  bool in_section = false;
   while (std::getline(in, line)) {
+    if (line.rfind("## ", 0) == 0) in_section = line.rfind("## Map matching II", 0) == 0;
+    if (!in_section) continue;
     if (line.rfind("| pf | ", 0) != 0 && line.rfind("| afpf | ", 0) != 0) continue;
     std::vector<std::string> cells;
     std::stringstream ss(line.substr(1));
