@@ -1,5 +1,6 @@
 #include "tracker_node.h"
 
+#include <chrono>
 #include <cmath>
 
 #include <spdlog/spdlog.h>
@@ -12,8 +13,9 @@
 namespace magnav::tracker {
 
 bool TrackerNodeOptions::IsValid(std::string* error) const {
-  if (!(reorder_delay_s >= 0.0) || !std::isfinite(reorder_delay_s)) {
-    if (error) *error = "reorder_delay_s must be finite and >= 0";
+  if (!merge.IsValid(error)) return false;
+  if (!std::isfinite(merge.reorder_delay_s)) {
+    if (error) *error = "reorder_delay_s must be finite";
     return false;
   }
   return tracker.IsValid(error);
@@ -48,6 +50,10 @@ DipoleFix FromMsg(const dds::msg::DipoleFix& m) {
 }
 
 namespace {
+double WallClock_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
 const TrackerNodeOptions& Checked(const TrackerNodeOptions& o) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("tracker options: " + err);
@@ -57,7 +63,10 @@ const TrackerNodeOptions& Checked(const TrackerNodeOptions& o) {
 
 TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options,
                          std::unique_ptr<dds::RegionalFieldSource> b0)
-    : options_(Checked(options)), b0_(std::move(b0)), tracker_(Eigen::Vector3d::Zero(), options.tracker) {
+    : options_(Checked(options)),
+      b0_(std::move(b0)),
+      tracker_(Eigen::Vector3d::Zero(), options.tracker),
+      merge_(options.merge) {
   repeats_.SetLogName("magnav-tracker: magnav/gradiometer sensor");
   // Acknowledgments after every 5 estimates (below the history depth of 10
   // per track), waiting at most 2 s for a reader (a dead one is forgotten
@@ -105,16 +114,19 @@ void TrackerNode::TakeSample(const dds::msg::GradiometerSample& m) {
                  "(--sigma-b, --sigma-t); its covariances are only as right as that",
                  s.sensor_id, options_.tracker.track.default_sigma_B_T, options_.tracker.track.default_sigma_T_Tpm);
   }
+  merge_.Tick(WallClock_s());
   if (s.t_s < fed_until_s_) {
     ++dropped_late_;
     return;
   }
-  pending_.emplace(s.t_s, s);
-  const double newest = pending_.rbegin()->first;
-  while (!pending_.empty() && newest - pending_.begin()->first >= options_.reorder_delay_s) {
-    Feed(pending_.begin()->second);
-    pending_.erase(pending_.begin());
-  }
+  merge_.Push(s.t_s, s.sensor_id, s.sensor_id, s);
+  merge_.Release([this](const GradiometerSample& x) { Feed(x); });
+}
+
+void TrackerNode::Tick() {
+  std::lock_guard<std::mutex> lk(mu_);
+  merge_.Tick(WallClock_s());
+  if (!merge_.empty()) merge_.Release([this](const GradiometerSample& x) { Feed(x); });
 }
 
 void TrackerNode::Feed(const GradiometerSample& s) {
@@ -129,8 +141,7 @@ void TrackerNode::Feed(const GradiometerSample& s) {
 
 void TrackerNode::Flush() {
   std::lock_guard<std::mutex> lk(mu_);
-  for (const auto& [t, s] : pending_) Feed(s);
-  pending_.clear();
+  merge_.Release([this](const GradiometerSample& x) { Feed(x); }, /*all=*/true);
   // Tracks ended by the end of the data are not unregistered: their last
   // estimates stay in the writer's history (and, with the durable profile,
   // in its store) for consumers that come later.

@@ -3,10 +3,14 @@
 // magnav::tracker::MultiTracker: tracks start, are confirmed, coast and end;
 // each has its own track_id, never reused in a run, and its own body moment;
 // starts and ends are logged). Samples
-// of several gradiometers arrive on independent streams, so they pass a short
-// reorder buffer first: a sample is handed to the tracker once a sample at
-// least `reorder_delay_s` newer has arrived (or at shutdown); a sample older
-// than what the tracker has already consumed is counted and dropped.
+// of several gradiometers arrive on independent streams, so they are merged
+// in time first (magnav::StreamMerger, core/stream_merge.h; one stream per
+// sensor id, ranked by sensor id at equal times): by default a per-stream
+// watermark (a sample is handed to the tracker once every live sensor has
+// sent one at least as new; a sensor silent for idle_timeout_s of wall clock
+// does not hold the others; Tick every 50 ms), or a reorder delay (once a
+// sample `reorder_delay_s` newer has arrived); the rest at shutdown. A sample
+// older than what the tracker has already consumed is counted and dropped.
 // Unless tracker.init.source is kSamples it also subscribes DipoleFix
 // (magnav-inverter's fixes, rejected ones included) and hands every fix to the
 // tracker's initiator (MultiTracker::AddFix); a fix that cannot be used
@@ -25,6 +29,7 @@
 #include <memory>
 #include <mutex>
 
+#include "magnav/core/stream_merge.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/queued_writer.h"
 #include "magnav/dds/regional_field_source.h"
@@ -37,7 +42,10 @@ namespace magnav::tracker {
 
 struct TrackerNodeOptions {
   MultiTrackerOptions tracker;
-  double reorder_delay_s = 0.25;  // s of sample time
+  // How the sensors' streams are merged (--merge, --idle-timeout,
+  // --reorder-delay): watermark, idle timeout 2 s (wall clock), reorder
+  // delay 0.25 s (sample time; with --merge delay).
+  StreamMergeOptions merge = {StreamMerge::kWatermark, 0.25, 2.0, 1000000};
 
   bool IsValid(std::string* error) const;
 };
@@ -53,6 +61,9 @@ class TrackerNode {
   TrackerNode(dds::Node& node, const TrackerNodeOptions& options, std::unique_ptr<dds::RegionalFieldSource> b0);
   // Feeds what is still buffered to the tracker and publishes the result.
   void Flush();
+  // The wall clock for the merge's idle streams: call it often (main: every 50 ms).
+  void Tick();
+
   // Waits until every estimate is written and the readers acknowledged it
   // (before shutdown).
   bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
@@ -92,7 +103,7 @@ class TrackerNode {
   std::unique_ptr<dds::RegionalFieldSource> b0_;
   std::set<std::uint32_t> no_sigma_logged_;  // sensors whose missing σ was logged
   MultiTracker tracker_;
-  std::multimap<double, GradiometerSample> pending_;  // by time
+  StreamMerger<GradiometerSample> merge_;             // streams: sensor ids
   std::deque<std::uint32_t> ended_;                   // ended tracks still registered, oldest first
   static constexpr std::size_t kKeptEndedTracks = 50;
   double fed_until_s_ = -1e300;
