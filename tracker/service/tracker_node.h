@@ -19,6 +19,16 @@
 // once per sensor and skipped) and gets its sensor's B0 from the
 // RegionalFieldSource, which the node subtracts from B (the tracker runs with
 // B0 = 0); a sample whose sensor has no B0 yet is counted and skipped.
+// With a state directory the node checkpoints (Checkpoint: the tracker's
+// whole state, the stream position — time consumed until and the sensors
+// consumed at that time —, the newest fix taken per sensor, the ended tracks
+// still registered, the counters; tracker/checkpoint.h) and at start resumes
+// from it: what the writers' history sends again of what the checkpoint
+// consumed is dropped and counted (already_consumed), the rest goes on as
+// without the restart. A checkpoint is written only once the estimates made
+// before it have been acknowledged by the readers, so a restart from it
+// loses none. Not in it: the items waiting in the merge (they come again
+// from the history) and, with --b0 estimate, the per-sensor B0 estimates.
 #pragma once
 
 #include <set>
@@ -46,6 +56,9 @@ struct TrackerNodeOptions {
   // --reorder-delay): watermark, idle timeout 2 s (wall clock), reorder
   // delay 0.25 s (sample time; with --merge delay).
   StreamMergeOptions merge = {StreamMerge::kWatermark, 0.25, 2.0, 1000000};
+  // Non-empty: checkpoint to STATE_DIR/magnav-tracker.state (Checkpoint) and
+  // resume from it at start (docs/RELIABILITY.md).
+  std::string state_dir;
 
   bool IsValid(std::string* error) const;
 };
@@ -63,7 +76,17 @@ class TrackerNode {
   void Flush();
   // The wall clock for the merge's idle streams: call it often (main: every 50 ms).
   void Tick();
-
+  // With a state directory: writes the state (tracks, stream position,
+  // counters; tracker/checkpoint.h) atomically to state_path(). False if
+  // nothing was written (no state directory, nothing consumed yet, the
+  // estimates made so far not acknowledged by the readers within 1 s, or the
+  // write failed: logged once; the old file stays).
+  bool Checkpoint();
+  const std::string& state_path() const { return state_path_; }
+  // Started from a checkpoint.
+  bool resumed() const { return resumed_; }
+  // Samples and fixes the writers' history sent again that the checkpoint had consumed.
+  std::uint64_t already_consumed() const { return already_consumed_; }
   // Waits until every estimate is written and the readers acknowledged it
   // (before shutdown).
   bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
@@ -91,6 +114,8 @@ class TrackerNode {
   void TakeSample(const dds::msg::GradiometerSample& m);
   void OnFix(const dds::msg::DipoleFix& m, const dds::fdds::SampleInfo& info);
   void Feed(const GradiometerSample& s);  // mu_ held
+  void Resume();                          // from state_path_, at construction
+  std::string ConfigBytes() const;        // what a checkpoint is made for, besides the tracker's own options
   // mu_ held; logs starts and ends, unregisters ended tracks' keys if asked.
   void Publish(const std::vector<TrackOutput>& estimates, bool unregister_ended = true);
 
@@ -107,6 +132,15 @@ class TrackerNode {
   std::deque<std::uint32_t> ended_;                   // ended tracks still registered, oldest first
   static constexpr std::size_t kKeptEndedTracks = 50;
   double fed_until_s_ = -1e300;
+  std::set<std::uint32_t> fed_at_until_;  // sensors whose sample at fed_until_s_ the tracker took
+  std::map<std::uint32_t, double> fix_until_;  // per sensor: time of the newest fix taken
+  // Checkpoint.
+  std::string state_path_;
+  bool resumed_ = false, checkpoint_failing_ = false;
+  double restored_until_s_ = -1e300;
+  std::set<std::uint32_t> restored_at_until_;
+  std::map<std::uint32_t, double> restored_fix_until_;
+  std::atomic<std::uint64_t> already_consumed_{0};
   // Written under mu_ by the receive threads, read by the stats line without it.
   std::atomic<std::uint64_t> dropped_late_{0}, rejected_{0}, fixes_rejected_{0};
   // Estimates go out from the writer's own thread with flow control: a burst
