@@ -3,7 +3,6 @@
 // --reorder-delay, into a magnav::StreamMergeOptions (core/stream_merge.h).
 #pragma once
 
-#include <map>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -14,15 +13,14 @@ namespace magnav::cli {
 
 // `streams` names the streams in the help text (e.g. "each sensor, the GNSS").
 inline void AddMergeOptions(CLI::App& app, StreamMergeOptions* out, const std::string& streams) {
-  static const std::map<std::string, StreamMerge> kNames{{"watermark", StreamMerge::kWatermark},
-                                                        {"delay", StreamMerge::kReorderDelay}};
-  const char* fallback = out->merge == StreamMerge::kWatermark ? "watermark" : "delay";
-  app.add_option("--merge", out->merge,
-                 "how the streams (" + streams + ") are merged in time: watermark (an item waits until every live "
-                 "stream has reached its time; a quiet stream stops holding the others after --idle-timeout; "
-                 "restarts and unpaced replays merge exactly) or delay (an item waits until one --reorder-delay "
-                 "newer has arrived) [default: " + fallback + "]")
-      ->transform(CLI::CheckedTransformer(kNames));
+  app.add_option_function<std::string>(
+         "--merge",
+         [out](const std::string& v) { out->merge = v == "delay" ? StreamMerge::kReorderDelay : StreamMerge::kWatermark; },
+         "how the streams (" + streams + ") are merged in time: watermark (an item waits until every live stream "
+         "has reached its time; a quiet stream stops holding the others after --idle-timeout; restarts and unpaced "
+         "replays merge exactly) or delay (an item waits until one --reorder-delay newer has arrived)")
+      ->check(CLI::IsMember({"watermark", "delay"}))
+      ->default_str(out->merge == StreamMerge::kWatermark ? "watermark" : "delay");
   app.add_option("--idle-timeout", out->idle_timeout_s,
                  "watermark: a stream silent this long (wall clock, s) stops holding the others")
       ->capture_default_str();
