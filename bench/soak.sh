@@ -1,90 +1,134 @@
 #!/usr/bin/env bash
-# Soak on loopback: sustained streams through the services for a long time,
-# recording memory and latency over time (issue 15 item 5; docs/BENCHMARKS.md).
-# Two chains, each on its own domain, at once:
-#   field (domain D):  bench_dds_source, the AUV 4-sensor pass cycled at its
-#                      own rate (40/s: 4 gradiometers at 10 Hz; stamps = send
-#                      time, so the vessel moves as in the file and comes back
-#                      every 200 s) -> magnav-inverter -> magnav-tracker ->
-#                      magnav record --topic track; a sink of the fixes
-#   load (domain D+1): bench_dds_source at RATE_PER_S -> magnav-inverter ->
-#                      bench_dds_sink (latency per 10 s, loss)
-# Every 10 s the resident memory (VmRSS) of every process goes into soak.csv.
-# At the end: a summary (memory at 60 s vs at the end, latency of the first and
-# last windows, loss, tracks made) and soak.png (gnuplot). Loopback profile:
-# nothing leaves the machine.
-#   bench/soak.sh [RATE_PER_S=10000] [DURATION_S=600] [OUT_DIR=out/soak]
+# Soak of the four services on hours of simulated data (issue 22 item 6;
+# docs/BENCHMARKS.md "Soak of the four services"). Three chains at once on
+# loopback (the built-in magnav_loopback profile), each on its own domain:
+#   field     (domain D):   magnav replay --input field_<H>h.csv (9 gradiometers
+#                           at 10 Hz, a vessel crossing every 360 s) at
+#                           SOAK_SPEED_FIELD x -> magnav-inverter + magnav-tracker
+#   localizer (domain D+1): magnav replay of the racetrack survey (6 sensors at
+#                           2 Hz + GNSS at 1 Hz) at SOAK_SPEED_LOCALIZER x ->
+#                           magnav-localizer (publishing every 5 s)
+#   matcher   (domain D+2): magnav replay --map-path of a path over the crustal
+#                           map (1 step per second) at SOAK_SPEED_MATCHER x ->
+#                           magnav-matcher (afpf, a fix every 200 m)
+# Inputs: bench/soak_data.py (fixed seeds; made once into OUT). Every
+# SOAK_SAMPLE_S (wall) each service's CPU time (utime + stime of
+# /proc/PID/stat) and VmRSS go into OUT/<service>.csv; the replay's start and
+# end give the data time of each sample. bench/soak_report.py then compares
+# the first and the last hour of data: CPU s per s of data and mean RSS; a
+# service whose last hour is above 1.5x its first, or that lost samples, makes
+# this script exit 1 and is named. Plot: OUT/soak_services.png (gnuplot).
+# SOAK_CHAINS="field localizer matcher" (the default) runs fewer if given.
+# Not in CI.
+#   bench/soak.sh [HOURS=3] [OUT=out/soak]
+# e.g. SOAK_SPEED_FIELD=20 bench/soak.sh 3 out/soak
+# The older soak under load (10,000 samples/s through an inverter for
+# 10 min): bench/soak_load.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-RATE=${1:-10000}; DUR=${2:-600}; OUT=${3:-out/soak}
+HOURS=${1:-3}; OUT=${2:-out/soak}
+SPEED_FIELD=${SOAK_SPEED_FIELD:-20}; SPEED_LOC=${SOAK_SPEED_LOCALIZER:-60}; SPEED_MATCH=${SOAK_SPEED_MATCHER:-60}
+SAMPLE_S=${SOAK_SAMPLE_S:-2}
+CHAINS=${SOAK_CHAINS:-field localizer matcher}
+has() { [[ " $CHAINS " == *" $1 "* ]]; }
+SERVICES=$(for c in $CHAINS; do case $c in field) echo -n "inverter tracker ";; *) echo -n "$c ";; esac; done)
 BIN=${MAGNAV_BUILD_DIR:-build}/bin
-DATA=tests/data/reference/track_pass_auv_4sensor_fluxgate.csv
-B0=$(sed -n 's/^# B0_T: *//p' "$DATA" | tr -d ' ')
 D=${MAGNAV_DOMAIN_ID:-$(( $$ % 150 + 10 ))}
 unset MAGNAV_DDS_PROFILES MAGNAV_DDS_PARTICIPANT MAGNAV_DOMAIN_ID
+B0=2e-05,1e-06,4.5e-05  # bench/soak_data.py's
+MAP=tests/data/reference/map_crustal_anomaly.csv
+F0=$(python3 -c 'import math; print(repr(math.hypot(22838.121767602996, 1452.8242542037194, 41845.01475649571)))')
 mkdir -p "$OUT"
+echo "# soak ($CHAINS): $HOURS h of data per chain; field ${SPEED_FIELD}x, localizer ${SPEED_LOC}x, matcher ${SPEED_MATCH}x;" \
+  "$(date -u '+%F %H:%M') UTC, $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg); domains $D-$((D + 2))" \
+  | tee "$OUT/summary.txt"
+python3 bench/soak_data.py "$BIN/magnav" "$OUT" "$HOURS" "$CHAINS"
+H=$(python3 -c "print('%g' % float('$HOURS'))")
+
 pids=()
 cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; wait 2>/dev/null || true; }
 trap cleanup EXIT
-FIELD="env MAGNAV_DOMAIN_ID=$D"  # env execs the program: $! is its pid
-LOAD="env MAGNAV_DOMAIN_ID=$((D + 1))"
 
-$FIELD "$BIN/bench_dds_sink" $(( 40 * DUR )) 5 30 10 >"$OUT/field_sink.log" & fsink=$!; pids+=($fsink)
-$FIELD "$BIN/magnav-inverter" --b0 "$B0" --stats-period 60 >"$OUT/field_inverter.log" 2>&1 & finv=$!; pids+=($finv)
-$FIELD "$BIN/magnav-tracker" --b0 "$B0" --stats-period 60 >"$OUT/tracker.log" 2>&1 & trk=$!; pids+=($trk)
-$FIELD "$BIN/magnav" record --topic track --output "$OUT/track.csv" >"$OUT/record.log" 2>&1 & rec=$!; pids+=($rec)
-$LOAD "$BIN/bench_dds_sink" $(( RATE * DUR )) 5 10 10 >"$OUT/sink.log" & sink=$!; pids+=($sink)
-$LOAD "$BIN/magnav-inverter" --b0 "$B0" --stats-period 60 >"$OUT/inverter.log" 2>&1 & inv=$!; pids+=($inv)
-until grep -q "sink ready" "$OUT/sink.log" && grep -q "sink ready" "$OUT/field_sink.log"; do sleep 0.1; done
-$FIELD "$BIN/bench_dds_source" "$DATA" 40 "$DUR" >"$OUT/field_source.log" 2>&1 & fsrc=$!; pids+=($fsrc)
-$LOAD "$BIN/bench_dds_source" "$DATA" "$RATE" "$DUR" >"$OUT/source.log" 2>&1 & src=$!; pids+=($src)
+# monitor NAME PID: CPU (s) and VmRSS (kB) of PID every SAMPLE_S s (wall) into OUT/NAME.csv.
+monitor() {
+  local name=$1 pid=$2 tick; tick=$(getconf CLK_TCK)
+  echo "wall_s,cpu_s,rss_kb" >"$OUT/$name.csv"
+  while kill -0 "$pid" 2>/dev/null; do
+    local stat rss
+    stat=$(cut -d' ' -f14,15 "/proc/$pid/stat" 2>/dev/null) || break
+    rss=$(awk '/^VmRSS/ { print $2 }' "/proc/$pid/status" 2>/dev/null) || break
+    echo "$(date +%s.%N),$(echo "$stat" | awk -v hz="$tick" '{ printf "%.2f", ($1 + $2) / hz }'),$rss" >>"$OUT/$name.csv"
+    sleep "$SAMPLE_S"
+  done
+}
+# replay NAME DOMAIN ARGS...: the replay, its start and end (wall) into OUT/NAME_replay.times.
+replay() {
+  local name=$1 domain=$2; shift 2
+  local start; start=$(date +%s.%N)
+  "$BIN/magnav" replay --domain "$domain" "$@" >"$OUT/${name}_replay.log" 2>&1 || echo "replay $name failed (see $OUT/${name}_replay.log)"
+  echo "$start $(date +%s.%N)" >"$OUT/${name}_replay.times"
+}
 
-rss() { awk '/^VmRSS/ { print $2 }' "/proc/$1/status" 2>/dev/null || echo 0; }
-echo "t_s,inverter_kB,tracker_kB,record_kB,field_inverter_kB,sink_kB,source_kB" >"$OUT/soak.csv"
-echo "# soak: field 40/s + load $RATE/s for $DUR s, $(date -u '+%F %H:%M') UTC, $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores"
-t=0
-while kill -0 "$src" 2>/dev/null; do
-  echo "$t,$(rss $inv),$(rss $trk),$(rss $rec),$(rss $finv),$(rss $sink),$(rss $src)" >>"$OUT/soak.csv"
-  sleep 10; t=$((t + 10))
+svc=(); rep=()
+if has field; then
+  env MAGNAV_DOMAIN_ID=$D "$BIN/magnav-inverter" --b0 "$B0" --stats-period 20 >"$OUT/inverter.log" 2>&1 & svc+=(inverter:$!)
+  env MAGNAV_DOMAIN_ID=$D "$BIN/magnav-tracker" --b0 "$B0" --stats-period 20 >"$OUT/tracker.log" 2>&1 & svc+=(tracker:$!)
+fi
+if has localizer; then
+  env MAGNAV_DOMAIN_ID=$((D + 1)) "$BIN/magnav-localizer" --deployment "$OUT/racetrack_deployment.csv" \
+    --moment-body -15000,5000,20000 --vessel-z 0 --sigma-b 1e-9 --publish-period 5 --stats-period 20 \
+    >"$OUT/localizer.log" 2>&1 & svc+=(localizer:$!)
+fi
+if has matcher; then
+  env MAGNAV_DOMAIN_ID=$((D + 2)) "$BIN/magnav-matcher" --map "$MAP" --value-column anomaly_nT --reference-field "$F0" \
+    --method afpf --fix-every 200 --stats-period 20 >"$OUT/matcher.log" 2>&1 & svc+=(matcher:$!)
+fi
+for s in "${svc[@]}"; do
+  pids+=("${s##*:}")
+  monitor "${s%%:*}" "${s##*:}" & pids+=($!)
 done
-wait "$src" "$fsrc" || true
-wait "$sink" "$fsink" || true
-kill -TERM "$inv" "$finv" "$trk" "$rec"; wait "$inv" "$finv" "$trk" "$rec" 2>/dev/null || true
 
-echo "load:  $(tail -1 "$OUT/sink.log")"
-echo "field: $(tail -1 "$OUT/field_sink.log")"
-echo "inverter (load): $(grep 'stopping' "$OUT/inverter.log" | sed 's/.*magnav-inverter: //')"
-echo "tracker: $(grep 'stopping' "$OUT/tracker.log" | sed 's/.*magnav-tracker: //')"
-echo "record: $(tail -1 "$OUT/record.log")"
-# Memory: at 60 s (warmed up) against the end, per process.
-awk -F, 'NR == 1 { for (i = 2; i <= NF; i++) name[i] = $i; next }
-         $1 == 60 { for (i = 2; i <= NF; i++) at60[i] = $i }
-         { for (i = 2; i <= NF; i++) { last[i] = $i; if ($i > max[i]) max[i] = $i } }
-         END { for (i = 2; i <= 7; i++) printf "%s: %d kB at 60 s, %d kB at the end (%+.1f %%), max %d kB\n",
-               name[i], at60[i], last[i], at60[i] ? 100 * (last[i] - at60[i]) / at60[i] : 0, max[i] }' "$OUT/soak.csv"
-awk '/^window/ { n++; w[n] = $0 } END { print "latency first window: " w[1]; print "latency last window:  " w[n] }' \
-  "$OUT/sink.log"
-grep '^window' "$OUT/sink.log" | awk '{ print $2 "," $6 "," $8 "," $10 }' >"$OUT/latency.csv"
+if has field; then
+  replay field $D --input "$OUT/field_${H}h.csv" --speed "$SPEED_FIELD" --wait-readers 2 --wait 60 & rep+=($!)
+fi
+if has localizer; then
+  replay localizer $((D + 1)) --magnetometer "$OUT/racetrack_meas_${H}h.csv" \
+    --gnss "$OUT/racetrack_gnss_${H}h.csv" --speed "$SPEED_LOC" --wait-readers 1 --wait 60 & rep+=($!)
+fi
+if has matcher; then
+  replay matcher $((D + 2)) --map-path "$OUT/mappath_${H}h.csv" --meas-column meas_nT \
+    --reference-field "$F0" --step-period 1 --speed "$SPEED_MATCH" --wait-readers 1 --wait 60 & rep+=($!)
+fi
+pids+=("${rep[@]}")
+wait "${rep[@]}"
+# Let every service drain and log its counts (stats every 20 s), then stop them.
+sleep 25
+for s in "${svc[@]}"; do kill -TERM "${s##*:}"; done
+for s in "${svc[@]}"; do wait "${s##*:}" 2>/dev/null || true; done
+sleep "$SAMPLE_S"
+
+echo "# load at the end $(cut -d' ' -f1-3 /proc/loadavg)" | tee -a "$OUT/summary.txt"
+set +e
+python3 bench/soak_report.py "$OUT" "$H" "$SPEED_FIELD" "$SPEED_LOC" "$SPEED_MATCH" "$SERVICES" | tee -a "$OUT/summary.txt"
+rc=${PIPESTATUS[0]}
+set -e
 if command -v gnuplot >/dev/null; then
   gnuplot <<EOF
-set terminal pngcairo size 900,600 font ",10"
-set output "$OUT/soak.png"
+set terminal pngcairo size 1000,800 font ",10" noenhanced
+set output "$OUT/soak_services.png"
 set datafile separator ","
-set multiplot layout 2,1 title "magnav soak: $RATE + 40 samples/s for $DUR s (loopback)"
-set ylabel "resident memory (MB)"
+set multiplot layout 2,1 title "magnav services soak: $H h of simulated data each, replayed fast on loopback (first vs last hour)"
 set key outside right
 set grid
-plot "$OUT/soak.csv" every ::1 using 1:(\$2/1024) with lines title "inverter (load)", \
-     "" every ::1 using 1:(\$3/1024) with lines title "tracker", \
-     "" every ::1 using 1:(\$4/1024) with lines title "record", \
-     "" every ::1 using 1:(\$5/1024) with lines title "inverter (field)", \
-     "" every ::1 using 1:(\$6/1024) with lines title "sink"
-set xlabel "time (s)"
-set ylabel "latency source -> inverter -> sink, load chain (ms)"
+set xlabel "data time (h)"
+set ylabel "CPU time per second of data (s/s), 10 min windows"
 set logscale y
-plot "$OUT/latency.csv" using 1:(\$2/1000) with lines title "p50", "" using 1:(\$3/1000) with lines title "p99", \
-     "" using 1:(\$4/1000) with lines title "max"
+plot for [s in "$SERVICES"] "$OUT/".s."_series.csv" every ::1 using 1:2 with linespoints pt 7 ps 0.4 title s
+unset logscale y
+set ylabel "resident memory VmRSS (MB)"
+plot for [s in "$SERVICES"] "$OUT/".s."_series.csv" every ::1 using 1:3 with lines lw 2 title s
 unset multiplot
 EOF
-  echo "plot: $OUT/soak.png"
+  echo "plot: $OUT/soak_services.png"
 fi
+exit "$rc"

@@ -75,8 +75,9 @@ endfunction()
 
 # A module's DDS service (the only part of a module that includes DDS
 # headers): its node as a library magnav::<module>_service (sources
-# service/<node>.cc, headers in service/) over the module's library and the
-# DDS adapter, and its thin main as the executable.
+# service/<node>.cc, headers in service/) over the module's library, the
+# DDS adapter and the module's message conversions (magnav::dds_<module>,
+# dds/CMakeLists.txt), and its thin main as the executable.
 #   magnav_service(MODULE inversion EXECUTABLE magnav-inverter NODE inverter_node)
 function(magnav_service)
   cmake_parse_arguments(ARG "" "MODULE;EXECUTABLE;NODE" "" ${ARGN})
@@ -84,7 +85,7 @@ function(magnav_service)
   add_library(${lib} STATIC service/${ARG_NODE}.cc)
   add_library(magnav::${ARG_MODULE}_service ALIAS ${lib})
   target_include_directories(${lib} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/service)
-  target_link_libraries(${lib} PUBLIC magnav::${ARG_MODULE} magnav::dds PRIVATE spdlog::spdlog magnav_warnings)
+  target_link_libraries(${lib} PUBLIC magnav::${ARG_MODULE} magnav::dds magnav::dds_${ARG_MODULE} PRIVATE spdlog::spdlog magnav_warnings)
   add_executable(${ARG_EXECUTABLE} service/main.cc)
   target_link_libraries(${ARG_EXECUTABLE} PRIVATE magnav::${ARG_MODULE}_service magnav::cli spdlog::spdlog magnav_warnings)
 endfunction()

@@ -3,6 +3,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <string>
+
+#include <fastcdr/Cdr.h>
+#include <fastcdr/FastBuffer.h>
 
 #include "entries.h"
 #include "magnav/core/gradiometer.h"
@@ -32,14 +36,27 @@ bool Deserialize(const std::uint8_t* data, std::size_t size, M* out) {
   return ok;
 }
 
-// A payload of type M through the type support and, if accepted, the repeat
-// filter every consumer puts first (any key, seq and stamp: gaps, steps back,
-// eviction) and `check`.
+// The CDR of a message (little endian), to compare messages bit for bit.
+template <class M>
+std::string Cdr(const M& m) {
+  std::string buffer(M::getCdrSerializedSize(m) + 8, '\0');
+  eprosima::fastcdr::FastBuffer fb(buffer.data(), buffer.size());
+  eprosima::fastcdr::Cdr cdr(fb, eprosima::fastcdr::Cdr::LITTLE_ENDIANNESS, eprosima::fastcdr::Cdr::DDS_CDR);
+  m.serialize(cdr);
+  buffer.resize(cdr.getSerializedDataLength());
+  return buffer;
+}
+
+// A payload of type M through the type support and, if accepted: the message
+// through its record and back is the same message bit for bit (convert.h,
+// every topic), then the repeat filter every consumer puts first (any key,
+// seq and stamp: gaps, steps back, eviction) and `check`.
 template <class M>
 void Take(const std::uint8_t* data, std::size_t size, void (*check)(const M&) = nullptr) {
   static dds::RepeatFilter repeats(64, 8);  // small, so that eviction is reached
   M m;
   if (!Deserialize(data, size, &m)) return;
+  if (Cdr(dds::ToMsg(dds::RecordOf(m))) != Cdr(m)) std::abort();
   const std::uint64_t missing = repeats.missing();
   const bool first = repeats.First(m);
   if (!first && repeats.missing() != missing) std::abort();  // a repeat never counts as a gap

@@ -4,17 +4,20 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
 #include <set>
 #include <string>
 
+#include "association.h"
 #include "commands.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/gospa.h"
 #include "magnav/core/gradiometer.h"
+#include "magnav/core/nees.h"
 
 namespace magnav::tools {
 namespace {
@@ -25,6 +28,8 @@ struct EvaluateArgs {
   double gate_m = 5.0;       // multi-track: a row farther than this from every vessel is false
   double gospa_c_m = 10.0, gospa_p = 2.0;
   std::string gospa_csv;     // per-epoch GOSPA, if given
+  std::string nees;          // --nees: NEES rows (run,epoch,regime,nees[,error_sq]) instead of estimate/truth
+  int dof = 0;               // --dof: degrees of freedom of those NEES values
 };
 
 struct Xyz {
@@ -110,14 +115,9 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
       continue;
     }
     const Eigen::Vector3d p(est->number(i, pe.x), est->number(i, pe.y), est->number(i, pe.z));
-    long long best_v = -1;
-    double best = 1e300;
-    for (const auto& [v, q] : it->second) {
-      if ((p - q).norm() < best) {
-        best = (p - q).norm();
-        best_v = v;
-      }
-    }
+    const auto nearest = FindNearestVessel(it->second, p);  // association.h, shared with magnav plot
+    const long long best_v = nearest ? nearest->vessel_id : -1;
+    const double best = nearest ? nearest->distance_m : 1e300;
     if (best > a.gate_m) {
       ++false_rows;
       gospa_est[t].push_back(p);
@@ -294,7 +294,55 @@ void RunSensors(const EvaluateArgs& a, const CsvTable& est, const CsvTable& trut
   }
 }
 
+// --nees: covariance consistency over Monte-Carlo runs (core/nees.h), per
+// regime: ANEES and its [0.5, 2] x dof acceptance, the share of epochs whose
+// run-averaged NEES is inside its two-sided 95 % chi-square interval, RMS.
+void RunNees(const EvaluateArgs& a) {
+  if (!a.estimate.empty() || !a.truth.empty()) throw InputError("--nees: give no --estimate or --truth");
+  if (a.dof < 1) throw InputError("--nees needs --dof N (N >= 1: the dimension of the estimate)");
+  const CsvTable t = CsvTable::Read(a.nees);
+  const std::size_t run = t.column("run"), epoch = t.column("epoch"), regime = t.column("regime"),
+                    nees = t.column("nees");
+  const auto e2 = t.find_column("error_sq");
+  std::vector<NeesSample> samples;
+  samples.reserve(t.num_rows());
+  for (std::size_t i = 0; i < t.num_rows(); ++i) {
+    NeesSample s{t.integer(i, run), t.integer(i, epoch), std::string(t.text(i, regime)), 0.0, 0.0};
+    // "inf": a singular covariance (counted, makes the ANEES infinite); any other value must be finite and >= 0.
+    const std::string v(t.text(i, nees));
+    s.nees = v == "inf" ? std::numeric_limits<double>::infinity() : t.number(i, nees);
+    if (!(s.nees >= 0.0)) {
+      throw InputError(t.source() + ":" + std::to_string(t.line_of(i)) + ": column 'nees': must be >= 0 or inf");
+    }
+    if (e2) {
+      s.error_sq = t.number(i, *e2);
+      if (!(s.error_sq >= 0.0)) {
+        throw InputError(t.source() + ":" + std::to_string(t.line_of(i)) + ": column 'error_sq': must be >= 0");
+      }
+    }
+    samples.push_back(std::move(s));
+  }
+  if (samples.empty()) throw InputError(a.nees + ": no data rows");
+  const auto stats = ComputeNeesStats(samples, a.dof);
+  std::printf("NEES over runs, %d dof: ANEES accepted within [%.3g, %.3g]; per epoch, the run-averaged NEES against "
+              "its two-sided 95 %% chi-square interval (epochs with >= 2 runs)\n",
+              a.dof, 0.5 * a.dof, 2.0 * a.dof);
+  for (const auto& [name, r] : stats) {
+    std::printf("regime %s: runs %zu, epochs %zu, values %zu, ANEES %.4g (%s), inside 95 %% %zu of %zu epochs "
+                "(%.1f %%)",
+                name.c_str(), r.runs, r.epochs, r.samples, r.anees, r.anees_accepted ? "accepted" : "NOT accepted",
+                r.epochs_inside, r.epochs_tested, 100.0 * r.share_inside());
+    if (e2) std::printf(", RMS %.4g", r.rms);
+    std::printf("\n");
+  }
+}
+
 void Run(const EvaluateArgs& a) {
+  if (!a.nees.empty()) {
+    RunNees(a);
+    return;
+  }
+  if (a.estimate.empty() || a.truth.empty()) throw InputError("give --estimate and --truth (or --nees)");
   const CsvTable truth = CsvTable::Read(a.truth);
   std::optional<CsvTable> est_or_none;
   try {
@@ -429,6 +477,13 @@ Multi-vessel truth (vessel_id), track file (track_id):
     with d < c, missed = c^p/2 per missed vessel, false = c^p/2 per false row (m^p, sum = GOSPA^p).
     Printed: mean and max of GOSPA over epochs with a vessel in scope or a row, and the mean of each
     component per epoch (with the mean number of missed vessels and false rows). --gospa FILE: per epoch.
+--nees FILE --dof N (no estimate or truth; scripts/calibration writes FILE): columns run,epoch,regime,nees
+[,error_sq] (nees = e' P^-1 e of one estimate, "inf" for a singular P; error_sq = |e|^2), per regime and "all":
+  runs / epochs / values: distinct runs, distinct epochs, rows.
+  ANEES: mean NEES over every row (Bar-Shalom's average over runs and time); accepted within [0.5, 2] x N.
+  inside 95 %: epochs (with >= 2 runs) whose run-averaged NEES lies in [chi2inv(0.025, n N), chi2inv(0.975, n N)] / n,
+    n = the runs with a value at that epoch (about 95 % when the covariance is right).
+  RMS: sqrt(mean error_sq), in the unit of the estimate.
 Multi-vessel truth, fix file (valid column, magnav invert):
   fixes: valid and rejected (valid = 0, counted, not scored); each valid fix scored against the nearest
   vessel at its time: false as above; per vessel: fixes at in-field instants, the instants they cover
@@ -441,12 +496,15 @@ void AddEvaluateCommand(CLI::App& app) {
   CLI::App* sub = app.add_subcommand("evaluate", "Position error of estimates (invert/track/record output) against truth");
   sub->add_option("--estimate", args->estimate,
                   "fixes (magnav invert: t, dipole_x..z, valid, sigma_x..z), a track (magnav track: t, track_id, "
-                  "x..z, sigma_x..z) or a recorded dipole_fix / track topic")
-      ->required();
+                  "x..z, sigma_x..z) or a recorded dipole_fix / track topic (required unless --nees)");
   sub->add_option("--truth", args->truth,
                   "truth CSV with t,x,y,z, or t,vessel_id,x,y,z for several vessels (magnav simulate --truth), or "
-                  "sensor_id,x,y,z for sensor positions (magnav localize output as the estimate)")
-      ->required();
+                  "sensor_id,x,y,z for sensor positions (magnav localize output as the estimate); required unless --nees");
+  sub->add_option("--nees", args->nees,
+                  "instead of --estimate/--truth: NEES rows run,epoch,regime,nees[,error_sq] (scripts/calibration): "
+                  "ANEES per regime, its [0.5, 2] x dof acceptance and the share of epochs inside the 95 % "
+                  "chi-square interval");
+  sub->add_option("--dof", args->dof, "with --nees: degrees of freedom of each NEES value")->check(CLI::PositiveNumber);
   sub->add_option("--max-range", args->max_range_m, "use only epochs within this horizontal range of a sensor, m")
       ->check(CLI::PositiveNumber);
   sub->add_option("--sensors", args->sensors, "sensor positions X,Y,Z[;X,Y,Z...] for --max-range");

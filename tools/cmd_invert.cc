@@ -25,9 +25,10 @@ struct InvertArgs {
   Vec3Arg moment_body;
   double sigma_B = -1.0;  // < 0: from the file
   double sigma_T = -1.0;
+  double min_snr = inversion::GateOptions{}.min_snr;
   double max_relative_sigma = inversion::GateOptions{}.max_relative_sigma;
   double max_position_sigma = inversion::GateOptions{}.max_position_sigma_3d_m;
-  bool relative_sigma_given = false, position_sigma_given = false;
+  bool min_snr_given = false, relative_sigma_given = false, position_sigma_given = false;
   int particles = 600;
   unsigned long long seed = 42;
 };
@@ -65,6 +66,7 @@ void RunInvert(const InvertArgs& args) {
 
   inversion::InverterOptions inv_options;
   inv_options.B0_W = B0;
+  inv_options.gates.min_snr = args.min_snr;
   inv_options.gates.max_relative_sigma = args.max_relative_sigma;
   inv_options.gates.max_position_sigma_3d_m = args.max_position_sigma;
   // Without a time column the rows are independent cases: no speed gate.
@@ -92,6 +94,7 @@ void RunInvert(const InvertArgs& args) {
     mc.init_inverter.B0_W = B0;
     mc.init_inverter.gates.enable_speed_gate = inv_options.gates.enable_speed_gate;
     // The initialising fixes keep their own uncertainty gate unless one is given.
+    if (args.min_snr_given) mc.init_inverter.gates.min_snr = args.min_snr;
     if (args.relative_sigma_given) mc.init_inverter.gates.max_relative_sigma = args.max_relative_sigma;
     if (args.position_sigma_given) mc.init_inverter.gates.max_position_sigma_3d_m = args.max_position_sigma;
     std::string error;
@@ -172,20 +175,26 @@ void AddInvertCommand(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--sigma-t", args->sigma_T, "tensor noise σ in T/m (default: '# sigma_T_Tpm:')")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--min-snr", args->min_snr,
+                  "weak-signal gate: reject a row whose |T|_F < min_snr * sigma_T (0 = off; mc: for the "
+                  "initialising fixes, whose default is 100)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   cmd->add_option("--max-relative-sigma", args->max_relative_sigma,
                   "uncertainty gate: reject a fix whose predicted 3-D 1-sigma position error exceeds this fraction "
-                  "of its range (0 = off; mc: for the initialising fixes, whose default is off)")
+                  "of its range (0 = off, the default; mc: for the initialising fixes)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--max-position-sigma", args->max_position_sigma,
                   "uncertainty gate: reject a fix whose predicted 3-D 1-sigma position error exceeds this, m "
-                  "(0 = off; 0.05 was the former default; mc: its initialising fixes default to 1)")
+                  "(0 = off; 0.05 for the paper's SQUID per-fix accuracy; mc: its initialising fixes default to 1)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--particles", args->particles, "mc: number of particles")->check(CLI::Range(2, 1000000));
   cmd->add_option("--seed", args->seed, "mc: random seed");
   cmd->add_option("--output", args->output, "output CSV")->required();
   cmd->callback([args, cmd] {
+    args->min_snr_given = cmd->count("--min-snr") > 0;
     args->relative_sigma_given = cmd->count("--max-relative-sigma") > 0;
     args->position_sigma_given = cmd->count("--max-position-sigma") > 0;
     RunInvert(*args);

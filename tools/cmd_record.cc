@@ -239,6 +239,8 @@ struct Recording {
   std::unique_ptr<Sink> sink;
   std::shared_ptr<void> reader;
   std::function<std::uint64_t()> lost;
+  std::function<int()> matched;  // writers matched now
+  int matched_said = 0;          // as last logged
   std::shared_ptr<dds::RepeatFilter> repeats;
   std::function<std::uint64_t()> written;
 };
@@ -258,6 +260,7 @@ Recording Subscribe(dds::Node& node, const std::string& topic, const std::string
     if ((count == 0 || sink->count() < count) && repeats->First(m, info)) sink->Write(Row(m));
   });
   r.lost = [reader] { return reader->stats().lost.load(); };
+  r.matched = [reader] { return reader->stats().matched.load(); };
   r.reader = reader;
   r.written = [sink] { return sink->count(); };
   return r;
@@ -285,6 +288,7 @@ Recording SubscribeMcap(dds::Node& node, const std::string& topic, std::size_t i
     if ((count == 0 || rec->count(index) < count) && repeats->First(m, info)) rec->Write(index, m, info);
   });
   r.lost = [reader] { return reader->stats().lost.load(); };
+  r.matched = [reader] { return reader->stats().matched.load(); };
   r.reader = reader;
   r.written = [rec, index] { return rec->count(index); };
   return r;
@@ -355,6 +359,15 @@ void Run(const RecordArgs& a) {
   while (!dds::ShutdownRequested()) {
     // Once a second the rows so far go to the temporary: after kill -9 it
     // holds all but the last second's (docs/RELIABILITY.md).
+    // Producers coming and going, as discovery sees them (a log line, and what
+    // a script waits for before it starts a producer's input).
+    for (Recording& r : rec) {
+      const int m = r.matched();
+      if (m != r.matched_said) {
+        std::fprintf(stderr, "record: magnav/%s: %d writer(s) matched\n", r.topic.c_str(), m);
+        r.matched_said = m;
+      }
+    }
     if (std::chrono::steady_clock::now() >= next_flush) {
       for (Recording& r : rec) {
         if (r.sink) r.sink->Flush();
@@ -375,6 +388,7 @@ void Run(const RecordArgs& a) {
   for (std::size_t i = 0; i < rec.size(); ++i) {
     lost[i] = rec[i].lost();
     rec[i].lost = nullptr;  // it holds the reader too
+    rec[i].matched = nullptr;
     rec[i].reader.reset();  // the reader is deleted: no callback after this
     if (rec[i].sink) rec[i].sink->Close();
   }

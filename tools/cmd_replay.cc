@@ -27,6 +27,7 @@
 #include "magnav/core/gradiometer.h"
 #include "magnav/core/units.h"
 #include "magnav/dds/convert.h"
+#include "magnav/dds/convert_localizer.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/shutdown.h"
 #include "magnav/mapmatch/path.h"
@@ -66,33 +67,22 @@ std::vector<LocalizeEvent> ReadLocalizeEvents(const std::string& measurements, c
   const std::size_t t = m.column("t"), id = m.column("sensor_id"), bx = m.column("B_x"), by = m.column("B_y"),
                     bz = m.column("B_z");
   std::unordered_map<std::uint32_t, std::uint64_t> seq;
-  const double nan = std::nan("");
   for (std::size_t i = 0; i < m.num_rows(); ++i) {
-    LocalizeEvent e{m.number(i, t), false, {}, {}};
-    e.sample.sensor_id(m.uint32(i, id));
-    e.sample.stamp_ns(SecondsToNanos(e.t_s));
-    e.sample.seq(seq[e.sample.sensor_id()]++);
-    e.sample.sensor_position({nan, nan, nan});  // not in the file: unknown
-    e.sample.B({m.number(i, bx), m.number(i, by), m.number(i, bz)});
-    e.sample.sigma_B(sigma);
-    out.push_back(e);
+    localizer::MagSample s;
+    s.t_s = m.number(i, t);
+    s.sensor_id = m.uint32(i, id);
+    s.B_T = {m.number(i, bx), m.number(i, by), m.number(i, bz)};
+    out.push_back({s.t_s, false, dds::ToMsg(s, seq[s.sensor_id]++, sigma), {}});  // position unknown (NaN)
   }
   if (!gnss.empty()) {
     const CsvTable g = CsvTable::Read(gnss);
     const std::size_t gt = g.column("t"), x = g.column("x"), y = g.column("y"), s = g.column("sigma");
     for (std::size_t i = 0; i < g.num_rows(); ++i) {
-      LocalizeEvent e{g.number(i, gt), true, {}, {}};
-      e.fix.vessel_id(0);
-      e.fix.stamp_ns(SecondsToNanos(e.t_s));
-      e.fix.source(dds::msg::NAV_GNSS);
-      e.fix.position({g.number(i, x), g.number(i, y), z});
-      e.fix.velocity({nan, nan, nan});
-      e.fix.heading(nan);
-      e.fix.sigma_position({g.number(i, s), g.number(i, s), nan});
-      e.fix.sigma_velocity(nan);
-      e.fix.sigma_heading(nan);
-      e.fix.geodetic({nan, nan, nan});
-      out.push_back(e);
+      localizer::GnssFix f;
+      f.t_s = g.number(i, gt);
+      f.p_xy_m = {g.number(i, x), g.number(i, y)};
+      f.sigma_m = g.number(i, s);
+      out.push_back({f.t_s, true, {}, dds::ToMsg(f, /*vessel_id=*/0, z)});
     }
   }
   // Time order; at equal times the fix first, else file order.
@@ -403,16 +393,20 @@ void AddReplayCommand(CLI::App& app) {
       "Publish a gradiometer CSV on magnav/gradiometer, localize files or a map-matching run on magnav/magnetometer + "
       "magnav/vessel_nav");
   sub->add_option("--input", args->input,
-                  "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22), or an MCAP recording (magnav record --output "
-                  "FILE.mcap: its sensor topics, or --topic, paced by their receive times)");
+                  "gradiometer CSV (t,sensor_id,sensor_*,B_*,T00..T22; a CSV recording's DIR/gradiometer.csv from `magnav record "
+                  "--output-dir DIR` is one: its extra columns are ignored), or an MCAP recording (magnav record --output "
+                  "FILE.mcap: its sensor topics, or --topic, paced by their receive times). A CSV recording directory "
+                  "is not taken whole: give its files (--input DIR/gradiometer.csv, or --magnetometer "
+                  "DIR/magnetometer.csv --gnss DIR/vessel_nav.csv)");
   sub->add_option("--topic", args->topics,
                   "MCAP input: the topics to send (gradiometer, magnetometer, vessel_nav, dipole_fix, track, "
                   "sensor_position, map_fix, all; default: the sensor topics gradiometer, magnetometer, vessel_nav)")
       ->delimiter(',')
       ->check(CLI::IsMember(TopicChoices()));
   sub->add_option("--magnetometer", args->magnetometer,
-                  "localize measurements CSV (t,sensor_id,B_x,B_y,B_z) -> magnav/magnetometer");
-  sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma) -> magnav/vessel_nav");
+                  "localize measurements CSV (t,sensor_id,B_x,B_y,B_z; or a CSV recording's magnetometer.csv) -> "
+                  "magnav/magnetometer");
+  sub->add_option("--gnss", args->gnss, "with --magnetometer: GNSS CSV (t,x,y,sigma; or a CSV recording's vessel_nav.csv) -> magnav/vessel_nav");
   sub->add_option("--map-path", args->map_path,
                   "map-matching run (k,ins_lat,ins_lon and --meas-column, as `magnav match` reads) -> magnav/vessel_nav "
                   "(INS, geodetic) + magnav/magnetometer (|B| = --reference-field + anomaly)");

@@ -7,12 +7,13 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/simulate.h"
+#include "magnav/cli/scenario_file.h"
 
 namespace magnav::tools {
 namespace {
 
 struct SimulateArgs {
-  std::string output, truth, noise = "none", turns, sensors, grid;
+  std::string output, truth, noise = "none", turns, sensors, grid, scenario;
   std::vector<std::string> vessels;
   Vec3Arg moment, start, b0;
   double speed = -1, heading = 1e9, rate = -1, sigma_B = -1, sigma_T = -1;
@@ -124,8 +125,24 @@ void RunField(const SimulateArgs& a, double sigma_B, double sigma_T) {
               sc.vessels.size(), FormatNumber(sc.duration_s()).c_str(), a.output.c_str());
 }
 
-void Run(const SimulateArgs& a) {
+// A field from a scenario file (cli/scenario_file.h).
+void RunScenario(const SimulateArgs& a, std::size_t other_options) {
+  if (other_options > 0) {
+    throw InputError("--scenario describes the whole field: give only --output and --truth with it");
+  }
+  const FieldScenario sc = cli::ReadScenarioFile(a.scenario);
+  const SimulatedField field = SimulateField(sc);
+  WriteFieldPassCsv(a.output, sc, field);
+  if (!a.truth.empty()) WriteFieldTruthCsv(a.truth, sc, field);
+  std::printf("wrote %zu samples (%zu sensors, %zu vessels, %s s) to %s\n", field.samples.size(), sc.sensors.size(),
+              sc.vessels.size(), FormatNumber(sc.duration_s()).c_str(), a.output.c_str());
+}
+
+void Run(const SimulateArgs& a, std::size_t other_options) {
   RefuseOutputOverInput(a.truth, {a.output});
+  RefuseOutputOverInput(a.output, {a.scenario});
+  RefuseOutputOverInput(a.truth, {a.scenario});
+  if (!a.scenario.empty()) return RunScenario(a, other_options);
   PassScenario sc;
   if (a.noise == "fluxgate") {
     sc.sigma_B = 1e-9;
@@ -183,7 +200,18 @@ void AddSimulateCommand(CLI::App& app) {
                   "with --vessel: an NX x NY sensor grid at z = 0 centred on the origin, NX,NY,SPACING_M (default "
                   "3,3,40 as the reference field; or --sensors)");
   sub->add_option("--seed", args->seed, "noise seed");
-  sub->callback([args] { Run(*args); });
+  sub->add_option("--scenario", args->scenario,
+                  "a field from a scenario file (TOML: sensors, noise, background drift, [vessel.ID] sections with "
+                  "start and velocity, turns or waypoints; see cli/include/magnav/cli/scenario_file.h and "
+                  "tests/data/generated/scenarios/); only --output and --truth go with it");
+  sub->callback([args, sub] {
+    std::size_t others = 0;
+    for (const char* name : {"--noise", "--sigma-b", "--sigma-t", "--moment-body", "--start", "--b0", "--speed",
+                             "--heading", "--turns", "--sensors", "--rate", "--vessel", "--grid", "--seed"}) {
+      others += sub->get_option(name)->count();
+    }
+    Run(*args, others);
+  });
 }
 
 }  // namespace magnav::tools

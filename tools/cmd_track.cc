@@ -44,7 +44,7 @@ struct TrackArgs {
 // A fix file: t, sensor_id (optional: 0), dipole_x..z, valid (optional: 1).
 // A row that is not valid may leave its position empty. In time order. Every
 // sensor_id must be one of the pass's (`sensor_ids`); positions within
-// kMaxAbsPosition_m.
+// kLimitPosition.
 std::vector<tracker::DipoleFix> ReadFixes(const std::string& path, const std::set<std::uint32_t>& sensor_ids,
                                           const std::string& pass_path) {
   const CsvTable c = CsvTable::Read(path);
@@ -64,9 +64,8 @@ std::vector<tracker::DipoleFix> ReadFixes(const std::string& path, const std::se
     Eigen::Vector3d p = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
     if (ok) {
       for (const std::size_t col : {x, y, z}) {
-        if (std::abs(c.number(i, col)) > kMaxAbsPosition_m) {
-          throw InputError(where(i, col) + FormatNumber(c.number(i, col)) + " m is out of range (|value| > " +
-                           FormatNumber(kMaxAbsPosition_m) + " m)");
+        if (!WithinLimit(kLimitPosition, c.number(i, col))) {
+          throw InputError(where(i, col) + OutOfRange(kLimitPosition, c.number(i, col)));
         }
       }
       p = {c.number(i, x), c.number(i, y), c.number(i, z)};

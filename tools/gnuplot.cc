@@ -20,14 +20,27 @@ namespace magnav::tools {
 
 namespace fs = std::filesystem;
 
-GnuplotFigure::GnuplotFigure(const std::string& output, int width_px, int height_px)
-    : output_(output), width_px_(width_px), height_px_(height_px) {
-  if (output.ends_with(".svg")) {
-    svg_ = true;
-  } else if (output.ends_with(".png")) {
-    svg_ = false;
-  } else {
-    throw InputError("--output: '" + output + "': a picture ends in .svg or .png");
+std::string PaletteColour(int i) {
+  return std::string("lc rgb '") + kPalette[((i % kPaletteSize) + kPaletteSize) % kPaletteSize] + "'";
+}
+
+std::string PictureFormatOf(const std::string& output) {
+  for (const char* f : {"svg", "png", "pdf"}) {
+    if (output.ends_with(std::string(".") + f)) return f;
+  }
+  return "";
+}
+
+GnuplotFigure::GnuplotFigure(const std::string& output, int width_px, int height_px, const std::string& format)
+    : output_(output), format_(format), width_px_(width_px), height_px_(height_px) {
+  const std::string ending = PictureFormatOf(output);
+  if (format_.empty()) {
+    if (ending.empty()) throw InputError("--output: '" + output + "': a picture ends in .svg, .png or .pdf (or give --format)");
+    format_ = ending;
+  } else if (format_ != "svg" && format_ != "png" && format_ != "pdf") {
+    throw InputError("--format: expected svg, png or pdf, got '" + format_ + "'");
+  } else if (!ending.empty() && ending != format_) {
+    throw InputError("--format " + format_ + " disagrees with the output '" + output + "'");
   }
   std::string tmpl = (fs::temp_directory_path() / "magnav-plot-XXXXXX").string();
   if (mkdtemp(tmpl.data()) == nullptr) throw InputError("cannot create a temporary directory for gnuplot");
@@ -54,14 +67,19 @@ void GnuplotFigure::Script(const std::string& lines) { script_ += lines + "\n"; 
 
 void GnuplotFigure::Render() {
   const fs::path final_path = fs::absolute(output_);
-  const std::string picture = dir_ + (svg_ ? "/figure.svg" : "/figure.png");
+  const std::string picture = dir_ + "/figure." + format_;
   std::ostringstream head;
-  if (svg_) {
-    head << "set terminal svg size " << width_px_ << "," << height_px_ << " dynamic enhanced font 'sans,12'\n";
+  if (format_ == "svg") {
+    head << "set terminal svg size " << width_px_ << "," << height_px_ << " dynamic noenhanced font 'sans,12'\n";
+  } else if (format_ == "png") {
+    head << "set terminal pngcairo size " << width_px_ << "," << height_px_ << " noenhanced font 'sans,11'\n";
   } else {
-    head << "set terminal pngcairo size " << width_px_ << "," << height_px_ << " enhanced font 'sans,11'\n";
+    head << "set terminal pdfcairo size " << width_px_ / 100.0 << "in," << height_px_ / 100.0
+         << "in noenhanced font 'sans,11'\n";
   }
   head << "set output '" << picture << "'\n";
+  for (int i = 0; i < kPaletteSize; ++i) head << "set linetype " << i + 1 << " lc rgb '" << kPalette[i] << "' lw 1\n";
+  head << "set linetype cycle " << kPaletteSize << "\n";
   const std::string script_path = dir_ + "/figure.gp";
   {
     std::ofstream s(script_path);

@@ -15,6 +15,9 @@ int main(int argc, char** argv) {
   spdlog::set_default_logger(spdlog::stderr_color_mt("magnav"));
   CLI::App app{"magnav: find and follow magnetic objects with gradiometer networks"};
   app.require_subcommand(1);
+  // --limits is the program's and may follow the subcommand (fallthrough).
+  magnav::cli::AddLimitsOption(app);
+  app.fallthrough();
   magnav::tools::AddSimulateCommand(app);
 #ifdef MAGNAV_WITH_DDS
   magnav::tools::AddReplayCommand(app);

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/topics.h"
 #include "magnav/mcap/mcap.h"
 
@@ -73,22 +74,15 @@ void WithTopicType(const std::string& topic, F&& f) {
 
 // The key (sensor, vessel, track or vehicle id) and per-key sequence number
 // of a message (seq: gradiometer, magnetometer; sample_seq: dipole_fix;
-// others have none: -1).
-inline std::uint32_t KeyOf(const dds::msg::GradiometerSample& m) { return m.sensor_id(); }
-inline std::uint32_t KeyOf(const dds::msg::MagnetometerSample& m) { return m.sensor_id(); }
-inline std::uint32_t KeyOf(const dds::msg::VesselNav& m) { return m.vessel_id(); }
-inline std::uint32_t KeyOf(const dds::msg::DipoleFix& m) { return m.sensor_id(); }
-inline std::uint32_t KeyOf(const dds::msg::TrackEstimate& m) { return m.track_id(); }
-inline std::uint32_t KeyOf(const dds::msg::SensorPositionEstimate& m) { return m.sensor_id(); }
-inline std::uint32_t KeyOf(const dds::msg::MapFix& m) { return m.vehicle_id(); }
-inline std::int64_t SeqOf(const dds::msg::GradiometerSample& m) { return static_cast<std::int64_t>(m.seq()); }
-inline std::int64_t SeqOf(const dds::msg::MagnetometerSample& m) {
-  return static_cast<std::int64_t>(m.seq());
-}
-inline std::int64_t SeqOf(const dds::msg::DipoleFix& m) { return static_cast<std::int64_t>(m.sample_seq()); }
+// others have none: -1), as the repeat filter reads them (dds::IdOf).
 template <class M>
-std::int64_t SeqOf(const M&) {
-  return -1;
+std::uint32_t KeyOf(const M& m) {
+  return dds::IdOf(m).key;
+}
+template <class M>
+std::int64_t SeqOf(const M& m) {
+  const dds::MessageId id = dds::IdOf(m);
+  return id.sequenced ? static_cast<std::int64_t>(id.seq) : -1;
 }
 inline void ShiftSeq(dds::msg::GradiometerSample& m, std::uint64_t d) { m.seq(m.seq() + d); }
 inline void ShiftSeq(dds::msg::MagnetometerSample& m, std::uint64_t d) { m.seq(m.seq() + d); }

@@ -32,8 +32,8 @@ SampleDefect CheckSample(const GradiometerSample& s) {
   if (!std::isfinite(s.T.norm()) || !std::isfinite(s.B.norm())) return SampleDefect::kNonFinite;
   const auto sigma_ok = [](double v) { return std::isfinite(v) && v >= 0.0; };
   if (!sigma_ok(s.sigma_B) || !sigma_ok(s.sigma_T)) return SampleDefect::kBadSigma;
-  if (s.p_SinW.cwiseAbs().maxCoeff() > kMaxAbsPosition_m || s.B.cwiseAbs().maxCoeff() > kMaxAbsB_T ||
-      s.T.cwiseAbs().maxCoeff() > kMaxAbsT_Tpm) {
+  if (s.p_SinW.cwiseAbs().maxCoeff() > MaxAbs(kLimitPosition) || s.B.cwiseAbs().maxCoeff() > MaxAbs(kLimitB) ||
+      s.T.cwiseAbs().maxCoeff() > MaxAbs(kLimitT)) {
     return SampleDefect::kOutOfRange;
   }
   if (s.T.isZero(0.0)) return SampleDefect::kZeroTensor;
@@ -61,13 +61,12 @@ namespace {
 // `limit` (|v|): not a reading in the file's units (1e308, or nT given as T),
 // named by line and column.
 template <std::size_t N>
-void CheckRange(const CsvTable& t, std::size_t row, const std::size_t (&cols)[N], const double* values, double limit,
-                const char* unit, const char* hint) {
+void CheckRange(const CsvTable& t, std::size_t row, const std::size_t (&cols)[N], const double* values,
+                const Limit& limit) {
   for (std::size_t i = 0; i < N; ++i) {
-    if (std::abs(values[i]) > limit) {
+    if (!WithinLimit(limit, values[i])) {
       throw InputError(t.source() + ":" + std::to_string(t.line_of(row)) + ": column '" + t.header()[cols[i]] +
-                       "': " + FormatNumber(values[i]) + " " + unit + " is out of range (|value| > " +
-                       FormatNumber(limit) + " " + unit + "; " + hint + ")");
+                       "': " + OutOfRange(limit, values[i]));
     }
   }
 }
@@ -125,9 +124,9 @@ GradiometerFile ReadGradiometerFile(const std::string& path, const GradiometerCo
     }
     double T_values[9];
     for (int k = 0; k < 9; ++k) T_values[k] = s.T(k / 3, k % 3);
-    CheckRange(t, r, s_cols, s.p_SinW.data(), kMaxAbsPosition_m, "m", "a position in km or beyond the Earth");
-    CheckRange(t, r, b, s.B.data(), kMaxAbsB_T, "T", "B in nT or uT written as T? (the Earth's field is 5e-5 T)");
-    CheckRange(t, r, tt, T_values, kMaxAbsT_Tpm, "T/m", "a gradient in nT/m written as T/m?");
+    CheckRange(t, r, s_cols, s.p_SinW.data(), kLimitPosition);
+    CheckRange(t, r, b, s.B.data(), kLimitB);
+    CheckRange(t, r, tt, T_values, kLimitT);
     if (c_case) f.case_ids.push_back(t.integer(r, *c_case));
     f.samples.push_back(s);
     f.lines.push_back(t.line_of(r));

@@ -1,6 +1,7 @@
 #include "magnav/core/simulate.h"
 
 #include <cmath>
+#include <functional>
 #include <algorithm>
 #include <random>
 
@@ -65,6 +66,47 @@ class SegmentedMotion {
   std::vector<CtState<double>> seg_start_;
   std::vector<double> seg_t0_;
 };
+
+// A vessel's straight legs through waypoints at constant speed.
+class WaypointMotion {
+ public:
+  WaypointMotion(const std::vector<Eigen::Vector3d>& points, double speed) : points_(points), speed_(speed) {
+    double t = 0.0;
+    for (std::size_t i = 0; i + 1 < points.size(); ++i) {
+      leg_t0_.push_back(t);
+      t += (points[i + 1] - points[i]).norm() / speed;
+    }
+    leg_t0_.push_back(t);
+  }
+  VesselTruth At(double t, const Eigen::Vector3d& moment_body) const {
+    std::size_t i = 0;
+    while (i + 2 < leg_t0_.size() && t >= leg_t0_[i + 1] - 1e-12) ++i;
+    const Eigen::Vector3d d = points_[i + 1] - points_[i];
+    const Eigen::Vector3d u = d / d.norm();
+    const double s = std::min(std::max(t - leg_t0_[i], 0.0), leg_t0_[i + 1] - leg_t0_[i]);
+    VesselTruth tr;
+    tr.t_s = t;
+    tr.p_VinW = points_[i] + u * (speed_ * s);
+    const double heading = std::atan2(d.y(), d.x());
+    tr.heading_rad = WrapAngle(heading);
+    tr.v_VinW = speed_ * u.head<2>();
+    tr.turn_rate_rps = 0.0;
+    tr.m_W = WorldMoment(moment_body, heading);
+    return tr;
+  }
+  double duration_s() const { return leg_t0_.back(); }
+
+ private:
+  std::vector<Eigen::Vector3d> points_;
+  double speed_;
+  std::vector<double> leg_t0_;
+};
+
+double PathDuration(const std::vector<Eigen::Vector3d>& points, double speed) {
+  double d = 0.0;
+  for (std::size_t i = 0; i + 1 < points.size(); ++i) d += (points[i + 1] - points[i]).norm();
+  return d / speed;
+}
 
 double TotalDuration(const std::vector<TurnSegment>& segments) {
   double d = 0.0;
@@ -161,11 +203,25 @@ bool FieldVessel::IsValid(std::string* error) const {
   if (!start_position.allFinite() || !std::isfinite(start_heading_rad)) return fail("start state must be finite");
   if (!(speed_mps >= 0.0) || !std::isfinite(speed_mps)) return fail("speed_mps must be finite and >= 0");
   if (!(t_start_s >= 0.0) || !std::isfinite(t_start_s)) return fail("t_start_s must be finite and >= 0");
+  if (waypoints.size() == 1) return fail("waypoints: give two or more points (or none)");
+  if (!waypoints.empty()) {
+    if (!(speed_mps > 0.0)) return fail("a vessel on waypoints needs speed_mps > 0");
+    for (std::size_t i = 0; i < waypoints.size(); ++i) {
+      if (!waypoints[i].allFinite()) return fail("waypoints must be finite");
+      if (i > 0 && (waypoints[i] - waypoints[i - 1]).head<2>().norm() < 1e-6) {
+        return fail("waypoint " + std::to_string(i) + " is not horizontally apart from the one before");
+      }
+    }
+    if (PathDuration(waypoints, speed_mps) > 1e7) return fail("waypoints: the path takes more than 1e7 s");
+    return true;
+  }
   if (const std::string e = CheckSegments(segments); !e.empty()) return fail(e);
   return true;
 }
 
-double FieldVessel::t_end_s() const { return t_start_s + TotalDuration(segments); }
+double FieldVessel::t_end_s() const {
+  return t_start_s + (waypoints.size() >= 2 ? PathDuration(waypoints, speed_mps) : TotalDuration(segments));
+}
 
 bool FieldScenario::IsValid(std::string* error) const {
   auto fail = [&](const std::string& m) {
@@ -182,6 +238,15 @@ bool FieldScenario::IsValid(std::string* error) const {
     }
   }
   if (const std::string e = CheckSensing(rate_hz, sensors, B0, sigma_B, sigma_T); !e.empty()) return fail(e);
+  if (!background_drift_Tps.empty()) {
+    if (background_drift_Tps.size() != sensors.size()) {
+      return fail("background_drift_Tps: one per sensor (" + std::to_string(sensors.size()) + "), got " +
+                  std::to_string(background_drift_Tps.size()));
+    }
+    for (const auto& d : background_drift_Tps) {
+      if (!d.allFinite()) return fail("background_drift_Tps must be finite");
+    }
+  }
   if (duration_s() * rate_hz * static_cast<double>(sensors.size()) > 2e7) {
     return fail("more than 2e7 samples: shorten the scenario, lower the rate or use fewer sensors");
   }
@@ -192,6 +257,19 @@ double FieldScenario::duration_s() const {
   double d = 0.0;
   for (const auto& v : vessels) d = std::max(d, v.t_end_s());
   return d;
+}
+
+std::vector<Eigen::Vector3d> RandomDrifts(std::size_t n, double rate_Tps, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(n);
+  while (out.size() < n) {
+    const Eigen::Vector3d d(g(rng), g(rng), g(rng));
+    if (d.norm() < 1e-6) continue;
+    out.push_back(rate_Tps * d.normalized());
+  }
+  return out;
 }
 
 std::vector<Eigen::Vector3d> SensorGrid(int nx, int ny, double spacing_m) {
@@ -207,8 +285,18 @@ std::vector<Eigen::Vector3d> SensorGrid(int nx, int ny, double spacing_m) {
 SimulatedField SimulateField(const FieldScenario& sc) {
   std::string err;
   if (!sc.IsValid(&err)) throw InputError("scenario: " + err);
-  std::vector<SegmentedMotion> motion;
-  for (const auto& v : sc.vessels) motion.emplace_back(v.start_position, v.speed_mps, v.start_heading_rad, v.segments);
+  // Each vessel's motion: segments, or legs through waypoints.
+  std::vector<std::function<VesselTruth(double)>> motion;
+  for (const auto& v : sc.vessels) {
+    if (v.waypoints.size() >= 2) {
+      motion.emplace_back([w = WaypointMotion(v.waypoints, v.speed_mps), m = v.moment_body](double t) {
+        return w.At(t, m);
+      });
+    } else {
+      motion.emplace_back([s = SegmentedMotion(v.start_position, v.speed_mps, v.start_heading_rad, v.segments),
+                           m = v.moment_body](double t) { return s.At(t, m); });
+    }
+  }
   const auto n = static_cast<std::size_t>(std::floor(sc.duration_s() * sc.rate_hz + 1e-9)) + 1;
   SimulatedField out;
   out.truth.resize(sc.vessels.size());
@@ -222,7 +310,7 @@ SimulatedField SimulateField(const FieldScenario& sc) {
     for (std::size_t v = 0; v < sc.vessels.size(); ++v) {
       const FieldVessel& fv = sc.vessels[v];
       if (t < fv.t_start_s - 1e-9 || t > fv.t_end_s() + 1e-9) continue;
-      VesselTruth tr = motion[v].At(t - fv.t_start_s, fv.moment_body);
+      VesselTruth tr = motion[v](t - fv.t_start_s);
       tr.t_s = t;
       out.truth[v].push_back(tr);
       present.push_back(tr);
@@ -233,6 +321,7 @@ SimulatedField SimulateField(const FieldScenario& sc) {
       g.t_s = t;
       g.p_SinW = sc.sensors[j];
       g.B = sc.B0;
+      if (!sc.background_drift_Tps.empty()) g.B += sc.background_drift_Tps[j] * t;
       g.T.setZero();
       for (const auto& tr : present) AddVesselField(tr, j, t, &g);
       if (sc.sigma_B > 0.0) g.B += sc.sigma_B * Eigen::Vector3d(nB(rng), nB(rng), nB(rng));
@@ -309,6 +398,9 @@ void WriteFieldPassCsv(const std::string& path, const FieldScenario& sc, const S
   for (const auto& v : sc.vessels) {
     params.push_back({"vessel", std::to_string(v.vessel_id) + ": t " + FormatNumber(v.t_start_s) + "-" +
                                     FormatNumber(v.t_end_s()) + " s, moment_body_Am2 " + Vec3Param(v.moment_body)});
+  }
+  for (std::size_t j = 0; j < sc.background_drift_Tps.size(); ++j) {
+    params.push_back({"background_drift_Tps", std::to_string(j) + ": " + Vec3Param(sc.background_drift_Tps[j])});
   }
   CsvWriter w(path, header, params);
   w.AddComment("simulated by magnav: several vessel dipoles cross fixed gradiometers; NED m, s, T, T/m");

@@ -3,46 +3,9 @@
 #include <cmath>
 
 #include "magnav/core/error.h"
-#include "magnav/dds/convert.h"
+#include "magnav/dds/convert_inversion.h"
 
 namespace magnav::inversion {
-
-namespace {
-dds::msg::FixMethod MsgMethod(Method m) {
-  switch (m) {
-    case Method::kTed:
-      return dds::msg::METHOD_TED;
-    case Method::kTedEgt:
-      return dds::msg::METHOD_TED_EGT;
-    case Method::kEgt:
-      return dds::msg::METHOD_EGT;
-  }
-  return dds::msg::METHOD_OTHER;
-}
-
-std::array<double, 3> Arr(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
-}  // namespace
-
-dds::msg::DipoleFix ToMsg(const DipoleFix& fix, std::uint64_t stamp_ns, std::uint64_t sample_seq,
-                          dds::msg::FixMethod method) {
-  dds::msg::DipoleFix m;
-  m.sensor_id(fix.sensor_id);
-  m.stamp_ns(stamp_ns);
-  m.sample_seq(sample_seq);
-  m.method(method);
-  m.valid(fix.valid);
-  m.reason(RejectReasonName(fix.reason));
-  m.position(Arr(fix.p_DinW));
-  m.has_moment(fix.has_moment && fix.m_W.allFinite());
-  m.moment(m.has_moment() ? Arr(fix.m_W) : std::array<double, 3>{0, 0, 0});
-  m.condition_number(fix.cond);
-  std::array<double, 9> cov{};  // all 0 = unknown (magnav.idl)
-  if (fix.cov_p_DinW.allFinite()) {
-    for (int k = 0; k < 9; ++k) cov[k] = fix.cov_p_DinW(k / 3, k % 3);
-  }
-  m.covariance(cov);
-  return m;
-}
 
 namespace {
 template <typename T>
@@ -56,7 +19,7 @@ InverterNode::InverterNode(dds::Node& node, const InverterOptions& options,
                            std::unique_ptr<dds::RegionalFieldSource> b0)
     : b0_(std::move(b0)),
       engine_(std::in_place_type<Inverter>, ZeroB0(options, options.B0_W)),
-      method_(MsgMethod(options.method)) {
+      method_(dds::FixMethodOf(options.method)) {
   Start(node);
 }
 
@@ -64,7 +27,7 @@ InverterNode::InverterNode(dds::Node& node, const MonteCarloTrackerOptions& opti
                            std::unique_ptr<dds::RegionalFieldSource> b0)
     : b0_(std::move(b0)),
       engine_(std::in_place_type<MonteCarloTracker>, ZeroB0(options, options.init_inverter.B0_W)),
-      method_(dds::msg::METHOD_MC) {
+      method_(dds::FixMethod::kMc) {
   Start(node);
 }
 

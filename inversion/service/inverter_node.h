@@ -12,6 +12,7 @@
 #include <mutex>
 #include <variant>
 
+#include "magnav/dds/convert_inversion.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/regional_field_source.h"
 #include "magnav/dds/repeat_filter.h"
@@ -22,9 +23,8 @@
 
 namespace magnav::inversion {
 
-// Library fix -> topic message (NED m, A·m², the sample's time stamp and seq).
-dds::msg::DipoleFix ToMsg(const DipoleFix& fix, std::uint64_t stamp_ns, std::uint64_t sample_seq,
-                          dds::msg::FixMethod method);
+// Library fix -> topic message: dds/convert_inversion.h (magnav::dds_inversion).
+using dds::ToMsg;
 
 class InverterNode {
  public:
@@ -59,7 +59,7 @@ class InverterNode {
   dds::StampGuard<dds::msg::GradiometerSample> guard_{"magnav-inverter: magnav/gradiometer sensor"};  // wild stamps and seqs held, then dropped or confirmed
   std::unique_ptr<dds::RegionalFieldSource> b0_;
   std::variant<Inverter, MonteCarloTracker> engine_;
-  dds::msg::FixMethod method_;
+  dds::FixMethod method_;
   std::unique_ptr<dds::Writer<dds::msg::DipoleFix>> writer_;
   std::unique_ptr<dds::Reader<dds::msg::GradiometerSample>> reader_;
 };

@@ -27,39 +27,6 @@ bool LocalizerNodeOptions::IsValid(std::string* error) const {
   return localizer.IsValid(error) && stream.IsValid(error);
 }
 
-MagSample FromMsg(const dds::msg::MagnetometerSample& m) {
-  MagSample s;
-  s.t_s = NanosToSeconds(m.stamp_ns());
-  s.sensor_id = m.sensor_id();
-  s.B_T = {m.B()[0], m.B()[1], m.B()[2]};
-  return s;
-}
-
-GnssFix FromMsg(const dds::msg::VesselNav& m) {
-  GnssFix f;
-  f.t_s = NanosToSeconds(m.stamp_ns());
-  f.p_xy_m = {m.position()[0], m.position()[1]};
-  f.sigma_m = std::max(m.sigma_position()[0], m.sigma_position()[1]);
-  return f;
-}
-
-dds::msg::SensorPositionEstimate ToMsg(const SensorEstimate& e, double t_s) {
-  dds::msg::SensorPositionEstimate m;
-  m.sensor_id(e.sensor_id);
-  m.stamp_ns(SecondsToNanos(t_s));
-  m.position({e.p_SinW_m.x(), e.p_SinW_m.y(), e.p_SinW_m.z()});
-  std::array<double, 9> cov{}, crlb{};  // z is known: its row and column stay 0
-  for (int i = 0; i < 2; ++i) {
-    for (int j = 0; j < 2; ++j) {
-      cov[static_cast<std::size_t>(3 * i + j)] = e.cov_xy_m2(i, j);
-      crlb[static_cast<std::size_t>(3 * i + j)] = e.crlb_joint_m2(i, j);
-    }
-  }
-  m.covariance(cov);
-  m.crlb(crlb);
-  return m;
-}
-
 namespace {
 const LocalizerNodeOptions& Checked(const LocalizerNodeOptions& o) {
   std::string err;

@@ -26,6 +26,7 @@
 #include <mutex>
 #include <set>
 
+#include "magnav/dds/convert_localizer.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/stamp_guard.h"
@@ -60,10 +61,9 @@ struct LocalizerNodeOptions {
   bool IsValid(std::string* error) const;
 };
 
-MagSample FromMsg(const dds::msg::MagnetometerSample& m);
-// σ = the larger of the two horizontal sigma_position entries.
-GnssFix FromMsg(const dds::msg::VesselNav& m);
-dds::msg::SensorPositionEstimate ToMsg(const SensorEstimate& e, double t_s);
+// Samples and fixes in, estimates out: dds/convert_localizer.h (magnav::dds_localizer).
+using dds::FromMsg;
+using dds::ToMsg;
 
 class LocalizerNode {
  public:

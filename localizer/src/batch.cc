@@ -30,9 +30,9 @@ Localization SolveBatch(const Pass& pass, const LocalizerOptions& options, const
   // A step no trajectory of one pass makes (t = 1e300 s): the solver would
   // stop at once on the relative step of a 1e300 m state and call it converged.
   for (std::size_t k = 1; k < g.timeline.t.size(); ++k) {
-    if (!(g.timeline.t[k] - g.timeline.t[k - 1] <= kMaxTimeStep_s)) {
+    if (!(g.timeline.t[k] - g.timeline.t[k - 1] <= MaxAbs(kLimitTimeStep))) {
       throw InputError("SolveBatch: the pass jumps from t = " + FormatNumber(g.timeline.t[k - 1]) + " s to " +
-                       FormatNumber(g.timeline.t[k]) + " s (more than " + FormatNumber(kMaxTimeStep_s) +
+                       FormatNumber(g.timeline.t[k]) + " s (more than " + FormatNumber(MaxAbs(kLimitTimeStep)) +
                        " s between epochs: a broken time)");
     }
   }

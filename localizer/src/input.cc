@@ -19,33 +19,27 @@ std::string Where(const CsvTable& c, std::size_t row, const std::string& column)
 // A position or length (m) within the readers' limit, else an error naming the cell.
 double Metres(const CsvTable& c, std::size_t row, std::size_t col) {
   const double v = c.number(row, col);
-  if (std::abs(v) > kMaxAbsPosition_m) {
-    throw InputError(Where(c, row, c.header()[col]) + FormatNumber(v) + " m is out of range (|value| > " +
-                     FormatNumber(kMaxAbsPosition_m) + " m)");
-  }
+  if (!WithinLimit(kLimitPosition, v)) throw InputError(Where(c, row, c.header()[col]) + OutOfRange(kLimitPosition, v));
   return v;
 }
 
-bool BInRange(const Eigen::Vector3d& B_T) { return B_T.cwiseAbs().maxCoeff() <= kMaxAbsB_T; }
+bool BInRange(const Eigen::Vector3d& B_T) { return B_T.cwiseAbs().maxCoeff() <= MaxAbs(kLimitB); }
 
-// A time (s) within kMaxAbsTime_s, not going backwards and at most
-// kMaxTimeStep_s after `previous` (NaN: the first row), else an error naming the cell.
+// A time (s) within kLimitTime, not going backwards and at most
+// kLimitTimeStep after `previous` (NaN: the first row), else an error naming the cell.
 double Time(const CsvTable& c, std::size_t row, std::size_t col, double previous) {
   const double t = c.number(row, col);
   const std::string& name = c.header()[col];
-  if (std::abs(t) > kMaxAbsTime_s) {
-    throw InputError(Where(c, row, name) + FormatNumber(t) + " s is out of range (|t| > " +
-                     FormatNumber(kMaxAbsTime_s) + " s)");
-  }
+  if (!WithinLimit(kLimitTime, t)) throw InputError(Where(c, row, name) + OutOfRange(kLimitTime, t));
   if (std::isnan(previous)) return t;
   if (t < previous) {
     throw InputError(Where(c, row, name) + "time goes backwards (" + FormatNumber(t) + " s after " +
                      FormatNumber(previous) + " s; rows must be ordered by t)");
   }
-  if (t - previous > kMaxTimeStep_s) {
+  if (t - previous > MaxAbs(kLimitTimeStep)) {
     throw InputError(Where(c, row, name) + "time jumps " + FormatNumber(t - previous) + " s ahead of the previous row (" +
                      FormatNumber(t) + " s after " + FormatNumber(previous) + " s; more than " +
-                     FormatNumber(kMaxTimeStep_s) + " s: a broken time, or two passes in one file)");
+                     FormatNumber(MaxAbs(kLimitTimeStep)) + " s: a broken time, or two passes in one file)");
   }
   return t;
 }
@@ -121,10 +115,8 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
       s.sensor_id = m.uint32(i, id);
       s.B_T = {m.number(i, bx), m.number(i, by), m.number(i, bz)};
       for (int k = 0; k < 3; ++k) {
-        if (std::abs(s.B_T[k]) > kMaxAbsB_T) {
-          const std::string name = std::string("B_") + "xyz"[k];
-          throw InputError(Where(m, i, name) + FormatNumber(s.B_T[k]) + " T is out of range (|value| > " +
-                           FormatNumber(kMaxAbsB_T) + " T; B in nT or uT written as T?)");
+        if (!WithinLimit(kLimitB, s.B_T[k])) {
+          throw InputError(Where(m, i, std::string("B_") + "xyz"[k]) + OutOfRange(kLimitB, s.B_T[k]));
         }
       }
       const int k = pass.SensorIndex(s.sensor_id);
@@ -151,8 +143,9 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
       GnssFix f;
       f.t_s = Time(g, i, t, pass.gnss.empty() ? NAN : pass.gnss.back().t_s);
       const double first = pass.samples.front().t_s, last = pass.samples.back().t_s;
-      if (f.t_s < first - kMaxTimeStep_s || f.t_s > last + kMaxTimeStep_s) {
-        throw InputError(Where(g, i, "t") + FormatNumber(f.t_s) + " s is more than " + FormatNumber(kMaxTimeStep_s) +
+      const double max_step = MaxAbs(kLimitTimeStep);
+      if (f.t_s < first - max_step || f.t_s > last + max_step) {
+        throw InputError(Where(g, i, "t") + FormatNumber(f.t_s) + " s is more than " + FormatNumber(max_step) +
                          " s outside the measurements' time span [" + FormatNumber(first) + ", " +
                          FormatNumber(last) + "] s (" + measurements_path + ")");
       }
@@ -205,7 +198,7 @@ SampleCheck InputGate::Check(const GnssFix& fix) {
     return SampleCheck::kNonFinite;
   }
   if (!(fix.sigma_m > 0.0)) return SampleCheck::kBadSigma;
-  if (fix.p_xy_m.cwiseAbs().maxCoeff() > kMaxAbsPosition_m || fix.sigma_m > kMaxAbsPosition_m) {
+  if (fix.p_xy_m.cwiseAbs().maxCoeff() > MaxAbs(kLimitPosition) || fix.sigma_m > MaxAbs(kLimitPosition)) {
     return SampleCheck::kOutOfRange;
   }
   if (fix.t_s < last_gnss_t_) return SampleCheck::kTimeBackwards;

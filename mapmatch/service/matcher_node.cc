@@ -19,24 +19,6 @@ bool MatcherNodeOptions::IsValid(std::string* error) const {
   return filter.IsValid(error);
 }
 
-dds::msg::MapFix ToMsg(const StepDiagnostics& d, ParticleFilterKind kind, std::uint32_t vehicle_id,
-                       std::uint64_t stamp_ns) {
-  dds::msg::MapFix m;
-  m.vehicle_id(vehicle_id);
-  m.stamp_ns(stamp_ns);
-  m.method(kind == ParticleFilterKind::kPf ? dds::msg::METHOD_PF : dds::msg::METHOD_AFPF);
-  m.method_name(ParticleFilterKindName(kind));
-  m.lat_deg(d.lat_deg);
-  m.lon_deg(d.lon_deg);
-  m.score(d.ess);
-  m.covariance(CovarianceNorthEast_m2(d));
-  // Lost outranks off the map: a lost filter's dead-reckoning is no better for being off the map.
-  m.status(d.lost                                 ? dds::msg::MAP_FIX_STATUS_LOST
-           : d.update == StepUpdate::kAllOffMap ? dds::msg::MAP_FIX_STATUS_OFF_MAP
-                                                : dds::msg::MAP_FIX_STATUS_OK);
-  return m;
-}
-
 namespace {
 const MatcherNodeOptions& Checked(const MatcherNodeOptions& o) {
   std::string why;

@@ -25,7 +25,7 @@
 #include <set>
 #include <string>
 
-#include "magnav/dds/convert.h"
+#include "magnav/dds/convert_mapmatch.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/repeat_filter.h"
 #include "magnav/dds/stamp_guard.h"
@@ -58,11 +58,10 @@ using dds::AnomalyOf;
 using dds::AnomalySampleMsg;
 using dds::InsNavMsg;
 
-// The fix: method METHOD_PF / METHOD_AFPF, method_name "pf"/"afpf", score = ESS, covariance
-// (north, east) m², status LOST while the filter's lost-track detector is raised (StepDiagnostics::lost),
-// OFF_MAP when every particle was off the map at this step, else OK.
-dds::msg::MapFix ToMsg(const StepDiagnostics& d, ParticleFilterKind kind, std::uint32_t vehicle_id,
-                       std::uint64_t stamp_ns);
+// The fix (dds/convert_mapmatch.h, magnav::dds_mapmatch): method METHOD_PF / METHOD_AFPF, method_name
+// "pf"/"afpf", score = ESS, covariance (north, east) m², status LOST while the filter's lost-track detector
+// is raised (StepDiagnostics::lost), OFF_MAP when every particle was off the map at this step, else OK.
+using dds::ToMsg;
 
 class MatcherNode {
  public:

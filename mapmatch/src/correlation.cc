@@ -37,8 +37,10 @@ struct Best {
 // then the smaller shift). Returns whether it did.
 // `clip` (nT; infinity = none): MAD and MSD count a residual beyond it as
 // `clip` (a truncated loss: one spike weighs the same at every shift).
+// `off_map_as_clip`: MAD and MSD count every point off the map at a shift as
+// a residual of `clip` and average over all the points.
 bool SearchShifts(const GeoGrid& grid, std::size_t layer, const std::vector<CellPoint>& pts, int A, int B,
-                  std::size_t needed, CorrelationMetric metric, double clip, Best* best) {
+                  std::size_t needed, CorrelationMetric metric, double clip, bool off_map_as_clip, Best* best) {
   const GridAxis& la = grid.lat();
   const GridAxis& lo = grid.lon();
   const double* val = grid.values(layer).data();
@@ -65,7 +67,13 @@ bool SearchShifts(const GeoGrid& grid, std::size_t layer, const std::vector<Cell
         s_ll += q.measured_nT * q.measured_nT;
       }
       if (n_on < needed || n_on == 0) continue;
-      const double n = static_cast<double>(n_on);
+      double n = static_cast<double>(n_on);
+      if (off_map_as_clip) {
+        const double n_off = static_cast<double>(pts.size() - n_on);
+        s_abs += n_off * clip;
+        s_sq += n_off * clip * clip;
+        n = static_cast<double>(pts.size());
+      }
       double score = 0.0;
       switch (metric) {
         case CorrelationMetric::kMad:
@@ -144,6 +152,8 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
   const internal::RobustSpread readings = internal::ReadingSpread(path, used);
   const double clip = options.outlier_sigmas > 0.0 ? options.outlier_sigmas * readings.sigma
                                                    : std::numeric_limits<double>::infinity();
+  const bool off_map_as_clip = options.off_map_as_unexplained && std::isfinite(clip) &&
+                               (options.metric == CorrelationMetric::kMad || options.metric == CorrelationMetric::kMsd);
   const GridAxis& la = grid.lat();
   const GridAxis& lo = grid.lon();
   const int A = static_cast<int>(std::floor(options.search_window_deg / la.step_deg + 1e-9));
@@ -189,7 +199,9 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
       const int rot = k % 2 == 0 ? k / 2 : -(k + 1) / 2;  // 0, -1, 1, -2, 2, ...: ties keep the smaller angle
       const double theta = rot * options.rotation_step_deg * M_PI / 180.0;
       for (std::size_t c = 0; c < idx.size(); ++c) pts[c] = cell_point(idx[c], theta);
-      if (SearchShifts(grid, layer, pts, A, B, needed, options.metric, clip, &out.best)) out.rot = rot;
+      if (SearchShifts(grid, layer, pts, A, B, needed, options.metric, clip, off_map_as_clip, &out.best)) {
+        out.rot = rot;
+      }
     }
     return out;
   };

@@ -152,6 +152,7 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
     coarse.search_window_deg = options.search_window_deg;
     coarse.min_on_map_fraction = options.min_on_map_fraction;
     coarse.outlier_sigmas = options.outlier_sigmas;
+    coarse.off_map_as_unexplained = true;
     const MatchResult c = MatchCorrelation(grid, layer, path, coarse);
     if (c.points_used == 0) {
       r.reason = "coarse stage: " + c.reason;

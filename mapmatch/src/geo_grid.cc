@@ -154,7 +154,7 @@ GeoGrid::GeoGrid(GridAxis lat, GridAxis lon, std::vector<std::string> layer_name
   for (const auto& [axis, limit] : {std::pair{&lat_, &kLimitLatitude}, std::pair{&lon_, &kLimitLongitude}}) {
     if (!WithinLimit(*limit, axis->first_deg) || !WithinLimit(*limit, axis->last_deg())) {
       throw InputError("map: " + std::string(limit->quantity) + " axis " + Num(axis->first_deg) + " .. " +
-                       Num(axis->last_deg()) + " deg: " + OutOfRange(*limit, std::abs(axis->first_deg) > limit->max_abs
+                       Num(axis->last_deg()) + " deg: " + OutOfRange(*limit, !WithinLimit(*limit, axis->first_deg)
                                                                                      ? axis->first_deg
                                                                                      : axis->last_deg()));
     }

@@ -119,10 +119,10 @@ bool TextRaster(GDALDatasetH d) {
 void CheckClaimedSize(GDALDatasetH d, int width, int height, const std::string& where) {
   const double cells = static_cast<double>(width) * static_cast<double>(height);
   const std::string claim = std::to_string(height) + " rows x " + std::to_string(width) + " columns";
-  if (cells > kLimitMapCells.max_abs) {
+  if (cells > MaxAbs(kLimitMapCells)) {
     throw InputError(where + ": the header claims " + claim + " = " + FormatNumber(cells) +
-                     " cells, more than the map cap of " + FormatNumber(kLimitMapCells.max_abs) + " (" +
-                     kLimitMapCells.why + ")");
+                     " cells, more than the map cap of " + FormatNumber(MaxAbs(kLimitMapCells)) + " (" +
+                     LimitWhy(kLimitMapCells) + ")");
   }
   if (TextRaster(d)) {
     std::error_code ec;

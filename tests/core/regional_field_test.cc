@@ -70,8 +70,8 @@ TEST(CheckSample, NamesEachDefect) {
   s.T(1, 0) = -11.0;
   EXPECT_EQ(CheckSample(s), SampleDefect::kOutOfRange);
   s = GoodSample();
-  s.B.x() = kMaxAbsB_T;  // at the limit: kept
-  s.p_SinW.x() = kMaxAbsPosition_m;
+  s.B.x() = MaxAbs(kLimitB);  // at the limit: kept
+  s.p_SinW.x() = MaxAbs(kLimitPosition);
   EXPECT_EQ(CheckSample(s), SampleDefect::kNone);
   EXPECT_STREQ(SampleDefectName(SampleDefect::kOutOfRange), "out_of_range");
   EXPECT_STREQ(SampleDefectName(SampleDefect::kZeroTensor), "zero_tensor");

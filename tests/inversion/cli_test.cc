@@ -159,9 +159,10 @@ TEST(InvertCli, DegenerateRowsAreReportedNotFatal) {
   EXPECT_EQ(t.text(2, reason), "asymmetric");
 }
 
-// The uncertainty-gate flags: the default (relative to range) and the former
-// absolute 5 cm gate on the reference AUV fluxgate pass (docs/ACCURACY.md:
-// 93 and 39 accepted fixes), a too tight relative limit, a negative one.
+// The gate flags on the reference AUV fluxgate pass (docs/ACCURACY.md): the
+// defaults (SNR ≥ 20, σ_3d ≤ 0.4 m: 156 accepted fixes), the former defaults
+// (--min-snr 100 --max-relative-sigma 0.015 --max-position-sigma 0: 93), the
+// absolute 5 cm gate (39), a too tight relative limit, a negative one.
 TEST(InvertCli, UncertaintyGateFlags) {
   const std::string dir = testing::TempDir();
   const std::string in = testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv");
@@ -176,11 +177,12 @@ TEST(InvertCli, UncertaintyGateFlags) {
     }
     return std::pair{n, uncertain};
   };
-  EXPECT_EQ(accepted("").first, 93);
+  EXPECT_EQ(accepted("").first, 156);
+  EXPECT_EQ(accepted("--min-snr 100 --max-relative-sigma 0.015 --max-position-sigma 0").first, 93);
   EXPECT_EQ(accepted("--max-relative-sigma 0 --max-position-sigma 0.05").first, 39);
   const auto [n, uncertain] = accepted("--max-relative-sigma 0.001");
   EXPECT_EQ(n, 0);
-  EXPECT_GT(uncertain, 93);
+  EXPECT_GT(uncertain, 156);
   const RunResult r = RunMagnav("invert --input " + in + " --method ted-egt --max-relative-sigma -1 --output " + dir +
                                 "/g.csv");
   EXPECT_EQ(r.exit_code, 2) << r.output;

@@ -68,7 +68,7 @@ TEST_P(BadSampleTest, RejectedWithReasonNeverThrows) {
   s.T(2, 2) += 0.3 * good.T.norm();
   cases.push_back({"trace", s, RejectReason::kNotTraceFree});
   s = good;
-  s.sigma_T = good.T.norm() / 10.0;  // SNR 10 < 100
+  s.sigma_T = good.T.norm() / 10.0;  // SNR 10 < 20
   cases.push_back({"weak", s, RejectReason::kWeakSignal});
   s = good;
   s.T.setConstant(1e300);  // overflows the norm
@@ -269,28 +269,42 @@ TEST(UncertaintyGate, RelativeAndAbsoluteLimitsRejectAsUncertain) {
 
 // What "holds on new geometry" means: scale the geometry by k with the same
 // tensor SNR (range ×k, moment ×k⁴: T unchanged, B and σ_B ×k). σ_3d grows
-// ×k with the range, so the default relative gate decides alike at every
-// scale, while the former absolute 5 cm gate accepts the nearest fix only.
-TEST(UncertaintyGate, DefaultRelativeGateIsScaleFree) {
+// ×k with the range, so the relative gate (ρ = 0.015, the default from
+// 2026-11-25 until the 0.4 m absolute gate) decides alike at every scale; an
+// absolute gate — the default 0.4 m and the 5 cm one — accepts exactly the
+// fixes whose own σ_3d is within it, whatever the scale.
+TEST(UncertaintyGate, RelativeGateIsScaleFreeAbsoluteGateIsTheFixsOwnSigma) {
   const Vec3 r0(3.0, 3.5, 5.5);  // 7.2 m, a little farther than the reference AUV's closest approach
   const double sB = 1e-9, sT = 1.4e-9;
   const GradiometerSample near = NoisySample(r0, kMoment, sB, sT);
+  InverterOptions relative;
+  relative.gates.max_relative_sigma = 0.015;
+  relative.gates.max_position_sigma_3d_m = 0.0;
   const double rel = UngatedFix(near).position_sigma_3d_m / r0.norm();
-  // The fluxgate default: a near fix of this SNR is accepted.
-  ASSERT_LT(rel, GateOptions{}.max_relative_sigma);
-  ASSERT_GT(rel, 0.3 * GateOptions{}.max_relative_sigma);  // not trivially far inside
+  // A near fix of this SNR is accepted by the relative gate.
+  ASSERT_LT(rel, relative.gates.max_relative_sigma);
+  ASSERT_GT(rel, 0.3 * relative.gates.max_relative_sigma);  // not trivially far inside
   InverterOptions former;
   former.gates.max_relative_sigma = 0.0;
   former.gates.max_position_sigma_3d_m = 0.05;
+  const double limit = GateOptions{}.max_position_sigma_3d_m;
+  ASSERT_EQ(limit, 0.4);
   EXPECT_TRUE(InvertSample(NoisySample(0.5 * r0, 0.0625 * kMoment, 0.5 * sB, sT), former).valid);
+  int default_accepted = 0;
   for (const double k : {0.5, 1.0, 2.0, 5.0, 20.0}) {
     const GradiometerSample s = NoisySample(k * r0, std::pow(k, 4) * kMoment, k * sB, sT);
-    const DipoleFix f = InvertSample(s, InverterOptions{});
+    const DipoleFix f = InvertSample(s, relative);
     EXPECT_TRUE(f.valid) << "k = " << k << ": " << RejectReasonName(f.reason);
     EXPECT_NEAR(f.position_sigma_3d_m / f.r_DtoS.norm(), rel, 1e-6 * rel) << k;
-    const DipoleFix g = InvertSample(s, former);
-    EXPECT_EQ(g.valid, f.position_sigma_3d_m <= 0.05) << k;
+    EXPECT_EQ(InvertSample(s, former).valid, f.position_sigma_3d_m <= 0.05) << k;
+    const DipoleFix d = InvertSample(s, InverterOptions{});
+    EXPECT_EQ(d.valid, f.position_sigma_3d_m <= limit) << k;
+    if (!d.valid) EXPECT_EQ(d.reason, RejectReason::kUncertain) << k;
+    default_accepted += d.valid;
   }
+  // Both sides of the default gate are exercised (σ_3d ≈ 0.06 m at k = 1).
+  EXPECT_GT(default_accepted, 0);
+  EXPECT_LT(default_accepted, 5);
   EXPECT_FALSE(InvertSample(NoisySample(r0, kMoment, sB, sT), former).valid);
 }
 

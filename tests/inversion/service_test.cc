@@ -148,8 +148,8 @@ TEST(InverterService, ReadsOptionsFromAConfigFile) {
   EXPECT_NE(out.find("max-speed"), std::string::npos) << out;
 }
 
-// The uncertainty gates from a config file, keys = flag names: relative to
-// range (default 0.015) and absolute (default off). The fluxgate AUV sample at
+// The uncertainty gates from a config file, keys = flag names: absolute
+// (default 0.4 m) and relative to range (default off). The fluxgate AUV sample at
 // the closest approach (σ_3d ≈ 4 cm at 6.4 m, 0.6 %) passes the defaults and
 // fails a 0.1 % relative or a 1 cm absolute limit, with reason "uncertain".
 TEST(InverterService, UncertaintyGatesFromAConfigFile) {

@@ -24,6 +24,7 @@ magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& sa
 InverterOptions SigmaGateOptions(const Eigen::Vector3d& B0, double relative, double absolute) {
   InverterOptions o;
   o.B0_W = B0;
+  o.gates.min_snr = 100.0;  // the weak-signal floor these sweeps were measured with (the default until 2026-11-25)
   o.gates.max_relative_sigma = relative;
   o.gates.max_position_sigma_3d_m = absolute;
   return o;

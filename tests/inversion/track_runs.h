@@ -17,7 +17,9 @@ inline constexpr double kMcHorizontalRange = 30.0;  // m, MC evaluation window
 magnav::testing::ErrorStats RunInverter(const std::vector<GradiometerSample>& samples,
                                         const magnav::testing::TruthTrack& truth, const InverterOptions& options);
 // TED+EGT options with B0 and the uncertainty gates set (relative to range,
-// absolute in m; 0 = off), every other gate at default.
+// absolute in m; 0 = off), the weak-signal gate at SNR 100 (its default until
+// 2026-11-25, with which the sweeps of docs/ACCURACY.md "Uncertainty gate" were
+// measured), every other gate at default.
 InverterOptions SigmaGateOptions(const Eigen::Vector3d& B0, double relative, double absolute);
 // RunInverter's errors for `samples_per_instant` samples (sensors) per truth
 // row, and the largest |error| / range of an accepted fix.

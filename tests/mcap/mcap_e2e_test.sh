@@ -39,6 +39,11 @@ fi
 rec=$!; pids+=($rec)
 "$BIN/magnav-inverter" --b0 "$B0" --stats-period 0 >"$WORK/inverter1.log" 2>&1 &
 inv1=$!; pids+=($inv1)
+# The recorder must hear the inverter's fixes from the first: on a loaded
+# machine discovery can take longer than the whole unpaced replay, and a late
+# match gets only the writer's last 1000 fixes (its KEEP_LAST history).
+for _ in $(seq 300); do grep -q "magnav/dipole_fix: 1 writer(s) matched" "$WORK/record.log" && break; sleep 0.1; done
+grep -q "magnav/dipole_fix: 1 writer(s) matched" "$WORK/record.log" || fail "the recorder did not match the inverter's fix writer in 30 s"
 "$BIN/magnav" replay --input "$PASS" --speed 0 --wait-readers 2 --wait 20 >"$WORK/replay1.log" 2>&1 ||
   fail "replay of the pass: $(tail -1 "$WORK/replay1.log")"
 # The inverter answers an unpaced replay within a second or two: its last

@@ -105,7 +105,7 @@ TEST(EvaluateCli, HelpDefinesEveryFigure) {
   const auto [rc, out] = Evaluate({"--help"});
   ASSERT_EQ(rc, 0) << out;
   for (const char* w : {"coverage:", "purity", "overrun:", "GOSPA", "localisation =", "missed =", "false =",
-                        "mean NEES", "in-field instants:", "beyond range"}) {
+                        "mean NEES", "in-field instants:", "beyond range", "ANEES:", "inside 95 %:"}) {
     EXPECT_NE(out.find(w), std::string::npos) << w;
   }
 }
@@ -145,6 +145,43 @@ TEST(EvaluateCli, SensorPositionsAgainstTheTrueSensors) {
   ASSERT_NE(at, std::string::npos) << eout;
   const double rmse = std::stod(eout.substr(at + 5));
   EXPECT_NEAR(rmse, 0.111, 0.111 * 0.5) << eout;  // docs/ACCURACY.md, Localizer: EKF 0.111 m (a 2x regression fails)
+}
+
+// --nees (scripts/calibration; core/nees.h), worked by hand: 2 runs, 2 dof.
+// converging (epoch 0): NEES 1 and 3, ANEES 2 (accepted), the run average 2
+// inside chi2(4)'s [0.4844, 11.143] / 2 = [0.242, 5.572]; RMS sqrt((4 + 0) / 2).
+// converged (epoch 1): 2 and 30, ANEES 16 (> 4: not accepted), 16 outside;
+// RMS sqrt((1 + 9) / 2). all: ANEES 9, 1 of 2 epochs inside, RMS sqrt(14 / 4).
+TEST(EvaluateCli, NeesOverRunsPerRegime) {
+  const std::string dir = testing::TempDir();
+  std::ofstream(dir + "/nees.csv") << "run,epoch,regime,nees,error_sq\n"
+                                   << "1,0,converging,1,4\n2,0,converging,3,0\n"
+                                   << "1,1,converged,2,1\n2,1,converged,30,9\n";
+  const auto [rc, out] = Evaluate({"--nees", dir + "/nees.csv", "--dof", "2"});
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("regime converging: runs 2, epochs 1, values 2, ANEES 2 (accepted), inside 95 % 1 of 1 epochs "
+                     "(100.0 %), RMS 1.414"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("regime converged: runs 2, epochs 1, values 2, ANEES 16 (NOT accepted), inside 95 % 0 of 1 "
+                     "epochs (0.0 %), RMS 2.236"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("regime all: runs 2, epochs 2, values 4, ANEES 9 (NOT accepted), inside 95 % 1 of 2 epochs "
+                     "(50.0 %), RMS 1.871"),
+            std::string::npos)
+      << out;
+  // A singular covariance ("inf") is counted, not dropped; a negative NEES, a missing --dof or an
+  // estimate beside --nees: exit 2.
+  std::ofstream(dir + "/inf.csv") << "run,epoch,regime,nees\n1,0,fix,inf\n2,0,fix,1\n";
+  const auto [irc, iout] = Evaluate({"--nees", dir + "/inf.csv", "--dof", "3"});
+  ASSERT_EQ(irc, 0) << iout;
+  EXPECT_NE(iout.find("ANEES inf (NOT accepted)"), std::string::npos) << iout;
+  std::ofstream(dir + "/neg.csv") << "run,epoch,regime,nees\n1,0,fix,-1\n";
+  EXPECT_EQ(Evaluate({"--nees", dir + "/neg.csv", "--dof", "3"}).first, 2);
+  EXPECT_EQ(Evaluate({"--nees", dir + "/nees.csv"}).first, 2);
+  EXPECT_EQ(Evaluate({"--nees", dir + "/nees.csv", "--dof", "2", "--estimate", dir + "/nees.csv"}).first, 2);
+  EXPECT_EQ(Evaluate({"--estimate", dir + "/nees.csv"}).first, 2);
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 // `magnav replay --loop`: a file replayed over and over until stopped, each
 // pass shifted in time by the file's span, so a consumer sees time going
 // forward and more samples than the file holds; SIGTERM stops it cleanly.
-// `magnav record` of several topics at once into a directory.
+// `magnav record` of several topics at once into a directory; a recorded CSV
+// replayed.
 #include <signal.h>
 
 #include <string>
@@ -44,6 +45,34 @@ TEST(Replay, LoopKeepsTimeGoingForwardUntilStopped) {
        "--reference-field", "47693", "--loop"});
   EXPECT_EQ(rc, 2);
   EXPECT_NE(out.find("--loop goes with --input"), std::string::npos) << out;
+}
+
+// A CSV recording's gradiometer file is a replay input as it is (its extra
+// seq, sigma_B and sigma_T columns are ignored): recorded again, every sample
+// comes back with the same time, sensor and values.
+TEST(Replay, ARecordedCsvReplaysAsItWasRecorded) {
+  const std::string dir = testing::TempDir();
+  ASSERT_EQ(testing::RunCommand({kMagnav, "simulate", "--turns", "2:0", "--output", dir + "/p.csv"}).first, 0);
+  const std::map<std::string, std::string> env = {{"MAGNAV_DOMAIN_ID", std::to_string(testing::TestDomainId())}};
+  for (const char* pass : {"1", "2"}) {
+    testing::Subprocess record({kMagnav, "record", "--topic", "gradiometer", "--count", "21", "--duration", "60",
+                                "--output", dir + "/rec" + pass + ".csv"},
+                               env, true);
+    const std::string input = std::string(pass) == "1" ? dir + "/p.csv" : dir + "/rec1.csv";
+    const auto [rc, out] =
+        testing::RunCommand({kMagnav, "replay", "--input", input, "--speed", "0", "--wait-readers", "1"}, env);
+    ASSERT_EQ(rc, 0) << out;
+    ASSERT_EQ(record.Wait(60s), 0) << record.ReadAll();
+  }
+  const CsvTable a = CsvTable::Read(dir + "/rec1.csv");
+  const CsvTable b = CsvTable::Read(dir + "/rec2.csv");
+  ASSERT_EQ(a.num_rows(), 21u);
+  ASSERT_EQ(b.num_rows(), a.num_rows());
+  for (const char* c : {"t", "sensor_id", "B_x", "B_z", "T00", "T12", "T22", "sensor_x"}) {
+    for (std::size_t i = 0; i < a.num_rows(); ++i) {
+      EXPECT_EQ(a.number(i, a.column(c)), b.number(i, b.column(c))) << c << " row " << i;
+    }
+  }
 }
 
 TEST(Record, SeveralTopicsIntoADirectory) {

@@ -1,5 +1,6 @@
 // The services' config files (--config, TOML/INI, keys = long flag names):
-// an unknown key, a typo or a key under a [section] is refused at start.
+// an unknown key, a typo or a key under a [section] is refused at start; the
+// site limits file (--limits) of every program.
 #include <chrono>
 #include <fstream>
 #include <string>
@@ -38,6 +39,38 @@ TEST(ServiceConfig, UnknownKeysAndSectionsAreRefused) {
     }
   }
   EXPECT_EQ(refused, 16);
+}
+
+// A site's limits (--limits FILE, also from --config as `limits = FILE`): a
+// bad limits file stops every service at start (exit 2, naming file and line);
+// a good one is logged, and `magnav` holds its commands' input to it (a pass
+// whose tensor elements reach 3.6e-7 T/m is refused under a 1e-7 T/m site
+// limit, the flag given before or after the subcommand).
+TEST(ServiceConfig, SiteLimitsAreTheDoorsOfEveryProgram) {
+  const std::string dir = testing::TempDir();
+  const std::string bad = dir + "/bad_limits.toml", tight = dir + "/tight_limits.toml", cfg = dir + "/svc.toml";
+  std::ofstream(bad) << "[limits]\nT_Tpm = -1\n";
+  std::ofstream(tight) << "T_Tpm = 1e-7\n";
+  std::ofstream(cfg) << "limits = \"" << bad << "\"\n";
+  for (const std::string bin : {MAGNAV_INVERTER_BIN, MAGNAV_TRACKER_BIN, MAGNAV_LOCALIZER_BIN, MAGNAV_MATCHER_BIN}) {
+    for (const std::vector<std::string>& args : {std::vector<std::string>{bin, "--limits", bad},
+                                                  std::vector<std::string>{bin, "--config", cfg}}) {
+      const auto [rc, out] = testing::RunCommand(args, {}, std::chrono::seconds(20));
+      EXPECT_EQ(rc, 2) << bin << "\n" << out;
+      EXPECT_NE(out.find(bad + ": limit 'T_Tpm' = -1: must be a finite number > 0"), std::string::npos) << bin << "\n" << out;
+    }
+  }
+  const std::string pass = testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv");
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{MAGNAV_BIN, "invert", "--method", "ted-egt", "--input", pass, "--output", dir + "/f.csv", "--limits", tight},
+        std::vector<std::string>{MAGNAV_BIN, "--limits", tight, "invert", "--method", "ted-egt", "--input", pass, "--output", dir + "/f.csv"}}) {
+    const auto [rc, out] = testing::RunCommand(args);
+    EXPECT_EQ(rc, 2) << out;
+    EXPECT_NE(out.find("T/m is out of range (|value| > 1e-07 T/m; site limit from " + tight), std::string::npos) << out;
+    EXPECT_NE(out.find("limit T_Tpm = 1e-07 T/m (site limit from " + tight), std::string::npos) << out;
+  }
+  const auto [rc, out] = testing::RunCommand({MAGNAV_BIN, "invert", "--method", "ted-egt", "--input", pass, "--output", dir + "/f.csv"});
+  EXPECT_EQ(rc, 0) << out;  // the defaults
 }
 
 }  // namespace

@@ -62,7 +62,7 @@ testing::TrackMetrics ScoreTrack(const std::vector<EpochEstimate>& est, const Pa
 bool Squid(const std::string& name) { return name.find("squid") != std::string::npos; }
 
 // Passes on which the inverter's default gates accept enough fixes to start a
-// track (measured: 93–1681 valid fixes over 9–175 s; docs/ACCURACY.md).
+// track (measured: 156–1425 valid fixes over 16–145 s; docs/ACCURACY.md).
 // Feeds a pass to a window tracker as magnav-tracker does: each fix before
 // the sample it came from. Returns every estimate; *t_start (if given) = the
 // time of the sample that started the track (−1: none), *started_external =
@@ -116,11 +116,11 @@ struct InitFigures {
 
 const InitFigures& Documented(const std::string& name) {
   static const std::map<std::string, InitFigures> figures = {
-      {"auv_1sensor_fluxgate", {93, 70.5, 79.7, 0.101, 1.70, 69.7, 75.6, 0.132, 1.78, 306}},
-      {"auv_1sensor_squid", {1681, 0.0, 175.4, 0.000661, 2.76, 5.1, 5.1, 0.000782, 2.90, 608}},
-      {"auv_4sensor_fluxgate", {236, 40.3, 110.6, 0.0488, 2.84, 40.7, 45.4, 0.0967, 2.08, 899}},
-      {"ship_1sensor_fluxgate", {535, 67.7, 122.9, 0.0104, 2.51, 55.2, 72.8, 0.0114, 3.18, 479}},
-      {"ship_4sensor_fluxgate", {1252, 40.4, 150.3, 0.00202, 2.34, 29.2, 45.7, 0.00349, 2.49, 1031}},
+      {"auv_1sensor_fluxgate", {156, 66.9, 82.9, 0.101, 1.70, 69.7, 72.0, 0.118, 1.97, 342}},
+      {"auv_1sensor_squid", {1425, 8.7, 153.1, 0.000661, 2.76, 5.1, 13.8, 0.000782, 2.90, 608}},
+      {"auv_4sensor_fluxgate", {366, 37.3, 113.7, 0.0488, 2.84, 40.7, 42.4, 0.0978, 2.08, 929}},
+      {"ship_1sensor_fluxgate", {512, 68.5, 120.5, 0.0104, 2.51, 55.2, 73.6, 0.0112, 3.21, 471}},
+      {"ship_4sensor_fluxgate", {1211, 42.0, 148.9, 0.00202, 2.34, 29.2, 47.3, 0.00342, 2.49, 1015}},
   };
   return figures.at(name);
 }

@@ -37,6 +37,11 @@ int main(int argc, char** argv) {
   app.add_option("--sigma-t", flags.options.track.default_sigma_T_Tpm, "tensor noise, T/m, for samples that carry none")
       ->capture_default_str();
   magnav::cli::AddMergeOptions(app, &opt.merge, "each sensor");
+  app.add_option("--kept-ended-tracks", opt.kept_ended_tracks,
+                 "ended tracks whose last estimates a late consumer still gets; older ones are unregistered "
+                 "(memory: ~0.5 MB each)")
+      ->check(CLI::Range(0, magnav::tracker::TrackerNodeOptions::kMaxKeptEndedTracks))
+      ->capture_default_str();
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   double checkpoint_period_s = 5.0;
   app.add_option("--state-dir", opt.state_dir,

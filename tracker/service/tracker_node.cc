@@ -10,7 +10,7 @@
 
 #include "magnav/core/error.h"
 #include "magnav/core/units.h"
-#include "magnav/dds/convert.h"
+#include "magnav/dds/convert_tracker.h"
 #include "magnav/tracker/checkpoint.h"
 #include "magnav/tracker/initialize.h"
 
@@ -22,35 +22,11 @@ bool TrackerNodeOptions::IsValid(std::string* error) const {
     if (error) *error = "reorder_delay_s must be finite";
     return false;
   }
-  return tracker.IsValid(error);
-}
-
-dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B, const Eigen::Matrix3d& cov_m_B,
-                              std::uint32_t track_id) {
-  dds::msg::TrackEstimate m;
-  m.track_id(track_id);
-  m.stamp_ns(SecondsToNanos(e.t_s));
-  m.position({e.p_VinW.x(), e.p_VinW.y(), e.p_VinW.z()});
-  const Eigen::Vector3d v = e.v_VinW();
-  m.velocity({v.x(), v.y(), v.z()});
-  m.heading(e.heading_rad);
-  m.turn_rate(e.turn_rate_radps);
-  std::array<double, 9> cov{}, cov_m{};
-  m.usable(e.usable);
-  if (e.usable && e.has_covariance) {
-    for (int k = 0; k < 9; ++k) cov[k] = e.cov_state(k / 3, k % 3);
+  if (kept_ended_tracks < 0 || kept_ended_tracks > kMaxKeptEndedTracks) {
+    if (error) *error = "kept_ended_tracks must be in [0, " + std::to_string(kMaxKeptEndedTracks) + "]";
+    return false;
   }
-  for (int k = 0; k < 9; ++k) cov_m[k] = cov_m_B(k / 3, k % 3);
-  m.covariance(cov);
-  m.moment_body({m_B.x(), m_B.y(), m_B.z()});
-  m.moment_covariance(cov_m);
-  m.num_sensors(static_cast<std::uint32_t>(e.num_samples));
-  return m;
-}
-
-DipoleFix FromMsg(const dds::msg::DipoleFix& m) {
-  return MakeFix(NanosToSeconds(m.stamp_ns()), m.sensor_id(), {m.position()[0], m.position()[1], m.position()[2]},
-                 m.valid());
+  return tracker.IsValid(error);
 }
 
 namespace {
@@ -299,7 +275,7 @@ int TrackerNode::num_live_tracks() const {
 void TrackerNode::Publish(const std::vector<TrackOutput>& estimates, bool unregister_ended) {
   // A track's start is logged before its first estimate goes out. Ended
   // tracks stay registered (late consumers, and the durable profile's store,
-  // keep their last estimates) until kKeptEndedTracks newer ones ended; then
+  // keep their last estimates) until kept_ended_tracks newer ones ended; then
   // the oldest is unregistered: track ids are never reused, and the writer
   // must not keep every track it ever had (track_stream: 100 keys).
   std::vector<std::uint32_t> ended;
@@ -309,7 +285,7 @@ void TrackerNode::Publish(const std::vector<TrackOutput>& estimates, bool unregi
     } else {
       spdlog::info("magnav-tracker: track {} ended at t = {} s ({})", ev.track_id, ev.t_s, ev.reason);
       ended_.push_back(ev.track_id);
-      while (unregister_ended && ended_.size() > kKeptEndedTracks) {
+      while (unregister_ended && ended_.size() > static_cast<std::size_t>(options_.kept_ended_tracks)) {
         ended.push_back(ended_.front());
         ended_.pop_front();
       }

@@ -40,6 +40,7 @@
 #include <mutex>
 
 #include "magnav/core/stream_merge.h"
+#include "magnav/dds/convert_tracker.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/queued_writer.h"
 #include "magnav/dds/regional_field_source.h"
@@ -59,15 +60,22 @@ struct TrackerNodeOptions {
   // Non-empty: checkpoint to STATE_DIR/magnav-tracker.state (Checkpoint) and
   // resume from it at start (docs/RELIABILITY.md).
   std::string state_dir;
+  // Ended tracks whose estimates stay in the writer's history (the last 1000
+  // of each, track_stream profile) for consumers that start late; older ended
+  // tracks are unregistered (their history freed). This bounds the writer's
+  // memory: ~0.45 MB per kept track of ~700 estimates (bench/soak.sh,
+  // docs/BENCHMARKS.md). At most kMaxKeptEndedTracks (the profile's 100 keys:
+  // up to 50 live tracks and the kept ended ones).
+  int kept_ended_tracks = 10;
+  static constexpr int kMaxKeptEndedTracks = 50;
 
   bool IsValid(std::string* error) const;
 };
 
-dds::msg::TrackEstimate ToMsg(const EpochEstimate& e, const Eigen::Vector3d& m_B, const Eigen::Matrix3d& cov_m_B,
-                              std::uint32_t track_id);
-// A magnav/dipole_fix message as the initialiser takes it (snr is set
-// by the tracker from the matching sample).
-DipoleFix FromMsg(const dds::msg::DipoleFix& m);
+// Estimate -> magnav/track and magnav/dipole_fix -> the fix the initialiser
+// takes: dds/convert_tracker.h (magnav::dds_tracker).
+using dds::FromMsg;
+using dds::ToMsg;
 
 class TrackerNode {
  public:
@@ -130,7 +138,6 @@ class TrackerNode {
   MultiTracker tracker_;
   StreamMerger<GradiometerSample> merge_;             // streams: sensor ids
   std::deque<std::uint32_t> ended_;                   // ended tracks still registered, oldest first
-  static constexpr std::size_t kKeptEndedTracks = 50;
   double fed_until_s_ = -1e300;
   std::set<std::uint32_t> fed_at_until_;  // sensors whose sample at fed_until_s_ the tracker took
   std::map<std::uint32_t, double> fix_until_;  // per sensor: time of the newest fix taken

@@ -1,5 +1,4 @@
 #include "magnav/tracker/multi_tracker.h"
-#include "other_fields.h"
 #include "state_io.h"
 
 #include <Eigen/Eigenvalues>
@@ -17,7 +16,9 @@
 #include "magnav/core/error.h"
 #include "magnav/core/frames.h"
 #include "magnav/core/option_check.h"
+#include "magnav/tracker/association.h"
 #include "magnav/tracker/initialize.h"
+#include "magnav/tracker/track_life_cycle.h"
 
 namespace magnav::tracker {
 
@@ -71,16 +72,10 @@ void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
 struct Track {
   std::unique_ptr<WindowTracker> engine;
   std::uint32_t id = 0;  // 0 while tentative
-  double t_created = 0.0;
-  int seen = 0, detections = 0;  // epochs with a sensor / detections, while tentative
-  double t_last_detection = 0.0;
-  double miss_since = kNaN, unusable_since = kNaN, duplicate_since = kNaN;
-  double sigma_h = 0.0;  // horizontal 1-σ of the newest estimate, m
+  TrackLifeCycle life{0.0, TrackManagementOptions{}};  // confirmation and end rules
   std::string origin;    // what started it, for the start event
   // This epoch's prediction.
   bool has_pred = false;
@@ -96,13 +91,6 @@ struct Track {
     Eigen::Matrix3d T;
   };
   std::vector<Taken> taken;
-};
-
-// Per track and sample: the predicted field and its SNR.
-struct Prediction {
-  Eigen::Vector3d B = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
-  double snr = 0.0;
 };
 
 double HorizontalSigma(const EpochEstimate& e) {
@@ -135,16 +123,8 @@ struct MultiTracker::Impl {
   Epoch pending;
   double last_t = -std::numeric_limits<double>::infinity();
 
-  double SigmaB(const GradiometerSample& s) const { return tracker::SigmaB(s, options.track); }
-  double SigmaT(const GradiometerSample& s) const { return tracker::SigmaT(s, options.track); }
-
-  Prediction Predict(const Track& tr, const GradiometerSample& s) const {
-    Prediction p;
-    PredictedField(tr.pred, tr.m_B, s.p_SinW, &p.B, &p.T);
-    const double sb = SigmaB(s), st = SigmaT(s);
-    p.snr = std::sqrt(p.B.squaredNorm() / (sb * sb) + p.T.squaredNorm() / (st * st));
-    if (!std::isfinite(p.snr)) p.snr = 0.0;
-    return p;
+  FieldPrediction Predict(const Track& tr, const GradiometerSample& s) const {
+    return PredictAtSample(tr.pred, tr.m_B, s, options.track);
   }
 
   void End(Track& tr, double t_s, const std::string& reason) {
@@ -157,7 +137,7 @@ struct MultiTracker::Impl {
     TrackRecord& r = records[tr.id - 1];
     r.live = false;
     r.end_reason = reason;
-    r.t_last_detection_s = tr.t_last_detection;
+    r.t_last_detection_s = tr.life.t_last_detection_s();
     r.m_B_Am2 = tr.engine->m_B_Am2();
     r.cov_m_B = tr.engine->cov_m_B();
     ++summary.num_ended;
@@ -179,13 +159,14 @@ struct MultiTracker::Impl {
   }
 
   void Confirm(Track& tr, double t_s) {
+    tr.life.Confirm();
     tr.taken.clear();
     tr.id = next_id++;
     TrackRecord r;
     r.track_id = tr.id;
     r.t_start_s = t_s;
     r.t_end_s = t_s;
-    r.t_last_detection_s = tr.t_last_detection;
+    r.t_last_detection_s = tr.life.t_last_detection_s();
     records.push_back(r);
     ++summary.num_confirmed;
     events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed; " + tr.origin});
@@ -194,12 +175,7 @@ struct MultiTracker::Impl {
   // The estimates of a track's engine, as outputs (confirmed tracks only).
   void Collect(Track& tr, const std::vector<EpochEstimate>& est, std::vector<TrackOutput>* out) {
     if (est.empty()) return;
-    tr.sigma_h = HorizontalSigma(est.back());
-    if (!est.back().usable) {
-      if (std::isnan(tr.unusable_since)) tr.unusable_since = est.back().t_s;
-    } else {
-      tr.unusable_since = kNaN;
-    }
+    tr.life.OnEstimate(est.back().t_s, est.back().usable, HorizontalSigma(est.back()));
     if (tr.id == 0) return;
     TrackRecord& r = records[tr.id - 1];
     const Eigen::Vector3d m = tr.engine->m_B_Am2();
@@ -211,7 +187,7 @@ struct MultiTracker::Impl {
     }
     r.m_B_Am2 = m;
     r.cov_m_B = Pm;
-    r.t_last_detection_s = tr.t_last_detection;
+    r.t_last_detection_s = tr.life.t_last_detection_s();
   }
 
   std::vector<TrackOutput> Process(const Epoch& e) {
@@ -220,86 +196,40 @@ struct MultiTracker::Impl {
     const double t = e.t_s;
     const std::size_t n = e.samples.size();
     // 1. Prediction.
-    std::vector<std::vector<Prediction>> pred(tracks.size());
+    std::vector<TrackPrediction> pred(tracks.size());
     for (std::size_t i = 0; i < tracks.size(); ++i) {
       Track& tr = tracks[i];
       const auto s = tr.engine->PredictState(t);
       tr.has_pred = s.has_value() && tr.engine->m_B_Am2().allFinite();
+      pred[i].valid = tr.has_pred;
       if (!tr.has_pred) continue;
       tr.pred = *s;
       tr.m_B = tr.engine->m_B_Am2();
-      pred[i].reserve(n);
-      for (const auto& smp : e.samples) pred[i].push_back(Predict(tr, smp));
+      pred[i].at.reserve(n);
+      for (const auto& smp : e.samples) pred[i].at.push_back(Predict(tr, smp));
     }
-    // 2.–4. Association, score and update, track by track.
+    // 2.–3. Association and score (association.h).
+    std::vector<TrackAssociation> assoc = AssociateEpoch(e, pred, B0_W, options);
+    // 4. Update, track by track.
     for (std::size_t i = 0; i < tracks.size(); ++i) {
       Track& tr = tracks[i];
-      Epoch mine{t, {}};
-      double llr = 0.0, sum_m2 = 0.0, sum_r2 = 0.0;
-      if (tr.has_pred) {
-        for (std::size_t j = 0; j < n; ++j) {
-          if (!(pred[i][j].snr >= mg().gate_snr)) continue;
-          GradiometerSample s = e.samples[j];
-          Eigen::Vector3d B_others = Eigen::Vector3d::Zero();
-          Eigen::Matrix3d T_others = Eigen::Matrix3d::Zero();
-          bool any_other = false;
-          for (std::size_t k = 0; k < tracks.size(); ++k) {
-            if (k == i || !tracks[k].has_pred) continue;
-            B_others += pred[k][j].B;
-            T_others += pred[k][j].T;
-            any_other = true;
-          }
-          if (any_other) RemoveOtherFields(B_others, T_others, SigmaB(s), SigmaT(s), &s);
-          const double sb = SigmaB(s), st = SigmaT(s);
-          const Eigen::Vector3d dB = s.B - B0_W;
-          const double m2 = dB.squaredNorm() / (sb * sb) + s.T.squaredNorm() / (st * st);
-          const double r2 = (dB - pred[i][j].B).squaredNorm() / (sb * sb) + (s.T - pred[i][j].T).squaredNorm() / (st * st);
-          if (std::isfinite(m2) && std::isfinite(r2)) {
-            llr += 0.5 * (m2 - r2);
-            sum_m2 += m2;
-            sum_r2 += r2;
-          }
-          mine.samples.push_back(std::move(s));
-        }
-      }
-      // Explained share: a track whose prediction leaves most of a strong
-      // signal unexplained (another, untracked source dominates its sensors,
-      // or it has drifted off its vessel) is not detected but missed.
-      const double dof = 8.0 * static_cast<double>(mine.samples.size());
-      const bool poor_fit = dof > 0.0 && sum_r2 > mg().max_chi2_per_dof * dof && sum_r2 > mg().max_unexplained * sum_m2;
-      const bool detected = llr >= mg().detect_llr && !poor_fit;
-      const bool missed = llr <= -mg().detect_llr || poor_fit;
-      if (detected) tr.t_last_detection = t;
-      if (missed) {
-        if (std::isnan(tr.miss_since)) tr.miss_since = t;
-      } else {
-        tr.miss_since = kNaN;
-      }
-      Collect(tr, tr.engine->AddEpoch(mine), &out);
-      if (tr.id == 0 && !mine.samples.empty()) {
-        ++tr.seen;
-        tr.detections += detected ? 1 : 0;
-      }
+      const TrackAssociation& a = assoc[i];
+      const bool had_samples = !a.mine.samples.empty();
+      tr.life.OnAssociation(t, a.detected, a.missed, had_samples);
+      Collect(tr, tr.engine->AddEpoch(a.mine), &out);
     }
-    // Track status: confirmation and end rules.
+    // Track status: confirmation and end rules (track_life_cycle.h).
     for (Track& tr : tracks) {
-      if (tr.id == 0) {
-        if (tr.detections >= mg().confirm_m) {
+      std::string reason;
+      switch (tr.life.Decide(t, &reason)) {
+        case TrackLifeCycle::Decision::kConfirm:
           Confirm(tr, t);
-        } else if (tr.seen - tr.detections > mg().confirm_n - mg().confirm_m ||
-                   t - tr.t_created > mg().max_coast_s) {
-          End(tr, t, "not confirmed");
-        }
-        continue;
-      }
-      if (!std::isnan(tr.miss_since) && t - tr.miss_since >= mg().max_miss_s) {
-        End(tr, t, "missed");
-      } else if (t - tr.t_last_detection >= mg().max_coast_s) {
-        End(tr, t, "lost");
-      } else if (tr.sigma_h > mg().max_sigma_horizontal_m) {
-        End(tr, t, "uncertain");
-      } else if (!std::isnan(tr.unusable_since) && t - tr.unusable_since >= mg().max_miss_s) {
-        End(tr, t, "unusable");
+          break;
+        case TrackLifeCycle::Decision::kEnd:
+          End(tr, t, reason);
+          break;
+        case TrackLifeCycle::Decision::kKeep:
+          break;
       }
     }
     // Duplicates: a track within min_separation_m of an older one.
@@ -313,16 +243,7 @@ struct MultiTracker::Impl {
         const bool older = old.id != 0 && (young.id == 0 || old.id < young.id);
         close = older && (Horizontal(old.pred) - Horizontal(young.pred)).norm() < mg().min_separation_m;
       }
-      if (!close) {
-        young.duplicate_since = kNaN;
-        continue;
-      }
-      if (young.id == 0) {
-        End(young, t, "duplicate");
-        continue;
-      }
-      if (std::isnan(young.duplicate_since)) young.duplicate_since = t;
-      if (t - young.duplicate_since >= mg().max_miss_s) End(young, t, "duplicate");
+      if (young.life.OnDuplicateCheck(t, close)) End(young, t, "duplicate");
     }
     // 5. The initiator's buffer: this epoch with every track's field removed.
     // Where a track's field dominates, what is left is mostly its model
@@ -334,12 +255,12 @@ struct MultiTracker::Impl {
       if (!tracks[i].has_pred || (tracks[i].ended && tracks[i].id == 0)) continue;  // dropped: given back
       const bool tentative = tracks[i].id == 0;
       for (std::size_t j = 0; j < n; ++j) {
-        residual.samples[j].B -= pred[i][j].B;
-        residual.samples[j].T -= pred[i][j].T;
+        residual.samples[j].B -= pred[i].at[j].B;
+        residual.samples[j].T -= pred[i].at[j].T;
         if (tentative) {
-          tracks[i].taken.push_back({t, j, pred[i][j].B, pred[i][j].T});
+          tracks[i].taken.push_back({t, j, pred[i].at[j].B, pred[i].at[j].T});
         } else if (tracks[i].id != 0) {
-          strongest[j] = std::max(strongest[j], pred[i][j].T.norm());
+          strongest[j] = std::max(strongest[j], pred[i].at[j].T.norm());
         }
       }
     }
@@ -383,8 +304,7 @@ struct MultiTracker::Impl {
     // The new track's sensors in the buffered epochs (gated by the
     // initialiser's line and moment).
     Track tr;
-    tr.t_created = t;
-    tr.t_last_detection = t;
+    tr.life = TrackLifeCycle(t, mg());
     std::vector<Epoch> mine;
     for (const Epoch& b : epochs) {
       Track probe;
@@ -410,7 +330,7 @@ struct MultiTracker::Impl {
       for (std::size_t j = 0; j < b.samples.size(); ++j) {
         GradiometerSample& s = b.samples[j];
         if (s.T.isZero(0.0)) continue;  // masked
-        const Prediction pr = Predict(tr, s);
+        const FieldPrediction pr = Predict(tr, s);
         s.B -= pr.B;
         s.T -= pr.T;
         tr.taken.push_back({b.t_s, j, pr.B, pr.T});
@@ -552,10 +472,7 @@ std::string MultiTracker::SaveState() const {
   for (const Track& tr : m.tracks) {
     tr.engine->SaveState(w);
     w.U32(tr.id);
-    w.F64(tr.t_created);
-    w.I64(tr.seen);
-    w.I64(tr.detections);
-    for (double v : {tr.t_last_detection, tr.miss_since, tr.unusable_since, tr.duplicate_since, tr.sigma_h}) w.F64(v);
+    tr.life.SaveState(w);
     w.Bytes(tr.origin);
     w.U8(tr.has_pred ? 1 : 0);
     PutState(w, tr.pred);
@@ -622,12 +539,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.engine = std::make_unique<WindowTracker>(m.B0_W, m.options.track);
     tr.engine->RestoreState(r);
     tr.id = r.U32();
-    tr.t_created = r.F64();
-    tr.seen = static_cast<int>(r.I64());
-    tr.detections = static_cast<int>(r.I64());
-    for (double* v : {&tr.t_last_detection, &tr.miss_since, &tr.unusable_since, &tr.duplicate_since, &tr.sigma_h}) {
-      *v = r.F64();
-    }
+    tr.life = TrackLifeCycle(0.0, m.options.management);
+    tr.life.RestoreState(r);
     tr.origin = r.Bytes(internal::kMaxStateCount);
     tr.has_pred = r.U8() != 0;
     tr.pred = GetState(r);

@@ -12,9 +12,11 @@
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
+#include <spdlog/spdlog.h>
 
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
+#include "magnav/core/limits.h"
 
 namespace magnav::cli {
 
@@ -177,7 +179,28 @@ class StrictConfig : public CLI::ConfigTOML {
 // --config FILE (TOML/INI, keys = long flag names; unknown keys and sections
 // are errors, see StrictConfig) and defaults shown in --help. Call before
 // adding the options.
+// --limits FILE: the site's limits of the door (core/limits.h LoadSiteLimits),
+// read when the command line is processed, before any input; each one in
+// force is logged. A bad file is a bad flag (exit 2).
+inline void AddLimitsOption(CLI::App& app) {
+  app.add_option_function<std::string>(
+         "--limits",
+         [](const std::string& path) {
+           try {
+             LoadSiteLimits(path);
+           } catch (const InputError& e) {
+             throw CLI::ValidationError("--limits", e.what());
+           }
+           for (const std::string& l : DescribeSiteLimits()) spdlog::info("limit {}", l);
+         },
+         "site limits of the input checks: a TOML/INI file of 'key = value' lines (position_m, B_T, T_Tpm, "
+         "map_value_nT, latitude_deg, longitude_deg, map_cells, time_s, time_step_s, seq_step; e.g. T_Tpm = 1e-5 for a "
+         "SQUID array); limits not named keep their defaults (docs/RELIABILITY.md \"Limits\")")
+      ->type_name("FILE");
+}
+
 inline void ConfigureServiceApp(CLI::App& app) {
+  AddLimitsOption(app);
   app.set_config("--config", "", "read options from a TOML/INI file (keys = long flag names)");
   app.config_formatter(std::make_shared<StrictConfig>(&app));
   app.allow_config_extras(CLI::config_extras_mode::error);

@@ -23,9 +23,9 @@ struct GradiometerSample {
   double sigma_T = 0.0;                        // 1-σ noise per element, T/m (0 = unknown)
 };
 
-// Largest magnitudes a sample may hold (per element): kMaxAbsPosition_m,
-// kMaxAbsB_T, kMaxAbsT_Tpm of the project's one table of limits
-// (core/limits.h). Beyond them a value is not a reading (1e308, or nT/µT/km
+// Largest magnitudes a sample may hold (per element): kLimitPosition,
+// kLimitB, kLimitT of the project's one table of limits (core/limits.h; a
+// site may set its own, LoadSiteLimits). Beyond them a value is not a reading (1e308, or nT/µT/km
 // written where T/m are meant). B up to 1 T (a dipole 1 m away gives 1e-2 T:
 // the reference cases reach 5e-3 T), a gradient up to 10 T/m, positions up to
 // 10 000 km. Files (ReadGradiometerFile) and the wire (CheckSample) apply the
@@ -39,7 +39,7 @@ enum class SampleDefect {
   kNonFinite,      // B, T or the sensor position not finite (NaN, ±inf)
   kBadSigma,       // sigma_B or sigma_T negative or not finite (0 = unknown is fine)
   kZeroTensor,     // every element of T is exactly 0: a dead or unwired gradiometer
-  kOutOfRange,     // finite but beyond the kMaxAbs* limits: a sensor position, B or T no instrument gives
+  kOutOfRange,     // finite but beyond the limits in force (core/limits.h): a sensor position, B or T no instrument gives
 };
 const char* SampleDefectName(SampleDefect defect);
 
@@ -79,7 +79,7 @@ std::vector<std::string> GradiometerDataColumns();
 
 // Reads columns sensor_x,sensor_y,sensor_z, B_x..B_z, T00..T22, t (or, for
 // rows that are independent cases, case_id) and, if present, sensor_id.
-// Every value must be within the kMaxAbs* limits above. Sample sigmas come from per-row
+// Every value must be within the limits above. Sample sigmas come from per-row
 // sigma_B, sigma_T columns if present (as magnav record writes them), else
 // the file's sigma parameters (0 = unknown when absent). Throws InputError naming file, line and
 // column on any problem.

@@ -71,6 +71,12 @@ struct FieldVessel {
   double start_heading_rad = 0.0;
   std::vector<TurnSegment> segments = {{200.0, 0.0}};  // the vessel exists for their total duration
   double t_start_s = 0.0;                               // s from scenario start, >= 0
+  // Instead of start_position, start_heading_rad and segments (when it has
+  // two or more points): straight legs through these points (NED, m) at
+  // speed_mps (> 0, along the 3-D path), from the first point at t_start_s
+  // until the last; heading along each leg's horizontal direction (each leg
+  // must move horizontally), turn rate 0, the truth's velocity horizontal.
+  std::vector<Eigen::Vector3d> waypoints;
 
   bool IsValid(std::string* error) const;
   double t_end_s() const;
@@ -84,6 +90,10 @@ struct FieldScenario {
   double sigma_B = 0.0;
   double sigma_T = 0.0;
   std::uint64_t seed = 1;
+  // Per-sensor background drift, T/s (NED): sensor j's background at time t
+  // is B0 + background_drift_Tps[j]·t (the slow change of a far source or of
+  // the sensor itself). Empty: none; otherwise one per sensor.
+  std::vector<Eigen::Vector3d> background_drift_Tps;
 
   bool IsValid(std::string* error) const;
   double duration_s() const;  // until the last vessel's end
@@ -98,6 +108,10 @@ struct SimulatedField {
 // 0.5 m of a sensor.
 SimulatedField SimulateField(const FieldScenario& scenario);
 
+// n drift vectors of magnitude rate_Tps each, in directions uniform on the
+// sphere drawn from `seed` (the per-sensor drifts of a scenario file).
+std::vector<Eigen::Vector3d> RandomDrifts(std::size_t n, double rate_Tps, std::uint64_t seed);
+
 // A regular grid of nx × ny sensors at z = 0, `spacing_m` apart, centred on
 // the origin, ids row by row (id = ny·ix + iy, x north) as the reference field.
 std::vector<Eigen::Vector3d> SensorGrid(int nx, int ny, double spacing_m);
@@ -108,7 +122,8 @@ std::vector<Eigen::Vector3d> SensorGrid(int nx, int ny, double spacing_m);
 void WritePassCsv(const std::string& path, const PassScenario& scenario, const SimulatedPass& pass);
 void WriteTruthCsv(const std::string& path, const PassScenario& scenario, const SimulatedPass& pass);
 // A field: the pass file as above (no moment line: each vessel has its own;
-// a `# vessel:` line per vessel), the truth with `vessel_id` after `t`, rows
+// a `# vessel:` line per vessel, a `# background_drift_Tps:` line per
+// sensor when there is drift), the truth with `vessel_id` after `t`, rows
 // ordered by t then vessel_id (as field_truth.csv).
 void WriteFieldPassCsv(const std::string& path, const FieldScenario& scenario, const SimulatedField& field);
 void WriteFieldTruthCsv(const std::string& path, const FieldScenario& scenario, const SimulatedField& field);

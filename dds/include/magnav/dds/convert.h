@@ -1,12 +1,48 @@
-// Conversion between the IDL topic types and the core structs the libraries
-// use. Pure value copies; no validation (the libraries' gates judge samples).
+// Conversion between the IDL topic types and C++ values: the one place where
+// a message's fields are read or written, used by every service and tool.
+//
+// Two layers, so that the DDS adapter never depends on an algorithm library:
+//  1. Here, in magnav::dds (depends on core and the IDL only): every topic
+//     type <-> its plain record (records.h), exactly and both ways
+//     (tests/dds/convert_test.cc round-trips every topic, every enum value
+//     and the appended MapFix.status); plus core's GradiometerSample and the
+//     map-matching helpers below.
+//  2. A library's own types <-> a topic (e.g. inversion::DipoleFix ->
+//     magnav/dipole_fix, localizer::SensorEstimate -> magnav/sensor_position):
+//     one small library per algorithm library, dds/src/convert_<lib>.cc with
+//     header convert_<lib>.h, built as magnav::dds_<lib>, which depends on
+//     magnav::dds and that library only. These map the library's meaning
+//     (units, which fields it has) to a record and go through layer 1 for the
+//     message, so no field is written in two places.
+// Pure value copies; no validation (the libraries' gates judge samples).
 #pragma once
 
 #include "magnav/core/gradiometer.h"
+#include "magnav/dds/records.h"
 #include "magnav/dds/topics.h"
 
 namespace magnav::dds {
 
+// Layer 1: exact, both ways, for every topic type. RecordOf(m): the record
+// of a message; ToMsg(r): the message of a record.
+GradiometerRecord RecordOf(const msg::GradiometerSample& m);
+MagnetometerRecord RecordOf(const msg::MagnetometerSample& m);
+VesselNavRecord RecordOf(const msg::VesselNav& m);
+DipoleFixRecord RecordOf(const msg::DipoleFix& m);
+TrackRecord RecordOf(const msg::TrackEstimate& m);
+SensorPositionRecord RecordOf(const msg::SensorPositionEstimate& m);
+MapFixRecord RecordOf(const msg::MapFix& m);
+
+msg::GradiometerSample ToMsg(const GradiometerRecord& r);
+msg::MagnetometerSample ToMsg(const MagnetometerRecord& r);
+msg::VesselNav ToMsg(const VesselNavRecord& r);
+msg::DipoleFix ToMsg(const DipoleFixRecord& r);
+msg::TrackEstimate ToMsg(const TrackRecord& r);
+msg::SensorPositionEstimate ToMsg(const SensorPositionRecord& r);
+msg::MapFix ToMsg(const MapFixRecord& r);
+
+// core's sample (time in seconds: NanosToSeconds / SecondsToNanos of the
+// stamp; the seq is the caller's).
 GradiometerSample FromMsg(const msg::GradiometerSample& m);
 msg::GradiometerSample ToMsg(const GradiometerSample& s, std::uint64_t seq);
 

@@ -39,8 +39,8 @@ template <class M>
 class StampGuard {
  public:
   // `log_name` prefixes the log lines ("magnav-inverter: magnav/gradiometer sensor").
-  explicit StampGuard(std::string log_name, double max_step_s = kLimitTimeStep.max_abs,
-                      double max_seq_step = kLimitSeqStep.max_abs)
+  explicit StampGuard(std::string log_name, double max_step_s = MaxAbs(kLimitTimeStep),
+                      double max_seq_step = MaxAbs(kLimitSeqStep))
       : log_name_(std::move(log_name)),
         max_step_ns_(static_cast<std::uint64_t>(max_step_s * 1e9)),
         max_seq_step_(static_cast<std::uint64_t>(max_seq_step)) {}
@@ -49,10 +49,10 @@ class StampGuard {
   std::vector<M> Admit(const M& m) {
     const MessageId id = IdOf(m);
     std::lock_guard<std::mutex> lk(mu_);
-    if (static_cast<double>(id.stamp_ns) * 1e-9 > kLimitTime.max_abs) {
+    if (static_cast<double>(id.stamp_ns) * 1e-9 > MaxAbs(kLimitTime)) {
       ++rejected_;
       Log(id.key, "time stamp " + std::to_string(id.stamp_ns) + " ns is beyond " +
-                      std::to_string(static_cast<long long>(kLimitTime.max_abs)) + " s (" + kLimitTime.why + ")");
+                      std::to_string(static_cast<long long>(MaxAbs(kLimitTime))) + " s (" + LimitWhy(kLimitTime) + ")");
       return {};
     }
     PerKey& k = keys_[id.key];

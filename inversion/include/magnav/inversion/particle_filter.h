@@ -133,10 +133,11 @@ struct MonteCarloTrackerOptions {
   ParticleFilterOptions filter;
   // Method and gates for the initialising fixes. The prior σ follows each
   // fix's predicted σ, so these take an absolute 1 m σ gate of their own
-  // instead of the inverter's default relative one (tuned with the MC noise
-  // settings on the reference passes).
+  // and the weak-signal floor SNR 100 (tuned with the MC noise settings on
+  // the reference passes; the inverter's defaults are 0.4 m and 20).
   InverterOptions init_inverter = [] {
     InverterOptions o;
+    o.gates.min_snr = 100.0;
     o.gates.max_relative_sigma = 0.0;
     o.gates.max_position_sigma_3d_m = 1.0;
     return o;

@@ -33,13 +33,12 @@ struct PassFile {
 // Reads and checks a deployment file (the service takes only this one).
 std::vector<SensorPrior> ReadDeploymentFile(const std::string& path);
 
-// Time limits of the files (s). A pass is minutes to hours long: a row more
-// than kMaxTimeStep_s after the previous row of its file, or a GNSS fix more
-// than that outside the measurements' time span, is a broken time (1e300, a
-// stamp in ns or from another clock), not a pass; |t| beyond kMaxAbsTime_s
-// (317 years: Unix and GPS seconds fit) is refused outright.
-inline constexpr double kMaxTimeStep_s = kLimitTimeStep.max_abs;  // core/limits.h
-inline constexpr double kMaxAbsTime_s = kLimitTime.max_abs;
+// Time limits of the files (s; core/limits.h, the site's if it set them). A
+// pass is minutes to hours long: a row more than kLimitTimeStep (1 h) after
+// the previous row of its file, or a GNSS fix more than that outside the
+// measurements' time span, is a broken time (1e300, a stamp in ns or from
+// another clock), not a pass; |t| beyond kLimitTime (317 years: Unix and GPS
+// seconds fit) is refused outright.
 
 // Reads and checks the files. `moment_body_Am2` overrides the measurements
 // file's "# moment_body_Am2:" line; without either the call refuses (no
@@ -53,8 +52,8 @@ PassFile ReadPassFiles(const std::string& measurements_path, const std::string& 
 
 // Why a live sample is refused.
 // kOutOfRange: finite but a value no instrument gives, the limits the file
-// readers hold to (core/gradiometer.h): |B_i| > kMaxAbsB_T (1 T: nT or µT
-// sent as T), a GNSS position or σ beyond kMaxAbsPosition_m (1e7 m).
+// readers hold to (core/gradiometer.h): |B_i| beyond kLimitB (1 T: nT or µT
+// sent as T), a GNSS position or σ beyond kLimitPosition (1e7 m).
 // kAlreadyConsumed: StreamingLocalizer only, an item a restored checkpoint
 // has consumed already (older than its consumed-until time; a restarted
 // service gets it again from the writers' history): not an error.

@@ -48,6 +48,17 @@ struct CorrelationOptions {
   // until the outliers repeat); counted in MatchResult::points_outlier. So one
   // spike cannot pull the shift towards where the map is high. 0 = off.
   double outlier_sigmas = 5.0;
+  // MAD and MSD only, with outlier_sigmas > 0: a usable point off the map at a
+  // shift counts as a reading the map cannot explain, i.e. with the truncated
+  // loss's cap (outlier_sigmas · σ_l) as its residual, and the score is the
+  // mean over every usable point. Without it (false, the default of the
+  // correlation methods) the score is the mean over the points on the map
+  // only, so a shift that leaves most of the path off the map is scored on a
+  // few points and can win by chance on a flat stretch (a generated 0.1° path:
+  // 56 of 150 points on the map, MSD 1.1 nT² against 121 nT² at the true
+  // shift). Fast MSD's coarse stage turns it on (docs/ACCURACY.md, "Fast MSD
+  // off the reference paths").
+  bool off_map_as_unexplained = false;
 
   bool IsValid(std::string* error) const;
 };

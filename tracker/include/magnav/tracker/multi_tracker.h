@@ -6,6 +6,10 @@
 // Frames and units as tracker.h: world = local NED (x north, y east, z down),
 // metres, seconds, tesla, T/m, A·m² (body moment), radians.
 //
+// Its parts: the associator (association.h: steps 2 and 3), the track life
+// cycle (track_life_cycle.h: confirmation and end rules of steps 5 and 6),
+// each track's WindowTracker (step 4) and the initiator (step 5, here).
+//
 // Per epoch (the samples of every sensor at one instant):
 //  1. Prediction: every live track's newest state is propagated to the epoch
 //     and its field (B̂, T̂) predicted at every sensor from its own body moment.

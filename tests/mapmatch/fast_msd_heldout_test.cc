@@ -1,0 +1,138 @@
+// Fast MSD with the coarse stage off the reference paths (issue 25 item 6):
+// on crustal-map paths generated with a 0.1° INS offset
+// (tests/data/generated/fastmsd_paths.csv, rows fixed before any tuning;
+// scripts/heldout_mappaths makes them), the mean error meets the F paper's
+// figure, ≤ 0.001° at 0.5 nT (≤ 0.002° at 3 nT), not only on the reference
+// path. docs/ACCURACY.md, "Fast MSD off the reference paths", is this test's
+// table; scripts/heldout_fastmsd measures every row (40 paths each).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "magnav/core/csv.h"
+#include "magnav/mapmatch/match.h"
+#include "reference_truth.h"
+#include "subprocess.h"
+#include "test_data.h"
+
+namespace magnav::mapmatch {
+namespace {
+
+const GeoGrid& CrustalMap() {
+  static const GeoGrid g = ReadGeoGridCsv(testing::ReferencePath("map_crustal_anomaly.csv"), {"anomaly_nT"});
+  return g;
+}
+
+std::string Script() { return testing::TestDataDir() + "/../../scripts/heldout_mappaths"; }
+
+// Writes paths first .. first + count − 1 (both noise levels of `noises`) into `dir`.
+void Generate(const std::string& dir, int first, int count, const std::string& offset_deg, const std::string& noises) {
+  const auto [code, out] = testing::RunCommand(
+      {Script(), dir, std::to_string(count), offset_deg, noises, std::to_string(first)}, {}, std::chrono::seconds(120));
+  ASSERT_EQ(code, 0) << out;
+}
+
+std::string NoiseTag(double noise_nT) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", noise_nT);
+  std::string s = b;
+  std::replace(s.begin(), s.end(), '.', 'p');
+  return s;
+}
+
+// Fast MSD (defaults, coarse stage ±0.15° as for the reference 0.1° paths) on
+// one generated path: its mean error, deg (distance to the true point in
+// (lat, lon) degree units, over the path).
+double MeanErrorDeg(const std::string& file) {
+  MatchOptions o;
+  o.fast_msd.search_window_deg = 0.15;
+  const MatchResult r = Match(Method::kFastMsd, CrustalMap(), 0, ReadMatchPath(file, "meas_nT"), o);
+  const CsvTable t = CsvTable::Read(file);
+  double sum = 0.0;
+  for (std::size_t i = 0; i < t.num_rows(); ++i) {
+    sum += std::hypot(r.lat_deg[i] - t.number(i, t.column("true_lat")), r.lon_deg[i] - t.number(i, t.column("true_lon")));
+  }
+  return sum / static_cast<double>(t.num_rows());
+}
+
+// Documented figures (docs/ACCURACY.md) of the CI's held-out paths: the mean
+// over paths 601-606 of each path's mean error, deg.
+constexpr double kDocumented05 = 0.00073;  // 0.5 nT
+constexpr double kDocumented3 = 0.00130;   // 3 nT
+
+struct Row {
+  std::string set;
+  int first = 0, count = 0, ci_count = 0;
+  std::string offset_deg;
+  double noise_nT = 0.0;
+};
+
+std::vector<Row> Rows() {
+  const CsvTable c = CsvTable::Read(testing::TestDataDir() + "/generated/fastmsd_paths.csv");
+  std::vector<Row> rows;
+  for (std::size_t r = 0; r < c.num_rows(); ++r) {
+    Row row;
+    row.set = c.text(r, c.column("set"));
+    row.first = static_cast<int>(c.number(r, c.column("first_path")));
+    row.count = static_cast<int>(c.number(r, c.column("count")));
+    row.ci_count = static_cast<int>(c.number(r, c.column("ci_count")));
+    row.offset_deg = c.text(r, c.column("offset_deg"));
+    row.noise_nT = c.number(r, c.column("noise_nT"));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+// Held out: the first ci_count paths of each held-out row. Per row, the mean
+// over its paths of the path's mean error meets the target (0.001° at 0.5 nT,
+// 0.002° at 3 nT) and the documented figure (docs/ACCURACY.md, these six
+// paths) within kFigureMargin; every path within 2× the target (before the
+// coarse stage scored off-map points, 2 of 20 tuning paths ended 0.15–0.21°
+// off).
+TEST(FastMsdHeldOut, CoarseStageMeetsThePaperFigureOnGeneratedPaths) {
+  const std::string dir = testing::TempDir();
+  int rows_run = 0;
+  for (const Row& row : Rows()) {
+    if (row.set != "heldout" || row.ci_count == 0) continue;
+    ASSERT_EQ(row.offset_deg, "0.1");
+    Generate(dir, row.first, row.ci_count, row.offset_deg, NoiseTag(row.noise_nT) == "0p5" ? "0.5" : "3");
+    const double target = row.noise_nT <= 0.5 ? 0.001 : 0.002;
+    // Measured on these paths (docs/ACCURACY.md).
+    const double documented = row.noise_nT <= 0.5 ? kDocumented05 : kDocumented3;
+    double sum = 0.0, worst = 0.0;
+    for (int p = row.first; p < row.first + row.ci_count; ++p) {
+      const double e =
+          MeanErrorDeg(dir + "/heldout_" + std::to_string(p) + "_noise" + NoiseTag(row.noise_nT) + ".csv");
+      sum += e;
+      worst = std::max(worst, e);
+      EXPECT_LE(e, 2.0 * target) << "path " << p << ", " << row.noise_nT << " nT";
+    }
+    const double mean = sum / row.ci_count;
+    std::printf("held out, paths %d-%d, %g nT: mean of the paths' mean errors %.5f deg, worst path %.5f deg\n",
+                row.first, row.first + row.ci_count - 1, row.noise_nT, mean, worst);
+    EXPECT_LE(mean, target) << row.noise_nT << " nT";
+    testing::ExpectErrorFigure(mean, documented, "held-out fast MSD mean, " + NoiseTag(row.noise_nT) + " nT");
+    ++rows_run;
+  }
+  EXPECT_EQ(rows_run, 2);
+}
+
+// A tuning path on which the coarse stage chose a shift that left 93 of its
+// 150 points off the map (MSD 1.1 nT² over the 56 left, against 121 nT² at
+// the true shift over all 150): path 504 ended 0.206° off. Scoring a point
+// off the map as an unexplained reading (CorrelationOptions::
+// off_map_as_unexplained) brings it to 0.0012°.
+TEST(FastMsdHeldOut, ACoarseShiftMostlyOffTheMapDoesNotWin) {
+  const std::string dir = testing::TempDir();
+  Generate(dir, 504, 1, "0.1", "0.5");
+  const double e = MeanErrorDeg(dir + "/heldout_504_noise0p5.csv");
+  std::printf("tuning path 504, 0.5 nT: mean error %.5f deg\n", e);
+  EXPECT_LE(e, 0.002);
+}
+
+}  // namespace
+}  // namespace magnav::mapmatch

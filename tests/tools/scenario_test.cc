@@ -1,0 +1,275 @@
+// Scenario files (`magnav simulate --scenario`, cli/scenario_file.h) and the
+// field generator behind them: the truth agrees with the field model (every
+// sample of a noise-free field is B0 + drift·t + the sum of the dipole fields
+// of the vessels where the truth puts them), waypoints and drift are what
+// the file says, the noise has the model's spread, and the committed
+// harbour-like scenarios are of the kind their names claim.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "magnav/cli/scenario_file.h"
+#include "magnav/core/csv.h"
+#include "magnav/core/dipole.h"
+#include "magnav/core/error.h"
+#include "magnav/core/simulate.h"
+#include "subprocess.h"
+#include "test_data.h"
+
+namespace magnav {
+namespace {
+
+// Two vessels (one on segments, one on waypoints changing depth) over a
+// 2 × 2 grid with drift, no noise.
+const char* kScenario = R"(# a test scenario
+rate = 5
+seed = 42
+noise = "none"
+b0 = [2e-5, 1e-6, 4.5e-5]
+grid = [2, 2, 30]
+drift_nt_per_min = 6
+
+[vessel.3]   # on turn segments
+moment = [2000, 300, 800]
+start = [-60, -5, -5]
+velocity = [1.2, 0.1]
+turns = [40, 0, 30, 0.03]
+
+[vessel.9]  # on waypoints, changing depth
+t0 = 10  # s
+moment = [420000, 0, 150000]
+speed = 3
+waypoints = [-200, 120, -12, 0, 120, -12, 100, 60, -8]
+)";
+
+TEST(ScenarioFile, NoiseFreeFieldIsTheSumOfTheTruthDipolesPlusDriftingBackground) {
+  const FieldScenario sc = cli::ParseScenario(kScenario, "test.toml");
+  ASSERT_EQ(sc.vessels.size(), 2u);
+  ASSERT_EQ(sc.sensors.size(), 4u);
+  ASSERT_EQ(sc.background_drift_Tps.size(), 4u);
+  EXPECT_EQ(sc.vessels[0].vessel_id, 3u);
+  EXPECT_EQ(sc.vessels[1].vessel_id, 9u);
+  const SimulatedField f = SimulateField(sc);
+  // Truth rows per instant, by time.
+  std::map<long long, std::vector<const VesselTruth*>> at;
+  for (const auto& v : f.truth) {
+    for (const auto& t : v) at[std::llround(t.t_s * 1000)].push_back(&t);
+  }
+  ASSERT_FALSE(f.samples.empty());
+  double worst_B = 0.0, worst_T = 0.0;
+  for (const auto& g : f.samples) {
+    Eigen::Vector3d B = sc.B0 + sc.background_drift_Tps[g.sensor_id] * g.t_s;
+    Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+    for (const VesselTruth* tr : at[std::llround(g.t_s * 1000)]) {
+      Eigen::Vector3d b;
+      Eigen::Matrix3d t;
+      DipoleBT(Eigen::Vector3d(g.p_SinW - tr->p_VinW), tr->m_W, &b, &t);
+      B += b;
+      T += t;
+    }
+    worst_B = std::max(worst_B, (B - g.B).norm());
+    worst_T = std::max(worst_T, (T - g.T).norm());
+  }
+  EXPECT_LT(worst_B, 1e-15);  // T
+  EXPECT_LT(worst_T, 1e-17);  // T/m
+}
+
+TEST(ScenarioFile, WaypointsVelocityAndDriftAreWhatTheFileSays) {
+  const FieldScenario sc = cli::ParseScenario(kScenario, "test.toml");
+  const SimulatedField f = SimulateField(sc);
+  // Vessel 3: speed √(1.2² + 0.1²), heading atan2(0.1, 1.2), 70 s.
+  const auto& a = f.truth[0];
+  EXPECT_NEAR(a.front().v_VinW.norm(), std::hypot(1.2, 0.1), 1e-12);
+  EXPECT_NEAR(a.front().heading_rad, std::atan2(0.1, 1.2), 1e-12);
+  EXPECT_NEAR(a.back().t_s, 70.0, 1e-9);
+  // Vessel 9: from the first waypoint at t0 = 10 s to the last, 3 m/s along
+  // the path (200 m, then √(100² + 60² + 4²) m), heading along each leg.
+  const auto& s = f.truth[1];
+  const double leg2 = std::sqrt(100.0 * 100 + 60.0 * 60 + 4.0 * 4);
+  EXPECT_NEAR(s.front().t_s, 10.0, 1e-9);
+  EXPECT_LT((s.front().p_VinW - Eigen::Vector3d(-200, 120, -12)).norm(), 1e-9);
+  EXPECT_NEAR(sc.vessels[1].t_end_s(), 10.0 + (200.0 + leg2) / 3.0, 1e-9);
+  EXPECT_NEAR(s.front().heading_rad, 0.0, 1e-12);
+  const VesselTruth& last = s.back();
+  const double t_end = sc.vessels[1].t_end_s();
+  const double left = (t_end - last.t_s) * 3.0;  // path still to go after the last sample
+  EXPECT_LT((last.p_VinW - Eigen::Vector3d(100, 60, -8)).norm(), left + 1e-9);
+  EXPECT_NEAR(last.heading_rad, std::atan2(-60.0, 100.0), 1e-12);
+  for (std::size_t k = 1; k < s.size(); ++k) {
+    const double dt = s[k].t_s - s[k - 1].t_s;
+    EXPECT_LE((s[k].p_VinW - s[k - 1].p_VinW).norm(), 3.0 * dt + 1e-9);
+  }
+  // Drift: 6 nT/min per sensor, each in its own direction.
+  for (const auto& d : sc.background_drift_Tps) EXPECT_NEAR(d.norm(), 6e-9 / 60.0, 1e-20);
+  EXPECT_LT(sc.background_drift_Tps[0].normalized().dot(sc.background_drift_Tps[1].normalized()), 0.999);
+}
+
+TEST(ScenarioFile, FluxgateNoiseHasTheModelsSpread) {
+  std::string text = kScenario;
+  text.replace(text.find("noise = \"none\""), 14, "noise = \"fluxgate\"");
+  const FieldScenario noisy = cli::ParseScenario(text, "noisy.toml");
+  FieldScenario clean = noisy;
+  clean.sigma_B = clean.sigma_T = 0.0;
+  EXPECT_EQ(noisy.sigma_B, 1e-9);
+  EXPECT_EQ(noisy.sigma_T, 1.4e-9);
+  const SimulatedField a = SimulateField(noisy), b = SimulateField(clean);
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  double sB = 0.0, sT = 0.0;
+  for (std::size_t i = 0; i < a.samples.size(); ++i) {
+    sB += (a.samples[i].B - b.samples[i].B).squaredNorm();
+    sT += (a.samples[i].T - b.samples[i].T).squaredNorm();
+  }
+  const double n = static_cast<double>(a.samples.size());
+  EXPECT_NEAR(std::sqrt(sB / (3 * n)), 1e-9, 0.05e-9);    // per axis
+  EXPECT_NEAR(std::sqrt(sT / (9 * n)), 1.4e-9, 0.07e-9);  // per element
+}
+
+TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
+  const auto refuses = [](const std::string& text, const std::string& says) {
+    try {
+      cli::ParseScenario(text, "bad.toml");
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  const std::string vessel = "\n[vessel.1]\nstart = [-50, 0, -5]\n";
+  refuses("grid = [3, 3, 36]\nnoize = \"fluxgate\"\n" + vessel, "unknown key 'noize'");
+  refuses("grid = [3, 3, 36]\n" + vessel + "moment = [1, 2]\n", "'moment'");
+  refuses("grid = [3, 3, 36]\n" + vessel + "sped = 2\n", "unknown key 'sped'");
+  refuses("grid = [3, 3, 36]\n[sensor.1]\nx = 2\n" + vessel, "section [sensor.1]");
+  refuses("grid = [3, 3, 36]\nsensors = [0, 0, 0]\n" + vessel, "give one of them");
+  refuses(vessel, "no sensors");
+  refuses("grid = [3, 3, 36]\n", "no vessel");
+  refuses("grid = [3, 3, 36]\n" + vessel + "waypoints = [0, 0, -5, 10, 0, -5]\n", "'waypoints' replaces 'start'");
+  refuses("grid = [3, 3, 36]\nnoise = \"loud\"\n" + vessel, "'loud'");
+  refuses("grid = [3, 3, 36]\n" + vessel + "velocity = [1, 0]\nspeed = 2\n", "'velocity' replaces");
+  refuses("grid = [3, 3, 36]\n[vessel.0]\nstart = [1, 1, 1]\n", "whole number >= 1");
+  // A vessel through a sensor is refused by the generator.
+  EXPECT_THROW(SimulateField(cli::ParseScenario("grid = [1, 1, 1]\n[vessel.1]\nstart = [-10, 0, 0]\n"
+                                                "velocity = [1, 0]\nduration = 20\n",
+                                                "through.toml")),
+               InputError);
+}
+
+// The committed scenarios (tests/data/generated/scenarios/{heldout,tuning})
+// are of the kind their names say.
+double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
+
+TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
+  const std::string dir = testing::TestDataDir() + "/generated/scenarios/";
+  for (const char* set : {"heldout", "tuning"}) {
+    for (const char* kind : {"abreast", "crossing", "overtaking", "far_ship", "drift"}) {
+      SCOPED_TRACE(std::string(set) + "/" + kind);
+      const FieldScenario sc = cli::ReadScenarioFile(dir + set + "/" + kind + ".toml");
+      EXPECT_EQ(sc.sigma_B, 1e-9);
+      EXPECT_EQ(sc.sensors.size(), 9u);
+      FieldScenario clean = sc;
+      clean.rate_hz = 1.0;
+      const SimulatedField f = SimulateField(clean);
+      // Closest approach of each vessel to a sensor (3-D), and of the two vessels
+      // to each other (horizontal) while both exist, with their distance
+      // while both are within 15 m of a sensor.
+      std::vector<double> reach(f.truth.size(), 1e9);
+      double closest_pair = 1e9, pair_min_near = 1e9, pair_max_near = 0.0;
+      for (std::size_t v = 0; v < f.truth.size(); ++v) {
+        for (const auto& t : f.truth[v]) {
+          for (const auto& s : sc.sensors) reach[v] = std::min(reach[v], (t.p_VinW - s).norm());
+        }
+      }
+      const auto near = [&](const VesselTruth& t) {
+        for (const auto& s : sc.sensors) {
+          if ((t.p_VinW - s).norm() <= 15.0) return true;
+        }
+        return false;
+      };
+      if (f.truth.size() == 2) {
+        for (const auto& a : f.truth[0]) {
+          for (const auto& b : f.truth[1]) {
+            if (std::abs(a.t_s - b.t_s) > 1e-9) continue;
+            const double d = Horizontal(a.p_VinW, b.p_VinW);
+            closest_pair = std::min(closest_pair, d);
+            if (near(a) && near(b)) {
+              pair_min_near = std::min(pair_min_near, d);
+              pair_max_near = std::max(pair_max_near, d);
+            }
+          }
+        }
+      }
+      const std::string k = kind;
+      if (k == "abreast") {
+        ASSERT_EQ(f.truth.size(), 2u);
+        EXPECT_GE(pair_min_near, 20.0);
+        EXPECT_LE(pair_max_near, 40.0);
+      } else if (k == "crossing") {
+        ASSERT_EQ(f.truth.size(), 2u);
+        EXPECT_LE(closest_pair, 10.0);
+        EXPECT_GT(closest_pair, 2.0);
+      } else if (k == "overtaking") {
+        ASSERT_EQ(f.truth.size(), 2u);
+        // The faster one starts behind and ends ahead.
+        const auto along = [](const VesselTruth& t) { return t.p_VinW.head<2>().dot(t.v_VinW.normalized()); };
+        const std::size_t fast = f.truth[0].front().v_VinW.norm() > f.truth[1].front().v_VinW.norm() ? 0 : 1;
+        const VesselTruth& fa = f.truth[fast].front();
+        const VesselTruth& fb = f.truth[fast].back();
+        const auto& slow = f.truth[1 - fast];
+        const auto same_t = [&](double t) {
+          for (const auto& s : slow) {
+            if (std::abs(s.t_s - t) < 1e-9) return s;
+          }
+          return slow.back();
+        };
+        EXPECT_LT(along(fa), along(same_t(fa.t_s)));
+        EXPECT_GT(along(fb), along(same_t(fb.t_s)));
+        EXPECT_LE(closest_pair, 12.0);
+      } else if (k == "far_ship") {
+        ASSERT_EQ(f.truth.size(), 2u);
+        // The ship passes 100–200 m off the grid (from its nearest sensor),
+        // the AUV within 15 m of a sensor.
+        EXPECT_GE(reach[1], 100.0);
+        EXPECT_LE(reach[1], 200.0);
+        EXPECT_GE(sc.vessels[1].moment_body.norm(), 4e5);
+        EXPECT_LE(reach[0], 15.0);
+      } else {
+        ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
+        const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
+        EXPECT_GE(per_min, 2.0);
+        EXPECT_LE(per_min, 10.0);
+      }
+      if (k != "far_ship") {
+        for (double r : reach) EXPECT_LE(r, 15.0);  // every vessel comes within the sensors' reach
+      }
+    }
+  }
+}
+
+// The command writes the field and a truth listing every vessel (the far
+// ship included).
+TEST(ScenarioFile, SimulateScenarioWritesFieldAndEveryVesselsTruth) {
+  const std::string dir = testing::TempDir();
+  const std::string scen = testing::TestDataDir() + "/generated/scenarios/heldout/far_ship.toml";
+  const auto [rc, out] = testing::RunCommand({MAGNAV_BIN, "simulate", "--scenario", scen, "--output",
+                                              dir + "/pass.csv", "--truth", dir + "/truth.csv"});
+  ASSERT_EQ(rc, 0) << out;
+  const CsvTable truth = CsvTable::Read(dir + "/truth.csv");
+  const std::size_t id = truth.column("vessel_id");
+  std::map<std::uint32_t, int> rows;
+  for (std::size_t r = 0; r < truth.num_rows(); ++r) ++rows[truth.uint32(r, id)];
+  EXPECT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[1], 1701);  // 170 s at 10 Hz
+  EXPECT_EQ(rows[2], 2001);  // the ship: 640 m at 3.2 m/s
+  const CsvTable pass = CsvTable::Read(dir + "/pass.csv");
+  EXPECT_EQ(pass.num_rows(), 2001u * 9u);
+  // With another field option it is refused.
+  const auto [rc2, out2] = testing::RunCommand({MAGNAV_BIN, "simulate", "--scenario", scen, "--output",
+                                                dir + "/p2.csv", "--grid", "3,3,36"});
+  EXPECT_EQ(rc2, 2) << out2;
+  EXPECT_NE(out2.find("only --output and --truth"), std::string::npos) << out2;
+}
+
+}  // namespace
+}  // namespace magnav

@@ -1,0 +1,56 @@
+// The multi-vessel tracker on a committed harbour-like scenario it was not
+// tuned on (tests/data/generated/scenarios/heldout/crossing.toml: two AUVs
+// on perpendicular paths over a 3x3 grid, closest approach to each other
+// 8.5 m), held to the issue 24 targets (coverage >= 0.8 window / 0.9 batch,
+// one id per vessel, <= 5 % false rows) and to 1.5x its measured RMS
+// (docs/ACCURACY.md, "Harbour-like scenarios"). The other kinds fail the
+// targets today (that table); they are not asserted here.
+#include <gtest/gtest.h>
+
+#include "magnav/cli/scenario_file.h"
+#include "magnav/core/simulate.h"
+#include "magnav/tracker/multi_tracker.h"
+#include "test_data.h"
+#include "two_vessels.h"
+
+namespace magnav::tracker {
+namespace {
+
+FieldScenario HeldOutCrossing() {
+  return cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/heldout/crossing.toml");
+}
+
+TEST(HarbourScenario, WindowTracksTheHeldOutCrossing) {
+  const FieldScenario sc = HeldOutCrossing();
+  const SimulatedField f = SimulateField(sc);
+  MultiTracker tracker(sc.B0, MultiTrackerOptions{});
+  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
+  const auto s = magnav::testing::ScoreField(sc, f, rows);
+  magnav::testing::PrintFieldScores("held-out crossing, window", s);
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;
+  }
+  EXPECT_LE(s.rms[0], 1.5 * 0.0522);  // m, measured 0.0522 (coverage 0.933)
+  EXPECT_LE(s.rms[1], 1.5 * 0.0456);  // m, measured 0.0456 (coverage 0.895)
+}
+
+TEST(HarbourScenario, BatchTracksTheHeldOutCrossing) {
+  const FieldScenario sc = HeldOutCrossing();
+  const SimulatedField f = SimulateField(sc);
+  const MultiTrackerOptions opt;
+  const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
+  const auto s = magnav::testing::ScoreField(sc, f, magnav::testing::BatchRows(tracks));
+  magnav::testing::PrintFieldScores("held-out crossing, batch", s);
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.9) << "vessel " << v + 1;
+  }
+  EXPECT_LE(s.rms[0], 1.5 * 0.0179);  // m, measured 0.0179 (coverage 0.992)
+  EXPECT_LE(s.rms[1], 1.5 * 0.0174);  // m, measured 0.0174 (coverage 0.952)
+}
+
+}  // namespace
+}  // namespace magnav::tracker
