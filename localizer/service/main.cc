@@ -13,6 +13,7 @@
 #include "magnav/cli/options.h"
 #include "magnav/core/error.h"
 #include "magnav/cli/dds_options.h"
+#include "magnav/cli/merge_options.h"
 #include "magnav/dds/service.h"
 #include "magnav/dds/shutdown.h"
 #include "magnav/localizer/input.h"
@@ -32,19 +33,9 @@ int main(int argc, char** argv) {
   magnav::cli::AddVec3Option(app, "--moment-body", &moment, "vessel body moment, A*m^2 (required)");
   app.add_option("--vessel-z", vessel_z_m, "vessel depth (NED z), m (required)")->required();
   app.add_option("--sigma-b", sigma_B_T, "magnetometer noise per axis, T (required)")->required();
-  std::string merge = "watermark";
-  app.add_option("--merge", merge,
-                 "how the streams (each sensor, the GNSS) are merged in time: watermark (an item waits until every "
-                 "live stream has reached its time; restarts and unpaced replays merge exactly) or delay (an item "
-                 "waits until one --reorder-delay newer has arrived)")
-      ->check(CLI::IsMember({"watermark", "delay"}))
-      ->capture_default_str();
-  app.add_option("--idle-timeout", opt.stream.idle_timeout_s,
-                 "watermark: a stream silent this long (wall clock, s) stops holding the others")
-      ->capture_default_str();
-  app.add_option("--reorder-delay", opt.stream.reorder_delay_s,
-                 "delay: hold samples this long (sample time, s) to order the streams")
-      ->capture_default_str();
+  StreamMergeOptions merge = opt.stream.Merge();
+  merge.merge = StreamMerge::kWatermark;
+  magnav::cli::AddMergeOptions(app, &merge, "each sensor, the GNSS");
   std::string method = "ekf-bounded";
   app.add_option("--method", method,
                  "ekf-bounded (memory and cost independent of uptime; = magnav localize --method ekf-bounded) or "
@@ -80,7 +71,9 @@ int main(int argc, char** argv) {
   return magnav::dds::RunService("magnav-localizer", [&] {
     if (!moment.set) throw InputError("--moment-body MX,MY,MZ is required (A*m^2, body frame): no default moment");
     opt.vessel = {moment.value(), vessel_z_m};
-    opt.stream.merge = merge == "delay" ? localizer::StreamMerge::kReorderDelay : localizer::StreamMerge::kWatermark;
+    opt.stream.merge = merge.merge;
+    opt.stream.idle_timeout_s = merge.idle_timeout_s;
+    opt.stream.reorder_delay_s = merge.reorder_delay_s;
     opt.localizer.sigma_B_T = sigma_B_T;
     opt.stream.bounded = method == "ekf-bounded";
     opt.sensors = localizer::ReadDeploymentFile(deployment);

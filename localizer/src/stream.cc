@@ -11,18 +11,7 @@
 namespace magnav::localizer {
 
 bool StreamOptions::IsValid(std::string* error) const {
-  if (!(reorder_delay_s >= 0.0)) {
-    if (error) *error = "reorder_delay_s must be >= 0";
-    return false;
-  }
-  if (!(idle_timeout_s > 0.0) || !std::isfinite(idle_timeout_s)) {
-    if (error) *error = "idle_timeout_s must be finite and > 0";
-    return false;
-  }
-  if (max_pending < 1) {
-    if (error) *error = "max_pending must be >= 1";
-    return false;
-  }
+  if (!Merge().IsValid(error)) return false;
   if (!(init_window_s > 0.0) || !std::isfinite(init_window_s)) {
     if (error) *error = "init_window_s must be finite and > 0";
     return false;
@@ -32,7 +21,7 @@ bool StreamOptions::IsValid(std::string* error) const {
 
 StreamingLocalizer::StreamingLocalizer(const Vessel& vessel, const std::vector<SensorPrior>& sensors,
                                        const LocalizerOptions& options, const StreamOptions& stream)
-    : vessel_(vessel), sensors_(sensors), options_(options), stream_(stream), gate_(sensors) {
+    : vessel_(vessel), sensors_(sensors), options_(options), stream_(stream), gate_(sensors), merge_(stream.Merge()) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("localizer options: " + why);
   if (!stream.IsValid(&why)) throw InputError("stream options: " + why);
@@ -40,8 +29,8 @@ StreamingLocalizer::StreamingLocalizer(const Vessel& vessel, const std::vector<S
   pass_.vessel = vessel;
   pass_.sensors = sensors;
   if (stream.bounded) crlb_.emplace(vessel, sensors, options, stream.bound);
-  streams_[-1] = {};
-  for (const auto& p : sensors) streams_[p.sensor_id] = {};
+  merge_.Declare(-1);
+  for (const auto& p : sensors) merge_.Declare(p.sensor_id);
 }
 
 StreamingLocalizer::~StreamingLocalizer() = default;
@@ -68,54 +57,32 @@ SampleCheck StreamingLocalizer::Buffer(double t_s, int kind, std::int64_t stream
     // The writers' history after a restart: in the checkpoint already. It
     // still tells that its stream is alive and where it is.
     ++already_consumed_;
-    StreamState& st = streams_[stream];
-    st.last_t = std::max(st.last_t, t_s);
-    st.last_arrival = now_s_;
-    if (std::isnan(first_arrival_s_)) first_arrival_s_ = now_s_;
+    merge_.Note(stream, t_s);
     return SampleCheck::kAlreadyConsumed;
   }
   if (t_s < consumed_until_) {
     ++late_;
     return SampleCheck::kTimeBackwards;
   }
-  pending_.emplace(Key{t_s, kind, stream < 0 ? 0 : stream, arrivals_++}, std::move(item));
-  newest_t_ = std::max(newest_t_, t_s);
-  StreamState& st = streams_[stream];
-  st.last_t = std::max(st.last_t, t_s);
-  st.last_arrival = now_s_;
-  if (std::isnan(first_arrival_s_)) first_arrival_s_ = now_s_;
+  // Rank: fixes (−1) before samples at equal times, then by sensor id.
+  merge_.Push(t_s, stream, kind == 0 ? -1 : stream, std::move(item));
   Release(false);
   return SampleCheck::kOk;
 }
 
 void StreamingLocalizer::Tick(double now_s) {
-  now_s_ = now_s;
-  if (stream_.merge == StreamMerge::kWatermark && !pending_.empty()) Release(false);
-}
-
-double StreamingLocalizer::ReleasableUntil() const {
-  if (stream_.merge == StreamMerge::kReorderDelay) return newest_t_ - stream_.reorder_delay_s;
-  // Without a clock every stream counts as live.
-  const bool clock = std::isfinite(now_s_);
-  double live = std::numeric_limits<double>::infinity(), all = std::numeric_limits<double>::infinity();
-  bool any_live = false;
-  for (const auto& [id, st] : streams_) {
-    const double arrival = std::isnan(st.last_arrival) ? first_arrival_s_ : st.last_arrival;
-    const bool seen = !std::isnan(st.last_arrival);
-    if (seen) all = std::min(all, st.last_t);
-    if (clock && !std::isnan(arrival) && now_s_ - arrival > stream_.idle_timeout_s) continue;  // quiet
-    any_live = true;
-    live = std::min(live, st.last_t);
-  }
-  return any_live ? live : all;
+  merge_.Tick(now_s);
+  if (stream_.merge == StreamMerge::kWatermark && !merge_.empty()) Release(false);
 }
 
 bool StreamingLocalizer::TryStart(bool final) {
-  if (pending_.empty()) return false;
-  const double t0 = std::get<0>(pending_.begin()->first);
-  if (!final && ReleasableUntil() - t0 < stream_.init_window_s && pending_.size() < stream_.max_pending) return false;
+  if (merge_.empty()) return false;
+  const double t0 = merge_.front_time();
+  if (!final && merge_.ReleasableUntil() - t0 < stream_.init_window_s && merge_.size() < stream_.max_pending) {
+    return false;
+  }
   std::vector<GnssFix> fixes;
-  for (const auto& [key, item] : pending_) {
+  for (const auto& [key, item] : merge_.pending()) {
     if (const auto* f = std::get_if<GnssFix>(&item)) fixes.push_back(*f);
   }
   VesselVector x0;
@@ -135,10 +102,10 @@ bool StreamingLocalizer::TryStart(bool final) {
   }
   // No usable fixes at the start: slide the start forward.
   if (!final) {
-    const double until = ReleasableUntil();
-    while (!pending_.empty() && (until - std::get<0>(pending_.begin()->first) >= stream_.init_window_s ||
-                                 pending_.size() > stream_.max_pending)) {
-      pending_.erase(pending_.begin());
+    const double until = merge_.ReleasableUntil();
+    while (!merge_.empty() &&
+           (until - merge_.front_time() >= stream_.init_window_s || merge_.size() > stream_.max_pending)) {
+      merge_.PopFront();
       ++dropped_before_start_;
     }
   }
@@ -147,12 +114,7 @@ bool StreamingLocalizer::TryStart(bool final) {
 
 void StreamingLocalizer::Release(bool all) {
   if (!ekf_ && !TryStart(all)) return;
-  const double until = ReleasableUntil();
-  while (!pending_.empty() &&
-         (all || std::get<0>(pending_.begin()->first) <= until || pending_.size() > stream_.max_pending)) {
-    Consume(pending_.begin()->second);
-    pending_.erase(pending_.begin());
-  }
+  merge_.Release([this](const Item& item) { Consume(item); }, all);
 }
 
 void StreamingLocalizer::Consume(const Item& item) {
@@ -236,7 +198,7 @@ std::vector<SensorEstimate> StreamingLocalizer::Snapshot::WithBounds() const {
 }
 
 std::size_t StreamingLocalizer::retained_items() const {
-  return pending_.size() + (crlb_ ? crlb_->window_items() : 0) + pass_.samples.size() + pass_.gnss.size() +
+  return merge_.size() + (crlb_ ? crlb_->window_items() : 0) + pass_.samples.size() + pass_.gnss.size() +
          trajectory_.size() + epoch_t_.size();
 }
 
@@ -367,7 +329,7 @@ std::string StreamingLocalizer::SaveState() const {
 }
 
 void StreamingLocalizer::RestoreState(const std::string& payload) {
-  if (arrivals_ > 0 || ekf_ || restored_) {
+  if (merge_.pushed() > 0 || ekf_ || restored_) {
     throw std::logic_error("StreamingLocalizer::RestoreState: only into a new localizer");
   }
   StateReader r(payload);

@@ -3,10 +3,14 @@
 // magnav::tracker::MultiTracker: tracks start, are confirmed, coast and end;
 // each has its own track_id, never reused in a run, and its own body moment;
 // starts and ends are logged). Samples
-// of several gradiometers arrive on independent streams, so they pass a short
-// reorder buffer first: a sample is handed to the tracker once a sample at
-// least `reorder_delay_s` newer has arrived (or at shutdown); a sample older
-// than what the tracker has already consumed is counted and dropped.
+// of several gradiometers arrive on independent streams, so they are merged
+// in time first (magnav::StreamMerger, core/stream_merge.h; one stream per
+// sensor id, ranked by sensor id at equal times): by default a per-stream
+// watermark (a sample is handed to the tracker once every live sensor has
+// sent one at least as new; a sensor silent for idle_timeout_s of wall clock
+// does not hold the others; Tick every 50 ms), or a reorder delay (once a
+// sample `reorder_delay_s` newer has arrived); the rest at shutdown. A sample
+// older than what the tracker has already consumed is counted and dropped.
 // Unless tracker.init.source is kSamples it also subscribes DipoleFix
 // (magnav-inverter's fixes, rejected ones included) and hands every fix to the
 // tracker's initiator (MultiTracker::AddFix); a fix that cannot be used
@@ -15,6 +19,16 @@
 // once per sensor and skipped) and gets its sensor's B0 from the
 // RegionalFieldSource, which the node subtracts from B (the tracker runs with
 // B0 = 0); a sample whose sensor has no B0 yet is counted and skipped.
+// With a state directory the node checkpoints (Checkpoint: the tracker's
+// whole state, the stream position — time consumed until and the sensors
+// consumed at that time —, the newest fix taken per sensor, the ended tracks
+// still registered, the counters; tracker/checkpoint.h) and at start resumes
+// from it: what the writers' history sends again of what the checkpoint
+// consumed is dropped and counted (already_consumed), the rest goes on as
+// without the restart. A checkpoint is written only once the estimates made
+// before it have been acknowledged by the readers, so a restart from it
+// loses none. Not in it: the items waiting in the merge (they come again
+// from the history) and, with --b0 estimate, the per-sensor B0 estimates.
 #pragma once
 
 #include <set>
@@ -25,6 +39,7 @@
 #include <memory>
 #include <mutex>
 
+#include "magnav/core/stream_merge.h"
 #include "magnav/dds/convert_tracker.h"
 #include "magnav/dds/node.h"
 #include "magnav/dds/queued_writer.h"
@@ -38,7 +53,13 @@ namespace magnav::tracker {
 
 struct TrackerNodeOptions {
   MultiTrackerOptions tracker;
-  double reorder_delay_s = 0.25;  // s of sample time
+  // How the sensors' streams are merged (--merge, --idle-timeout,
+  // --reorder-delay): watermark, idle timeout 2 s (wall clock), reorder
+  // delay 0.25 s (sample time; with --merge delay).
+  StreamMergeOptions merge = {StreamMerge::kWatermark, 0.25, 2.0, 1000000};
+  // Non-empty: checkpoint to STATE_DIR/magnav-tracker.state (Checkpoint) and
+  // resume from it at start (docs/RELIABILITY.md).
+  std::string state_dir;
   // Ended tracks whose estimates stay in the writer's history (the last 1000
   // of each, track_stream profile) for consumers that start late; older ended
   // tracks are unregistered (their history freed). This bounds the writer's
@@ -61,6 +82,19 @@ class TrackerNode {
   TrackerNode(dds::Node& node, const TrackerNodeOptions& options, std::unique_ptr<dds::RegionalFieldSource> b0);
   // Feeds what is still buffered to the tracker and publishes the result.
   void Flush();
+  // The wall clock for the merge's idle streams: call it often (main: every 50 ms).
+  void Tick();
+  // With a state directory: writes the state (tracks, stream position,
+  // counters; tracker/checkpoint.h) atomically to state_path(). False if
+  // nothing was written (no state directory, nothing consumed yet, the
+  // estimates made so far not acknowledged by the readers within 1 s, or the
+  // write failed: logged once; the old file stays).
+  bool Checkpoint();
+  const std::string& state_path() const { return state_path_; }
+  // Started from a checkpoint.
+  bool resumed() const { return resumed_; }
+  // Samples and fixes the writers' history sent again that the checkpoint had consumed.
+  std::uint64_t already_consumed() const { return already_consumed_; }
   // Waits until every estimate is written and the readers acknowledged it
   // (before shutdown).
   bool WaitForAcknowledgments(std::chrono::milliseconds timeout) { return writer_->WaitForAcknowledgments(timeout); }
@@ -88,6 +122,8 @@ class TrackerNode {
   void TakeSample(const dds::msg::GradiometerSample& m);
   void OnFix(const dds::msg::DipoleFix& m, const dds::fdds::SampleInfo& info);
   void Feed(const GradiometerSample& s);  // mu_ held
+  void Resume();                          // from state_path_, at construction
+  std::string ConfigBytes() const;        // what a checkpoint is made for, besides the tracker's own options
   // mu_ held; logs starts and ends, unregisters ended tracks' keys if asked.
   void Publish(const std::vector<TrackOutput>& estimates, bool unregister_ended = true);
 
@@ -100,9 +136,18 @@ class TrackerNode {
   std::unique_ptr<dds::RegionalFieldSource> b0_;
   std::set<std::uint32_t> no_sigma_logged_;  // sensors whose missing σ was logged
   MultiTracker tracker_;
-  std::multimap<double, GradiometerSample> pending_;  // by time
+  StreamMerger<GradiometerSample> merge_;             // streams: sensor ids
   std::deque<std::uint32_t> ended_;                   // ended tracks still registered, oldest first
   double fed_until_s_ = -1e300;
+  std::set<std::uint32_t> fed_at_until_;  // sensors whose sample at fed_until_s_ the tracker took
+  std::map<std::uint32_t, double> fix_until_;  // per sensor: time of the newest fix taken
+  // Checkpoint.
+  std::string state_path_;
+  bool resumed_ = false, checkpoint_failing_ = false;
+  double restored_until_s_ = -1e300;
+  std::set<std::uint32_t> restored_at_until_;
+  std::map<std::uint32_t, double> restored_fix_until_;
+  std::atomic<std::uint64_t> already_consumed_{0};
   // Written under mu_ by the receive threads, read by the stats line without it.
   std::atomic<std::uint64_t> dropped_late_{0}, rejected_{0}, fixes_rejected_{0};
   // Estimates go out from the writer's own thread with flow control: a burst

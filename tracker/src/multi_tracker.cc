@@ -1,4 +1,5 @@
 #include "magnav/tracker/multi_tracker.h"
+#include "state_io.h"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -8,6 +9,7 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 
 #include "magnav/core/csv.h"
 #include "magnav/core/dipole.h"
@@ -446,6 +448,150 @@ std::vector<TrackRecord> MultiTracker::Tracks() const {
 }
 
 int MultiTracker::num_live_tracks() const { return static_cast<int>(impl_->tracks.size()); }
+
+namespace {
+// Payload tag after the configuration.
+constexpr std::uint32_t kStateTag = 0x4b435254;  // "TRCK"
+
+void PutState(StateWriter& w, const CtState<double>& s) {
+  for (double v : {s.x, s.y, s.z, s.v, s.heading, s.turn_rate}) w.F64(v);
+}
+CtState<double> GetState(StateReader& r) {
+  CtState<double> s{};
+  for (double* v : {&s.x, &s.y, &s.z, &s.v, &s.heading, &s.turn_rate}) *v = r.F64();
+  return s;
+}
+}  // namespace
+
+std::string MultiTracker::SaveState() const {
+  const Impl& m = *impl_;
+  StateWriter w;
+  w.Bytes(internal::OptionsBytes(m.B0_W, m.options));
+  w.U32(kStateTag);
+  w.U64(m.tracks.size());
+  for (const Track& tr : m.tracks) {
+    tr.engine->SaveState(w);
+    w.U32(tr.id);
+    tr.life.SaveState(w);
+    w.Bytes(tr.origin);
+    w.U8(tr.has_pred ? 1 : 0);
+    PutState(w, tr.pred);
+    w.Matrix(tr.m_B);
+    w.U8(tr.ended ? 1 : 0);
+    w.U64(tr.taken.size());
+    for (const auto& k : tr.taken) {
+      w.F64(k.t_s);
+      w.U64(k.index);
+      w.Matrix(k.B);
+      w.Matrix(k.T);
+    }
+  }
+  w.U64(m.records.size());
+  for (const TrackRecord& r : m.records) {
+    w.U32(r.track_id);
+    w.U8(r.live ? 1 : 0);
+    for (double v : {r.t_start_s, r.t_end_s, r.t_last_detection_s}) w.F64(v);
+    w.Bytes(r.end_reason);
+    w.I64(r.num_estimates);
+    w.Matrix(r.m_B_Am2);
+    w.Matrix(r.cov_m_B);
+  }
+  w.U32(m.next_id);
+  w.U64(m.events.size());
+  for (const TrackEvent& e : m.events) {
+    w.U8(e.kind == TrackEvent::Kind::kStarted ? 0 : 1);
+    w.U32(e.track_id);
+    w.F64(e.t_s);
+    w.Bytes(e.reason);
+  }
+  const MultiSummary& sm = m.summary;
+  for (int v : {sm.num_epochs, sm.num_rejected_samples, sm.num_tentative_dropped, sm.num_starts_refused,
+                sm.num_confirmed, sm.num_ended}) {
+    w.I64(v);
+  }
+  internal::PutDeque(w, m.buffer);
+  internal::PutDeque(w, m.fixes);
+  w.U8(m.any_fix ? 1 : 0);
+  w.F64(m.last_init_t);
+  w.U8(m.has_pending ? 1 : 0);
+  internal::Put(w, m.pending);
+  w.F64(m.last_t);
+  return w.bytes();
+}
+
+void MultiTracker::RestoreState(const std::string& payload) {
+  const Impl& old = *impl_;
+  if (!old.tracks.empty() || !old.records.empty() || old.has_pending || !old.buffer.empty() || old.any_fix ||
+      old.summary.num_epochs > 0 || old.summary.num_rejected_samples > 0) {
+    throw std::logic_error("MultiTracker::RestoreState: only into a new multi-tracker");
+  }
+  StateReader r(payload);
+  if (r.Bytes(payload.size()) != internal::OptionsBytes(old.B0_W, old.options)) {
+    throw CheckpointError("made for other tracker options or another B0");
+  }
+  if (r.U32() != kStateTag) throw CheckpointError("corrupt: no tracker state section");
+  auto fresh = std::make_unique<Impl>();
+  Impl& m = *fresh;
+  m.B0_W = old.B0_W;
+  m.options = old.options;
+  for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
+    Track tr;
+    tr.engine = std::make_unique<WindowTracker>(m.B0_W, m.options.track);
+    tr.engine->RestoreState(r);
+    tr.id = r.U32();
+    tr.life = TrackLifeCycle(0.0, m.options.management);
+    tr.life.RestoreState(r);
+    tr.origin = r.Bytes(internal::kMaxStateCount);
+    tr.has_pred = r.U8() != 0;
+    tr.pred = GetState(r);
+    tr.m_B = internal::GetMatrix(r, 3, 1);
+    tr.ended = r.U8() != 0;
+    tr.taken.resize(r.Count(internal::kMaxStateCount));
+    for (auto& k : tr.taken) {
+      k.t_s = r.F64();
+      k.index = static_cast<std::size_t>(r.U64());
+      k.B = internal::GetMatrix(r, 3, 1);
+      k.T = internal::GetMatrix(r, 3, 3);
+    }
+    m.tracks.push_back(std::move(tr));
+  }
+  m.records.resize(r.Count(internal::kMaxStateCount));
+  for (TrackRecord& rec : m.records) {
+    rec.track_id = r.U32();
+    rec.live = r.U8() != 0;
+    for (double* v : {&rec.t_start_s, &rec.t_end_s, &rec.t_last_detection_s}) *v = r.F64();
+    rec.end_reason = r.Bytes(internal::kMaxStateCount);
+    rec.num_estimates = static_cast<int>(r.I64());
+    rec.m_B_Am2 = internal::GetMatrix(r, 3, 1);
+    rec.cov_m_B = internal::GetMatrix(r, 3, 3);
+  }
+  m.next_id = r.U32();
+  for (const Track& tr : m.tracks) {
+    if (tr.id != 0 && tr.id > m.records.size()) throw CheckpointError("corrupt: a track without its record");
+  }
+  if (m.next_id != m.records.size() + 1) throw CheckpointError("corrupt: track ids and records disagree");
+  m.events.resize(r.Count(internal::kMaxStateCount));
+  for (TrackEvent& e : m.events) {
+    e.kind = r.U8() == 0 ? TrackEvent::Kind::kStarted : TrackEvent::Kind::kEnded;
+    e.track_id = r.U32();
+    e.t_s = r.F64();
+    e.reason = r.Bytes(internal::kMaxStateCount);
+  }
+  MultiSummary& sm = m.summary;
+  for (int* v : {&sm.num_epochs, &sm.num_rejected_samples, &sm.num_tentative_dropped, &sm.num_starts_refused,
+                 &sm.num_confirmed, &sm.num_ended}) {
+    *v = static_cast<int>(r.I64());
+  }
+  internal::GetDeque(r, &m.buffer);
+  internal::GetDeque(r, &m.fixes);
+  m.any_fix = r.U8() != 0;
+  m.last_init_t = r.F64();
+  m.has_pending = r.U8() != 0;
+  internal::Get(r, &m.pending);
+  m.last_t = r.F64();
+  if (!r.at_end()) throw CheckpointError("corrupt: bytes after the tracker state");
+  impl_ = std::move(fresh);
+}
 const MultiSummary& MultiTracker::summary() const { return impl_->summary; }
 
 }  // namespace magnav::tracker

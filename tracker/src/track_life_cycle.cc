@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "magnav/core/checkpoint.h"
+
 namespace magnav::tracker {
 
 namespace {
@@ -66,6 +68,22 @@ bool TrackLifeCycle::OnDuplicateCheck(double t_s, bool close_to_older) {
   if (!confirmed_) return true;
   if (std::isnan(duplicate_since_)) duplicate_since_ = t_s;
   return t_s - duplicate_since_ >= options_.max_miss_s;
+}
+
+void TrackLifeCycle::SaveState(StateWriter& w) const {
+  w.U8(confirmed_ ? 1 : 0);
+  w.F64(t_created_);
+  w.I64(seen_);
+  w.I64(detections_);
+  for (double v : {t_last_detection_, miss_since_, unusable_since_, duplicate_since_, sigma_h_}) w.F64(v);
+}
+
+void TrackLifeCycle::RestoreState(StateReader& r) {
+  confirmed_ = r.U8() != 0;
+  t_created_ = r.F64();
+  seen_ = static_cast<int>(r.I64());
+  detections_ = static_cast<int>(r.I64());
+  for (double* v : {&t_last_detection_, &miss_since_, &unusable_since_, &duplicate_since_, &sigma_h_}) *v = r.F64();
 }
 
 }  // namespace magnav::tracker

@@ -6,8 +6,10 @@
 #include <deque>
 #include <limits>
 #include <optional>
+#include <stdexcept>
 
 #include "factors.h"
+#include "state_io.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/units.h"
@@ -534,6 +536,82 @@ void WindowTracker::AddFix(const DipoleFix& fix) {
   if (!m.buffer.empty() && fix.t_s < m.buffer.front().t_s - m.options.epoch_tolerance_s) return;
   m.fixes.push_back(fix);
   if (m.fixes.size() > kMaxPendingFixes) m.fixes.pop_front();
+}
+
+void WindowTracker::SaveState(StateWriter& w) const {
+  const Impl& m = *impl_;
+  internal::PutDeque(w, m.buffer);
+  internal::PutDeque(w, m.fixes);
+  w.U8(m.any_fix ? 1 : 0);
+  w.U8(m.has_pending ? 1 : 0);
+  internal::Put(w, m.pending);
+  w.U8(m.initialized ? 1 : 0);
+  w.F64(m.moment_scale);
+  w.Matrix(m.moment);
+  w.Matrix(m.cov_m_B);
+  w.U64(m.window.size());
+  for (const WindowEpoch& e : m.window) {
+    internal::Put(w, e.epoch);
+    w.Matrix(e.x);
+  }
+  const auto* prior = dynamic_cast<const PriorCost*>(m.prior.cost.get());
+  if (m.prior.cost && !prior) throw std::logic_error("WindowTracker::SaveState: a prior of another kind");
+  w.U8(prior ? 1 : 0);
+  if (prior) {
+    w.Matrix(prior->L());
+    w.Matrix(prior->x_bar());
+    w.Matrix(prior->c());
+  }
+  internal::Put(w, m.summary);
+  w.I64(m.unsolved);
+  w.F64(m.last_solve_t);
+  w.I64(m.rejected_samples);
+  w.I64(m.dropped_factors);
+  w.U8(m.chain_ok ? 1 : 0);
+  w.U8(m.chain_fresh ? 1 : 0);
+}
+
+void WindowTracker::RestoreState(StateReader& r) {
+  // Into a new Impl, swapped in once everything has been read.
+  auto fresh = std::make_unique<Impl>();
+  Impl& m = *fresh;
+  m.B0_W = impl_->B0_W;
+  m.options = impl_->options;
+  m.meas_loss = MakeCeresLoss(m.options.measurement_loss, m.options.measurement_loss_scale_sigma);
+  m.turn_loss = MakeCeresLoss(m.options.process.turn_rate_loss, m.options.process.turn_rate_loss_scale_sigma);
+  internal::GetDeque(r, &m.buffer);
+  internal::GetDeque(r, &m.fixes);
+  m.any_fix = r.U8() != 0;
+  m.has_pending = r.U8() != 0;
+  internal::Get(r, &m.pending);
+  m.initialized = r.U8() != 0;
+  m.moment_scale = r.F64();
+  m.moment = internal::GetMatrix(r, 3, 1);
+  m.cov_m_B = internal::GetMatrix(r, 3, 3);
+  for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
+    Epoch e;
+    internal::Get(r, &e);
+    const StateVector x = internal::GetMatrix(r, 6, 1);
+    m.Append(e, x);  // the measurement and process factors, as when it was first appended
+  }
+  if (r.U8() != 0) {
+    const Eigen::Matrix<double, 9, 9> L = internal::GetMatrix(r, 9, 9);
+    const Eigen::Matrix<double, 9, 1> x_bar = internal::GetMatrix(r, 9, 1);
+    const Eigen::Matrix<double, 9, 1> c = internal::GetMatrix(r, 9, 1);
+    if (m.window.empty()) throw CheckpointError("corrupt: a window prior without a window");
+    m.prior.cost = std::make_unique<PriorCost>(L, x_bar, c);
+    m.prior.blocks = {m.window.front().x.data(), m.moment.data()};
+  }
+  internal::Get(r, &m.summary);
+  m.unsolved = static_cast<int>(r.I64());
+  m.last_solve_t = r.F64();
+  m.rejected_samples = static_cast<int>(r.I64());
+  m.dropped_factors = static_cast<int>(r.I64());
+  m.chain_ok = r.U8() != 0;
+  // The factorisation is of the window at its current estimate: made again.
+  if (r.U8() != 0 && !m.window.empty()) m.chain_fresh = internal::FactorizeChain(m.Chain(), &m.chain);
+  if (m.initialized && m.window.empty()) throw CheckpointError("corrupt: a track without a window");
+  impl_ = std::move(fresh);
 }
 
 bool WindowTracker::initialized() const { return impl_->initialized; }

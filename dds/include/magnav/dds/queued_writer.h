@@ -71,6 +71,23 @@ class QueuedWriter {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     return writer_->WaitForAcknowledgments(std::max(left, std::chrono::milliseconds(0)));
   }
+  // Messages queued so far (writes and unregistrations, dropped ones included).
+  std::uint64_t pushed() const {
+    std::lock_guard<std::mutex> lk(mu_);
+    return pushed_;
+  }
+  // Waits until the first `count` messages queued have been handed to the
+  // middleware (or dropped) and every matched reader acknowledged what was
+  // written by then; newer messages may still be queued. False on timeout.
+  bool WaitForDelivered(std::uint64_t count, std::chrono::milliseconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    {
+      std::unique_lock<std::mutex> lk(mu_);
+      if (!idle_cv_.wait_until(lk, deadline, [&] { return done_ >= count; })) return false;
+    }
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    return writer_->WaitForAcknowledgments(std::max(left, std::chrono::milliseconds(0)));
+  }
   const EndpointStats& stats() const { return writer_->stats(); }
   std::uint64_t dropped() const {
     std::lock_guard<std::mutex> lk(mu_);
@@ -97,8 +114,10 @@ class QueuedWriter {
       if (queue_.size() >= max_queued_) {
         queue_.pop_front();
         ++dropped_;
+        ++done_;
       }
       queue_.push_back(std::move(op));
+      ++pushed_;
     }
     cv_.notify_all();
   }
@@ -117,7 +136,8 @@ class QueuedWriter {
       lk.lock();
       if (!ok) ++refused_;
       writing_ = false;
-      if (queue_.empty()) idle_cv_.notify_all();
+      ++done_;
+      idle_cv_.notify_all();
     }
     idle_cv_.notify_all();
   }
@@ -129,6 +149,7 @@ class QueuedWriter {
   std::deque<Op> queue_;
   bool stop_ = false, writing_ = false;
   std::uint64_t dropped_ = 0, refused_ = 0;
+  std::uint64_t pushed_ = 0, done_ = 0;  // queued so far; written, refused or dropped so far
   std::thread thread_;
 };
 

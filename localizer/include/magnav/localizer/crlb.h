@@ -25,10 +25,12 @@
 #include "magnav/localizer/options.h"
 #include "magnav/localizer/types.h"
 
-namespace magnav::localizer {
-
-class StateWriter;
+namespace magnav {
+class StateWriter;  // core/checkpoint.h
 class StateReader;
+}  // namespace magnav
+
+namespace magnav::localizer {
 
 // The epochs of a pass: times at which the estimators keep a vessel state
 // (samples and fixes within options.epoch_tolerance_s of an epoch's first

@@ -25,10 +25,12 @@
 #include "magnav/localizer/crlb.h"
 #include "magnav/localizer/types.h"
 
-namespace magnav::localizer {
-
-class StateWriter;
+namespace magnav {
+class StateWriter;  // core/checkpoint.h
 class StateReader;
+}  // namespace magnav
+
+namespace magnav::localizer {
 
 // The 1-σ (m) a fix is used with: options.gnss_sigma_m if set, else the fix's.
 double GnssSigma(const GnssFix& fix, const LocalizerOptions& options);

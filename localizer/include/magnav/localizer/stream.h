@@ -21,6 +21,7 @@
 #include <variant>
 #include <vector>
 
+#include "magnav/core/stream_merge.h"
 #include "magnav/localizer/crlb.h"
 #include "magnav/localizer/ekf.h"
 #include "magnav/localizer/input.h"
@@ -30,22 +31,13 @@
 namespace magnav::localizer {
 
 // How the streams (each sensor's samples, the GNSS fixes) are merged in time
-// before the EKF takes them.
-enum class StreamMerge {
-  // An item is handed on once an item reorder_delay_s newer (sample time) has
-  // arrived on any stream, or at Flush. For streams that arrive merged
-  // already (a file; RunEkf hands everything on at Flush).
-  kReorderDelay,
-  // Per-stream watermark: an item is handed on once every live stream has
-  // sent an item at least as new. A stream that has sent nothing for
-  // idle_timeout_s of wall-clock time (Tick) does not hold the others (a
-  // quiet or dead sensor); a stream not seen yet holds them for
-  // idle_timeout_s from the first arrival (two topics' histories that arrive
-  // one after the other after a restart). When every stream is quiet, items
-  // up to the oldest stream's last time are handed on. Independent of
-  // arrival pace: unpaced replays and a service's restart merge exactly.
-  kWatermark,
-};
+// before the EKF takes them: magnav::StreamMerger (core/stream_merge.h), the
+// streams being the GNSS (declared first) and each sensor (declared), the
+// rank −1 for fixes and the sensor id for samples. kReorderDelay suits
+// streams that arrive merged already (a file; RunEkf hands everything on at
+// Flush); kWatermark (what magnav-localizer runs) merges restarts and
+// unpaced replays exactly.
+using magnav::StreamMerge;
 
 struct StreamOptions {
   StreamMerge merge = StreamMerge::kReorderDelay;
@@ -74,6 +66,8 @@ struct StreamOptions {
   IncrementalCrlbOptions bound;
 
   bool IsValid(std::string* error) const;
+  // The merge part of these options.
+  StreamMergeOptions Merge() const { return {merge, reorder_delay_s, idle_timeout_s, max_pending}; }
 };
 
 class StreamingLocalizer {
@@ -160,13 +154,7 @@ class StreamingLocalizer {
 
  private:
   using Item = std::variant<MagSample, GnssFix>;
-  // Time, 0 = fix / 1 = sample, sensor id (0 for fixes), arrival: at equal
-  // times the order does not depend on arrival across sensors (a relay or
-  // another vendor may interleave sensors differently), so live = offline.
-  using Key = std::tuple<double, int, std::int64_t, std::uint64_t>;
   SampleCheck Buffer(double t_s, int kind, std::int64_t stream, Item item);
-  // Items up to this time may be handed on now.
-  double ReleasableUntil() const;
   void Release(bool all);
   bool TryStart(bool final);
   void Consume(const Item& item);
@@ -178,16 +166,8 @@ class StreamingLocalizer {
   LocalizerOptions options_;
   StreamOptions stream_;
   InputGate gate_;
-  std::map<Key, Item> pending_;
-  struct StreamState {
-    double last_t = -std::numeric_limits<double>::infinity();  // sample time of its newest item
-    double last_arrival = std::numeric_limits<double>::quiet_NaN();  // wall clock; NaN: not seen yet
-  };
-  std::map<std::int64_t, StreamState> streams_;  // -1: the GNSS; else the sensor id
-  double now_s_ = std::numeric_limits<double>::quiet_NaN();
-  double first_arrival_s_ = std::numeric_limits<double>::quiet_NaN();
-  std::uint64_t arrivals_ = 0;
-  double newest_t_ = -std::numeric_limits<double>::infinity();
+  // Streams: −1 the GNSS, else the sensor id.
+  StreamMerger<Item> merge_;
   double consumed_until_ = -std::numeric_limits<double>::infinity();
   std::unique_ptr<LocalizerEkf> ekf_;
   // Bounded: the bound's recursion and window.

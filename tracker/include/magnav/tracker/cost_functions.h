@@ -116,6 +116,9 @@ class PriorCost final : public ceres::SizedCostFunction<9, 6, 3> {
             const Eigen::Matrix<double, 9, 1>& c)
       : L_(L), x_bar_(x_bar), c_(c) {}
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+  const Eigen::Matrix<double, 9, 9>& L() const { return L_; }
+  const Eigen::Matrix<double, 9, 1>& x_bar() const { return x_bar_; }
+  const Eigen::Matrix<double, 9, 1>& c() const { return c_; }
 
  private:
   Eigen::Matrix<double, 9, 9> L_;

@@ -191,6 +191,22 @@ class MultiTracker {
   int num_live_tracks() const;  // confirmed + tentative
   const MultiSummary& summary() const;
 
+  // Checkpoint (tracker/checkpoint.h; docs/RELIABILITY.md): a payload with
+  // the configuration it was made for (B0, every option the results depend
+  // on) and everything that changes: the live tracks (confirmed and
+  // tentative: ids, management state, each engine's window, states,
+  // moment, prior and covariance; WindowTracker::SaveState), the records of
+  // every confirmed track, the next id, the counters, the initiator's
+  // buffer and fixes, the epoch being filled, the events not taken yet.
+  // Every double bit for bit.
+  std::string SaveState() const;
+  // Into a multi-tracker made with the same B0 and options and fed nothing
+  // (std::logic_error otherwise). Throws CheckpointError with the reason
+  // (corrupt, truncated, made for other options) and leaves the tracker as
+  // it was. Afterwards it goes on exactly as the saved one would: fed the
+  // same samples from there, it gives the same estimates, bit for bit.
+  void RestoreState(const std::string& payload);
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;

@@ -20,6 +20,7 @@
 #include <string>
 
 #include "magnav/tracker/multi_tracker.h"
+#include "magnav/tracker/tracker.h"
 
 namespace magnav::tracker {
 
@@ -47,6 +48,12 @@ class TrackLifeCycle {
   bool confirmed() const { return confirmed_; }
   double t_last_detection_s() const { return t_last_detection_; }
   double sigma_horizontal_m() const { return sigma_h_; }
+
+  // Checkpoint (tracker/checkpoint.h; MultiTracker::SaveState): the whole
+  // state, doubles bit for bit; RestoreState into one made with the same
+  // options. Throws CheckpointError if the bytes do not fit.
+  void SaveState(StateWriter& w) const;
+  void RestoreState(StateReader& r);
 
  private:
   TrackManagementOptions options_;

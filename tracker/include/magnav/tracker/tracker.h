@@ -28,6 +28,11 @@
 #include "magnav/inversion/inverter.h"
 #include "magnav/tracker/options.h"
 
+namespace magnav {
+class StateWriter;  // core/checkpoint.h
+class StateReader;
+}  // namespace magnav
+
 namespace magnav::tracker {
 
 // Samples of all gradiometers taken at one instant.
@@ -138,6 +143,16 @@ class WindowTracker {
   Eigen::Matrix3d cov_m_B() const;
   // Summary of the last window solve.
   const Summary& last_summary() const;
+
+  // Checkpoint (tracker/checkpoint.h): everything that changes after
+  // construction (the initiator's buffer and fixes, the epoch being filled,
+  // the window's epochs and states, the moment, the marginalisation prior,
+  // counters), every double bit for bit; the factors are rebuilt from them.
+  // RestoreState into a tracker made with the same B0 and options, fed
+  // nothing; then it goes on exactly as the saved one would. Throws
+  // CheckpointError if the bytes do not fit.
+  void SaveState(StateWriter& w) const;
+  void RestoreState(StateReader& r);
 
  private:
   struct Impl;

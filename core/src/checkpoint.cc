@@ -1,4 +1,4 @@
-#include "magnav/localizer/checkpoint.h"
+#include "magnav/core/checkpoint.h"
 
 #include <bit>
 #include <cerrno>
@@ -9,12 +9,11 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-namespace magnav::localizer {
+namespace magnav {
 
 static_assert(std::endian::native == std::endian::little, "checkpoints are written little-endian");
 
 namespace {
-constexpr char kMagic[8] = {'M', 'A', 'G', 'N', 'A', 'V', 'L', 'C'};
 constexpr std::size_t kHeader = 8 + 4 + 8;
 }  // namespace
 
@@ -86,10 +85,11 @@ std::uint64_t Fnv1a64(std::string_view bytes) {
   return h;
 }
 
-std::string EncodeCheckpoint(std::string_view payload) {
+std::string EncodeCheckpoint(const CheckpointKind& kind, std::string_view payload) {
+  if (kind.magic.size() != 8) throw std::logic_error("EncodeCheckpoint: the magic must be 8 bytes");
   StateWriter w;
-  std::string out(kMagic, sizeof kMagic);
-  w.U32(kCheckpointVersion);
+  std::string out(kind.magic);
+  w.U32(kind.version);
   w.U64(payload.size());
   out += w.bytes();
   out += payload;
@@ -98,19 +98,20 @@ std::string EncodeCheckpoint(std::string_view payload) {
   return out + sum.bytes();
 }
 
-std::string DecodeCheckpoint(std::string_view file) {
-  if (file.size() < sizeof kMagic || std::memcmp(file.data(), kMagic, sizeof kMagic) != 0) {
-    throw CheckpointError("not a magnav-localizer checkpoint (no MAGNAVLC magic)");
+std::string DecodeCheckpoint(const CheckpointKind& kind, std::string_view file) {
+  if (file.size() < kind.magic.size() || file.substr(0, kind.magic.size()) != kind.magic) {
+    throw CheckpointError("not a " + std::string(kind.program) + " checkpoint (no " + std::string(kind.magic) +
+                          " magic)");
   }
   if (file.size() < kHeader + 8) {
     throw CheckpointError("truncated: " + std::to_string(file.size()) + " bytes, shorter than a header and checksum");
   }
-  StateReader r(file.substr(sizeof kMagic, 12));
+  StateReader r(file.substr(8, 12));
   const std::uint32_t version = r.U32();
   const std::uint64_t length = r.U64();
-  if (version != kCheckpointVersion) {
+  if (version != kind.version) {
     throw CheckpointError("format version " + std::to_string(version) + ", this program reads version " +
-                          std::to_string(kCheckpointVersion));
+                          std::to_string(kind.version));
   }
   if (length != file.size() - kHeader - 8) {
     throw CheckpointError((length > file.size() - kHeader - 8 ? "truncated: " : "corrupt: ") +
@@ -183,4 +184,4 @@ bool ReadWholeFile(const std::string& path, std::string* bytes) {
   return true;
 }
 
-}  // namespace magnav::localizer
+}  // namespace magnav

@@ -1,0 +1,236 @@
+// Checkpoints of the multi-vessel tracker (MultiTracker::SaveState /
+// RestoreState, tracker/checkpoint.h): a tracker restored from a checkpoint
+// taken with two live tracks goes on bit for bit as the uninterrupted one;
+// a checkpoint that is corrupt, truncated, of another version, another kind
+// or made for other options is refused with the reason and changes nothing.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "magnav/core/checkpoint.h"
+#include "magnav/core/gradiometer.h"
+#include "magnav/core/simulate.h"
+#include "magnav/tracker/checkpoint.h"
+#include "magnav/tracker/multi_tracker.h"
+#include "test_data.h"
+#include "two_vessels.h"
+
+namespace magnav::tracker {
+namespace {
+
+struct Outputs {
+  std::vector<TrackOutput> out;  // every output, in order
+  std::vector<TrackEvent> events;
+};
+
+void Take(MultiTracker& t, const std::vector<TrackOutput>& out, Outputs* run) {
+  run->out.insert(run->out.end(), out.begin(), out.end());
+  for (auto& e : t.TakeEvents()) run->events.push_back(e);
+}
+
+void ExpectSame(const TrackOutput& a, const TrackOutput& b) {
+  EXPECT_EQ(a.track_id, b.track_id);
+  EXPECT_EQ(a.estimate.t_s, b.estimate.t_s);
+  EXPECT_EQ(a.estimate.usable, b.estimate.usable);
+  EXPECT_TRUE((a.estimate.p_VinW.array() == b.estimate.p_VinW.array()).all()) << a.estimate.t_s;
+  EXPECT_EQ(a.estimate.heading_rad, b.estimate.heading_rad);
+  EXPECT_EQ(a.estimate.turn_rate_radps, b.estimate.turn_rate_radps);
+  EXPECT_TRUE((a.estimate.cov_state.array() == b.estimate.cov_state.array()).all()) << a.estimate.t_s;
+  EXPECT_TRUE((a.m_B_Am2.array() == b.m_B_Am2.array()).all()) << a.estimate.t_s;
+  EXPECT_TRUE((a.cov_m_B.array() == b.cov_m_B.array()).all()) << a.estimate.t_s;
+}
+
+struct Fixture {
+  FieldScenario sc = testing::TwoVesselScenario();
+  SimulatedField f = SimulateField(sc);
+  MultiTrackerOptions options;
+  // The index of the first sample after the checkpoint: both vessels have a
+  // confirmed track and the first is in the middle of the field.
+  std::size_t cut = 0;
+  std::string payload;
+  Outputs whole;  // uninterrupted
+  std::size_t outputs_before_cut = 0, events_before_cut = 0;
+  std::vector<TrackRecord> records;  // of the uninterrupted run, at its end
+  MultiSummary summary;
+
+  Fixture() {
+    MultiTracker t(sc.B0, options);
+    for (std::size_t i = 0; i < f.samples.size(); ++i) {
+      if (cut == 0 && t.summary().num_confirmed == 2 && i > 0 && f.samples[i].t_s != f.samples[i - 1].t_s &&
+          f.samples[i].t_s > f.samples.front().t_s + 45.0) {
+        // At an epoch boundary with a pending epoch: the epoch being filled is in the state too.
+        cut = i;
+        payload = t.SaveState();
+        outputs_before_cut = whole.out.size();
+        events_before_cut = whole.events.size();  // (Take drains them after every call)
+      }
+      Take(t, t.AddSample(f.samples[i]), &whole);
+    }
+    Take(t, t.Flush(), &whole);
+    records = t.Tracks();
+    summary = t.summary();
+  }
+};
+
+const Fixture& Shared() {
+  static const Fixture* fx = new Fixture();
+  return *fx;
+}
+
+TEST(TrackerCheckpoint, RestoredTrackerGoesOnBitForBit) {
+  const Fixture& fx = Shared();
+  ASSERT_GT(fx.cut, 0u) << "no instant with both tracks confirmed";
+  ASSERT_LT(fx.cut, fx.f.samples.size());
+  const std::string file = EncodeTrackerCheckpoint(fx.payload);
+  MultiTracker t(fx.sc.B0, fx.options);
+  t.RestoreState(DecodeTrackerCheckpoint(file));
+  EXPECT_EQ(t.num_live_tracks(), 2);
+  EXPECT_EQ(t.summary().num_confirmed, 2);
+  Outputs after;
+  for (std::size_t i = fx.cut; i < fx.f.samples.size(); ++i) Take(t, t.AddSample(fx.f.samples[i]), &after);
+  Take(t, t.Flush(), &after);
+  ASSERT_EQ(after.out.size(), fx.whole.out.size() - fx.outputs_before_cut);
+  ASSERT_GT(after.out.size(), 100u);
+  std::printf("checkpoint at t = %.1f s (sample %zu of %zu, 2 live tracks, %zu bytes): the %zu outputs after it "
+              "compared\n",
+              fx.f.samples[fx.cut].t_s, fx.cut, fx.f.samples.size(), file.size(), after.out.size());
+  for (std::size_t k = 0; k < after.out.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after.out[k], fx.whole.out[fx.outputs_before_cut + k]);
+    if (HasFailure()) break;
+  }
+  // The same ends, records and counters.
+  ASSERT_EQ(after.events.size(), fx.whole.events.size() - fx.events_before_cut);
+  for (std::size_t k = 0; k < after.events.size(); ++k) {
+    const TrackEvent& a = after.events[k];
+    const TrackEvent& b = fx.whole.events[fx.events_before_cut + k];
+    EXPECT_EQ(a.track_id, b.track_id);
+    EXPECT_EQ(a.t_s, b.t_s);
+    EXPECT_EQ(a.reason, b.reason);
+  }
+  const std::vector<TrackRecord> a = t.Tracks();
+  ASSERT_EQ(a.size(), fx.records.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].track_id, fx.records[k].track_id);
+    EXPECT_EQ(a[k].t_start_s, fx.records[k].t_start_s);
+    EXPECT_EQ(a[k].t_end_s, fx.records[k].t_end_s);
+    EXPECT_EQ(a[k].end_reason, fx.records[k].end_reason);
+    EXPECT_EQ(a[k].num_estimates, fx.records[k].num_estimates);
+    EXPECT_TRUE((a[k].m_B_Am2.array() == fx.records[k].m_B_Am2.array()).all());
+  }
+  EXPECT_EQ(t.summary().num_epochs, fx.summary.num_epochs);
+  EXPECT_EQ(t.summary().num_confirmed, fx.summary.num_confirmed);
+  EXPECT_EQ(t.summary().num_tentative_dropped, fx.summary.num_tentative_dropped);
+}
+
+// RestoreState(DecodeTrackerCheckpoint(file)) into a new tracker with `options`:
+// the CheckpointError's message, or "" if it was taken.
+std::string Refusal(const std::string& file, const MultiTrackerOptions& options, const Eigen::Vector3d& B0) {
+  MultiTracker t(B0, options);
+  try {
+    t.RestoreState(DecodeTrackerCheckpoint(file));
+  } catch (const CheckpointError& e) {
+    // Refused: the tracker is as new.
+    EXPECT_EQ(t.num_live_tracks(), 0);
+    EXPECT_EQ(t.summary().num_confirmed, 0);
+    return e.what();
+  }
+  return "";
+}
+
+// A payload of the AUV pass (1 sensor, B0 removed) taken at 85.4 s with the track live: cheap to make.
+struct PassPayload {
+  Eigen::Vector3d B0 = Eigen::Vector3d::Zero();
+  MultiTrackerOptions options;
+  std::string payload;
+  GradiometerSample first;
+  PassPayload() {
+    const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv"));
+    MultiTracker t(B0, options);
+    first = file.samples.front();
+    for (GradiometerSample s : file.samples) {
+      s.B -= *file.B0;
+      if (s.t_s > 85.4) break;
+      t.AddSample(s);
+    }
+    EXPECT_EQ(t.num_live_tracks(), 1);
+    payload = t.SaveState();
+  }
+};
+
+TEST(TrackerCheckpoint, BadFilesAreRefusedWithTheReason) {
+  const PassPayload fx;
+  const std::string good = EncodeTrackerCheckpoint(fx.payload);
+  EXPECT_EQ(Refusal(good, fx.options, fx.B0), "");
+
+  std::string flipped = good;
+  flipped[good.size() / 2] ^= 0x10;
+  EXPECT_NE(Refusal(flipped, fx.options, fx.B0).find("checksum"), std::string::npos);
+  EXPECT_NE(Refusal(good.substr(0, good.size() - 3), fx.options, fx.B0).find("truncated"), std::string::npos);
+  std::string version = good;
+  version[8] = 2;  // u32 version at offset 8
+  EXPECT_NE(Refusal(version, fx.options, fx.B0).find("version 2"), std::string::npos);
+  // A localizer's checkpoint (another magic) is not a tracker's.
+  const std::string other = EncodeCheckpoint({"MAGNAVLC", 1, "magnav-localizer"}, fx.payload);
+  EXPECT_NE(Refusal(other, fx.options, fx.B0).find("not a magnav-tracker checkpoint"), std::string::npos);
+  // Made for other options, or another B0.
+  MultiTrackerOptions changed = fx.options;
+  changed.management.max_coast_s = 9.0;
+  EXPECT_NE(Refusal(good, changed, fx.B0).find("other tracker options"), std::string::npos);
+  EXPECT_NE(Refusal(good, fx.options, Eigen::Vector3d(1e-9, 0.0, 0.0)).find("another B0"), std::string::npos);
+  // A payload cut inside the state (re-sealed, so the checksum passes).
+  const std::string cut = EncodeTrackerCheckpoint(fx.payload.substr(0, fx.payload.size() - 100));
+  EXPECT_NE(Refusal(cut, fx.options, fx.B0).find("truncated"), std::string::npos);
+  // Only into a new tracker.
+  MultiTracker used(fx.B0, fx.options);
+  used.AddSample(fx.first);
+  EXPECT_THROW(used.RestoreState(fx.payload), std::logic_error);
+}
+
+}  // namespace
+}  // namespace magnav::tracker
+
+namespace magnav::tracker {
+namespace {
+// The service's path: one sensor (the AUV fluxgate pass of Dds.RestartAfterKill_tracker), B0 removed
+// from the samples, the tracker run with B0 = 0; the checkpoint with the track live, its window
+// solved half a second before (epochs still unsolved are in the state).
+TEST(TrackerCheckpoint, ServicePassRestoredGoesOnBitForBit) {
+  const GradiometerFile file = ReadGradiometerFile(testing::ReferencePath("track_pass_auv_1sensor_fluxgate.csv"));
+  std::vector<GradiometerSample> samples = file.samples;
+  for (auto& s : samples) s.B -= *file.B0;
+  const double cut_t = 85.4;  // in the middle of the track (67 s to 135 s)
+  const MultiTrackerOptions options;
+  MultiTracker a(Eigen::Vector3d::Zero(), options);
+  std::vector<TrackOutput> whole;
+  std::string payload;
+  std::size_t cut = 0, before = 0;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    if (payload.empty() && samples[i].t_s > cut_t) {
+      payload = a.SaveState();
+      cut = i;
+      before = whole.size();
+    }
+    for (auto& o : a.AddSample(samples[i])) whole.push_back(o);
+  }
+  for (auto& o : a.Flush()) whole.push_back(o);
+  MultiTracker b(Eigen::Vector3d::Zero(), options);
+  b.RestoreState(payload);
+  std::vector<TrackOutput> after;
+  for (std::size_t i = cut; i < samples.size(); ++i) {
+    for (auto& o : b.AddSample(samples[i])) after.push_back(o);
+  }
+  for (auto& o : b.Flush()) after.push_back(o);
+  std::printf("cut at t = %.1f s: %zu outputs before, %zu after\n", samples[cut].t_s, before, after.size());
+  ASSERT_EQ(after.size(), whole.size() - before);
+  for (std::size_t k = 0; k < after.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after[k], whole[before + k]);
+    if (HasFailure()) break;
+  }
+}
+}  // namespace
+}  // namespace magnav::tracker

@@ -1,0 +1,31 @@
+// Checkpoints of magnav-tracker: its state in a small binary file that
+// survives a crash (docs/RELIABILITY.md "Delivery, crash and restart"). The
+// container (header, checksum, field writer/reader, atomic write) is
+// core/checkpoint.h's; this is the tracker's kind of it:
+//
+//   magic "MAGNAVTC", format version 1 (kTrackerCheckpointVersion), payload
+//   written by the service node: its stream position and counters around
+//   MultiTracker::SaveState (configuration, tracks, records, initiator).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "magnav/core/checkpoint.h"
+
+namespace magnav::tracker {
+
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 1;
+inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
+
+// Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).
+inline std::string EncodeTrackerCheckpoint(std::string_view payload) {
+  return EncodeCheckpoint(kTrackerCheckpointKind, payload);
+}
+// The payload; throws CheckpointError if the file is not a version-1 tracker checkpoint.
+inline std::string DecodeTrackerCheckpoint(std::string_view file) {
+  return DecodeCheckpoint(kTrackerCheckpointKind, file);
+}
+
+}  // namespace magnav::tracker

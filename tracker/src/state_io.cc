@@ -1,0 +1,128 @@
+#include "state_io.h"
+
+namespace magnav::tracker::internal {
+
+Eigen::MatrixXd GetMatrix(StateReader& r, Eigen::Index rows, Eigen::Index cols) {
+  Eigen::MatrixXd m = r.Matrix(static_cast<std::size_t>(rows), static_cast<std::size_t>(cols));
+  if (m.rows() != rows || m.cols() != cols) throw CheckpointError("corrupt: a matrix of another size");
+  return m;
+}
+
+void Put(StateWriter& w, const GradiometerSample& s) {
+  w.U32(s.sensor_id);
+  w.F64(s.t_s);
+  w.Matrix(s.p_SinW);
+  w.Matrix(s.B);
+  w.Matrix(s.T);
+  w.F64(s.sigma_B);
+  w.F64(s.sigma_T);
+}
+
+void Get(StateReader& r, GradiometerSample* s) {
+  s->sensor_id = r.U32();
+  s->t_s = r.F64();
+  s->p_SinW = GetMatrix(r, 3, 1);
+  s->B = GetMatrix(r, 3, 1);
+  s->T = GetMatrix(r, 3, 3);
+  s->sigma_B = r.F64();
+  s->sigma_T = r.F64();
+}
+
+void Put(StateWriter& w, const Epoch& e) {
+  w.F64(e.t_s);
+  w.U64(e.samples.size());
+  for (const auto& s : e.samples) Put(w, s);
+}
+
+void Get(StateReader& r, Epoch* e) {
+  e->t_s = r.F64();
+  e->samples.resize(r.Count(kMaxStateCount));
+  for (auto& s : e->samples) Get(r, &s);
+}
+
+void Put(StateWriter& w, const DipoleFix& f) {
+  w.U32(f.sensor_id);
+  w.F64(f.t_s);
+  w.U8(f.valid ? 1 : 0);
+  w.I64(static_cast<std::int64_t>(f.reason));
+  w.Matrix(f.p_DinW);
+  w.Matrix(f.r_DtoS);
+  w.Matrix(f.m_W);
+  w.U8(f.has_moment ? 1 : 0);
+  w.F64(f.cond);
+  w.F64(f.snr);
+  w.Matrix(f.cov_p_DinW);
+  w.F64(f.position_sigma_3d_m);
+}
+
+void Get(StateReader& r, DipoleFix* f) {
+  f->sensor_id = r.U32();
+  f->t_s = r.F64();
+  f->valid = r.U8() != 0;
+  f->reason = static_cast<inversion::RejectReason>(r.I64());
+  f->p_DinW = GetMatrix(r, 3, 1);
+  f->r_DtoS = GetMatrix(r, 3, 1);
+  f->m_W = GetMatrix(r, 3, 1);
+  f->has_moment = r.U8() != 0;
+  f->cond = r.F64();
+  f->snr = r.F64();
+  f->cov_p_DinW = GetMatrix(r, 3, 3);
+  f->position_sigma_3d_m = r.F64();
+}
+
+void Put(StateWriter& w, const Summary& s) {
+  for (bool b : {s.initialized, s.usable, s.converged, s.init_from_external_fixes, s.covariance_ok}) w.U8(b ? 1 : 0);
+  for (int i : {s.num_epochs, s.num_samples, s.num_init_fixes, s.iterations, s.num_rejected_samples,
+                s.num_dropped_factors}) {
+    w.I64(i);
+  }
+  for (double d : {s.initial_cost, s.final_cost, s.solve_time_s, s.covariance_time_s, s.total_time_s}) w.F64(d);
+  w.Bytes(s.message);
+}
+
+void Get(StateReader& r, Summary* s) {
+  for (bool* b : {&s->initialized, &s->usable, &s->converged, &s->init_from_external_fixes, &s->covariance_ok}) {
+    *b = r.U8() != 0;
+  }
+  for (int* i : {&s->num_epochs, &s->num_samples, &s->num_init_fixes, &s->iterations, &s->num_rejected_samples,
+                 &s->num_dropped_factors}) {
+    *i = static_cast<int>(r.I64());
+  }
+  for (double* d : {&s->initial_cost, &s->final_cost, &s->solve_time_s, &s->covariance_time_s, &s->total_time_s}) {
+    *d = r.F64();
+  }
+  s->message = r.Bytes(kMaxStateCount);
+}
+
+std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions& o) {
+  StateWriter w;
+  w.Matrix(B0_W);
+  const TrackerOptions& t = o.track;
+  const ProcessNoise& q = t.process;
+  const InitOptions& i = t.init;
+  const TrackManagementOptions& g = o.management;
+  for (double d :
+       {t.default_sigma_B_T, t.default_sigma_T_Tpm, t.measurement_loss_scale_sigma, q.position_m_per_sqrt_s,
+        q.speed_mps_per_sqrt_s, q.heading_rad_per_sqrt_s, q.turn_rate_radps_per_sqrt_s, q.turn_rate_loss_scale_sigma,
+        q.turn_rate_warmup_radps_per_sqrt_s, q.window_turn_rate_radps_per_sqrt_s, i.min_tensor_snr, i.min_span_s,
+        i.span_s, i.outlier_threshold_mad, i.cluster_gate_m, t.epoch_tolerance_s, t.function_tolerance,
+        t.intermediate_function_tolerance, t.gradient_tolerance, t.parameter_tolerance, t.batch_growth_factor,
+        t.window_s, t.window_solve_interval_s, t.window_function_tolerance, g.gate_snr, g.detect_llr,
+        g.max_chi2_per_dof, g.max_unexplained, g.min_new_share, g.max_miss_s, g.max_coast_s,
+        g.max_sigma_horizontal_m, g.min_separation_m, g.init_interval_s, o.batch_margin_s}) {
+    w.F64(d);
+  }
+  for (std::int64_t n :
+       {static_cast<std::int64_t>(t.tensor_noise_trace_free), static_cast<std::int64_t>(t.measurement_loss),
+        static_cast<std::int64_t>(q.turn_rate_loss), static_cast<std::int64_t>(i.source),
+        static_cast<std::int64_t>(i.min_fixes), static_cast<std::int64_t>(t.max_num_iterations),
+        static_cast<std::int64_t>(t.batch_solver), static_cast<std::int64_t>(t.window_max_num_iterations),
+        static_cast<std::int64_t>(t.window_solver), static_cast<std::int64_t>(t.compute_covariance),
+        static_cast<std::int64_t>(t.covariance_method), static_cast<std::int64_t>(g.confirm_m),
+        static_cast<std::int64_t>(g.confirm_n), static_cast<std::int64_t>(o.batch_rounds)}) {
+    w.I64(n);
+  }
+  return w.bytes();
+}
+
+}  // namespace magnav::tracker::internal
