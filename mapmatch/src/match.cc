@@ -84,6 +84,14 @@ double PlausibleCorrectionDeg(Method method, const GeoGrid& grid, const MatchPat
 
 namespace {
 
+// A component of the mean correction is supported when it exceeds this many
+// sigmas of the map's constraint along it; a result whose unsupported part is
+// more than kUnsupportedFraction of the correction, and longer than a grid
+// cell's diagonal (a shorter slide stays within the map's resolution of the
+// prior), is no better than its prior.
+constexpr double kSupportSigma = 3.0;
+constexpr double kUnsupportedFraction = 0.5;
+
 // Median |map − measurement| over the points of (lat, lon) on the map with a
 // finite measurement; NaN when none is.
 double MedianMisfit(const GeoGrid& grid, std::size_t layer, const MatchPath& path, const std::vector<double>& lat,
@@ -97,6 +105,80 @@ double MedianMisfit(const GeoGrid& grid, std::size_t layer, const MatchPath& pat
   const auto mid = r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2);
   std::nth_element(r.begin(), mid, r.end());
   return *mid;
+}
+
+// What the map says about the path's mean correction (matched − INS, deg):
+// the translation's information from the map gradient at the matched points,
+// J = Σ g gᵀ / s² (g in nT/deg), s² = Σ r² / (n − 2) the matched residuals'
+// variance (noise and whatever the fit leaves, with the 2 translation
+// parameters counted). Along each eigen-direction e of J the shift is known to
+// ±1/sqrt(λ); the part of the mean correction along directions where it is
+// smaller than kSupportSigma of that is not a fix, only a slide the map does
+// not see.
+struct CorrectionSupport {
+  double correction_deg = 0.0;   // |mean correction|
+  double unsupported_deg = 0.0;  // its part along directions the map does not constrain to it
+  double sd_weak_deg = 0.0;      // 1 sigma along the least constrained direction
+  double residual_rms_nT = 0.0;  // s
+};
+
+CorrectionSupport SupportOfCorrection(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
+                                      const MatchResult& r) {
+  CorrectionSupport c;
+  double dlat = 0.0, dlon = 0.0;
+  for (std::size_t p = 0; p < path.size(); ++p) {
+    dlat += r.lat_deg[p] - path.lat_deg[p];
+    dlon += r.lon_deg[p] - path.lon_deg[p];
+  }
+  dlat /= static_cast<double>(path.size());
+  dlon /= static_cast<double>(path.size());
+  c.correction_deg = std::hypot(dlat, dlon);
+  double jaa = 0.0, jab = 0.0, jbb = 0.0, ss = 0.0;
+  int n = 0;
+  for (std::size_t p = 0; p < path.size(); ++p) {
+    if (!std::isfinite(path.measured_nT[p])) continue;
+    const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p]);
+    if (!s) continue;
+    const double ga = s->dvalue_dlat_nT_per_deg, gb = s->dvalue_dlon_nT_per_deg;
+    jaa += ga * ga;
+    jab += ga * gb;
+    jbb += gb * gb;
+    const double res = s->value_nT - path.measured_nT[p];
+    ss += res * res;
+    ++n;
+  }
+  if (n <= 2) {  // nothing measured: nothing of the correction is supported
+    c.unsupported_deg = c.correction_deg;
+    c.sd_weak_deg = std::numeric_limits<double>::infinity();
+    return c;
+  }
+  const double s2 = std::max(ss / (n - 2), 1e-300);
+  c.residual_rms_nT = std::sqrt(s2);
+  // Eigen-decomposition of the symmetric 2×2 [jaa jab; jab jbb] / s².
+  const double tr = jaa + jbb, det = jaa * jbb - jab * jab;
+  const double disc = std::sqrt(std::max(tr * tr / 4.0 - det, 0.0));
+  const double lam[2] = {(tr / 2.0 + disc) / s2, std::max(tr / 2.0 - disc, 0.0) / s2};
+  // Eigenvector of the larger eigenvalue.
+  double ea = 1.0, eb = 0.0;
+  if (std::abs(jab) > 0.0) {
+    ea = jab;
+    eb = tr / 2.0 + disc - jaa;
+    const double nrm = std::hypot(ea, eb);
+    ea /= nrm;
+    eb /= nrm;
+  } else if (jbb > jaa) {
+    ea = 0.0;
+    eb = 1.0;
+  }
+  const double comp[2] = {dlat * ea + dlon * eb, -dlat * eb + dlon * ea};
+  double un2 = 0.0;
+  for (int i = 0; i < 2; ++i) {
+    const double sd = lam[i] > 0.0 ? 1.0 / std::sqrt(lam[i]) : std::numeric_limits<double>::infinity();
+    if (i == 1) c.sd_weak_deg = sd;
+    if (std::abs(comp[i]) < kSupportSigma * sd) un2 += comp[i] * comp[i];
+  }
+  c.unsupported_deg = std::sqrt(un2);
+  return c;
 }
 
 void NotConverged(const std::string& why, MatchResult* r) {
@@ -130,6 +212,18 @@ void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
   if (std::isfinite(ins) && moved > 0.0 && !(matched < ins)) {
     NotConverged("no better than the INS path: median |map - measurement| " + FormatNumber(matched) +
                      " nT against " + FormatNumber(ins) + " nT at the INS positions",
+                 r);
+    return;
+  }
+  const CorrectionSupport c = SupportOfCorrection(grid, layer, path, *r);
+  const double cell_deg = std::hypot(grid.lat().step_deg, grid.lon().step_deg);
+  if (c.unsupported_deg > kUnsupportedFraction * c.correction_deg && c.unsupported_deg > cell_deg) {
+    NotConverged("no better than the prior: " + FormatNumber(c.unsupported_deg) + " deg of the mean correction " +
+                     FormatNumber(c.correction_deg) +
+                     " deg lies along directions the map gradient on the path does not constrain to 3 sigma "
+                     "(least constrained: 1 sigma " +
+                     FormatNumber(c.sd_weak_deg) + " deg at the matched residuals' rms " +
+                     FormatNumber(c.residual_rms_nT) + " nT)",
                  r);
   }
 }

@@ -67,10 +67,18 @@ MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const M
                   const MatchOptions& options, std::vector<StepDiagnostics>* steps = nullptr);
 
 // No "converged" that is not: a result with a non-finite position, one that
-// moves a point further than `max_correction_deg`, or one whose median
+// moves a point further than `max_correction_deg`, one whose median
 // |map − measurement| over its points on the map is no smaller than the INS
-// path's is set not converged, with the reason (the method's own reason, if
-// any, is kept after it).
+// path's, or one no better than its prior (the INS path) is set not
+// converged, with the reason (the method's own reason, if any, is kept after
+// it). "No better than the prior": the path's mean correction (matched − INS)
+// is split along the eigen-directions of the translation's information from
+// the map gradient g (nT/deg) at the matched points, J = Σ g gᵀ / s² (s² the
+// matched residuals' variance with the 2 translation parameters counted);
+// a component smaller than 3 sigma (3 / sqrt(λ)) is not seen by the map; when
+// those components make more than half the correction and more than a grid
+// cell's diagonal, the correction is a slide along the iso-lines, not a fix
+// (smooth main-field maps; the truth is not used).
 void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path, double max_correction_deg,
                   MatchResult* result);
 
