@@ -1,5 +1,7 @@
 #include "tracker_node.h"
 
+#include <algorithm>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -55,11 +57,16 @@ TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options,
     state_path_ = (std::filesystem::path(options_.state_dir) / "magnav-tracker.state").string();
     Resume();
   }
-  // Acknowledgments after every 5 estimates (below the history depth of 10
-  // per track), waiting at most 2 s for a reader (a dead one is forgotten
-  // after the 3 s lease).
-  writer_ = std::make_unique<dds::QueuedWriter<dds::msg::TrackEstimate>>(node.CreateWriter<dds::msg::TrackEstimate>(),
-                                                                        5, std::chrono::seconds(2));
+  // Acknowledgments after every half history (per track: 1000 in the
+  // built-in profile, 10 in the durable one), so no estimate a reader has not
+  // acknowledged is overwritten, waiting at most 2 s for a reader (a dead one
+  // is forgotten after the 3 s lease). Every 5 estimates, as before, capped an
+  // unpaced replay with a recorder at ~280 estimates/s and made the stop
+  // overrun its bound with hundreds still queued.
+  auto track_writer = node.CreateWriter<dds::msg::TrackEstimate>();
+  const int window = std::max(1, track_writer->qos().history().depth / 2);
+  writer_ = std::make_unique<dds::QueuedWriter<dds::msg::TrackEstimate>>(std::move(track_writer), window,
+                                                                        std::chrono::seconds(2));
   if (options_.tracker.track.init.source != InitSource::kSamples) {
     fix_reader_ =
         node.CreateReader<dds::msg::DipoleFix>([this](const dds::msg::DipoleFix& m, const auto& info) { OnFix(m, info); });
