@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include <fastcdr/Cdr.h>
 #include <fastcdr/FastBuffer.h>
@@ -39,12 +40,8 @@ bool Deserialize(const std::uint8_t* data, std::size_t size, M* out) {
 // The CDR of a message (little endian), to compare messages bit for bit.
 template <class M>
 std::string Cdr(const M& m) {
-  std::string buffer(M::getCdrSerializedSize(m) + 8, '\0');
-  eprosima::fastcdr::FastBuffer fb(buffer.data(), buffer.size());
-  eprosima::fastcdr::Cdr cdr(fb, eprosima::fastcdr::Cdr::LITTLE_ENDIANNESS, eprosima::fastcdr::Cdr::DDS_CDR);
-  m.serialize(cdr);
-  buffer.resize(cdr.getSerializedDataLength());
-  return buffer;
+  std::vector<char> buffer;
+  return std::string(dds::SerializeCdr(m, &buffer));
 }
 
 // A payload of type M through the type support and, if accepted: the message

@@ -29,12 +29,9 @@ const double kNaN = std::numeric_limits<double>::quiet_NaN();
 // != NaN).
 template <class M>
 std::vector<char> Bytes(const M& m) {
-  std::vector<char> buffer(M::getCdrSerializedSize(m) + 8);
-  eprosima::fastcdr::FastBuffer fb(buffer.data(), buffer.size());
-  eprosima::fastcdr::Cdr cdr(fb, eprosima::fastcdr::Cdr::LITTLE_ENDIANNESS, eprosima::fastcdr::Cdr::DDS_CDR);
-  m.serialize(cdr);
-  buffer.resize(cdr.getSerializedDataLength());
-  return buffer;
+  std::vector<char> buffer;
+  const std::string_view bytes = SerializeCdr(m, &buffer);
+  return std::vector<char>(bytes.begin(), bytes.end());
 }
 
 // message -> record -> message gives the same bytes, and so does record ->

@@ -90,11 +90,7 @@ struct MessageOrigin {
 template <class M>
 std::uint64_t PayloadHash(const M& m) {
   thread_local std::vector<char> buffer;
-  buffer.resize(M::getCdrSerializedSize(m) + 8);
-  eprosima::fastcdr::FastBuffer fb(buffer.data(), buffer.size());
-  eprosima::fastcdr::Cdr cdr(fb, eprosima::fastcdr::Cdr::LITTLE_ENDIANNESS, eprosima::fastcdr::Cdr::DDS_CDR);
-  m.serialize(cdr);
-  return std::hash<std::string_view>{}(std::string_view(buffer.data(), cdr.getSerializedDataLength()));
+  return std::hash<std::string_view>{}(SerializeCdr(m, &buffer));
 }
 
 std::uint64_t WriterHash(const eprosima::fastdds::dds::SampleInfo& info);

@@ -3,6 +3,11 @@
 #pragma once
 
 #include <exception>
+#include <string_view>
+#include <vector>
+
+#include <fastcdr/Cdr.h>
+#include <fastcdr/FastBuffer.h>
 
 #include "magnav/msg/magnav.h"
 #include "magnav/msg/magnavPubSubTypes.h"
@@ -73,5 +78,18 @@ MAGNAV_TOPIC(SensorPositionEstimate, "magnav/sensor_position", "estimate_writer"
 MAGNAV_TOPIC(MapFix, "magnav/map_fix", "estimate_writer", "estimate_reader");
 
 #undef MAGNAV_TOPIC
+
+// The message's CDR serialisation (little-endian, DDS_CDR, as the type
+// support writes it) into `buffer`, which is resized as needed and may be
+// reused; the view is valid until `buffer` changes. One serialiser for the
+// repeat filter's payload hash, the conversion tests and the fuzz targets.
+template <class M>
+std::string_view SerializeCdr(const M& m, std::vector<char>* buffer) {
+  buffer->resize(M::getCdrSerializedSize(m) + 8);
+  eprosima::fastcdr::FastBuffer fb(buffer->data(), buffer->size());
+  eprosima::fastcdr::Cdr cdr(fb, eprosima::fastcdr::Cdr::LITTLE_ENDIANNESS, eprosima::fastcdr::Cdr::DDS_CDR);
+  m.serialize(cdr);
+  return std::string_view(buffer->data(), cdr.getSerializedDataLength());
+}
 
 }  // namespace magnav::dds
