@@ -130,6 +130,7 @@ struct CorrectionSupport {
   double sd_weak_deg = 0.0;      // 1 sigma along the least constrained direction
   double residual_rms_nT = 0.0;  // s
   double weak_to_strong = 1.0;   // λ_min / λ_max of J: ≪ 1 when the iso-lines are nearly parallel
+  int points = 0;                // measured points on the map in [first, end)
 };
 
 CorrectionSupport SupportOfCorrection(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
@@ -165,6 +166,7 @@ CorrectionSupport SupportOfCorrection(const GeoGrid& grid, std::size_t layer, co
     jbb += gb * gb;
     ++n;
   }
+  c.points = n;
   if (n == 0 || n_all <= 2) {  // nothing measured: nothing of the correction is supported
     c.unsupported_deg = c.correction_deg;
     c.sd_weak_deg = std::numeric_limits<double>::infinity();
@@ -256,6 +258,9 @@ void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
   const std::size_t end_points = std::min(
       path.size(), std::max<std::size_t>(kEndMinPoints, static_cast<std::size_t>(std::lround(kEndFraction * path.size()))));
   const CorrectionSupport e = SupportOfCorrection(grid, layer, path, *r, path.size() - end_points);
+  // An end entirely off the map is not judged here (the map says nothing
+  // there; the summary counts the off-map points).
+  if (e.points == 0) return;
   if (e.unsupported_deg > kUnsupportedFraction * e.correction_deg && e.unsupported_deg > cell_deg) {
     NotConverged("no better than the prior at the path's end: " + FormatNumber(e.unsupported_deg) +
                      " deg of the last " + std::to_string(end_points) + " points' mean correction " +

@@ -83,7 +83,8 @@ MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const M
 // shape whose mean is supported but whose end, where the fix is used, slides
 // along the iso-lines there: "no better than the prior at the path's end";
 // only where the path's iso-lines are nearly parallel (λ_min < 0.01 λ_max of
-// J: main-field maps; not rough crustal ones, where it cost right results).
+// J: main-field maps; not rough crustal ones, where it cost right results),
+// and only when some of those last points are on the map.
 void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path, double max_correction_deg,
                   MatchResult* result);
 
