@@ -1,4 +1,4 @@
-// The global assignment (tracker/assignment.h) against brute force on random
+// The gated assignment (tracker/assignment.h) against brute force on random
 // cost matrices: square and rectangular, with forbidden pairs and misses.
 #include <gtest/gtest.h>
 
@@ -32,7 +32,7 @@ double BruteForce(const Eigen::MatrixXd& c, const std::vector<double>& miss) {
 }
 
 // The answer is a valid assignment whose cost is the one it reports.
-void ExpectConsistent(const Eigen::MatrixXd& c, const std::vector<double>& miss, const Assignment& a) {
+void ExpectConsistent(const Eigen::MatrixXd& c, const std::vector<double>& miss, const GatedAssignment& a) {
   ASSERT_EQ(a.column_of_row.size(), static_cast<std::size_t>(c.rows()));
   std::vector<bool> used(c.cols(), false);
   double total = 0.0;
@@ -51,7 +51,7 @@ void ExpectConsistent(const Eigen::MatrixXd& c, const std::vector<double>& miss,
   EXPECT_NEAR(total, a.cost, 1e-9 * (1.0 + std::abs(total)));
 }
 
-TEST(Assignment, MatchesBruteForceOnRandomMatrices) {
+TEST(GatedAssignment, MatchesBruteForceOnRandomMatrices) {
   std::mt19937_64 rng(2411);
   std::uniform_int_distribution<int> size(0, 6);
   std::uniform_real_distribution<double> u(0.0, 10.0);
@@ -70,7 +70,7 @@ TEST(Assignment, MatchesBruteForceOnRandomMatrices) {
     }
     std::vector<double> miss(nr);
     for (double& m : miss) m = trial % 2 == 0 ? u(rng) : 1e3;  // cheap misses, or misses never worth it
-    const Assignment a = SolveAssignment(c, miss);
+    const GatedAssignment a = SolveGatedAssignment(c, miss);
     ExpectConsistent(c, miss, a);
     const double want = BruteForce(c, miss);
     EXPECT_NEAR(a.cost, want, 1e-9 * (1.0 + std::abs(want))) << "trial " << trial << " " << nr << "x" << nc;
@@ -84,29 +84,29 @@ TEST(Assignment, MatchesBruteForceOnRandomMatrices) {
   EXPECT_GT(with_miss, 1000);
 }
 
-TEST(Assignment, TwoTracksCompetingForOneCloseFix) {
+TEST(GatedAssignment, TwoTracksCompetingForOneCloseFix) {
   // Track 0 is 1 (χ²) from fix 0 and 2 from fix 1; track 1 is 1.5 from fix 0
   // and 50 from fix 1. Greedy (track 0 first) would give track 0 fix 0 and
   // leave track 1 with 50; the global answer gives fix 0 to track 1.
   Eigen::MatrixXd c(2, 2);
   c << 1.0, 2.0, 1.5, 50.0;
-  const Assignment a = SolveAssignment(c, {100.0, 100.0});
+  const GatedAssignment a = SolveGatedAssignment(c, {100.0, 100.0});
   EXPECT_EQ(a.column_of_row, (std::vector<int>{1, 0}));
   EXPECT_DOUBLE_EQ(a.cost, 3.5);
 }
 
-TEST(Assignment, EveryPairForbiddenMissesEveryRow) {
+TEST(GatedAssignment, EveryPairForbiddenMissesEveryRow) {
   Eigen::MatrixXd c = Eigen::MatrixXd::Constant(3, 2, kForbidden);
   c(1, 0) = std::nan("");
-  const Assignment a = SolveAssignment(c, {1.0, 2.0, 3.0});
+  const GatedAssignment a = SolveGatedAssignment(c, {1.0, 2.0, 3.0});
   EXPECT_EQ(a.column_of_row, (std::vector<int>{-1, -1, -1}));
   EXPECT_DOUBLE_EQ(a.cost, 6.0);
 }
 
-TEST(Assignment, RefusesBadMissCosts) {
+TEST(GatedAssignment, RefusesBadMissCosts) {
   const Eigen::MatrixXd c = Eigen::MatrixXd::Zero(2, 2);
-  EXPECT_THROW(SolveAssignment(c, {1.0}), std::invalid_argument);
-  EXPECT_THROW(SolveAssignment(c, {1.0, kForbidden}), std::invalid_argument);
+  EXPECT_THROW(SolveGatedAssignment(c, {1.0}), std::invalid_argument);
+  EXPECT_THROW(SolveGatedAssignment(c, {1.0, kForbidden}), std::invalid_argument);
 }
 
 }  // namespace

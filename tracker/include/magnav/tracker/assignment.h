@@ -9,9 +9,11 @@
 // nothing). The assignment of least total cost is returned. Rectangular
 // matrices (more rows or more columns) are fine.
 //
-// Solved by the Hungarian method (Kuhn–Munkres with potentials, O(n³) on the
+// Solved by core's Hungarian method (magnav::SolveAssignment,
+// core/assignment.h, which takes finite costs and pairs every row) on the
 // (rows + columns)-square matrix that adds one "miss" column per row and one
-// "unused" row per column). Costs are unitless (the caller's, e.g. χ²).
+// "unused" row per column, forbidden pairs priced above any feasible
+// assignment. Costs are unitless (the caller's, e.g. χ²).
 #pragma once
 
 #include <limits>
@@ -23,7 +25,7 @@ namespace magnav::tracker {
 
 inline constexpr double kForbidden = std::numeric_limits<double>::infinity();
 
-struct Assignment {
+struct GatedAssignment {
   std::vector<int> column_of_row;  // per row: its column, or -1 (missed)
   double cost = 0.0;               // Σ assigned pair costs + Σ miss costs
 };
@@ -32,6 +34,6 @@ struct Assignment {
 // forbidden). `miss_cost`: one finite value per row (≥ 0 is usual; any
 // finite value works). Throws std::invalid_argument on a size mismatch or a
 // miss cost that is not finite.
-Assignment SolveAssignment(const Eigen::MatrixXd& cost, const std::vector<double>& miss_cost);
+GatedAssignment SolveGatedAssignment(const Eigen::MatrixXd& cost, const std::vector<double>& miss_cost);
 
 }  // namespace magnav::tracker
