@@ -43,6 +43,7 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
 
 MultiTrackerOptions::MultiTrackerOptions() {
   track.init.min_tensor_snr = kFieldInitSnr;
+  track.init.max_dipole_misfit = kFieldMaxDipoleMisfit;
   track.window_solve_interval_s = kFieldSolveIntervalS;
 }
 
@@ -292,13 +293,42 @@ struct MultiTracker::Impl {
     const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
     const std::optional<InitialTrack> init =
         InitializeTrack(epochs, B0_W, options.track, any_fix ? &given : nullptr);
-    if (!init) return;
+    if (init) {
+      StartTrack(t, *init, nullptr);
+      return;
+    }
+    // Two vessels whose sum no single dipole explains (initialize.h): each
+    // starts on the samples without the other's initial field.
+    const std::vector<InitialTrack> pair = InitializePair(epochs, B0_W, options.track, mg().min_separation_m);
+    // The pair is two new vessels: none of them near a live track (a track's
+    // model error plus a vessel is not two vessels).
+    bool near_a_track = false;
+    for (const InitialTrack& one : pair) {
+      const CtState<double> now = PropagateCoordinatedTurn(one.state, t - one.t_ref_s);
+      for (const Track& tr : tracks) {
+        const auto p = tr.engine->PredictState(t);
+        near_a_track = near_a_track || (p && (Horizontal(*p) - Horizontal(now)).norm() < mg().min_separation_m);
+      }
+    }
+    if (near_a_track) ++summary.num_starts_refused;
+    if (pair.size() == 2 && !near_a_track) {
+      // Once the first has started, its field is out of the buffer.
+      const bool first = StartTrack(t, pair[0], &pair[1]);
+      StartTrack(t, pair[1], first ? nullptr : &pair[0]);
+    }
+  }
+
+  // Starts a tentative track from `init` on the buffer (minus `partner`'s
+  // field, if given), unless a track is already near it. True if started.
+  bool StartTrack(double t, const InitialTrack& init_track, const InitialTrack* partner) {
+    const InitialTrack* init = &init_track;
+    const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
     const CtState<double> now = PropagateCoordinatedTurn(init->state, t - init->t_ref_s);
     for (const Track& tr : tracks) {
       const auto p = tr.engine->PredictState(t);
       if (p && (Horizontal(*p) - Horizontal(now)).norm() < mg().min_separation_m) {
         ++summary.num_starts_refused;
-        return;
+        return false;
       }
     }
     // The new track's sensors in the buffered epochs (gated by the
@@ -311,16 +341,28 @@ struct MultiTracker::Impl {
       probe.pred = PropagateCoordinatedTurn(init->state, b.t_s - init->t_ref_s);
       probe.m_B = init->m_B_Am2;
       Epoch k{b.t_s, {}};
+      Track other;
+      if (partner != nullptr) {
+        other.pred = PropagateCoordinatedTurn(partner->state, b.t_s - partner->t_ref_s);
+        other.m_B = partner->m_B_Am2;
+      }
       for (const auto& s : b.samples) {
-        if (Predict(probe, s).snr >= mg().gate_snr) k.samples.push_back(s);
+        if (!(Predict(probe, s).snr >= mg().gate_snr)) continue;
+        k.samples.push_back(s);
+        if (partner != nullptr && !s.T.isZero(0.0)) {
+          const FieldPrediction po = Predict(other, s);
+          k.samples.back().B -= po.B;
+          k.samples.back().T -= po.T;
+        }
       }
       if (!k.samples.empty() || !mine.empty()) mine.push_back(std::move(k));
     }
-    if (mine.empty()) return;
+    if (mine.empty()) return false;
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
     tr.engine->Start(*init, mine);
-    tr.origin = "from " + std::to_string(init->fixes.size()) +
-                (init->from_external_fixes ? " dipole_fix fixes" : " fixes of its own TED+EGT");
+    tr.origin = init->fixes.empty() ? std::string("from a two-dipole fit to samples no single dipole explains")
+                                    : "from " + std::to_string(init->fixes.size()) +
+                                          (init->from_external_fixes ? " dipole_fix fixes" : " fixes of its own TED+EGT");
     // What the buffer holds of this vessel is now explained.
     tr.m_B = tr.engine->m_B_Am2();
     for (Epoch& b : buffer) {
@@ -338,6 +380,7 @@ struct MultiTracker::Impl {
     }
     fixes.clear();
     tracks.push_back(std::move(tr));
+    return true;
   }
 
   std::vector<TrackOutput> Epochs(const Epoch& raw) {
