@@ -44,7 +44,7 @@ struct BackgroundOptions {
   // a track): docs/ACCURACY.md, "Per-sensor background".
   bool enabled = false;
   // White acceleration of the background's rate (T/s per √s); chosen on the
-  // tuning scenarios among 0.0001–0.02 nT/s/√s.
+  // tuning scenarios (0.0001–0.02 nT/s/√s tried, window mode).
   double rate_walk_T_per_s_per_sqrt_s = 0.0005e-9;
   // White noise of the level itself (T per √s).
   double level_walk_T_per_sqrt_s = 0.001e-9;
@@ -60,10 +60,10 @@ struct BackgroundOptions {
   // Occupied sensor: while the residual tensor there (the sample's T minus
   // every live track's, whitened, ‖·‖²/9 averaged over occupied_average_s)
   // exceeds occupied_tensor_chi2, an unexplained near source is at that
-  // sensor (its B is not background): the sensor's background is not
-  // updated, only propagated (its σ grows). A far ship's tensor is below the
-  // noise (≈ 1.06 of pure noise on its sensors); an AUV's is above it from
-  // ~30 m (measured: docs/ACCURACY.md).
+  // sensor (its B is not background): the sensor's level is held (its rate
+  // not extrapolated) and its σ grows. Pure noise gives 1 on average; both
+  // values were set on the tuning drift file (two tries), not measured
+  // further.
   double occupied_tensor_chi2 = 1.15;
   double occupied_average_s = 5.0;
 
