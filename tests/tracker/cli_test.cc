@@ -162,8 +162,7 @@ TEST(TrackCli, FixesFromInvertStartTheTrack) {
     if (e.usable) rows.push_back(e);
   }
   const CsvTable t = CsvTable::Read(dir + "/track.csv");
-  // (The batch starts from the window pass's trajectory, SolveBatchFrom; the
-  // given fixes started that window track.)
+  EXPECT_NE(t.params().at("summary").find("external init fixes"), std::string::npos);
   ASSERT_EQ(t.num_rows(), rows.size());
   for (std::size_t k = 0; k < t.num_rows(); ++k) {
     ASSERT_EQ(t.number(k, t.column("x")), rows[k].p_VinW.x()) << k;

@@ -13,17 +13,8 @@
 
 namespace magnav::tracker {
 
-namespace {
-
-// A given trajectory and moment to start from (SolveBatchFrom).
-struct StartTrack {
-  const std::vector<CtState<double>>* states = nullptr;  // one per input epoch
-  Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
-};
-
-TrackEstimate SolveBatchImpl(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
-                             const TrackerOptions& options, const std::vector<DipoleFix>* fixes,
-                             const StartTrack* start) {
+TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
+                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
   if (!B0_W.allFinite()) throw InputError("tracker: B0 is not finite");
@@ -32,10 +23,8 @@ TrackEstimate SolveBatchImpl(const std::vector<Epoch>& input, const Eigen::Vecto
   Summary& sum = out.summary;
   // The door: samples that fail core's CheckSample are left out and counted.
   std::vector<Epoch> epochs;
-  std::vector<CtState<double>> start_states;  // of the kept epochs
   epochs.reserve(input.size());
-  for (std::size_t i = 0; i < input.size(); ++i) {
-    const Epoch& e = input[i];
+  for (const Epoch& e : input) {
     Epoch kept{e.t_s, {}};
     for (const auto& s : e.samples) {
       if (CheckSample(s) == SampleDefect::kNone) {
@@ -44,26 +33,11 @@ TrackEstimate SolveBatchImpl(const std::vector<Epoch>& input, const Eigen::Vecto
         ++sum.num_rejected_samples;
       }
     }
-    if (kept.samples.empty()) continue;
-    epochs.push_back(std::move(kept));
-    if (start != nullptr) start_states.push_back((*start->states)[i]);
+    if (!kept.samples.empty()) epochs.push_back(std::move(kept));
   }
   sum.num_epochs = static_cast<int>(epochs.size());
 
-  std::optional<InitialTrack> init;
-  if (start != nullptr) {
-    if (epochs.empty()) {
-      sum.message = "no valid sample";
-      sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
-      return out;
-    }
-    init.emplace();
-    init->t_first_s = epochs.front().t_s;  // the whole span at once
-    init->t_last_s = epochs.back().t_s;
-    init->m_B_Am2 = start->m_B_Am2;
-  } else {
-    init = InitializeTrack(epochs, B0_W, options, fixes);
-  }
+  const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options, fixes);
   if (!init) {
     sum.message = NoTrackMessage(options, fixes != nullptr);
     sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
@@ -73,13 +47,11 @@ TrackEstimate SolveBatchImpl(const std::vector<Epoch>& input, const Eigen::Vecto
   sum.num_init_fixes = static_cast<int>(init->fixes.size());
   sum.init_from_external_fixes = init->from_external_fixes;
 
-  // Parameters: one state per epoch (the given trajectory, or the
-  // initialiser's straight line), one moment.
+  // Parameters: one state per epoch (straight-line initial guess), one moment.
   const double moment_scale = std::max(init->m_B_Am2.norm(), 1.0);
   std::vector<StateVector> x(epochs.size());
   for (std::size_t k = 0; k < epochs.size(); ++k) {
-    const CtState<double> s =
-        start != nullptr ? start_states[k] : PropagateCoordinatedTurn(init->state, epochs[k].t_s - init->t_ref_s);
+    const CtState<double> s = PropagateCoordinatedTurn(init->state, epochs[k].t_s - init->t_ref_s);
     x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
   }
   Eigen::Vector3d moment = init->m_B_Am2 / moment_scale;
@@ -257,21 +229,6 @@ TrackEstimate SolveBatchImpl(const std::vector<Epoch>& input, const Eigen::Vecto
   }
   sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
   return out;
-}
-
-}  // namespace
-
-TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
-  return SolveBatchImpl(epochs, B0_W, options, fixes, nullptr);
-}
-
-TrackEstimate SolveBatchFrom(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                             const TrackerOptions& options, const std::vector<CtState<double>>& start,
-                             const Eigen::Vector3d& start_m_B) {
-  if (start.size() != epochs.size()) throw InputError("tracker: one start state per epoch is needed");
-  const StartTrack s{&start, start_m_B};
-  return SolveBatchImpl(epochs, B0_W, options, nullptr, &s);
 }
 
 }  // namespace magnav::tracker

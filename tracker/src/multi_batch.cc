@@ -221,7 +221,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       }
       const auto [t0, t1] = spans[i];
       std::vector<Epoch> mine;
-      std::vector<CtState<double>> start;  // the track's previous round, one state per epoch of `mine`
+      std::vector<DipoleFix> track_fixes;
       for (const Epoch& e : epochs) {
         if (e.t_s < t0 || e.t_s > t1) continue;
         const auto s_i = now[i].At(e.t_s, max_gap);
@@ -256,14 +256,12 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           // falls off faster) is used there.
           if (e.t_s > b_only_until[i]) s.sigma_B = kUnusedSigmaFactor * sb;
           k_epoch.samples.push_back(s);
+          track_fixes.push_back(MakeFix(e.t_s, s.sensor_id, Eigen::Vector3d(s_i->x, s_i->y, s_i->z)));
         }
-        if (!k_epoch.samples.empty()) {
-          mine.push_back(std::move(k_epoch));
-          start.push_back(*s_i);
-        }
+        if (!k_epoch.samples.empty()) mine.push_back(std::move(k_epoch));
       }
       if (mine.empty()) continue;
-      TrackEstimate est = SolveBatchFrom(mine, B0_W, topt, start, now[i].m_B);
+      TrackEstimate est = SolveBatch(mine, B0_W, topt, &track_fixes);
       const bool ok = est.summary.initialized && est.summary.usable &&
                       std::any_of(est.epochs.begin(), est.epochs.end(), [](const EpochEstimate& e) { return e.usable; });
       if (ok) {

@@ -92,18 +92,6 @@ struct InitialTrack;  // initialize.h
 TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                          const TrackerOptions& options, const std::vector<DipoleFix>* fixes = nullptr);
 
-// Batch solve from a given trajectory of the same vessel (the multi-vessel
-// batch: the window tracker's estimates, propagated past its ends): `start`
-// holds one state per epoch of `epochs`, in order (world NED m, m/s, rad,
-// rad/s), `start_m_B` the body moment (A·m²). No initialiser and no growing
-// spans: the whole span is solved at once with SolveBatch's continuation
-// (Gaussian warm-up turn rate, then the robust one) and covariance, so a
-// turn the window followed is kept where the data grow weak. Throws
-// InputError if `start` and `epochs` differ in size.
-TrackEstimate SolveBatchFrom(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                             const TrackerOptions& options, const std::vector<CtState<double>>& start,
-                             const Eigen::Vector3d& start_m_B);
-
 // Sliding-window (fixed-lag) tracker. Not thread-safe; one track.
 class WindowTracker {
  public:
