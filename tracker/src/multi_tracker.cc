@@ -51,9 +51,8 @@ bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (!track.IsValid(error) || !management.IsValid(error)) return false;
   if (!background.IsValid(error)) return false;
   if (batch_rounds < 1) return Fail(error, "batch_rounds must be >= 1");
-  if (!(batch_margin_s >= 0.0) || !std::isfinite(batch_margin_s)) {
-    return Fail(error, "batch_margin_s must be finite and >= 0");
-  }
+  if (!PositiveFinite(batch_gate_snr)) return Fail(error, "batch_gate_snr must be > 0");
+  if (!PositiveFinite(batch_extension_step_s)) return Fail(error, "batch_extension_step_s must be > 0");
   return true;
 }
 
