@@ -151,6 +151,9 @@ void AddLocalizeCommand(CLI::App& app) {
                   "outlier gate per update (chi-square probability): the EKF refuses a magnetometer or GNSS update "
                   "beyond it, the batch counts residuals beyond it; 1 = no gate")
       ->capture_default_str();
+  cmd->add_option("--ekf-iterations", args->options.magnetometer_iterations,
+                  "EKF: iterations of each magnetometer update (iterated EKF); 1 = plain EKF")
+      ->capture_default_str();
   auto& q = args->options.process;
   cmd->add_option("--q-position", q.position_m_per_sqrt_s, "position random walk, m/sqrt(s)");
   cmd->add_option("--q-speed", q.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)");

@@ -202,7 +202,7 @@ bool LocalizerEkf::Update(const MagSample& sample) {
   Jacobian3x2 Hs;
   const Eigen::Vector3d predicted = VesselFieldAtSensor(x_.head<5>(), vessel_, p_S, &Hv, &Hs);
   // U = P Hᵀ touches only the vessel and this sensor's columns of P.
-  const Eigen::MatrixXd U = Columns(0, 5) * Hv.transpose() + Columns(c, 2) * Hs.transpose();
+  Eigen::MatrixXd U = Columns(0, 5) * Hv.transpose() + Columns(c, 2) * Hs.transpose();
   Eigen::Matrix3d S = Hv * U.topRows<5>() + Hs * U.middleRows<2>(c);
   S = 0.5 * (S + S.transpose()).eval();
   S.diagonal().array() += options_.sigma_B_T * options_.sigma_B_T;
@@ -215,12 +215,37 @@ bool LocalizerEkf::Update(const MagSample& sample) {
     return false;
   }
   if (inflate > 1.0) llt.compute(inflate * S);
-  const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
+  Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
   if (!K.allFinite()) {
     last_outcome_ = Outcome::kFailed;
     return false;
   }
-  x_.noalias() += K * innovation;
+  Eigen::VectorXd x_post = x_ + K * innovation;
+  // Iterated update: relinearise at x_post (the field and its Jacobians at
+  // the updated vessel and sensor state), x_post = x + K_i (z − h(x_i) −
+  // H_i (x − x_i)), with K_i, S_i from H_i and the prior P.
+  for (int it = 1; it < options_.magnetometer_iterations; ++it) {
+    const Eigen::Vector3d p_Si(x_post[c], x_post[c + 1], p_S.z());
+    const Eigen::Vector3d h_i = VesselFieldAtSensor(x_post.head<5>(), vessel_, p_Si, &Hv, &Hs);
+    const Eigen::MatrixXd U_i = Columns(0, 5) * Hv.transpose() + Columns(c, 2) * Hs.transpose();
+    Eigen::Matrix3d S_i = Hv * U_i.topRows<5>() + Hs * U_i.middleRows<2>(c);
+    S_i = 0.5 * (S_i + S_i.transpose()).eval();
+    S_i.diagonal().array() += options_.sigma_B_T * options_.sigma_B_T;
+    const Eigen::LLT<Eigen::Matrix3d> llt_i(inflate * S_i);
+    if (llt_i.info() != Eigen::Success) break;
+    const Eigen::Vector3d r_i = sample.B_T - h_i - Hv * (x_.head<5>() - x_post.head<5>()) -
+                                Hs * (x_.segment<2>(c) - x_post.segment<2>(c));
+    const Eigen::MatrixXd K_i = llt_i.solve(U_i.transpose()).transpose();
+    if (!K_i.allFinite() || !r_i.allFinite()) break;
+    const Eigen::VectorXd x_next = x_ + K_i * r_i;
+    const double step = (x_next - x_post).head<2>().norm() + (x_next - x_post).segment<2>(c).norm();
+    x_post = x_next;
+    K = K_i;
+    U = U_i;
+    llt = llt_i;
+    if (step < 1e-3) break;
+  }
+  x_ = x_post;
   JosephUpdate(U, K, llt.matrixL().toDenseMatrix());
   return true;
 }

@@ -290,6 +290,7 @@ std::string StreamingLocalizer::ConfigBytes(int part) const {
       w.F64(v);
     }
     w.I64(o.gate_release_after);
+    w.I64(o.magnetometer_iterations);
     w.U8(stream_.bounded ? 1 : 0);
     w.U64(stream_.bound.max_window_items);
   }

@@ -121,7 +121,8 @@ TEST(LocalizerEkf, OneUpdateEqualsTheDenseJosephForm) {
   VesselVector x0;
   x0 << 10.0, 5.0, 2.0, 0.4, 0.01;
   const VesselCovariance P0 = VesselVector(4.0, 4.0, 0.25, 0.1, 0.001).asDiagonal();
-  const LocalizerOptions opt;
+  LocalizerOptions opt;
+  opt.magnetometer_iterations = 1;  // the plain EKF update
   LocalizerEkf ekf(kVessel, sensors, 0.0, x0, P0, opt);
   ASSERT_TRUE(ekf.Predict(0.2));
   const Eigen::VectorXd x = ekf.state();
@@ -152,6 +153,57 @@ TEST(LocalizerEkf, OneUpdateEqualsTheDenseJosephForm) {
   EXPECT_EQ(ekf.covariance(), ekf.covariance().transpose());
   // The unobserved sensor 3 is untouched only through correlations (none yet).
   EXPECT_EQ(ekf.state().segment<2>(5), x.segment<2>(5));
+}
+
+// The iterated update (the default, magnetometer_iterations = 2): the second
+// iteration relinearises at the first's result x1, x2 = x + K1 (z − h(x1) −
+// H1 (x − x1)), and the covariance is the Joseph form with H1, K1 (K1 from the
+// prior P and H1): the textbook IEKF, dense, H by central differences.
+TEST(LocalizerEkf, IteratedUpdateEqualsTheDenseTextbookIekf) {
+  const auto sensors = TwoSensors();
+  VesselVector x0;
+  x0 << 10.0, 5.0, 2.0, 0.4, 0.01;
+  const VesselCovariance P0 = VesselVector(4.0, 4.0, 0.25, 0.1, 0.001).asDiagonal();
+  const LocalizerOptions opt;
+  ASSERT_EQ(opt.magnetometer_iterations, 2);
+  LocalizerEkf ekf(kVessel, sensors, 0.0, x0, P0, opt);
+  ASSERT_TRUE(ekf.Predict(0.2));
+  const Eigen::VectorXd x = ekf.state();
+  const Eigen::MatrixXd P = ekf.covariance();
+  MagSample s{0.2, 7, Eigen::Vector3d(5e-9, -3e-9, 8e-9)};
+  ASSERT_TRUE(ekf.Update(s));
+
+  const int n = static_cast<int>(x.size());
+  const auto h = [&](const Eigen::VectorXd& z) {
+    return FieldByHand(z.head<5>(), Eigen::Vector3d(z[7], z[8], 30.0));
+  };
+  const auto jacobian = [&](const Eigen::VectorXd& at) {
+    Eigen::MatrixXd H(3, n);
+    for (int i = 0; i < n; ++i) {
+      Eigen::VectorXd a = at, b = at;
+      a[i] += 1e-5;
+      b[i] -= 1e-5;
+      H.col(i) = (h(a) - h(b)) / 2e-5;
+    }
+    return H;
+  };
+  const Eigen::Matrix3d R = Eigen::Matrix3d::Identity() * opt.sigma_B_T * opt.sigma_B_T;
+  const auto gain = [&](const Eigen::MatrixXd& H) {
+    const Eigen::Matrix3d S = H * P * H.transpose() + R;
+    return Eigen::MatrixXd(P * H.transpose() * S.inverse());
+  };
+  const Eigen::MatrixXd H0 = jacobian(x);
+  const Eigen::VectorXd x1 = x + gain(H0) * (s.B_T - h(x));
+  const Eigen::MatrixXd H1 = jacobian(x1);
+  const Eigen::MatrixXd K1 = gain(H1);
+  const Eigen::VectorXd x2 = x + K1 * (s.B_T - h(x1) - H1 * (x - x1));
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(n, n);
+  const Eigen::MatrixXd P_ref = (I - K1 * H1) * P * (I - K1 * H1).transpose() + K1 * R * K1.transpose();
+  // The premise: the second iteration moves the state (else this equals the plain update).
+  ASSERT_GT((x2 - x1).norm(), 1e-3 * (x1 - x).norm());
+  EXPECT_LT((ekf.state() - x2).norm(), 1e-6 * (x2 - x).norm() + 1e-9);
+  EXPECT_LT((ekf.covariance() - P_ref).norm(), 1e-6 * P.norm());
+  EXPECT_EQ(ekf.covariance(), ekf.covariance().transpose());
 }
 
 TEST(LocalizerEkf, BadSamplesLeaveTheStateUntouched) {
