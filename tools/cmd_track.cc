@@ -251,10 +251,16 @@ void AddTrackCommand(CLI::App& app) {
                   "single-sample fixes to start the track from (magnav invert output or a recorded dipole_fix "
                   "topic: t,sensor_id,dipole_x..z,valid)");
   cli::AddTrackerOptions(*cmd, &args->flags, "--fixes");
-  cmd->add_option("--batch-rounds", args->flags.options.batch_rounds, "batch: refinement rounds over every track")
+  cmd->add_option("--batch-rounds", args->flags.options.batch_rounds,
+                  "batch: refinement rounds over every track (at least; more while a span grows)")
       ->capture_default_str();
-  cmd->add_option("--batch-margin", args->flags.options.batch_margin_s,
-                  "batch: a track's samples are taken from this long before to this long after its window span, s")
+  cmd->add_option("--batch-gate-snr", args->flags.options.batch_gate_snr,
+                  "batch: a track is refined over the samples where its predicted SNR is at least this, its span "
+                  "grown over the epochs where its predicted tensor SNR is")
+      ->capture_default_str();
+  cmd->add_option("--batch-extension-step", args->flags.options.batch_extension_step_s,
+                  "batch: each round grows a track's span by at most this much per side, over the epochs where its "
+                  "predicted tensor SNR reaches --batch-gate-snr, s")
       ->capture_default_str();
   cmd->callback([args] { RunTrack(*args); });
 }

@@ -143,6 +143,22 @@ namespace {
 
 constexpr double kChi2Two99 = 9.2103;  // 99 % point of χ² with 2 degrees of freedom
 
+// The map's Hessian (nT/deg²) at a point: central second differences of the
+// grid at the nearest node (one node in from the edge), the curvature the
+// bilinear interpolation's piecewise-constant gradient steps through.
+void MapHessian(const GeoGrid& grid, std::size_t layer, double lat_deg, double lon_deg, double* h_ll, double* h_ln,
+                double* h_nn) {
+  const GridAxis& la = grid.lat();
+  const GridAxis& lo = grid.lon();
+  if (la.count < 3 || lo.count < 3) return;
+  const int i = std::clamp(static_cast<int>(std::lround((lat_deg - la.first_deg) / la.step_deg)), 1, la.count - 2);
+  const int j = std::clamp(static_cast<int>(std::lround((lon_deg - lo.first_deg) / lo.step_deg)), 1, lo.count - 2);
+  const auto f = [&](int a, int b) { return grid.node(layer, a, b); };
+  *h_ll = (f(i + 1, j) - 2.0 * f(i, j) + f(i - 1, j)) / (la.step_deg * la.step_deg);
+  *h_nn = (f(i, j + 1) - 2.0 * f(i, j) + f(i, j - 1)) / (lo.step_deg * lo.step_deg);
+  *h_ln = (f(i + 1, j + 1) - f(i + 1, j - 1) - f(i - 1, j + 1) + f(i - 1, j - 1)) / (4.0 * la.step_deg * lo.step_deg);
+}
+
 // The rounds (and the robust refit) from one start path; `r` carries the
 // counts so far.
 MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path, const FastMsdOptions& options,
@@ -280,15 +296,24 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
       ++on;
     }
   }
-  // Covariance (fast_msd_covariance.h): the Laplace approximation at the solution with the final λ.
+  // Covariance (fast_msd_covariance.h): the final λ smoother's error covariance, its noise and INS-drift
+  // scales estimated from the path, with the map's curvature at each point.
   {
-    const internal::PathCovariance c = internal::FastMsdCovariance(final_lin.g_lat, final_lin.g_lon, final_lin.resid,
-                                                                   final_lin.data, options.lambda_nT2_per_deg2);
+    std::vector<double> e_lat(n), e_lon(n), h_ll(n, 0.0), h_ln(n, 0.0), h_nn(n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      e_lat[i] = r.lat_deg[i] - start_lat[i];
+      e_lon[i] = r.lon_deg[i] - start_lon[i];
+      if (final_lin.data[i]) MapHessian(grid, layer, r.lat_deg[i], r.lon_deg[i], &h_ll[i], &h_ln[i], &h_nn[i]);
+    }
+    const internal::ErrorCovariance c =
+        internal::FastMsdErrorCovariance(final_lin.g_lat, final_lin.g_lon, final_lin.resid, final_lin.data, e_lat,
+                                         e_lon, h_ll, h_ln, h_nn, options.lambda_nT2_per_deg2);
     r.cov_lat_lat = c.lat_lat;
     r.cov_lat_lon = c.lat_lon;
     r.cov_lon_lon = c.lon_lon;
     r.notes += std::string(r.notes.empty() ? "" : "; ") + "covariance: residual sigma " +
-               FormatNumber(std::sqrt(c.s2_nT2)) + " nT, " + FormatNumber(c.edf) + " effective parameters";
+               FormatNumber(std::sqrt(c.s2_nT2)) + " nT, INS drift " + FormatNumber(std::sqrt(c.tau2_deg2)) +
+               " deg per point, " + FormatNumber(c.edf) + " effective parameters";
   }
   r.points_used = on;
   r.score = on > 0 ? sum2 / on : std::numeric_limits<double>::quiet_NaN();

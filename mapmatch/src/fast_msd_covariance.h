@@ -36,4 +36,38 @@ struct PathCovariance {
 PathCovariance FastMsdCovariance(const std::vector<double>& g_lat, const std::vector<double>& g_lon,
                                  const std::vector<double>& resid, const std::vector<char>& data, double lambda);
 
+// The covariance fast MSD writes (docs/ACCURACY.md, "At 0.5 nT"): the error
+// covariance of the fixed-λ smoother above under a model whose two scales are
+// estimated from the path itself, plus the map's curvature.
+//  - Model: readings y_i = g_i·e_i + n_i, n_i ~ N(0, σ²); the corrections e
+//    (the INS error) a random walk of τ² per step and axis. The smoother's λ
+//    ties its prior to the noise (τ² = 2σ²/λ), which at low noise is far
+//    tighter than the INS drift it has to follow: the error there does not
+//    shrink with σ, and σ²(Gᵀ W G + (λ/2) L)⁻¹ does.
+//  - σ², τ²: maximum marginal likelihood of the linearised model (EM, from
+//    the residual σ² above and τ² = 2σ²/λ; pseudo-observations
+//    y_i = g_i·ê_i − r_i with ê the solution's corrections from the start).
+//  - Error covariance of the smoother with its own λ (a sandwich):
+//      M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹,  M = Gᵀ W G + (λ/2) L,
+//    R = diag(σ² + v_i), v_i = ½ tr((H_i C_i)²) the variance of the map's
+//    second-order term ½ δᵀ H_i δ over the position error δ ~ N(0, C_i)
+//    (H_i: the map's Hessian at the point, nT/deg²; C_i this covariance,
+//    iterated `curvature_iterations` times from v = 0).
+//  Diagonal blocks by one block-tridiagonal solve per column of a square
+//  root of the middle factor: O(N²) time, O(N) memory.
+// e_lat/e_lon: the solution's corrections (deg) from the rounds' start;
+// h_*: the map's Hessian per point (nT/deg²); the rest as above.
+// Output s2_nT2 = σ², tau2_deg2 = τ²; edf as above (with the final λ).
+struct ErrorCovariance {
+  std::vector<double> lat_lat, lat_lon, lon_lon;
+  double s2_nT2 = 0.0;
+  double tau2_deg2 = 0.0;
+  double edf = 0.0;
+};
+ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const std::vector<double>& g_lon,
+                                       const std::vector<double>& resid, const std::vector<char>& data,
+                                       const std::vector<double>& e_lat, const std::vector<double>& e_lon,
+                                       const std::vector<double>& h_ll, const std::vector<double>& h_ln,
+                                       const std::vector<double>& h_nn, double lambda, int curvature_iterations = 6);
+
 }  // namespace magnav::mapmatch::internal

@@ -1,7 +1,8 @@
 // Fast MSD's covariance (mapmatch/src/fast_msd_covariance.h): the O(N)
 // block-tridiagonal recursion gives the diagonal blocks of the dense inverse
 // of the posterior precision, and its residual variance counts the smoother's
-// effective parameters.
+// effective parameters; the error covariance fast MSD writes
+// (FastMsdErrorCovariance) is the dense sandwich.
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -65,6 +66,46 @@ TEST(FastMsdCovariance, NoDataTermIsInfinite) {
   const std::vector<double> z(5, 0.0);
   const internal::PathCovariance c = internal::FastMsdCovariance(z, z, z, std::vector<char>(5, 0), 1e7);
   for (double v : c.lat_lat) EXPECT_TRUE(std::isinf(v));
+}
+
+// The error covariance's O(N²) column sums are the dense sandwich
+// M⁻¹ (σ² Gᵀ W R W G + (λ/2)² τ² L) M⁻¹ with its own σ², τ² and no curvature.
+TEST(FastMsdCovariance, ErrorCovarianceIsTheDenseSandwich) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> gd(0.0, 2e4), res(0.0, 0.5), e(0.0, 1e-3);
+  const std::size_t n = 9;
+  const double lambda = 1e7, h = 0.5 * lambda;
+  std::vector<double> gl(n), gn(n), r(n), el(n), en(n), zero(n, 0.0);
+  std::vector<char> data(n, 1);
+  data[4] = 0;  // a point without a data term
+  for (std::size_t i = 0; i < n; ++i) gl[i] = gd(rng), gn[i] = gd(rng), r[i] = res(rng), el[i] = e(rng), en[i] = e(rng);
+  const internal::ErrorCovariance c = internal::FastMsdErrorCovariance(gl, gn, r, data, el, en, zero, zero, zero, lambda);
+  ASSERT_GT(c.s2_nT2, 0.0);
+  ASSERT_GT(c.tau2_deg2, 0.0);
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(2 * n, 2 * n), A = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double w = !data[i] ? 0.0 : (i == 0 || i == n - 1) ? 0.5 : 1.0;
+    const Eigen::Vector2d g(gl[i], gn[i]);
+    M.block<2, 2>(2 * i, 2 * i) += w * g * g.transpose();
+    A.block<2, 2>(2 * i, 2 * i) += c.s2_nT2 * w * w * g * g.transpose();
+    if (i + 1 < n) {
+      for (int k = 0; k < 2; ++k) {
+        for (auto [m, f] : {std::pair{&M, h}, std::pair{&A, h * h * c.tau2_deg2}}) {
+          (*m)(2 * i + k, 2 * i + k) += f;
+          (*m)(2 * i + 2 + k, 2 * i + 2 + k) += f;
+          (*m)(2 * i + k, 2 * i + 2 + k) -= f;
+          (*m)(2 * i + 2 + k, 2 * i + k) -= f;
+        }
+      }
+    }
+  }
+  const Eigen::MatrixXd Mi = M.inverse();
+  const Eigen::MatrixXd C = Mi * A * Mi;
+  for (std::size_t i = 0; i < n; ++i) {
+    EXPECT_NEAR(c.lat_lat[i], C(2 * i, 2 * i), 1e-6 * C(2 * i, 2 * i)) << i;
+    EXPECT_NEAR(c.lat_lon[i], C(2 * i, 2 * i + 1), 1e-6 * std::sqrt(C(2 * i, 2 * i) * C(2 * i + 1, 2 * i + 1))) << i;
+    EXPECT_NEAR(c.lon_lon[i], C(2 * i + 1, 2 * i + 1), 1e-6 * C(2 * i + 1, 2 * i + 1)) << i;
+  }
 }
 
 }  // namespace

@@ -33,8 +33,8 @@ double Nees(const MatchResult& r, std::size_t p, double lat, double lon) {
 }
 
 // Documented (docs/ACCURACY.md): ANEES over seeds 3201-3206, 2 dof.
-constexpr double kDocumentedFinal = 2.09;
-constexpr double kDocumentedPoints = 2.28;
+constexpr double kDocumentedFinal = 3.03;
+constexpr double kDocumentedPoints = 2.79;
 
 TEST(FastMsdTrust, CovarianceIsCalibratedOnTheCalibrationSeeds) {
   const std::string dir = testing::TempDir();

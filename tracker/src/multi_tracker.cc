@@ -49,10 +49,10 @@ MultiTrackerOptions::MultiTrackerOptions() {
 
 bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (!track.IsValid(error) || !management.IsValid(error)) return false;
+  if (!background.IsValid(error)) return false;
   if (batch_rounds < 1) return Fail(error, "batch_rounds must be >= 1");
-  if (!(batch_margin_s >= 0.0) || !std::isfinite(batch_margin_s)) {
-    return Fail(error, "batch_margin_s must be finite and >= 0");
-  }
+  if (!PositiveFinite(batch_gate_snr)) return Fail(error, "batch_gate_snr must be > 0");
+  if (!PositiveFinite(batch_extension_step_s)) return Fail(error, "batch_extension_step_s must be > 0");
   return true;
 }
 
@@ -108,6 +108,7 @@ Eigen::Vector2d Horizontal(const CtState<double>& s) { return {s.x, s.y}; }
 struct MultiTracker::Impl {
   Eigen::Vector3d B0_W;
   MultiTrackerOptions options;
+  SensorBackgrounds background{Eigen::Vector3d::Zero(), BackgroundOptions{}};
   const TrackManagementOptions& mg() const { return options.management; }
   std::vector<Track> tracks;  // live (confirmed and tentative)
   std::vector<TrackRecord> records;  // confirmed, by id - 1
@@ -191,9 +192,44 @@ struct MultiTracker::Impl {
     r.t_last_detection_s = tr.life.t_last_detection_s();
   }
 
-  std::vector<TrackOutput> Process(const Epoch& e) {
+  // The epoch with every sample's B corrected by its sensor's background
+  // prior (its deviation from B0), the prior's variance added to σ_B².
+  Epoch WithoutBackground(const Epoch& raw) const {
+    Epoch e = raw;
+    if (!options.background.enabled) return e;
+    for (GradiometerSample& s : e.samples) {
+      const BackgroundEstimate b = background.Predict(s.sensor_id, e.t_s);
+      s.sigma_B = std::hypot(SigmaB(s, options.track), b.sigma_T);
+      s.B -= b.B_W - B0_W;
+    }
+    return e;
+  }
+
+  // Each sensor's background takes the raw sample minus every live track's
+  // predicted B (their model error in its variance).
+  void UpdateBackground(const Epoch& raw, const std::vector<TrackPrediction>& pred) {
+    if (!options.background.enabled) return;
+    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+    for (std::size_t j = 0; j < raw.samples.size(); ++j) {
+      const GradiometerSample& s = raw.samples[j];
+      Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
+      for (const TrackPrediction& p : pred) {
+        if (!p.valid) continue;
+        B_tracks += p.at[j].B;
+        T_tracks += p.at[j].T;
+      }
+      const double sb = SigmaB(s, options.track);
+      const double var = sb * sb + rel * rel * B_tracks.squaredNorm() / 3.0;
+      const double st2 = std::pow(SigmaT(s, options.track), 2) + rel * rel * T_tracks.squaredNorm() / 9.0;
+      background.Update(s.sensor_id, raw.t_s, s.B - B_tracks, var, (s.T - T_tracks).squaredNorm() / st2 / 9.0);
+    }
+  }
+
+  std::vector<TrackOutput> Process(const Epoch& raw) {
     ++summary.num_epochs;
     std::vector<TrackOutput> out;
+    const Epoch e = WithoutBackground(raw);
     const double t = e.t_s;
     const std::size_t n = e.samples.size();
     // 1. Prediction.
@@ -211,6 +247,7 @@ struct MultiTracker::Impl {
     }
     // 2.–3. Association and score (association.h).
     std::vector<TrackAssociation> assoc = AssociateEpoch(e, pred, B0_W, options);
+    UpdateBackground(raw, pred);
     // 4. Update, track by track.
     for (std::size_t i = 0; i < tracks.size(); ++i) {
       Track& tr = tracks[i];
@@ -409,6 +446,7 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   if (!B0_W.allFinite()) throw InputError("multi-tracker: B0 is not finite");
   impl_->B0_W = B0_W;
   impl_->options = options;
+  impl_->background = SensorBackgrounds(B0_W, options.background);
 }
 
 MultiTracker::~MultiTracker() = default;
@@ -559,6 +597,7 @@ std::string MultiTracker::SaveState() const {
   w.U8(m.has_pending ? 1 : 0);
   internal::Put(w, m.pending);
   w.F64(m.last_t);
+  m.background.SaveState(w);
   return w.bytes();
 }
 
@@ -632,9 +671,17 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.has_pending = r.U8() != 0;
   internal::Get(r, &m.pending);
   m.last_t = r.F64();
+  m.background = SensorBackgrounds(m.B0_W, m.options.background);
+  m.background.RestoreState(r);
   if (!r.at_end()) throw CheckpointError("corrupt: bytes after the tracker state");
   impl_ = std::move(fresh);
 }
 const MultiSummary& MultiTracker::summary() const { return impl_->summary; }
+
+BackgroundEstimate MultiTracker::Background(std::uint32_t sensor_id, double t_s) const {
+  const Impl& m = *impl_;
+  if (!m.options.background.enabled) return {m.B0_W, 0.0};
+  return m.background.Predict(sensor_id, t_s);
+}
 
 }  // namespace magnav::tracker

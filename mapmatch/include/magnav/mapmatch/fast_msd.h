@@ -93,14 +93,16 @@ struct FastMsdOptions {
 // iterations = Jacobi iterations over all rounds (direct solver: one per round); score = MSD (nT²) at the
 // matched points on the map, outliers left out; converged = every round's Jacobi met epsilon and the
 // coarse stage's best minimum is not ambiguous (ambiguity_ratio).
-// Covariance (MatchResult::cov_*, per point, deg² in (lat, lon)): the Laplace
-// approximation at the solution (mapmatch/src/fast_msd_covariance.h) — the
-// fixed point minimises Σ w_i (g_i·e_i + m_i − l_i)² + (λ/2) Σ |e_{i+1} − e_i|²
-// (w = 1, ½ at the two ends), so with Gaussian noise σ² and that random-walk
-// prior the posterior precision is (Gᵀ W G + (λ/2) L)/σ²; σ² from the
-// residuals at the solution over the residual degrees of freedom (points minus
-// the smoother's effective parameters). Widened to cover a second peak when
-// ambiguous (above). Calibration: docs/ACCURACY.md, "Trust: covariance calibration".
+// Covariance (MatchResult::cov_*, per point, deg² in (lat, lon)): the error
+// covariance of the smoother (mapmatch/src/fast_msd_covariance.h) — the fixed
+// point minimises Σ w_i (g_i·e_i + m_i − l_i)² + (λ/2) Σ |e_{i+1} − e_i|²
+// (w = 1, ½ at the two ends) — under a model whose reading noise σ² and INS
+// drift τ² (a random walk of the corrections, per point and axis) are
+// estimated from the path (EM on the linearised model), not tied together by
+// λ: M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹, M = Gᵀ W G + (λ/2) L, with R = σ²
+// plus the variance of the map's second-order term over the position error
+// (the grid's curvature). Widened to cover a second peak when ambiguous
+// (above). Calibration: docs/ACCURACY.md, "Trust: covariance calibration".
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                          const FastMsdOptions& options = {});
 

@@ -1,0 +1,183 @@
+// Single-vessel passes at closest approaches of 6-12 m (issue 24, "What it
+// must show"; tests/data/generated/tracker_single_passes.csv, fixed before the
+// batch change): the multi-vessel batch (SolveBatchMulti, as `magnav track`)
+// refines a lone vessel over every sample where it is seen, so it is at least
+// as accurate as the former single-target batch (SolveBatch over the whole
+// pass). docs/ACCURACY.md, "Single-vessel passes at 6-12 m";
+// scripts/heldout_single_pass runs every row through the CLI.
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "magnav/core/simulate.h"
+#include "magnav/tracker/multi_tracker.h"
+#include "magnav/tracker/tracker.h"
+#include "reference_truth.h"
+#include "test_data.h"
+#include "track_metrics.h"
+
+namespace magnav::tracker {
+namespace {
+
+struct PassRow {
+  std::string set, name;
+  Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+  double heading = 0.0, closest_3d = 0.0, side = 1.0, speed = 1.0, turn = 0.0;
+  std::uint64_t seed = 0;
+};
+
+std::vector<PassRow> LoadPasses() {
+  std::ifstream in(testing::TestDataDir() + "/generated/tracker_single_passes.csv");
+  EXPECT_TRUE(in.good());
+  std::vector<PassRow> rows;
+  std::string line;
+  bool header = true;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    if (header) {
+      EXPECT_EQ(line, "set,name,mx,my,mz,heading_rad,closest_3d_m,side,speed_mps,turn_rps,seed");
+      header = false;
+      continue;
+    }
+    std::stringstream ss(line);
+    std::vector<std::string> f;
+    for (std::string c; std::getline(ss, c, ',');) f.push_back(c);
+    EXPECT_EQ(f.size(), 11u) << line;
+    if (f.size() != 11u) continue;
+    PassRow r;
+    r.set = f[0];
+    r.name = f[1];
+    r.moment = {std::stod(f[2]), std::stod(f[3]), std::stod(f[4])};
+    r.heading = std::stod(f[5]);
+    r.closest_3d = std::stod(f[6]);
+    r.side = std::stod(f[7]);
+    r.speed = std::stod(f[8]);
+    r.turn = std::stod(f[9]);
+    r.seed = std::stoull(f[10]);
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+const PassRow& Find(const std::vector<PassRow>& rows, const std::string& name) {
+  for (const auto& r : rows) {
+    if (r.name == name) return r;
+  }
+  ADD_FAILURE() << "no pass " << name;
+  return rows.front();
+}
+
+// As scripts/heldout_single_pass: at t = 75 s the vessel is closest_3d from
+// the sensor at the origin, 5 m above it.
+PassScenario Scenario(const PassRow& r, bool fluxgate, std::uint64_t seed) {
+  PassScenario sc;
+  sc.moment_body = r.moment;
+  sc.start_heading_rad = r.heading;
+  sc.speed_mps = r.speed;
+  const double horiz = std::sqrt(r.closest_3d * r.closest_3d - 25.0);
+  const Eigen::Vector3d v(std::cos(r.heading), std::sin(r.heading), 0.0);
+  const Eigen::Vector3d left(std::sin(r.heading), -std::cos(r.heading), 0.0);
+  const Eigen::Vector3d closest = r.side * horiz * left + Eigen::Vector3d(0.0, 0.0, -5.0);
+  sc.start_position = closest - 75.0 * r.speed * v;
+  sc.segments = {{80.0, 0.0}, {60.0, r.turn}, {60.0, 0.0}};
+  sc.sigma_B = fluxgate ? testing::kFluxgateSigmaB : testing::kSquidSigmaB;
+  sc.sigma_T = fluxgate ? testing::kFluxgateSigmaT : testing::kSquidSigmaT;
+  sc.seed = seed;
+  return sc;
+}
+
+struct PassScores {
+  testing::TrackMetrics batch, single, window;
+  std::size_t batch_tracks = 0;
+};
+
+PassScores RunPass(const PassRow& r, bool fluxgate, bool with_single) {
+  const PassScenario sc = Scenario(r, fluxgate, r.seed);
+  const SimulatedPass sim = SimulatePass(sc);
+  const testing::TruthTrack truth = testing::TruthOf(sim);
+  const MultiTrackerOptions opt;
+  const auto epochs = GroupEpochs(sim.samples, opt.track.epoch_tolerance_s);
+  PassScores s;
+  const auto tracks = SolveBatchMulti(epochs, sc.B0, opt);
+  s.batch_tracks = tracks.size();
+  std::vector<EpochEstimate> rows;
+  for (const auto& t : tracks) rows.insert(rows.end(), t.track.epochs.begin(), t.track.epochs.end());
+  s.batch = testing::ScoreTrack(rows, sim.samples, truth);
+  if (with_single) {
+    const TrackEstimate single = SolveBatch(epochs, sc.B0, opt.track);
+    s.single = testing::ScoreTrack(single.epochs, sim.samples, truth);
+  }
+  MultiTracker window(sc.B0, opt);
+  std::vector<EpochEstimate> w;
+  const auto take = [&](const std::vector<TrackOutput>& out) {
+    for (const auto& o : out) w.push_back(o.estimate);
+  };
+  for (const auto& smp : sim.samples) take(window.AddSample(smp));
+  take(window.Flush());
+  s.window = testing::ScoreTrack(w, sim.samples, truth);
+  return s;
+}
+
+void Print(const PassRow& r, bool fluxgate, const PassScores& s) {
+  const auto row = [&](const char* mode, const testing::TrackMetrics& m) {
+    std::cout << "| " << r.name << " | " << r.closest_3d << " | " << (fluxgate ? "fluxgate" : "squid") << " | "
+              << mode << " | " << m.rms << " | " << m.max << " | " << m.nees << " | " << m.n << " |\n";
+  };
+  row("batch", s.batch);
+  row("former single-target batch", s.single);
+  row("window", s.window);
+}
+
+struct Figures {
+  double rms, max, nees;
+  int n;
+};
+struct Documented {
+  const char* pass;
+  bool fluxgate;
+  Figures batch, window;
+};
+
+void ExpectFigures(const testing::TrackMetrics& m, const Figures& d, const std::string& what) {
+  testing::ExpectErrorFigure(m.rms, d.rms, what + " RMS");
+  testing::ExpectErrorFigure(m.max, d.max, what + " max");
+  testing::ExpectCountFigure(m.n, d.n, what + " epochs", 1.1);
+  testing::ExpectHonestNees(m, d.nees, what);
+}
+
+// A few held-out passes of the file (docs/ACCURACY.md, "Single-vessel passes
+// at 6-12 m"; every figure with the margins of reference_truth.h): the batch
+// uses (nearly) every epoch within 30 m, as the former single-target batch
+// over the whole pass did (before this change fewer: the approach side before
+// the window track started was not used), meets the issue's targets (fluxgate batch ≤ 0.2 m, window
+// ≤ 0.3 m; SQUID 0.01 m) and an honest NEES. ~10 s.
+TEST(SinglePass, BatchUsesEveryEpochWhereTheVesselIsSeen) {
+  const std::vector<Documented> doc = {
+      {"h6", true, {0.0649, 0.214, 0.786, 604}, {0.0392, 0.141, 1.13, 394}},
+      {"h9", true, {0.104, 0.252, 3.50, 387}, {0.239, 0.583, 4.08, 228}},
+      {"h10", false, {0.000649, 0.00376, 2.60, 559}, {0.000727, 0.00378, 3.50, 559}},
+  };
+  const auto rows = LoadPasses();
+  for (const auto& d : doc) {
+    const PassRow& r = Find(rows, d.pass);
+    const std::string what = std::string(d.pass) + (d.fluxgate ? " fluxgate" : " SQUID");
+    const PassScores s = RunPass(r, d.fluxgate, true);
+    Print(r, d.fluxgate, s);
+    EXPECT_EQ(s.batch_tracks, 1u) << what;
+    // (Nearly) every epoch the single-target batch scores (all within 30 m):
+    // h6 604 of 608, the last block at the 30 m edge not taken (ExtendSpan).
+    EXPECT_GE(s.batch.n, 0.98 * s.single.n) << what;
+    EXPECT_LE(s.batch.rms, d.fluxgate ? 0.2 : 0.01) << what << " batch";
+    EXPECT_LE(s.window.rms, d.fluxgate ? 0.3 : 0.01) << what << " window";
+    ExpectFigures(s.batch, d.batch, what + " batch");
+    ExpectFigures(s.window, d.window, what + " window");
+  }
+}
+
+}  // namespace
+}  // namespace magnav::tracker
