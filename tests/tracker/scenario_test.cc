@@ -72,8 +72,8 @@ TEST(HarbourScenario, WindowStartsOneTrackPerVesselAbreast) {
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
-    // Below the 0.8: the pair starts once 20 s of mixed samples are
-    // buffered. A 2x regression (0.39) fails.
+    // Below the 0.8: the pair starts at 55 s, 9.8 s after the vessels
+    // reach the first sensor (docs/ACCURACY.md). A 2x regression (0.39) fails.
     EXPECT_GE(s.coverage[v], 0.65) << "vessel " << v + 1;  // measured 0.784 / 0.784
   }
   EXPECT_LE(s.rms[0], 1.5 * 0.0557);  // m, measured 0.0557

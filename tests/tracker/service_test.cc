@@ -6,6 +6,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -16,6 +17,7 @@
 
 #include <gtest/gtest.h>
 
+#include "magnav/cli/scenario_file.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/gradiometer.h"
@@ -353,6 +355,53 @@ TEST(TrackerService, TwoVesselsGetTwoTracks) {
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_GE(s.coverage[v], 0.85) << "vessel " << v;  // the library's window figures (tracker_multi_test)
     EXPECT_LE(s.rms[v], 0.04) << "vessel " << v;
+  }
+}
+
+// Two AUVs abreast 24 m apart (the held-out scenario
+// tests/data/generated/scenarios/heldout/abreast.toml, issue 24 "What it must
+// show"): the service publishes two tracks, one per vessel, every estimate
+// the library's MultiTracker's; scored against the truth from what arrived
+// over the wire, purity and RMS against the issue's targets (one id per
+// vessel, RMS <= 0.3 m). Coverage: the library's window figure is 0.784 /
+// 0.784, below the issue's 0.8 (docs/ACCURACY.md, "Harbour-like
+// scenarios"), so what is asserted is the service equal to the library and a
+// bound a 2x regression breaks, not the target.
+TEST(TrackerService, TwoVesselsAbreastGetTwoTracks) {
+  const FieldScenario sc =
+      cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/abreast.toml");
+  ASSERT_EQ(sc.B0, Eigen::Vector3d(2e-05, 1e-06, 4.5e-05));  // RunService's --b0
+  const SimulatedField field = SimulateField(sc);
+  const std::vector<TrackOutput> want = LibraryTracks(field.samples, sc.B0);
+  ASSERT_GT(want.size(), 1000u);
+  const auto [got, log] = RunService(field.samples, want.size());
+  EXPECT_NE(log.find("track 1 started"), std::string::npos) << log;
+  EXPECT_NE(log.find("track 2 started"), std::string::npos) << log;
+  ExpectSameEstimates(got, want);
+  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
+  for (const auto& m : got) {
+    EpochEstimate e;
+    e.t_s = NanosToSeconds(m.stamp_ns());
+    e.p_VinW = {m.position()[0], m.position()[1], m.position()[2]};
+    rows.emplace_back(m.track_id(), e);
+  }
+  const testing::FieldScores s = testing::ScoreField(sc, field, rows);
+  testing::PrintFieldScores("held-out abreast, magnav-tracker", s);
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
+  ASSERT_EQ(s.ids.size(), 2u);
+  EXPECT_EQ(s.ids[0], 1u);
+  EXPECT_EQ(s.ids[1], 1u);
+  EXPECT_NE(s.rows_by_id[0].begin()->first, s.rows_by_id[1].begin()->first);
+  for (std::size_t v = 0; v < 2; ++v) {
+    int n = 0, most = 0;  // purity: the share of the vessel's rows under its main id
+    for (const auto& [id, k] : s.rows_by_id[v]) {
+      n += k;
+      most = std::max(most, k);
+    }
+    ASSERT_GT(n, 0) << "vessel " << v;
+    EXPECT_GE(static_cast<double>(most) / n, 0.95) << "vessel " << v;
+    EXPECT_LE(s.rms[v], 0.3) << "vessel " << v;
+    EXPECT_GE(s.coverage[v], 0.65) << "vessel " << v;  // the library's 0.784 (issue target 0.8, not reached)
   }
 }
 
