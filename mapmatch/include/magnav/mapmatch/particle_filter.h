@@ -214,9 +214,9 @@ struct ParticleFilterOptions {
   // SSE) / max(σ_n², best SSE / W) exceeds track_check_chi2; the verdict holds
   // until the next check; it flags, it does not re-spread the cloud. 0 = off,
   // the default: measured open-loop on the tuning paths 301–420 (window 20
-  // and 10), at thresholds without false alarms it adds 2–5 losses of 51
-  // (PF) and 1 of 59 (AFPF) to the other rules; below them it flags 4–80 %
-  // of clean runs (an INS-relative track drifts ≈ 0.001° over 20 steps, and
+  // and 10), at thresholds with ≤ 6 % false alarms it adds 0–3 losses of 51
+  // (PF) and 0–1 of 59 (AFPF) to the other rules; at lower ones it flags
+  // 6–87 % of clean runs (an INS-relative track drifts ≈ 0.001° over 20 steps, and
   // among the ≈ 15,000 offsets some fit such a track 2× better by chance;
   // docs/ACCURACY.md, "Lost-track detection, third round"). An option to
   // measure, not a detector to trust.
