@@ -21,6 +21,11 @@
 //   * the AFPF there with its defaults (direction 1): a run lost at its end
 //     never says "converged" (its detection rate is below target:
 //     docs/ACCURACY.md, "Lost-track detection").
+//   * the AFPF there with its defaults, 6 directions: at least 2 of its
+//     losses flagged within 20 steps (3 of 4 measured; none with the
+//     divergence rule alone);
+//   * a lost filter publishes at least the prior square's covariance, not
+//     its collapsed cloud's (issue 25 item 4).
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -233,8 +238,46 @@ TEST(PfStatus, ALostFilterPublishesThePriorsCovariance) {
     EXPECT_LE(Nees(run, k, d, d.cov_lat_lat, d.cov_lat_lon, d.cov_lon_lon), 9.0) << "k " << k;
     if (Nees(run, k, d, d.cloud_cov_lat_lat, d.cloud_cov_lat_lon, d.cloud_cov_lon_lon) > 9.0) ++cloud_beyond;
   }
-  EXPECT_GE(lost, 3);  // measured 4 (flagged from step 144, the bias test)
+  EXPECT_GE(lost, 3);  // measured 4 (the bias test)
   EXPECT_GE(cloud_beyond, 3);  // measured 4: what the cloud alone would have published
+}
+
+}  // namespace
+}  // namespace magnav::mapmatch
+
+namespace magnav::mapmatch {
+namespace {
+
+// The AFPF's detection rate on fixed seeds (issue 25 item 3; the full
+// measurement is scripts/calibration_pf): the 0.5 nT reference path
+// kidnapped 0.008° at step 60 in 6 directions, defaults. A direction counts
+// when its run is beyond 3 σ of its cloud for 10 steps in a row and the lost
+// flag comes within 20 steps of that loss's start. Not the target (90 %):
+// a margin under today's 3 of 4 that a halving breaks (≈ 3 s).
+TEST(PfStatus, AKidnappedAfpfIsFlaggedOnMostDirections) {
+  int losses = 0, detected = 0;
+  for (int j = 0; j < 6; ++j) {
+    const PathRun run = Kidnapped(j * 2.399963);
+    ParticleFilterOptions o;
+    o.seed = 1;
+    std::vector<StepDiagnostics> steps;
+    MatchParticleFilter(ParticleFilterKind::kAfpf, Map(), 0, run.path, o, &steps);
+    const std::vector<bool> bad = Beyond3Sigma(run, steps);
+    int streak = 0;
+    for (std::size_t k = 0; k < bad.size(); ++k) {
+      streak = bad[k] ? streak + 1 : 0;
+      if (streak == 10) {
+        ++losses;
+        const bool flagged = FlaggedIn(steps, k - 9, k + 11);
+        detected += flagged ? 1 : 0;
+        break;
+      }
+    }
+  }
+  // Measured: directions 1–4 lost from step 60, 1, 3 and 4 flagged within 20 steps (3 of 4);
+  // with the divergence rule alone (afpf_bias_test_chi2 = 0) none of them.
+  EXPECT_GE(losses, 3);
+  EXPECT_GE(detected, 2) << losses << " losses";
 }
 
 }  // namespace
