@@ -234,7 +234,7 @@ std::string NoTrackSummary(const std::string& path) {
 }
 
 // Sensor positions (magnav localize / magnav-localizer: sensor_id, x, y,
-// sigma_x, sigma_y, crlb_x, crlb_y) against the true sensors (sensor_id, x,
+// sigma_x, sigma_y, crlb_x, crlb_y, and cov_xy when written) against the true sensors (sensor_id, x,
 // y): horizontal errors (z is the known deployment depth), per sensor and
 // overall, against the estimate's own sigma and the Cramér–Rao bound.
 void RunSensors(const EvaluateArgs& a, const CsvTable& est, const CsvTable& truth) {
@@ -245,6 +245,7 @@ void RunSensors(const EvaluateArgs& a, const CsvTable& est, const CsvTable& trut
   const std::size_t it = truth.column("sensor_id"), xt = truth.column("x"), yt = truth.column("y");
   const bool has_sigma = est.has_column("sigma_x") && est.has_column("sigma_y");
   const bool has_crlb = est.has_column("crlb_x") && est.has_column("crlb_y");
+  const bool has_cov_xy = est.has_column("cov_xy");  // magnav localize: the full 2x2 with sigma_x, sigma_y
   std::map<std::uint32_t, Eigen::Vector2d> truth_of;
   for (std::size_t j = 0; j < truth.num_rows(); ++j) {
     if (!truth_of.emplace(truth.uint32(j, it), Eigen::Vector2d(truth.number(j, xt), truth.number(j, yt))).second) {
@@ -271,8 +272,10 @@ void RunSensors(const EvaluateArgs& a, const CsvTable& est, const CsvTable& trut
     if (has_sigma) {
       const Eigen::Vector2d s(est.number(i, est.column("sigma_x")), est.number(i, est.column("sigma_y")));
       sigma = s.norm();
-      if ((s.array() > 0).all()) {
-        sum_nees += (e.array() / s.array()).square().sum();
+      const double cxy = has_cov_xy ? est.number(i, est.column("cov_xy")) : 0.0;
+      const double det = s.x() * s.x() * s.y() * s.y() - cxy * cxy;
+      if ((s.array() > 0).all() && det > 0) {
+        sum_nees += (s.y() * s.y() * e.x() * e.x() - 2.0 * cxy * e.x() * e.y() + s.x() * s.x() * e.y() * e.y()) / det;
         ++nees_n;
         within_2sigma += (e.array().abs() <= 2.0 * s.array()).all() ? 1 : 0;
       }
@@ -289,8 +292,9 @@ void RunSensors(const EvaluateArgs& a, const CsvTable& est, const CsvTable& trut
   std::printf("position error (horizontal): RMSE %.4g m, max %.4g m\n", std::sqrt(sum_sq / n), max_err);
   if (has_crlb) std::printf("Cramer-Rao bound (RMS over sensors): %.4g m\n", std::sqrt(sum_bound_sq / n));
   if (nees_n > 0) {
-    std::printf("mean NEES (diagonal sigmas, 2 dof): %.3g over %zu sensors; both axes within 2 sigma: %zu of %zu\n",
-                sum_nees / nees_n, nees_n, within_2sigma, nees_n);
+    std::printf("mean NEES (%s, 2 dof): %.3g over %zu sensors; both axes within 2 sigma: %zu of %zu\n",
+                has_cov_xy ? "full 2x2 covariance" : "diagonal sigmas", sum_nees / nees_n, nees_n, within_2sigma,
+                nees_n);
   }
 }
 

@@ -83,20 +83,21 @@ void RunLocalize(LocalizeArgs a) {
   }
   if (!std::isfinite(known)) throw std::runtime_error("localize: the known-trajectory bound is not finite; nothing written");
   const Eigen::Vector3d& m = f.pass.vessel.m_B_Am2;
-  CsvWriter w(a.output, {"sensor_id", "x", "y", "z", "sigma_x", "sigma_y", "crlb_x", "crlb_y"},
+  CsvWriter w(a.output, {"sensor_id", "x", "y", "z", "sigma_x", "sigma_y", "crlb_x", "crlb_y", "cov_xy"},
               {{"source", a.measurements},
                {"method", a.method},
                {"moment_body_Am2", FormatNumber(m.x()) + ", " + FormatNumber(m.y()) + ", " + FormatNumber(m.z())},
                {"frame",
                 "local NED (x north, y east, z down), m; z = the deployment depth (known); sigma_*: 1-sigma of the "
                 "estimate; crlb_*: 1-sigma Cramer-Rao bound with the trajectory unknown (joint), evaluated at the "
-                "estimate"},
+                "estimate; cov_xy: the x-y covariance of the estimate, m^2 (with sigma_x, sigma_y the full 2x2)"},
                {"crlb_known_trajectory_rms_m", FormatNumber(std::sqrt(known))},
+               {"status", out.summary.Status()},
                {"summary", out.summary.BriefReport()}});
   for (const auto& e : out.sensors) {
     w.WriteRow({std::to_string(e.sensor_id), FormatNumber(e.p_SinW_m.x()), FormatNumber(e.p_SinW_m.y()),
                 FormatNumber(e.p_SinW_m.z()), Sqrt(e.cov_xy_m2(0, 0)), Sqrt(e.cov_xy_m2(1, 1)),
-                Sqrt(e.crlb_joint_m2(0, 0)), Sqrt(e.crlb_joint_m2(1, 1))});
+                Sqrt(e.crlb_joint_m2(0, 0)), Sqrt(e.crlb_joint_m2(1, 1)), FormatNumber(e.cov_xy_m2(1, 0))});
   }
   w.Close();
 }
@@ -133,7 +134,9 @@ void AddLocalizeCommand(CLI::App& app) {
   cmd->add_option("--bound-window-items", args->bound.max_window_items,
                   "ekf-bounded: at most this many samples and fixes in the bound's window")
       ->capture_default_str();
-  cmd->add_option("--output", args->output, "sensor_id,x,y,z,sigma_x,sigma_y,crlb_x,crlb_y (m)")->required();
+  cmd->add_option("--output", args->output, "sensor_id,x,y,z,sigma_x,sigma_y,crlb_x,crlb_y (m), cov_xy (m^2); '# status:' converged, NOT "
+                  "converged or diverged (the outlier counts show the estimate lost: docs/ACCURACY.md \"Trust: honest "
+                  "status\"); exit 0 in every case")->required();
   cmd->add_option("--sigma-b", args->sigma_B_T,
                   "magnetometer noise per axis, T (default: the measurements file's '# sigma_B_T:')");
   cmd->add_option("--loss", args->loss, "batch: robust loss on each sample: huber, cauchy or trivial")

@@ -111,17 +111,26 @@ void RunMatch(MatchArgs a) {
     off_map += !on_map[p];
   }
   // CsvWriter writes beside the output and renames on Close: a reader never sees half a file.
-  CsvWriter w(a.output, {"k", "lat", "lon", "on_map"},
+  // A method that publishes a covariance (fast-msd) adds it per point, deg² (as the pf/afpf diagnostics).
+  const bool cov = r.cov_lat_lat.size() == path.size();
+  std::vector<std::string> columns = {"k", "lat", "lon", "on_map"};
+  if (cov) columns.insert(columns.end(), {"cov_lat_lat", "cov_lat_lon", "cov_lon_lon"});
+  CsvWriter w(a.output, columns,
               {{"map", a.map},
                {"value_column", a.value_column},
                {"path", a.path},
                {"meas_column", a.meas_column},
-               {"frame", "matched position, latitude/longitude in degrees (WGS84); on_map 1 inside the map's grid"},
+               {"frame", std::string("matched position, latitude/longitude in degrees (WGS84); on_map 1 inside "
+                                     "the map's grid") +
+                             (cov ? "; cov_* its covariance (lat, lon), deg^2" : "")},
                {"off_map_points", std::to_string(off_map) + " of " + std::to_string(path.size())},
                {"summary", r.BriefReport()}});
   for (std::size_t p = 0; p < path.size(); ++p) {
-    w.WriteRow({std::to_string(path.k[p]), FormatNumber(r.lat_deg[p]), FormatNumber(r.lon_deg[p]),
-                on_map[p] ? "1" : "0"});
+    std::vector<std::string> row = {std::to_string(path.k[p]), FormatNumber(r.lat_deg[p]),
+                                    FormatNumber(r.lon_deg[p]), on_map[p] ? "1" : "0"};
+    if (cov) row.insert(row.end(), {FormatNumber(r.cov_lat_lat[p]), FormatNumber(r.cov_lat_lon[p]),
+                                    FormatNumber(r.cov_lon_lon[p])});
+    w.WriteRow(row);
   }
   w.Close();
 }
@@ -184,6 +193,9 @@ void AddMatchCommand(CLI::App& app) {
                   "elimination) or jacobi (the paper's iteration; same answer, ~100x slower)")
       ->check(CLI::IsMember({"jacobi", "direct"}));
   cmd->add_option("--rounds", o.fast_msd.rounds, "fast-msd: re-linearisation rounds");
+  cmd->add_option("--ambiguity-ratio", o.fast_msd.ambiguity_ratio,
+                  "fast-msd with --search-window: not converged ('ambiguous') when the coarse MSD surface's second "
+                  "minimum is below this times the best; 0 = no check");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "

@@ -105,6 +105,7 @@ Localization SolveBatch(const Pass& pass, const LocalizerOptions& options, const
                                                             ChiSquareQuantile(options.gate_probability, 3));
   out.summary.gnss_outliers =
       internal::CountBeyond(g, params, internal::Factor::Kind::kGnss, ChiSquareQuantile(options.gate_probability, 2));
+  MarkDivergence(&out.summary);
   out.trajectory_t_s = g.timeline.t;
   for (int k = 0; k < g.num_epochs; ++k) {
     out.trajectory.push_back(Eigen::Map<const VesselVector>(&params[static_cast<std::size_t>(5 * k)]));

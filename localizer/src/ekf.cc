@@ -162,8 +162,9 @@ Eigen::MatrixXd LocalizerEkf::Columns(int c, int w) const {
 
 Eigen::MatrixXd LocalizerEkf::covariance() const { return P_.selfadjointView<Eigen::Lower>(); }
 
-bool LocalizerEkf::Gate(double nis, double threshold, GateState* stream) {
+bool LocalizerEkf::Gate(double nis, double threshold, GateState* stream, double* inflate) {
   last_nis_ = nis;
+  *inflate = 1.0;
   if (!std::isfinite(nis)) {
     last_outcome_ = Outcome::kFailed;
     return false;
@@ -184,6 +185,9 @@ bool LocalizerEkf::Gate(double nis, double threshold, GateState* stream) {
     last_outcome_ = Outcome::kRejected;
     return false;
   }
+  // Released beyond the gate: the linearised S understates this innovation
+  // by at least nis / threshold; the update is applied with S scaled so.
+  if (nis > threshold) *inflate = nis / threshold;
   last_outcome_ = Outcome::kApplied;
   return true;
 }
@@ -202,13 +206,15 @@ bool LocalizerEkf::Update(const MagSample& sample) {
   Eigen::Matrix3d S = Hv * U.topRows<5>() + Hs * U.middleRows<2>(c);
   S = 0.5 * (S + S.transpose()).eval();
   S.diagonal().array() += options_.sigma_B_T * options_.sigma_B_T;
-  const Eigen::LLT<Eigen::Matrix3d> llt(S);
+  Eigen::LLT<Eigen::Matrix3d> llt(S);
   if (llt.info() != Eigen::Success) return false;
   const Eigen::Vector3d innovation = sample.B_T - predicted;
+  double inflate = 1.0;
   if (!Gate(innovation.dot(llt.solve(innovation)), gate_magnetometer_nis_,
-            &magnetometer_gate_[static_cast<std::size_t>(j)])) {
+            &magnetometer_gate_[static_cast<std::size_t>(j)], &inflate)) {
     return false;
   }
+  if (inflate > 1.0) llt.compute(inflate * S);
   const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
   if (!K.allFinite()) {
     last_outcome_ = Outcome::kFailed;
@@ -227,10 +233,12 @@ bool LocalizerEkf::Update(const GnssFix& fix) {
   Eigen::Matrix2d S = U.topRows<2>();
   S = 0.5 * (S + S.transpose()).eval();
   S.diagonal().array() += sigma * sigma;
-  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  Eigen::LLT<Eigen::Matrix2d> llt(S);
   if (llt.info() != Eigen::Success) return false;
   const Eigen::Vector2d innovation = fix.p_xy_m - x_.head<2>();
-  if (!Gate(innovation.dot(llt.solve(innovation)), gate_gnss_nis_, &gnss_gate_)) return false;
+  double inflate = 1.0;
+  if (!Gate(innovation.dot(llt.solve(innovation)), gate_gnss_nis_, &gnss_gate_, &inflate)) return false;
+  if (inflate > 1.0) llt.compute(inflate * S);
   const Eigen::MatrixXd K = llt.solve(U.transpose()).transpose();
   if (!K.allFinite()) {
     last_outcome_ = Outcome::kFailed;

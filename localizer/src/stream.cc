@@ -231,6 +231,7 @@ Localization StreamingLocalizer::Result() const {
       out.summary.message += std::to_string(failed_) + " updates failed (not applied)";
     }
   }
+  MarkDivergence(&out.summary);
   out.crlb_joint_m2 = crlb_ ? AttachIncremental(*crlb_, &out.sensors).joint_full
                             : AttachCrlb(pass_, options_, trajectory_, &out.sensors).joint_full;
   out.summary.crlb_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -39,8 +39,11 @@ struct Best {
 // `clip` (a truncated loss: one spike weighs the same at every shift).
 // `off_map_as_clip`: MAD and MSD count every point off the map at a shift as
 // a residual of `clip` and average over all the points.
+// `surface` (optional): every shift's score, row-major (a, then b), NaN where not scored.
 bool SearchShifts(const GeoGrid& grid, std::size_t layer, const std::vector<CellPoint>& pts, int A, int B,
-                  std::size_t needed, CorrelationMetric metric, double clip, bool off_map_as_clip, Best* best) {
+                  std::size_t needed, CorrelationMetric metric, double clip, bool off_map_as_clip, Best* best,
+                  std::vector<double>* surface = nullptr) {
+  if (surface) surface->assign(static_cast<std::size_t>(2 * A + 1) * (2 * B + 1), std::nan(""));
   const GridAxis& la = grid.lat();
   const GridAxis& lo = grid.lon();
   const double* val = grid.values(layer).data();
@@ -89,6 +92,7 @@ bool SearchShifts(const GeoGrid& grid, std::size_t layer, const std::vector<Cell
           score = s_lm / (std::sqrt(s_ll) * std::sqrt(s_mm));
           break;
       }
+      if (surface) (*surface)[static_cast<std::size_t>(a + A) * (2 * B + 1) + (b + B)] = score;
       // Within one rotation, ties go to the smaller shift (the scan order would
       // otherwise favour a corner).
       const bool better_here = !seen_here || (maximise ? score > here.score : score < here.score) ||
@@ -136,7 +140,7 @@ bool CorrelationOptions::IsValid(std::string* error) const {
 }
 
 MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
-                             const CorrelationOptions& options) {
+                             const CorrelationOptions& options, CorrelationPeaks* peaks) {
   internal::CheckInputs(grid, layer, path, options, CorrelationMetricName(options.metric));
   const std::string unit = options.metric == CorrelationMetric::kMad     ? "nT"
                            : options.metric == CorrelationMetric::kNprod ? "1"
@@ -176,6 +180,7 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
   struct Search {
     Best best;
     int rot = 0;
+    std::vector<double> surface;  // with `peaks` and no rotation search
   };
   const auto cell_point = [&](std::size_t p, double theta) {
     const auto x = rotated(p, theta);
@@ -199,7 +204,8 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
       const int rot = k % 2 == 0 ? k / 2 : -(k + 1) / 2;  // 0, -1, 1, -2, 2, ...: ties keep the smaller angle
       const double theta = rot * options.rotation_step_deg * M_PI / 180.0;
       for (std::size_t c = 0; c < idx.size(); ++c) pts[c] = cell_point(idx[c], theta);
-      if (SearchShifts(grid, layer, pts, A, B, needed, options.metric, clip, off_map_as_clip, &out.best)) {
+      if (SearchShifts(grid, layer, pts, A, B, needed, options.metric, clip, off_map_as_clip, &out.best,
+                       peaks && n_rot == 0 ? &out.surface : nullptr)) {
         out.rot = rot;
       }
     }
@@ -244,6 +250,40 @@ MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const Match
     r.reason = "no shift within the window has " + FormatNumber(options.min_on_map_fraction) +
                " of the points on the map: path left as the INS gave it";
     return r;
+  }
+  if (peaks && n_rot == 0) {
+    // Local optima of the final surface, best first, greedily kept when far enough from every better one.
+    const bool maximise = Maximised(options.metric);
+    const auto at = [&](int a, int b) { return found.surface[static_cast<std::size_t>(a + A) * (2 * B + 1) + (b + B)]; };
+    std::vector<CorrelationPeak> local;
+    for (int a = -A; a <= A; ++a) {
+      for (int b = -B; b <= B; ++b) {
+        const double s = at(a, b);
+        if (std::isnan(s)) continue;
+        bool optimum = true;
+        for (int da = -1; da <= 1 && optimum; ++da) {
+          for (int db = -1; db <= 1 && optimum; ++db) {
+            if ((da == 0 && db == 0) || std::abs(a + da) > A || std::abs(b + db) > B) continue;
+            const double t = at(a + da, b + db);
+            if (!std::isnan(t) && (maximise ? t > s : t < s)) optimum = false;
+          }
+        }
+        if (optimum) local.push_back({a * la.step_deg, b * lo.step_deg, s});
+      }
+    }
+    std::stable_sort(local.begin(), local.end(), [&](const CorrelationPeak& x, const CorrelationPeak& y) {
+      return maximise ? x.score > y.score : x.score < y.score;
+    });
+    peaks->found.clear();
+    for (const CorrelationPeak& c : local) {
+      if (peaks->found.size() >= peaks->max_peaks) break;
+      bool far = true;
+      for (const CorrelationPeak& f : peaks->found) {
+        far = far && std::max(std::abs(c.shift_lat_deg - f.shift_lat_deg), std::abs(c.shift_lon_deg - f.shift_lon_deg)) >=
+                         peaks->min_separation_deg;
+      }
+      if (far) peaks->found.push_back(c);
+    }
   }
   r.score = best.score;
   r.points_used = static_cast<int>(best.on);

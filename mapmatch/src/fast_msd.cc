@@ -1,5 +1,6 @@
 #include "magnav/mapmatch/fast_msd.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 #include <vector>
@@ -9,6 +10,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/option_check.h"
 #include "magnav/mapmatch/correlation.h"
+#include "fast_msd_covariance.h"
 #include "match_common.h"
 
 namespace magnav::mapmatch {
@@ -128,41 +130,27 @@ bool FastMsdOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(search_window_deg) && search_window_deg >= 0.0)) {
     return Fail(error, "search_window_deg must be finite and >= 0 (0 = no coarse stage)");
   }
+  if (!(std::isfinite(ambiguity_ratio) && ambiguity_ratio >= 0.0)) {
+    return Fail(error, "ambiguity_ratio must be finite and >= 0 (0 = no ambiguity check)");
+  }
+  if (!(std::isfinite(peak_separation_deg) && peak_separation_deg >= 0.0)) {
+    return Fail(error, "peak_separation_deg must be finite and >= 0");
+  }
   return true;
 }
 
-MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
-                         const FastMsdOptions& options) {
-  internal::CheckInputs(grid, layer, path, options, "fast-msd");
-  MatchResult r = internal::StartResult("fast-msd", "msd at the matched points, nT^2", path);
-  // Robust residuals (match_common.h): readings the map cannot explain
-  // (rule 1) have no data term in any round; see the rounds for rule 2.
-  const std::vector<std::size_t> all_finite = internal::FiniteMeasurements(path, &r);
-  const std::vector<std::size_t> finite =
-      internal::WithinMapRange(grid, layer, path, all_finite, options.outlier_sigmas, &r);
-  if (!internal::EnoughPoints(finite, 2, &r)) return r;
-  std::vector<char> usable(path.size(), 0);
-  for (std::size_t p : finite) usable[p] = 1;
-  const internal::RobustSpread readings = internal::ReadingSpread(path, finite);
+namespace {
+
+constexpr double kChi2Two99 = 9.2103;  // 99 % point of χ² with 2 degrees of freedom
+
+// The rounds (and the robust refit) from one start path; `r` carries the
+// counts so far.
+MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path, const FastMsdOptions& options,
+                  const std::vector<std::size_t>& finite, std::vector<char> usable,
+                  const internal::RobustSpread& readings, const std::vector<double>& start_lat,
+                  const std::vector<double>& start_lon, MatchResult r) {
   const std::size_t n = path.size();
-  std::vector<double> ref_lat = path.lat_deg, ref_lon = path.lon_deg;
-  if (options.search_window_deg > 0.0) {
-    CorrelationOptions coarse;
-    coarse.metric = CorrelationMetric::kMsd;
-    coarse.search_window_deg = options.search_window_deg;
-    coarse.min_on_map_fraction = options.min_on_map_fraction;
-    coarse.outlier_sigmas = options.outlier_sigmas;
-    coarse.off_map_as_unexplained = true;
-    const MatchResult c = MatchCorrelation(grid, layer, path, coarse);
-    if (c.points_used == 0) {
-      r.reason = "coarse stage: " + c.reason;
-      return r;
-    }
-    ref_lat = c.lat_deg;
-    ref_lon = c.lon_deg;
-    r.notes = "coarse stage: " + c.notes + (c.converged ? "" : " (" + c.reason + ")");
-  }
-  const std::vector<double> start_lat = ref_lat, start_lon = ref_lon;
+  std::vector<double> ref_lat = start_lat, ref_lon = start_lon;
   // The rounds from the start with the points of `use` (returns whether every round converged).
   int rounds_done = 0;
   const auto run_rounds = [&](const std::vector<char>& use) {
@@ -275,6 +263,7 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
   // Score over the points on the map (the refit's outliers and residuals beyond k·σ_l left out, counted).
   double sum2 = 0.0;
   int on = 0;
+  Linearisation final_lin(n);  // at the solution, for the covariance
   for (std::size_t p : finite) {
     if (!usable[p]) continue;
     if (const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p])) {
@@ -283,9 +272,23 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
         ++r.points_outlier;
         continue;
       }
+      final_lin.data[p] = 1;
+      final_lin.g_lat[p] = s->dvalue_dlat_nT_per_deg;
+      final_lin.g_lon[p] = s->dvalue_dlon_nT_per_deg;
+      final_lin.resid[p] = d;
       sum2 += d * d;
       ++on;
     }
+  }
+  // Covariance (fast_msd_covariance.h): the Laplace approximation at the solution with the final λ.
+  {
+    const internal::PathCovariance c = internal::FastMsdCovariance(final_lin.g_lat, final_lin.g_lon, final_lin.resid,
+                                                                   final_lin.data, options.lambda_nT2_per_deg2);
+    r.cov_lat_lat = c.lat_lat;
+    r.cov_lat_lon = c.lat_lon;
+    r.cov_lon_lon = c.lon_lon;
+    r.notes += std::string(r.notes.empty() ? "" : "; ") + "covariance: residual sigma " +
+               FormatNumber(std::sqrt(c.s2_nT2)) + " nT, " + FormatNumber(c.edf) + " effective parameters";
   }
   r.points_used = on;
   r.score = on > 0 ? sum2 / on : std::numeric_limits<double>::quiet_NaN();
@@ -294,6 +297,99 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
   const std::string rounds_note = std::to_string(rounds_done) + " rounds";
   r.notes = r.notes.empty() ? rounds_note : r.notes + "; " + rounds_note;
   return r;
+}
+
+}  // namespace
+
+MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
+                         const FastMsdOptions& options) {
+  internal::CheckInputs(grid, layer, path, options, "fast-msd");
+  MatchResult r = internal::StartResult("fast-msd", "msd at the matched points, nT^2", path);
+  // Robust residuals (match_common.h): readings the map cannot explain
+  // (rule 1) have no data term in any round; see the rounds for rule 2.
+  const std::vector<std::size_t> all_finite = internal::FiniteMeasurements(path, &r);
+  const std::vector<std::size_t> finite =
+      internal::WithinMapRange(grid, layer, path, all_finite, options.outlier_sigmas, &r);
+  if (!internal::EnoughPoints(finite, 2, &r)) return r;
+  std::vector<char> usable(path.size(), 0);
+  for (std::size_t p : finite) usable[p] = 1;
+  const internal::RobustSpread readings = internal::ReadingSpread(path, finite);
+  std::vector<double> start_lat = path.lat_deg, start_lon = path.lon_deg;
+  CorrelationPeaks peaks;
+  if (options.search_window_deg > 0.0) {
+    CorrelationOptions coarse;
+    coarse.metric = CorrelationMetric::kMsd;
+    coarse.search_window_deg = options.search_window_deg;
+    coarse.min_on_map_fraction = options.min_on_map_fraction;
+    coarse.outlier_sigmas = options.outlier_sigmas;
+    coarse.off_map_as_unexplained = true;
+    peaks.max_peaks = 2;
+    peaks.min_separation_deg =
+        std::max(options.peak_separation_deg, 2.0 * std::max(grid.lat().step_deg, grid.lon().step_deg));
+    const MatchResult c = MatchCorrelation(grid, layer, path, coarse, &peaks);
+    if (c.points_used == 0) {
+      r.reason = "coarse stage: " + c.reason;
+      return r;
+    }
+    start_lat = c.lat_deg;
+    start_lon = c.lon_deg;
+    r.notes = "coarse stage: " + c.notes + (c.converged ? "" : " (" + c.reason + ")");
+  }
+  MatchResult best = Refine(grid, layer, path, options, finite, usable, readings, start_lat, start_lon, r);
+  // Ambiguity: the coarse surface's second minimum (at least the separation
+  // away) is not clearly worse than its best. Then the answer may be the wrong
+  // peak: not converged, and the covariance covers both refined paths.
+  bool ambiguous = false;
+  MatchResult other;
+  if (options.ambiguity_ratio > 0.0 && peaks.found.size() >= 2 &&
+      peaks.found[1].score < options.ambiguity_ratio * peaks.found[0].score) {
+    std::vector<double> lat2 = path.lat_deg, lon2 = path.lon_deg;
+    for (std::size_t p = 0; p < path.size(); ++p) {
+      lat2[p] += peaks.found[1].shift_lat_deg;
+      lon2[p] += peaks.found[1].shift_lon_deg;
+    }
+    other = Refine(grid, layer, path, options, finite, usable, readings, lat2, lon2, r);
+    // The two refined paths, told apart by the best's covariance: the mean over
+    // the points of dᵀ Σ⁻¹ d (d = other − best). Below the 99 % point of χ²(2)
+    // the second minimum led to the same answer (a neighbour in the same basin).
+    double apart = 0.0;
+    if (best.cov_lat_lat.size() == path.size()) {
+      for (std::size_t p = 0; p < path.size(); ++p) {
+        const double da = other.lat_deg[p] - best.lat_deg[p], db = other.lon_deg[p] - best.lon_deg[p];
+        const double a = best.cov_lat_lat[p], b = best.cov_lat_lon[p], c = best.cov_lon_lon[p];
+        const double det = a * c - b * b;
+        apart += det > 0.0 ? (c * da * da - 2.0 * b * da * db + a * db * db) / det
+                           : std::numeric_limits<double>::infinity();
+      }
+      apart /= static_cast<double>(path.size());
+    }
+    ambiguous = !(apart < kChi2Two99);
+    best.notes += "; second coarse minimum " + FormatNumber(peaks.found[1].score / peaks.found[0].score) +
+                  "x the best, refined " + FormatNumber(apart) + " (mean squared Mahalanobis distance) from it";
+  }
+  if (ambiguous) {
+    // Second moment about the published path of an equal mixture of the two
+    // refined paths (each with its own covariance): ½Σ₁ + ½(Σ₂ + d dᵀ).
+    if (best.cov_lat_lat.size() == path.size() && other.cov_lat_lat.size() == path.size()) {
+      for (std::size_t p = 0; p < path.size(); ++p) {
+        const double da = other.lat_deg[p] - best.lat_deg[p], db = other.lon_deg[p] - best.lon_deg[p];
+        best.cov_lat_lat[p] = 0.5 * (best.cov_lat_lat[p] + other.cov_lat_lat[p] + da * da);
+        best.cov_lat_lon[p] = 0.5 * (best.cov_lat_lon[p] + other.cov_lat_lon[p] + da * db);
+        best.cov_lon_lon[p] = 0.5 * (best.cov_lon_lon[p] + other.cov_lon_lon[p] + db * db);
+      }
+    }
+    const std::string why =
+        "ambiguous: the coarse stage's second minimum (shift " + FormatNumber(peaks.found[1].shift_lat_deg) + ", " +
+        FormatNumber(peaks.found[1].shift_lon_deg) + " deg, MSD " + FormatNumber(peaks.found[1].score) +
+        " nT^2) is within " + FormatNumber(options.ambiguity_ratio) + "x of the best (shift " +
+        FormatNumber(peaks.found[0].shift_lat_deg) + ", " + FormatNumber(peaks.found[0].shift_lon_deg) +
+        " deg, MSD " + FormatNumber(peaks.found[0].score) + " nT^2) and refined elsewhere; the covariance covers both";
+    best.reason = best.reason.empty() ? why : why + "; " + best.reason;
+    best.converged = false;
+  } else if (peaks.found.size() >= 2 && other.lat_deg.empty()) {
+    best.notes += "; second coarse minimum " + FormatNumber(peaks.found[1].score / peaks.found[0].score) + "x the best";
+  }
+  return best;
 }
 
 }  // namespace magnav::mapmatch

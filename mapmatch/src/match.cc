@@ -91,6 +91,15 @@ namespace {
 // prior), is no better than its prior.
 constexpr double kSupportSigma = 3.0;
 constexpr double kUnsupportedFraction = 0.5;
+// The end check looks at the last kEndFraction of the path's points, at least
+// kEndMinPoints (the window whose gradient constrains the final fix).
+constexpr double kEndFraction = 0.1;
+constexpr std::size_t kEndMinPoints = 3;
+// The iso-lines on the path are nearly parallel when the smaller eigenvalue of
+// J is below this fraction of the larger (gradient directions within ~0.1 rad;
+// measured at the INS points of the generated paths: WMM ≤ 0.0025, crustal
+// ≥ 0.03; docs/ACCURACY.md "Wrong shape at the path's end").
+constexpr double kParallelIsoLines = 0.01;
 
 // Median |map − measurement| over the points of (lat, lon) on the map with a
 // finite measurement; NaN when none is.
@@ -107,35 +116,47 @@ double MedianMisfit(const GeoGrid& grid, std::size_t layer, const MatchPath& pat
   return *mid;
 }
 
-// What the map says about the path's mean correction (matched − INS, deg):
-// the translation's information from the map gradient at the matched points,
-// J = Σ g gᵀ / s² (g in nT/deg), s² = Σ r² / (n − 2) the matched residuals'
-// variance (noise and whatever the fit leaves, with the 2 translation
-// parameters counted). Along each eigen-direction e of J the shift is known to
-// ±1/sqrt(λ); the part of the mean correction along directions where it is
-// smaller than kSupportSigma of that is not a fix, only a slide the map does
-// not see.
+// What the map says about the mean correction (matched − INS, deg) of the
+// points [first, path.size()): the translation's information from the map
+// gradient at those matched points, J = Σ g gᵀ / s² (g in nT/deg), s² = Σ r² /
+// (n − 2) the matched residuals' variance over the whole path (noise and
+// whatever the fit leaves, with the 2 translation parameters counted). Along
+// each eigen-direction e of J the shift is known to ±1/sqrt(λ); the part of the
+// mean correction along directions where it is smaller than kSupportSigma of
+// that is not a fix, only a slide the map does not see.
 struct CorrectionSupport {
   double correction_deg = 0.0;   // |mean correction|
   double unsupported_deg = 0.0;  // its part along directions the map does not constrain to it
   double sd_weak_deg = 0.0;      // 1 sigma along the least constrained direction
   double residual_rms_nT = 0.0;  // s
+  double weak_to_strong = 1.0;   // λ_min / λ_max of J: ≪ 1 when the iso-lines are nearly parallel
+  int points = 0;                // measured points on the map in [first, end)
 };
 
 CorrectionSupport SupportOfCorrection(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
-                                      const MatchResult& r) {
+                                      const MatchResult& r, std::size_t first = 0) {
   CorrectionSupport c;
-  double dlat = 0.0, dlon = 0.0;
+  double ss = 0.0;
+  int n_all = 0;
   for (std::size_t p = 0; p < path.size(); ++p) {
+    if (!std::isfinite(path.measured_nT[p])) continue;
+    const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p]);
+    if (!s) continue;
+    const double res = s->value_nT - path.measured_nT[p];
+    ss += res * res;
+    ++n_all;
+  }
+  double dlat = 0.0, dlon = 0.0;
+  for (std::size_t p = first; p < path.size(); ++p) {
     dlat += r.lat_deg[p] - path.lat_deg[p];
     dlon += r.lon_deg[p] - path.lon_deg[p];
   }
-  dlat /= static_cast<double>(path.size());
-  dlon /= static_cast<double>(path.size());
+  dlat /= static_cast<double>(path.size() - first);
+  dlon /= static_cast<double>(path.size() - first);
   c.correction_deg = std::hypot(dlat, dlon);
-  double jaa = 0.0, jab = 0.0, jbb = 0.0, ss = 0.0;
+  double jaa = 0.0, jab = 0.0, jbb = 0.0;
   int n = 0;
-  for (std::size_t p = 0; p < path.size(); ++p) {
+  for (std::size_t p = first; p < path.size(); ++p) {
     if (!std::isfinite(path.measured_nT[p])) continue;
     const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p]);
     if (!s) continue;
@@ -143,21 +164,21 @@ CorrectionSupport SupportOfCorrection(const GeoGrid& grid, std::size_t layer, co
     jaa += ga * ga;
     jab += ga * gb;
     jbb += gb * gb;
-    const double res = s->value_nT - path.measured_nT[p];
-    ss += res * res;
     ++n;
   }
-  if (n <= 2) {  // nothing measured: nothing of the correction is supported
+  c.points = n;
+  if (n == 0 || n_all <= 2) {  // nothing measured: nothing of the correction is supported
     c.unsupported_deg = c.correction_deg;
     c.sd_weak_deg = std::numeric_limits<double>::infinity();
     return c;
   }
-  const double s2 = std::max(ss / (n - 2), 1e-300);
+  const double s2 = std::max(ss / (n_all - 2), 1e-300);
   c.residual_rms_nT = std::sqrt(s2);
   // Eigen-decomposition of the symmetric 2×2 [jaa jab; jab jbb] / s².
   const double tr = jaa + jbb, det = jaa * jbb - jab * jab;
   const double disc = std::sqrt(std::max(tr * tr / 4.0 - det, 0.0));
   const double lam[2] = {(tr / 2.0 + disc) / s2, std::max(tr / 2.0 - disc, 0.0) / s2};
+  if (lam[0] > 0.0) c.weak_to_strong = lam[1] / lam[0];
   // Eigenvector of the larger eigenvalue.
   double ea = 1.0, eb = 0.0;
   if (std::abs(jab) > 0.0) {
@@ -224,6 +245,29 @@ void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                      "(least constrained: 1 sigma " +
                      FormatNumber(c.sd_weak_deg) + " deg at the matched residuals' rms " +
                      FormatNumber(c.residual_rms_nT) + " nT)",
+                 r);
+    return;
+  }
+  // The same at the path's end, where the fix is used: a correction that the
+  // whole path supports through the map's curvature can still end as a slide
+  // along the iso-lines (a wrong shape: a rotation or a bend the end's
+  // gradient does not see). The last kEndFraction of the points, at least
+  // kEndMinPoints; only where the iso-lines on the path are nearly parallel (a
+  // main-field map): on a rough map the end's gradients point every way.
+  if (!(c.weak_to_strong < kParallelIsoLines)) return;
+  const std::size_t end_points = std::min(
+      path.size(), std::max<std::size_t>(kEndMinPoints, static_cast<std::size_t>(std::lround(kEndFraction * path.size()))));
+  const CorrectionSupport e = SupportOfCorrection(grid, layer, path, *r, path.size() - end_points);
+  // An end entirely off the map is not judged here (the map says nothing
+  // there; the summary counts the off-map points).
+  if (e.points == 0) return;
+  if (e.unsupported_deg > kUnsupportedFraction * e.correction_deg && e.unsupported_deg > cell_deg) {
+    NotConverged("no better than the prior at the path's end: " + FormatNumber(e.unsupported_deg) +
+                     " deg of the last " + std::to_string(end_points) + " points' mean correction " +
+                     FormatNumber(e.correction_deg) +
+                     " deg lies along directions the map gradient there does not constrain to 3 sigma "
+                     "(least constrained: 1 sigma " +
+                     FormatNumber(e.sd_weak_deg) + " deg)",
                  r);
   }
 }

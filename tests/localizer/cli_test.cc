@@ -36,7 +36,7 @@ std::vector<std::string> ReferenceArgs(const std::string& method, const std::str
 
 void ExpectFileEqualsLibrary(const std::string& path, const Localization& lib) {
   const CsvTable t = CsvTable::Read(path);
-  const std::vector<std::string> header = {"sensor_id", "x", "y", "z", "sigma_x", "sigma_y", "crlb_x", "crlb_y"};
+  const std::vector<std::string> header = {"sensor_id", "x", "y", "z", "sigma_x", "sigma_y", "crlb_x", "crlb_y", "cov_xy"};
   ASSERT_EQ(t.header(), header);
   ASSERT_EQ(t.num_rows(), lib.sensors.size());
   ASSERT_EQ(t.num_rows(), 8u);
@@ -50,7 +50,10 @@ void ExpectFileEqualsLibrary(const std::string& path, const Localization& lib) {
     EXPECT_EQ(t.number(j, t.column("sigma_y")), std::sqrt(e.cov_xy_m2(1, 1)));
     EXPECT_EQ(t.number(j, t.column("crlb_x")), std::sqrt(e.crlb_joint_m2(0, 0)));
     EXPECT_EQ(t.number(j, t.column("crlb_y")), std::sqrt(e.crlb_joint_m2(1, 1)));
+    EXPECT_EQ(t.number(j, t.column("cov_xy")), e.cov_xy_m2(1, 0));
   }
+  ASSERT_TRUE(t.has_param("status"));
+  EXPECT_EQ(t.params().at("status"), lib.summary.Status());
   ASSERT_TRUE(t.has_param("summary"));
   EXPECT_NE(t.params().at("summary").find("method " + lib.summary.method), std::string::npos);
   EXPECT_NE(t.params().at("summary").find("iterations"), std::string::npos);

@@ -1,13 +1,12 @@
 // The map-matching accuracy table of docs/ACCURACY.md, re-measured: every row
 // of the table (every method on every reference map-path file, the fixed
 // settings of scripts/accuracy_mapmatch) is run through the library and its
-// final-point and mean errors asserted against the page (kFigureMargin), its
+// final-point and mean errors asserted against the golden figures
+// (tests/data/golden/mapmatch_table.csv, the page's table; kFigureMargin), its
 // converged flag must match; then the targets are asserted outright.
 #include <cmath>
-#include <fstream>
 #include <map>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -28,42 +27,23 @@ struct Row {
   bool converged = false;
 };
 
-// "0.8022 (1.762)" -> {0.8022, 1.762}
-std::pair<double, double> Pair(const std::string& cell) {
-  std::istringstream s(cell);
-  double a = 0.0, b = 0.0;
-  char paren = 0;
-  s >> a >> paren >> b;
-  return {a, b};
-}
-
-std::string Trim(const std::string& s) {
-  const auto a = s.find_first_not_of(' '), b = s.find_last_not_of(' ');
-  return a == std::string::npos ? "" : s.substr(a, b - a + 1);
-}
-
-// The rows of the map-matching table in docs/ACCURACY.md.
+// The rows of the map-matching table (tests/data/golden/mapmatch_table.csv; the
+// same rows as docs/ACCURACY.md, kept equal by scripts/golden_tables check).
 std::vector<Row> DocumentedRows() {
-  std::ifstream in(std::string(MAGNAV_SOURCE_DIR) + "/docs/ACCURACY.md");
+  const CsvTable t = CsvTable::Read(testing::TestDataDir() + "/golden/mapmatch_table.csv");
+  const auto col = [&](const char* name) { return t.column(name); };
   std::vector<Row> rows;
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind("| mappath_", 0) != 0) continue;
-    std::vector<std::string> cells;
-    std::stringstream ss(line.substr(1));
-    std::string cell;
-    while (std::getline(ss, cell, '|')) cells.push_back(Trim(cell));
-    if (cells.size() < 6) continue;
+  for (std::size_t i = 0; i < t.num_rows(); ++i) {
     Row r;
-    r.path = cells[0] + ".csv";
-    r.column = cells[1];
-    const std::string m = cells[2];
-    const auto pm = m.find(" ±");
-    r.method = m.substr(0, pm);
-    if (pm != std::string::npos) r.window_deg = std::stod(m.substr(pm + 3));
-    std::tie(r.final_deg, r.ins_final_deg) = Pair(cells[3]);
-    std::tie(r.mean_deg, r.ins_mean_deg) = Pair(cells[4]);
-    r.converged = cells[5] == "yes";
+    r.path = std::string(t.text(i, col("path"))) + ".csv";
+    r.column = t.text(i, col("column"));
+    r.method = t.text(i, col("method"));
+    r.window_deg = t.number(i, col("window_deg"));
+    r.final_deg = t.number(i, col("final_deg"));
+    r.ins_final_deg = t.number(i, col("ins_final_deg"));
+    r.mean_deg = t.number(i, col("mean_deg"));
+    r.ins_mean_deg = t.number(i, col("ins_mean_deg"));
+    r.converged = t.text(i, col("converged")) == "yes";
     rows.push_back(r);
   }
   return rows;

@@ -47,13 +47,24 @@ TEST(MatchCli, OutputIsTheLibrarysMatchedPath) {
     o.fast_msd.search_window_deg = 0.15;
     const MatchResult lib = Match(*ParseMethod(method), grid, 0, p, o);
     const CsvTable t = CsvTable::Read(out);
-    ASSERT_EQ(t.header(), (std::vector<std::string>{"k", "lat", "lon", "on_map"}));
+    // fast-msd publishes its covariance (deg², fast_msd.h) per point; the others none.
+    const bool cov = method == std::string("fast-msd");
+    ASSERT_EQ(t.header(), cov ? (std::vector<std::string>{"k", "lat", "lon", "on_map", "cov_lat_lat", "cov_lat_lon",
+                                                          "cov_lon_lon"})
+                              : (std::vector<std::string>{"k", "lat", "lon", "on_map"}));
     ASSERT_EQ(t.num_rows(), p.size());
     for (std::size_t r = 0; r < t.num_rows(); ++r) {
       EXPECT_EQ(t.integer(r, 0), p.k[r]);
       EXPECT_EQ(t.number(r, 1), lib.lat_deg[r]);
       EXPECT_EQ(t.number(r, 2), lib.lon_deg[r]);
       EXPECT_EQ(t.integer(r, 3), grid.Contains(lib.lat_deg[r], lib.lon_deg[r]) ? 1 : 0);
+      if (cov) {
+        EXPECT_EQ(t.number(r, 4), lib.cov_lat_lat[r]);
+        EXPECT_EQ(t.number(r, 5), lib.cov_lat_lon[r]);
+        EXPECT_EQ(t.number(r, 6), lib.cov_lon_lon[r]);
+        EXPECT_GT(t.number(r, 4), 0.0);
+        EXPECT_GT(t.number(r, 4) * t.number(r, 6), t.number(r, 5) * t.number(r, 5));
+      }
     }
     ASSERT_TRUE(t.has_param("summary"));
     EXPECT_EQ(t.params().at("summary"), lib.BriefReport());

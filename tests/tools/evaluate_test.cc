@@ -130,6 +130,13 @@ TEST(EvaluateCli, SensorPositionsAgainstTheTrueSensors) {
             std::string::npos)
       << out;
   EXPECT_NE(out.find("     1   5.0000   5.0000         1.00  10.0000         0.50"), std::string::npos) << out;
+  // With magnav localize's cov_xy column the NEES uses the full 2x2: sensor 1 P = [9 6; 6 16], e = (3, 4):
+  // (16·9 − 2·6·12 + 9·16) / (144 − 36) = 1.333; mean over the two sensors 0.667.
+  std::ofstream(dir + "/est_xy.csv") << "sensor_id,x,y,z,sigma_x,sigma_y,crlb_x,crlb_y,cov_xy\n"
+                                     << "1,13,24,30,3,4,6,8,6\n2,-5,0,30,1,1,1,1,0\n";
+  const auto [xrc, xout] = Evaluate({"--estimate", dir + "/est_xy.csv", "--truth", dir + "/truth.csv"});
+  ASSERT_EQ(xrc, 0) << xout;
+  EXPECT_NE(xout.find("mean NEES (full 2x2 covariance, 2 dof): 0.667 over 2 sensors"), std::string::npos) << xout;
 
   const auto [lrc, lout] = testing::RunCommand(
       {kMagnav, "localize", "--measurements", testing::ReferencePath("localize_measurements.csv"), "--deployment",

@@ -232,5 +232,52 @@ TEST(TrackerCheckpoint, ServicePassRestoredGoesOnBitForBit) {
     if (HasFailure()) break;
   }
 }
+// With the per-sensor background on (background.h), its filters are in the
+// checkpoint: restored, the tracker gives the same estimates and the same
+// background at every sensor, bit for bit.
+TEST(TrackerCheckpoint, BackgroundIsInTheCheckpoint) {
+  const FieldScenario sc = testing::TwoVesselScenario();
+  const SimulatedField f = SimulateField(sc);
+  MultiTrackerOptions options;
+  options.background.enabled = true;
+  MultiTracker a(sc.B0, options);
+  std::vector<TrackOutput> whole;
+  std::string payload;
+  std::size_t cut = 0, before = 0, end = 0;
+  const double t0 = f.samples.front().t_s;
+  for (std::size_t i = 0; i < f.samples.size() && f.samples[i].t_s < t0 + 70.0; ++i) {
+    if (payload.empty() && f.samples[i].t_s > t0 + 50.0 && f.samples[i].t_s != f.samples[i - 1].t_s) {
+      payload = a.SaveState();
+      cut = i;
+      before = whole.size();
+    }
+    for (auto& o : a.AddSample(f.samples[i])) whole.push_back(o);
+    end = i + 1;
+  }
+  ASSERT_FALSE(payload.empty());
+  MultiTracker b(sc.B0, options);
+  b.RestoreState(payload);
+  std::vector<TrackOutput> after;
+  for (std::size_t i = cut; i < end; ++i) {
+    for (auto& o : b.AddSample(f.samples[i])) after.push_back(o);
+  }
+  ASSERT_EQ(after.size(), whole.size() - before);
+  for (std::size_t k = 0; k < after.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after[k], whole[before + k]);
+    if (HasFailure()) break;
+  }
+  const double t = f.samples[end - 1].t_s;
+  for (std::uint32_t id = 0; id < sc.sensors.size(); ++id) {
+    const BackgroundEstimate x = a.Background(id, t), y = b.Background(id, t);
+    EXPECT_TRUE((x.B_W.array() == y.B_W.array()).all()) << id;
+    EXPECT_EQ(x.sigma_T, y.sigma_T) << id;
+    EXPECT_FALSE((x.B_W.array() == sc.B0.array()).all()) << "the background never moved at " << id;
+  }
+  // A checkpoint made with the background off is refused by one with it on.
+  MultiTracker off(sc.B0, MultiTrackerOptions{});
+  MultiTracker on(sc.B0, options);
+  EXPECT_THROW(on.RestoreState(off.SaveState()), CheckpointError);
+}
 }  // namespace
 }  // namespace magnav::tracker

@@ -14,6 +14,7 @@
 #include "magnav/core/simulate.h"
 #include "magnav/inversion/inverter.h"
 #include "magnav/tracker/initialize.h"
+#include "magnav/tracker/multi_tracker.h"
 #include "magnav/tracker/tracker.h"
 #include "reference_truth.h"
 #include "test_data.h"
@@ -429,6 +430,95 @@ TEST(InitializeTrack, TwoVesselsAtOnceGiveOneVesselsLine) {
     std::printf("gated: %.3f m; ungated: %.3f m\n", std::min(da, db), std::min(ma, mb));
     EXPECT_GT(std::min(ma, mb), 2.0);
   }
+}
+
+// Two vessels abreast 16 m apart pass over one sensor between them: its
+// samples are the sum of two dipoles, and their TED+EGT fixes fall between
+// the vessels (the held-out `abreast` scenario's middle sensor column). The
+// dipole misfit gate (InitOptions::max_dipole_misfit, the multi-tracker's
+// kFieldMaxDipoleMisfit) keeps them from seeding a ghost line; on one
+// vessel alone it leaves the fixes as they were.
+FieldScenario AbreastOverOneSensor(bool both) {
+  FieldScenario sc;
+  sc.sensors = {{0.0, 0.0, 0.0}};
+  FieldVessel a;
+  a.vessel_id = 1;
+  a.moment_body = {2500.0, 300.0, 900.0};
+  a.start_position = {-15.0, -8.0, -5.0};
+  a.speed_mps = 1.5;
+  a.segments = {{20.0, 0.0}};
+  FieldVessel b = a;
+  b.vessel_id = 2;
+  b.moment_body = {2300.0, -200.0, 800.0};
+  b.start_position = {-15.0, 8.0, -5.0};
+  sc.vessels = both ? std::vector<FieldVessel>{a, b} : std::vector<FieldVessel>{a};
+  sc.sigma_B = 1e-9;
+  sc.sigma_T = 1.4e-9;
+  sc.seed = 9;
+  return sc;
+}
+
+TEST(InitializeTrack, SamplesBetweenTwoVesselsSeedNoGhost) {
+  const FieldScenario sc = AbreastOverOneSensor(true);
+  const SimulatedField f = SimulateField(sc);
+  TrackerOptions opt;
+  opt.init.min_tensor_snr = 20.0;  // as the multi-tracker's
+  const std::vector<Epoch> epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
+  const std::size_t ungated = StrongFixes(epochs, sc.B0, opt).size();
+  const auto ghost = InitializeTrack(epochs, sc.B0, opt);
+  ASSERT_TRUE(ghost.has_value());
+  const auto k = static_cast<std::size_t>(std::llround(ghost->t_ref_s * sc.rate_hz));
+  const Eigen::Vector3d p(ghost->state.x, ghost->state.y, ghost->state.z);
+  const double d = std::min((p - f.truth[0].at(k).p_VinW).norm(), (p - f.truth[1].at(k).p_VinW).norm());
+  opt.init.max_dipole_misfit = MultiTrackerOptions::kFieldMaxDipoleMisfit;
+  const std::size_t gated = StrongFixes(epochs, sc.B0, opt).size();
+  const auto none = InitializeTrack(epochs, sc.B0, opt);
+  std::printf("ungated: %zu fixes, line %.2f m from the nearer vessel; gated: %zu fixes, %s\n", ungated, d, gated,
+              none ? "a line" : "no line");
+  EXPECT_GT(d, 3.0);  // the ghost without the gate (measured 5.82 m)
+  EXPECT_LT(gated, ungated / 4);  // measured 7 of 169
+  EXPECT_FALSE(none.has_value());
+}
+
+TEST(InitializeTrack, DipoleMisfitGateKeepsOneVesselsFixes) {
+  const FieldScenario sc = AbreastOverOneSensor(false);
+  const SimulatedField f = SimulateField(sc);
+  TrackerOptions opt;
+  opt.init.min_tensor_snr = 20.0;
+  const std::vector<Epoch> epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
+  const std::size_t ungated = StrongFixes(epochs, sc.B0, opt).size();
+  opt.init.max_dipole_misfit = MultiTrackerOptions::kFieldMaxDipoleMisfit;
+  const std::size_t gated = StrongFixes(epochs, sc.B0, opt).size();
+  std::printf("one vessel: %zu fixes ungated, %zu gated\n", ungated, gated);
+  EXPECT_GE(static_cast<double>(gated), 0.98 * static_cast<double>(ungated));  // measured 164 of 164
+  EXPECT_GT(ungated, 50u);
+}
+
+TEST(InitializeTrack, PairOfDipolesStartsBothVesselsAbreast) {
+  const FieldScenario sc = AbreastOverOneSensor(true);
+  const SimulatedField f = SimulateField(sc);
+  TrackerOptions opt;
+  opt.init.min_tensor_snr = 20.0;
+  opt.init.max_dipole_misfit = MultiTrackerOptions::kFieldMaxDipoleMisfit;
+  const std::vector<Epoch> epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
+  const auto pair = InitializePair(epochs, sc.B0, opt, 8.0);
+  ASSERT_EQ(pair.size(), 2u);
+  // Ordered by y: vessel 1 (y = -8 m), then vessel 2 (y = +8 m).
+  for (std::size_t v = 0; v < 2; ++v) {
+    const auto k = static_cast<std::size_t>(std::llround(pair[v].t_ref_s * sc.rate_hz));
+    const Eigen::Vector3d p(pair[v].state.x, pair[v].state.y, pair[v].state.z);
+    const double d = (p - f.truth[v].at(k).p_VinW).norm();
+    std::printf("pair %zu: %.3f m from vessel %zu, speed %.3f m/s\n", v, d, v + 1, pair[v].state.v);
+    EXPECT_LT(d, 0.5) << "vessel " << v + 1;  // measured 0.057 m / 0.066 m
+    EXPECT_NEAR(pair[v].state.v, 1.5, 0.15);
+  }
+  // One vessel: one dipole explains it; no pair.
+  const FieldScenario one = AbreastOverOneSensor(false);
+  const SimulatedField g = SimulateField(one);
+  EXPECT_TRUE(InitializePair(GroupEpochs(g.samples, opt.epoch_tolerance_s), one.B0, opt, 8.0).empty());
+  // Off: no pair.
+  opt.init.max_dipole_misfit = 0.0;
+  EXPECT_TRUE(InitializePair(epochs, sc.B0, opt, 8.0).empty());
 }
 
 }  // namespace

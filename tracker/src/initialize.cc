@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <set>
 
 #include "magnav/core/csv.h"
 #include "magnav/core/dipole.h"
@@ -91,6 +93,30 @@ namespace {
 
 double Snr(const GradiometerSample& s, const TrackerOptions& options) { return s.T.norm() / SigmaT(s, options); }
 
+// √(Σr²/Σm²) of one dipole at offset r with its least-squares moment
+// (InitOptions::max_dipole_misfit); +inf if no moment fits.
+double DipoleMisfit(const GradiometerSample& s, const Eigen::Vector3d& dB_W, const Eigen::Vector3d& r_DtoS,
+                    const TrackerOptions& options) {
+  const double sb = SigmaB(s, options), st = SigmaT(s, options);
+  Eigen::Vector3d m_W;
+  if (!FitDipoleMoment(r_DtoS, dB_W, s.T, sb, st, &m_W)) return std::numeric_limits<double>::infinity();
+  Eigen::Vector3d B;
+  Eigen::Matrix3d T;
+  DipoleBT(r_DtoS, m_W, &B, &T);
+  const double r2 = (dB_W - B).squaredNorm() / (sb * sb) + (s.T - T).squaredNorm() / (st * st);
+  const double m2 = dB_W.squaredNorm() / (sb * sb) + s.T.squaredNorm() / (st * st);
+  const double misfit = std::sqrt(r2 / m2);
+  return std::isfinite(misfit) ? misfit : std::numeric_limits<double>::infinity();
+}
+
+// A strong sample that one dipole does not explain (see
+// InitOptions::max_dipole_misfit).
+bool NotOneDipole(const GradiometerSample& s, const Eigen::Vector3d& dB_W, const Eigen::Vector3d& r_DtoS,
+                  const TrackerOptions& options) {
+  const double max = options.init.max_dipole_misfit;
+  return max > 0.0 && !(DipoleMisfit(s, dB_W, r_DtoS, options) <= max);
+}
+
 std::vector<Candidate> StrongCandidates(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                         const TrackerOptions& options) {
   std::vector<Candidate> out;
@@ -99,7 +125,7 @@ std::vector<Candidate> StrongCandidates(const std::vector<Epoch>& epochs, const 
       const double snr = Snr(s, options);
       if (!(snr >= options.init.min_tensor_snr)) continue;
       const auto r = SingleSampleOffset(s.B - B0_W, s.T);
-      if (!r) continue;
+      if (!r || NotOneDipole(s, s.B - B0_W, *r, options)) continue;
       DipoleFix fix = MakeFix(e.t_s, s.sensor_id, s.p_SinW - *r);
       fix.snr = snr;
       out.push_back({fix, &s});
@@ -202,10 +228,16 @@ std::optional<InitialTrack> InitializeFrom(const std::vector<Epoch>& epochs, con
   // samples of one sensor (weak ones included, so an isolated bad sample
   // cannot win).
   // Per sensor, in time order: (t, SNR).
+  // A strong sample left out as not one dipole counts as 0.
+  std::set<const GradiometerSample*> fixed;
+  for (const Candidate& c : all) fixed.insert(c.sample);
+  const double min_snr = io.min_tensor_snr;
   std::map<std::uint32_t, std::vector<std::pair<double, double>>> snr_by_sensor;
   for (const Epoch& e : epochs) {
     for (const GradiometerSample& s : e.samples) {
-      snr_by_sensor[s.sensor_id].emplace_back(e.t_s, Snr(s, options));
+      double snr = Snr(s, options);
+      if (!external && io.max_dipole_misfit > 0.0 && snr >= min_snr && fixed.count(&s) == 0) snr = 0.0;
+      snr_by_sensor[s.sensor_id].emplace_back(e.t_s, snr);
     }
   }
   double t_peak = all.front().fix.t_s, best = -1.0;
@@ -307,4 +339,198 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
   return InitializeFrom(epochs, B0_W, options, StrongCandidates(epochs, B0_W, options), false);
 }
 
+
+namespace {
+
+// Two straight-line dipoles: per line x0, y0, z, vx, vy at t_ref.
+using PairParams = Eigen::Matrix<double, 10, 1>;
+
+struct PairSample {
+  double dt = 0.0;  // t − t_ref
+  Eigen::Vector3d p_S = Eigen::Vector3d::Zero();
+  Eigen::Vector3d dB = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+  double sb = 1.0, st = 1.0;
+};
+
+Eigen::Vector3d PairPosition(const PairParams& x, int k, double dt) {
+  const int o = 5 * k;
+  return {x(o) + x(o + 3) * dt, x(o + 1) + x(o + 4) * dt, x(o + 2)};
+}
+
+// The 12 whitened rows (B, T's 9 elements) of a sample per unit moment
+// component of each dipole (12 × 6), and the whitened measurement.
+void PairRows(const PairParams& x, const PairSample& s, Eigen::Matrix<double, 12, 6>* A,
+              Eigen::Matrix<double, 12, 1>* z) {
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Vector3d r = s.p_S - PairPosition(x, k, s.dt);
+    for (int c = 0; c < 3; ++c) {
+      Eigen::Vector3d B;
+      Eigen::Matrix3d T;
+      DipoleBT(r, Eigen::Vector3d::Unit(c), &B, &T);
+      A->block<3, 1>(0, 3 * k + c) = B / s.sb;
+      A->block<9, 1>(3, 3 * k + c) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(T.data()) / s.st;
+    }
+  }
+  z->head<3>() = s.dB / s.sb;
+  z->tail<9>() = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(s.T.data()) / s.st;
+}
+
+// Residual of the pair with its least-squares moments (variable projection).
+Eigen::VectorXd PairResidual(const PairParams& x, const std::vector<PairSample>& samples, Eigen::Matrix<double, 6, 1>* m) {
+  Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+  std::vector<Eigen::Matrix<double, 12, 6>> As(samples.size());
+  std::vector<Eigen::Matrix<double, 12, 1>> zs(samples.size());
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    PairRows(x, samples[i], &As[i], &zs[i]);
+    N += As[i].transpose() * As[i];
+    b += As[i].transpose() * zs[i];
+  }
+  *m = N.ldlt().solve(b);
+  Eigen::VectorXd r(12 * samples.size());
+  for (std::size_t i = 0; i < samples.size(); ++i) r.segment<12>(12 * static_cast<Eigen::Index>(i)) = zs[i] - As[i] * *m;
+  return r;
+}
+
+// Levenberg–Marquardt on the 10 line parameters (forward differences).
+double FitPair(const std::vector<PairSample>& samples, PairParams* x, Eigen::Matrix<double, 6, 1>* m) {
+  Eigen::VectorXd r = PairResidual(*x, samples, m);
+  double cost = r.squaredNorm(), lambda = 1e-3;
+  for (int iter = 0; iter < 30; ++iter) {
+    Eigen::MatrixXd J(r.size(), 10);
+    Eigen::Matrix<double, 6, 1> mm;
+    for (int j = 0; j < 10; ++j) {
+      PairParams xp = *x;
+      const double h = (j % 5 >= 3) ? 1e-4 : 1e-3;
+      xp(j) += h;
+      J.col(j) = (PairResidual(xp, samples, &mm) - r) / h;
+    }
+    const Eigen::Matrix<double, 10, 10> JtJ = J.transpose() * J;
+    const Eigen::Matrix<double, 10, 1> g = J.transpose() * r;
+    bool improved = false;
+    for (int tries = 0; tries < 8 && !improved; ++tries) {
+      Eigen::Matrix<double, 10, 10> H = JtJ;
+      H.diagonal() += lambda * JtJ.diagonal().cwiseMax(1e-12);
+      const PairParams xn = *x - H.ldlt().solve(g);
+      Eigen::Matrix<double, 6, 1> mn;
+      const Eigen::VectorXd rn = PairResidual(xn, samples, &mn);
+      const double cn = rn.squaredNorm();
+      if (std::isfinite(cn) && cn < cost) {
+        improved = true;
+        const bool small = cost - cn < 1e-6 * cost;
+        *x = xn;
+        *m = mn;
+        r = rn;
+        cost = cn;
+        lambda = std::max(lambda / 10.0, 1e-9);
+        if (small) return cost;
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!improved) break;
+  }
+  return cost;
+}
+
+}  // namespace
+
+std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                         const TrackerOptions& options, double min_separation_m) {
+  const InitOptions& io = options.init;
+  if (!(io.max_dipole_misfit > 0.0)) return {};
+  // The strong samples one dipole does not explain, with their (ghost) fixes.
+  struct Mixed {
+    double t_s;
+    double snr;
+    DipoleFix fix;
+  };
+  std::vector<Mixed> mixed;
+  for (const Epoch& e : epochs) {
+    for (const GradiometerSample& s : e.samples) {
+      const double snr = Snr(s, options);
+      if (!(snr >= io.min_tensor_snr)) continue;
+      const auto r = SingleSampleOffset(s.B - B0_W, s.T);
+      if (!r || !NotOneDipole(s, s.B - B0_W, *r, options)) continue;
+      mixed.push_back({e.t_s, snr, MakeFix(e.t_s, s.sensor_id, s.p_SinW - *r)});
+    }
+  }
+  if (static_cast<int>(mixed.size()) < io.min_fixes) return {};
+  const auto peak = std::max_element(mixed.begin(), mixed.end(), [](const Mixed& a, const Mixed& b) { return a.snr < b.snr; });
+  const double t_peak = peak->t_s;
+  std::vector<DipoleFix> ghost_fixes;
+  for (const Mixed& x : mixed) {
+    if (std::abs(x.t_s - t_peak) <= 0.5 * io.span_s) ghost_fixes.push_back(x.fix);
+  }
+  if (static_cast<int>(ghost_fixes.size()) < io.min_fixes) return {};
+  std::vector<bool> use(ghost_fixes.size(), true);
+  if (!RobustLine(ghost_fixes, io, &use)) return {};
+  const LineFit ghost = FitLine(ghost_fixes, use);
+  // The samples: every strong one within the span.
+  std::vector<PairSample> samples;
+  double t_min = 1e300, t_max = -1e300;
+  for (const Epoch& e : epochs) {
+    if (std::abs(e.t_s - t_peak) > 0.5 * io.span_s) continue;
+    for (const GradiometerSample& s : e.samples) {
+      if (!(Snr(s, options) >= io.min_tensor_snr)) continue;
+      samples.push_back({e.t_s - ghost.t_ref, s.p_SinW, s.B - B0_W, s.T, SigmaB(s, options), SigmaT(s, options)});
+      t_min = std::min(t_min, e.t_s);
+      t_max = std::max(t_max, e.t_s);
+    }
+  }
+  if (static_cast<int>(samples.size()) < io.min_fixes || t_max - t_min < io.min_span_s) return {};
+  double signal = 0.0;
+  for (const PairSample& s : samples) {
+    signal += s.dB.squaredNorm() / (s.sb * s.sb) + s.T.squaredNorm() / (s.st * s.st);
+  }
+  // Starts: the ghost line split sideways.
+  const Eigen::Vector2d v = ghost.v;
+  const double speed = v.norm();
+  const Eigen::Vector2d side = speed > 1e-6 ? Eigen::Vector2d(-v.y(), v.x()) / speed : Eigen::Vector2d(0.0, 1.0);
+  double best = std::numeric_limits<double>::infinity();
+  PairParams best_x = PairParams::Zero();
+  Eigen::Matrix<double, 6, 1> best_m = Eigen::Matrix<double, 6, 1>::Zero();
+  for (double d : {4.0, 8.0, 12.0, 16.0}) {
+    PairParams x;
+    for (int k = 0; k < 2; ++k) {
+      const Eigen::Vector2d p = ghost.p_ref.head<2>() + (k == 0 ? -0.5 : 0.5) * d * side;
+      x.segment<5>(5 * k) << p.x(), p.y(), ghost.p_ref.z(), v.x(), v.y();
+    }
+    Eigen::Matrix<double, 6, 1> m;
+    const double cost = FitPair(samples, &x, &m);
+    if (cost < best) {
+      best = cost;
+      best_x = x;
+      best_m = m;
+    }
+  }
+  if (!(std::sqrt(best / signal) <= io.max_dipole_misfit)) return {};
+  const Eigen::Vector2d a = best_x.segment<2>(0), b = best_x.segment<2>(5);
+  if ((a - b).norm() < min_separation_m) return {};
+  // Each dipole strong on its own somewhere (not a small correction).
+  for (int k = 0; k < 2; ++k) {
+    double max_snr = 0.0;
+    for (const PairSample& s : samples) {
+      Eigen::Vector3d B;
+      Eigen::Matrix3d T;
+      DipoleBT(s.p_S - PairPosition(best_x, k, s.dt), best_m.segment<3>(3 * k), &B, &T);
+      max_snr = std::max(max_snr, T.norm() / s.st);
+    }
+    if (!(max_snr >= io.min_tensor_snr)) return {};
+  }
+  std::vector<InitialTrack> out(2);
+  for (int k = 0; k < 2; ++k) {
+    InitialTrack& init = out[k];
+    const auto q = best_x.segment<5>(5 * k);
+    init.t_ref_s = ghost.t_ref;
+    init.t_first_s = t_min;
+    init.t_last_s = t_max;
+    const double heading = std::atan2(q(4), q(3));
+    init.state = CtState<double>{q(0), q(1), q(2), std::hypot(q(3), q(4)), heading, 0.0};
+    init.m_B_Am2 = HeadingRotation(heading).transpose() * best_m.segment<3>(3 * k);
+  }
+  if (out[1].state.y < out[0].state.y) std::swap(out[0], out[1]);
+  return out;
+}
 }  // namespace magnav::tracker

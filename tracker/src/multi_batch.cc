@@ -51,7 +51,13 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       if (o.estimate.usable) paths[o.track_id].epochs.push_back(o.estimate);
     }
   };
+  // Each sample's background prior from the finder (background.h), taken
+  // out of the samples the refinement gets.
+  std::vector<std::vector<BackgroundEstimate>> background(options.background.enabled ? epochs.size() : 0);
   for (const Epoch& e : epochs) {
+    for (const auto& s : e.samples) {
+      if (options.background.enabled) background[&e - epochs.data()].push_back(finder.Background(s.sensor_id, e.t_s));
+    }
     while (fixes != nullptr && next_fix < fixes->size() && (*fixes)[next_fix].t_s <= e.t_s) {
       finder.AddFix((*fixes)[next_fix++]);
     }
@@ -125,8 +131,14 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           if (k != i && e.t_s >= spans[k].first && e.t_s <= spans[k].second) others[k] = now[k].At(e.t_s, max_gap);
         }
         Epoch k_epoch{e.t_s, {}};
-        for (const auto& s0 : e.samples) {
+        for (std::size_t j = 0; j < e.samples.size(); ++j) {
+          GradiometerSample s0 = e.samples[j];
           if (CheckSample(s0) != SampleDefect::kNone) continue;
+          if (options.background.enabled) {
+            const BackgroundEstimate& bg = background[&e - epochs.data()][j];
+            s0.sigma_B = std::hypot(SigmaB(s0, topt), bg.sigma_T);
+            s0.B -= bg.B_W - B0_W;
+          }
           Eigen::Vector3d B;
           Eigen::Matrix3d T;
           PredictedField(*s_i, now[i].m_B, s0.p_SinW, &B, &T);

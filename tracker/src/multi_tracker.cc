@@ -43,11 +43,13 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
 
 MultiTrackerOptions::MultiTrackerOptions() {
   track.init.min_tensor_snr = kFieldInitSnr;
+  track.init.max_dipole_misfit = kFieldMaxDipoleMisfit;
   track.window_solve_interval_s = kFieldSolveIntervalS;
 }
 
 bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (!track.IsValid(error) || !management.IsValid(error)) return false;
+  if (!background.IsValid(error)) return false;
   if (batch_rounds < 1) return Fail(error, "batch_rounds must be >= 1");
   if (!(batch_margin_s >= 0.0) || !std::isfinite(batch_margin_s)) {
     return Fail(error, "batch_margin_s must be finite and >= 0");
@@ -107,6 +109,7 @@ Eigen::Vector2d Horizontal(const CtState<double>& s) { return {s.x, s.y}; }
 struct MultiTracker::Impl {
   Eigen::Vector3d B0_W;
   MultiTrackerOptions options;
+  SensorBackgrounds background{Eigen::Vector3d::Zero(), BackgroundOptions{}};
   const TrackManagementOptions& mg() const { return options.management; }
   std::vector<Track> tracks;  // live (confirmed and tentative)
   std::vector<TrackRecord> records;  // confirmed, by id - 1
@@ -190,9 +193,44 @@ struct MultiTracker::Impl {
     r.t_last_detection_s = tr.life.t_last_detection_s();
   }
 
-  std::vector<TrackOutput> Process(const Epoch& e) {
+  // The epoch with every sample's B corrected by its sensor's background
+  // prior (its deviation from B0), the prior's variance added to σ_B².
+  Epoch WithoutBackground(const Epoch& raw) const {
+    Epoch e = raw;
+    if (!options.background.enabled) return e;
+    for (GradiometerSample& s : e.samples) {
+      const BackgroundEstimate b = background.Predict(s.sensor_id, e.t_s);
+      s.sigma_B = std::hypot(SigmaB(s, options.track), b.sigma_T);
+      s.B -= b.B_W - B0_W;
+    }
+    return e;
+  }
+
+  // Each sensor's background takes the raw sample minus every live track's
+  // predicted B (their model error in its variance).
+  void UpdateBackground(const Epoch& raw, const std::vector<TrackPrediction>& pred) {
+    if (!options.background.enabled) return;
+    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+    for (std::size_t j = 0; j < raw.samples.size(); ++j) {
+      const GradiometerSample& s = raw.samples[j];
+      Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
+      for (const TrackPrediction& p : pred) {
+        if (!p.valid) continue;
+        B_tracks += p.at[j].B;
+        T_tracks += p.at[j].T;
+      }
+      const double sb = SigmaB(s, options.track);
+      const double var = sb * sb + rel * rel * B_tracks.squaredNorm() / 3.0;
+      const double st2 = std::pow(SigmaT(s, options.track), 2) + rel * rel * T_tracks.squaredNorm() / 9.0;
+      background.Update(s.sensor_id, raw.t_s, s.B - B_tracks, var, (s.T - T_tracks).squaredNorm() / st2 / 9.0);
+    }
+  }
+
+  std::vector<TrackOutput> Process(const Epoch& raw) {
     ++summary.num_epochs;
     std::vector<TrackOutput> out;
+    const Epoch e = WithoutBackground(raw);
     const double t = e.t_s;
     const std::size_t n = e.samples.size();
     // 1. Prediction.
@@ -210,6 +248,7 @@ struct MultiTracker::Impl {
     }
     // 2.–3. Association and score (association.h).
     std::vector<TrackAssociation> assoc = AssociateEpoch(e, pred, B0_W, options);
+    UpdateBackground(raw, pred);
     // 4. Update, track by track.
     for (std::size_t i = 0; i < tracks.size(); ++i) {
       Track& tr = tracks[i];
@@ -292,13 +331,42 @@ struct MultiTracker::Impl {
     const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
     const std::optional<InitialTrack> init =
         InitializeTrack(epochs, B0_W, options.track, any_fix ? &given : nullptr);
-    if (!init) return;
+    if (init) {
+      StartTrack(t, *init, nullptr);
+      return;
+    }
+    // Two vessels whose sum no single dipole explains (initialize.h): each
+    // starts on the samples without the other's initial field.
+    const std::vector<InitialTrack> pair = InitializePair(epochs, B0_W, options.track, mg().min_separation_m);
+    // The pair is two new vessels: none of them near a live track (a track's
+    // model error plus a vessel is not two vessels).
+    bool near_a_track = false;
+    for (const InitialTrack& one : pair) {
+      const CtState<double> now = PropagateCoordinatedTurn(one.state, t - one.t_ref_s);
+      for (const Track& tr : tracks) {
+        const auto p = tr.engine->PredictState(t);
+        near_a_track = near_a_track || (p && (Horizontal(*p) - Horizontal(now)).norm() < mg().min_separation_m);
+      }
+    }
+    if (near_a_track) ++summary.num_starts_refused;
+    if (pair.size() == 2 && !near_a_track) {
+      // Once the first has started, its field is out of the buffer.
+      const bool first = StartTrack(t, pair[0], &pair[1]);
+      StartTrack(t, pair[1], first ? nullptr : &pair[0]);
+    }
+  }
+
+  // Starts a tentative track from `init` on the buffer (minus `partner`'s
+  // field, if given), unless a track is already near it. True if started.
+  bool StartTrack(double t, const InitialTrack& init_track, const InitialTrack* partner) {
+    const InitialTrack* init = &init_track;
+    const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
     const CtState<double> now = PropagateCoordinatedTurn(init->state, t - init->t_ref_s);
     for (const Track& tr : tracks) {
       const auto p = tr.engine->PredictState(t);
       if (p && (Horizontal(*p) - Horizontal(now)).norm() < mg().min_separation_m) {
         ++summary.num_starts_refused;
-        return;
+        return false;
       }
     }
     // The new track's sensors in the buffered epochs (gated by the
@@ -311,16 +379,28 @@ struct MultiTracker::Impl {
       probe.pred = PropagateCoordinatedTurn(init->state, b.t_s - init->t_ref_s);
       probe.m_B = init->m_B_Am2;
       Epoch k{b.t_s, {}};
+      Track other;
+      if (partner != nullptr) {
+        other.pred = PropagateCoordinatedTurn(partner->state, b.t_s - partner->t_ref_s);
+        other.m_B = partner->m_B_Am2;
+      }
       for (const auto& s : b.samples) {
-        if (Predict(probe, s).snr >= mg().gate_snr) k.samples.push_back(s);
+        if (!(Predict(probe, s).snr >= mg().gate_snr)) continue;
+        k.samples.push_back(s);
+        if (partner != nullptr && !s.T.isZero(0.0)) {
+          const FieldPrediction po = Predict(other, s);
+          k.samples.back().B -= po.B;
+          k.samples.back().T -= po.T;
+        }
       }
       if (!k.samples.empty() || !mine.empty()) mine.push_back(std::move(k));
     }
-    if (mine.empty()) return;
+    if (mine.empty()) return false;
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
     tr.engine->Start(*init, mine);
-    tr.origin = "from " + std::to_string(init->fixes.size()) +
-                (init->from_external_fixes ? " dipole_fix fixes" : " fixes of its own TED+EGT");
+    tr.origin = init->fixes.empty() ? std::string("from a two-dipole fit to samples no single dipole explains")
+                                    : "from " + std::to_string(init->fixes.size()) +
+                                          (init->from_external_fixes ? " dipole_fix fixes" : " fixes of its own TED+EGT");
     // What the buffer holds of this vessel is now explained.
     tr.m_B = tr.engine->m_B_Am2();
     for (Epoch& b : buffer) {
@@ -338,6 +418,7 @@ struct MultiTracker::Impl {
     }
     fixes.clear();
     tracks.push_back(std::move(tr));
+    return true;
   }
 
   std::vector<TrackOutput> Epochs(const Epoch& raw) {
@@ -366,6 +447,7 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   if (!B0_W.allFinite()) throw InputError("multi-tracker: B0 is not finite");
   impl_->B0_W = B0_W;
   impl_->options = options;
+  impl_->background = SensorBackgrounds(B0_W, options.background);
 }
 
 MultiTracker::~MultiTracker() = default;
@@ -516,6 +598,7 @@ std::string MultiTracker::SaveState() const {
   w.U8(m.has_pending ? 1 : 0);
   internal::Put(w, m.pending);
   w.F64(m.last_t);
+  m.background.SaveState(w);
   return w.bytes();
 }
 
@@ -589,9 +672,17 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.has_pending = r.U8() != 0;
   internal::Get(r, &m.pending);
   m.last_t = r.F64();
+  m.background = SensorBackgrounds(m.B0_W, m.options.background);
+  m.background.RestoreState(r);
   if (!r.at_end()) throw CheckpointError("corrupt: bytes after the tracker state");
   impl_ = std::move(fresh);
 }
 const MultiSummary& MultiTracker::summary() const { return impl_->summary; }
+
+BackgroundEstimate MultiTracker::Background(std::uint32_t sensor_id, double t_s) const {
+  const Impl& m = *impl_;
+  if (!m.options.background.enabled) return {m.B0_W, 0.0};
+  return m.background.Predict(sensor_id, t_s);
+}
 
 }  // namespace magnav::tracker

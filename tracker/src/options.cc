@@ -61,6 +61,9 @@ bool InitOptions::IsValid(std::string* error) const {
   if (!(cluster_gate_m >= 0.0) || !std::isfinite(cluster_gate_m)) {
     return Fail(error, "init.cluster_gate_m must be finite and >= 0");
   }
+  if (!(max_dipole_misfit >= 0.0) || !std::isfinite(max_dipole_misfit)) {
+    return Fail(error, "init.max_dipole_misfit must be finite and >= 0");
+  }
   return true;
 }
 

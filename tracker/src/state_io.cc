@@ -105,11 +105,14 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
        {t.default_sigma_B_T, t.default_sigma_T_Tpm, t.measurement_loss_scale_sigma, q.position_m_per_sqrt_s,
         q.speed_mps_per_sqrt_s, q.heading_rad_per_sqrt_s, q.turn_rate_radps_per_sqrt_s, q.turn_rate_loss_scale_sigma,
         q.turn_rate_warmup_radps_per_sqrt_s, q.window_turn_rate_radps_per_sqrt_s, i.min_tensor_snr, i.min_span_s,
-        i.span_s, i.outlier_threshold_mad, i.cluster_gate_m, t.epoch_tolerance_s, t.function_tolerance,
+        i.span_s, i.outlier_threshold_mad, i.cluster_gate_m, i.max_dipole_misfit, t.epoch_tolerance_s, t.function_tolerance,
         t.intermediate_function_tolerance, t.gradient_tolerance, t.parameter_tolerance, t.batch_growth_factor,
         t.window_s, t.window_solve_interval_s, t.window_function_tolerance, g.gate_snr, g.detect_llr,
         g.max_chi2_per_dof, g.max_unexplained, g.min_new_share, g.max_miss_s, g.max_coast_s,
-        g.max_sigma_horizontal_m, g.min_separation_m, g.init_interval_s, o.batch_margin_s}) {
+        g.max_sigma_horizontal_m, g.min_separation_m, g.init_interval_s, o.batch_margin_s,
+        o.background.rate_walk_T_per_s_per_sqrt_s, o.background.level_walk_T_per_sqrt_s,
+        o.background.initial_sigma_T, o.background.initial_rate_sigma_T_per_s, o.background.gate_chi2,
+        o.background.occupied_tensor_chi2, o.background.occupied_average_s}) {
     w.F64(d);
   }
   for (std::int64_t n :
@@ -119,7 +122,8 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
         static_cast<std::int64_t>(t.batch_solver), static_cast<std::int64_t>(t.window_max_num_iterations),
         static_cast<std::int64_t>(t.window_solver), static_cast<std::int64_t>(t.compute_covariance),
         static_cast<std::int64_t>(t.covariance_method), static_cast<std::int64_t>(g.confirm_m),
-        static_cast<std::int64_t>(g.confirm_n), static_cast<std::int64_t>(o.batch_rounds)}) {
+        static_cast<std::int64_t>(g.confirm_n), static_cast<std::int64_t>(o.batch_rounds),
+        static_cast<std::int64_t>(o.background.enabled)}) {
     w.I64(n);
   }
   return w.bytes();

@@ -21,6 +21,7 @@ struct TrackerFlags {
   std::string loss = tracker::LossTypeName(tracker::TrackerOptions{}.measurement_loss);
   std::string turn_loss = tracker::LossTypeName(tracker::ProcessNoise{}.turn_rate_loss);
   std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
+  std::string background = tracker::BackgroundOptions{}.enabled ? "on" : "off";
 };
 
 // `fixes_help` says where this program's single-sample fixes come from.
@@ -84,6 +85,19 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--min-new-share", m.min_new_share,
                  "residual below this share of a track's predicted tensor is not offered to the initiator")
       ->capture_default_str();
+  tracker::BackgroundOptions& b = f->options.background;
+  app.add_option("--background", f->background,
+                 "each sensor's background B0 estimated with the tracks (on) or the fixed B0 (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--bg-rate-walk", b.rate_walk_T_per_s_per_sqrt_s,
+                 "background: random walk of its rate of change, T/s/sqrt(s)")
+      ->capture_default_str();
+  app.add_option("--bg-level-walk", b.level_walk_T_per_sqrt_s, "background: random walk of its level, T/sqrt(s)")
+      ->capture_default_str();
+  app.add_option("--bg-gate", b.gate_chi2,
+                 "background: a residual B with chi-square (3 axes) above this is down-weighted to it")
+      ->capture_default_str();
 }
 
 // The options the flags give. Throws InputError naming the flag for a bad
@@ -99,6 +113,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   if (!tracker::ParseInitSource(f.init_from, &o.track.init.source)) {
     throw InputError("--init-from: expected auto, dipole_fix or samples, got '" + f.init_from + "'");
   }
+  o.background.enabled = f.background == "on";
   std::string why;
   if (!o.IsValid(&why)) throw InputError("tracker options: " + why);
   return o;

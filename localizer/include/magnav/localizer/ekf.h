@@ -104,8 +104,13 @@ class LocalizerEkf {
     bool open = false;  // after a run of refusals, until an update fits
   };
   // The gate on one update of a stream with NIS `nis` against `threshold`:
-  // true to apply it; counts refusals and releases, sets last_outcome_.
-  bool Gate(double nis, double threshold, GateState* stream);
+  // true to apply it; counts refusals and releases, sets last_outcome_. An
+  // update applied beyond the gate (a released stream) is applied with its
+  // innovation covariance S scaled by *inflate = nis / threshold (≥ 1): its
+  // gain and its covariance reduction shrink by that factor, so that an
+  // update the linearisation cannot explain cannot collapse the covariance
+  // around a wrong state; 1 for an update within the gate.
+  bool Gate(double nis, double threshold, GateState* stream, double* inflate);
 
   Vessel vessel_;
   std::vector<SensorPrior> sensors_;

@@ -98,11 +98,29 @@ struct Summary {
   // opened by a run of LocalizerOptions::gate_release_after refusals.
   int gate_releases = 0;
   double gate_probability = 0.0;  // the gate the outliers were counted with
+  // The estimate is not where its covariance says (set by
+  // MarkDivergence; `converged` is then false): the gate's refusals and
+  // releases (EKF) or the residuals beyond the gate at the solution (batch)
+  // are far more than a consistent estimate gives (1e-4 of the updates at
+  // the default gate). BriefReport then says "diverged".
+  bool diverged = false;
   std::string message;
   // One line: "method batch, converged, iterations 7, cost 1.2e+05 -> 6.6e+04, magnetometer samples 44432,
   // gnss fixes 1111, outliers: magnetometer 0, gnss 1 (gate p 0.9999), time 0.41 s ...".
   std::string BriefReport() const;
+  // "converged", "NOT converged" or "diverged".
+  std::string Status() const;
 };
+
+// Sets summary->diverged (and clears converged) when the outlier counts show
+// that the estimate is lost rather than the data wrong. EKF (method ekf,
+// ekf-bounded): refused + released updates > max(10, 2 % of all updates);
+// batch: magnetometer residuals beyond the gate > max(10, 1 % of the
+// samples), or GNSS residuals beyond it > max(10, 1 % of the fixes). A
+// consistent estimate has 1e-4 of them at the default gate; one wrong
+// measurement, or a few, never trips it. docs/ACCURACY.md "Trust: honest
+// status".
+void MarkDivergence(Summary* summary);
 
 // Result of a localisation: one estimate per sensor (in the order of
 // Pass::sensors) and the vessel trajectory at the estimator's epochs.

@@ -18,6 +18,7 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 #include "magnav/mapmatch/geo_grid.h"
 #include "magnav/mapmatch/path.h"
@@ -68,7 +69,22 @@ struct CorrelationOptions {
 // PROD, 1 for NPROD). Not converged (with the reason) when no shift has
 // enough points on the map (path left as the INS gave it) or the best shift
 // or rotation lies on the window's edge (the window may be too small).
+//
+// `peaks` (optional; translations only, no rotation search): the best local
+// optima of the final search's score surface (a shift no worse than its 8
+// neighbours), best first, each at least min_separation_deg (in lat or lon)
+// from every better one, at most max_peaks; fast MSD's coarse stage refines
+// each (fast_msd.h).
+struct CorrelationPeak {
+  double shift_lat_deg = 0.0, shift_lon_deg = 0.0;
+  double score = 0.0;  // the metric at that shift
+};
+struct CorrelationPeaks {
+  std::size_t max_peaks = 3;
+  double min_separation_deg = 0.0;
+  std::vector<CorrelationPeak> found;  // output
+};
 MatchResult MatchCorrelation(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
-                             const CorrelationOptions& options);
+                             const CorrelationOptions& options, CorrelationPeaks* peaks = nullptr);
 
 }  // namespace magnav::mapmatch

@@ -58,6 +58,21 @@ struct FastMsdOptions {
   double min_on_map_fraction = 0.3;
   // Coarse MSD translation search ±window (deg) before the rounds; 0 = none.
   double search_window_deg = 0.0;
+  // Coarse stage, ambiguity (issue 25 item 3): when the MSD surface's second
+  // local minimum — at least peak_separation_deg (and 2 grid steps) from the
+  // best in lat or lon — has an MSD below ambiguity_ratio × the best's, the
+  // best may be the wrong peak: the result is not converged (reason
+  // "ambiguous: ..."), the rounds also run from the second minimum, and the
+  // covariance is the second moment, about the published path, of an equal
+  // mixture of the two refined paths — unless the rounds from the second
+  // minimum end where the best's did (mean over the points of dᵀΣ⁻¹d below
+  // the 99 % point of χ²(2), 9.21: the same basin). The position stays the
+  // best coarse minimum's. 2 lies beyond the 99.9 % quantile (≈ 1.7) of the
+  // ratio of two MSDs of 150 points of the same noise (F(150, 150)); on the
+  // 40 tuning paths (501–520, 0.5 and 3 nT) the second minimum was ≥ 4.3x
+  // the best but on one (docs/ACCURACY.md). 0 = off.
+  double ambiguity_ratio = 2.0;
+  double peak_separation_deg = 0.003;
   // Robust residuals, in both stages (match_common.h): a reading outside the
   // map's range (± a quarter of it) has no data term at all; in each round a
   // residual m_i − l_i beyond outlier_sigmas · σ_l (σ_l = 1.4826·MAD of the
@@ -76,7 +91,16 @@ struct FastMsdOptions {
 };
 
 // iterations = Jacobi iterations over all rounds (direct solver: one per round); score = MSD (nT²) at the
-// matched points on the map, outliers left out; converged = every round's Jacobi met epsilon.
+// matched points on the map, outliers left out; converged = every round's Jacobi met epsilon and the
+// coarse stage's best minimum is not ambiguous (ambiguity_ratio).
+// Covariance (MatchResult::cov_*, per point, deg² in (lat, lon)): the Laplace
+// approximation at the solution (mapmatch/src/fast_msd_covariance.h) — the
+// fixed point minimises Σ w_i (g_i·e_i + m_i − l_i)² + (λ/2) Σ |e_{i+1} − e_i|²
+// (w = 1, ½ at the two ends), so with Gaussian noise σ² and that random-walk
+// prior the posterior precision is (Gᵀ W G + (λ/2) L)/σ²; σ² from the
+// residuals at the solution over the residual degrees of freedom (points minus
+// the smoother's effective parameters). Widened to cover a second peak when
+// ambiguous (above). Calibration: docs/ACCURACY.md, "Trust: covariance calibration".
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                          const FastMsdOptions& options = {});
 

@@ -78,7 +78,13 @@ MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const M
 // a component smaller than 3 sigma (3 / sqrt(λ)) is not seen by the map; when
 // those components make more than half the correction and more than a grid
 // cell's diagonal, the correction is a slide along the iso-lines, not a fix
-// (smooth main-field maps; the truth is not used).
+// (smooth main-field maps; the truth is not used). The same test on the last
+// 10 % of the points (at least 3; s² still the whole path's) catches a wrong
+// shape whose mean is supported but whose end, where the fix is used, slides
+// along the iso-lines there: "no better than the prior at the path's end";
+// only where the path's iso-lines are nearly parallel (λ_min < 0.01 λ_max of
+// J: main-field maps; not rough crustal ones, where it cost right results),
+// and only when some of those last points are on the map.
 void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path, double max_correction_deg,
                   MatchResult* result);
 

@@ -53,6 +53,9 @@ struct MatchResult {
   int points_outlier = 0;
   // Settings the method derived rather than took (e.g. the field scale), for the summary.
   std::string notes;
+  // Per-point covariance of the matched position (lat, lon), deg², for the
+  // methods that publish one (fast-msd: fast_msd.h); empty = none published.
+  std::vector<double> cov_lat_lat, cov_lat_lon, cov_lon_lon;
 
   // "method icp, iterations 12, score 0.0123 (rms distance, deg), converged, used 60/60, off map 0,
   // bad measurement 0, outliers 0"

@@ -63,6 +63,27 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
                                             const TrackerOptions& options,
                                             const std::vector<DipoleFix>* external_fixes = nullptr);
 
+// Two vessels close together that one dipole does not explain (issue 24
+// item 2): a sensor between two vessels abreast sees the sum of their
+// fields, its samples fail the dipole misfit gate
+// (InitOptions::max_dipole_misfit) and give no fix, so InitializeTrack finds
+// no line there. This fits two straight-line dipoles (constant depth and
+// body moment each) at once to the samples within ±span_s/2 of the
+// strongest such sample, on every sensor where it is strong (‖T‖_F ≥
+// min_tensor_snr · σ_T, B and T whitened by the sample's σ): Gauss–Newton
+// on the two lines (position, horizontal velocity; the moments by linear
+// least squares at each step), started from the line through the mixed
+// samples' own fixes split sideways by 4, 8, 12 and 16 m. Returned (two
+// tracks, ordered by their y at t_ref) only if the pair explains the
+// samples as a single dipole explains a clean one (√(Σr²/Σm²) ≤
+// max_dipole_misfit), the two lines are at least `min_separation_m` apart
+// horizontally, each one's own tensor reaches min_tensor_snr at one of the
+// samples at least, and at least min_fixes such samples span min_span_s.
+// Empty otherwise, or when max_dipole_misfit is 0 (off). Their `fixes` are
+// empty (no single-sample fix went into them).
+std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                         const TrackerOptions& options, double min_separation_m);
+
 // Why InitializeTrack gave no track, for a user: `have_external_fixes` as
 // its external_fixes != nullptr.
 std::string NoTrackMessage(const TrackerOptions& options, bool have_external_fixes);

@@ -84,6 +84,14 @@ struct InitOptions {
   // that fixes of other vessels elsewhere in the field do not enter it.
   // 0 = off (every fix in the span enters the fit).
   double cluster_gate_m = 10.0;
+  // A single-sample fix is only made from a sample that one dipole
+  // explains: with the dipole at the TED+EGT offset and its least-squares
+  // moment (FitDipoleMoment), the whitened residual of the 8 rows (B and T)
+  // must be at most this share of the whitened signal (√(Σr²/Σm²)). A sensor
+  // between two vessels sees the sum of their fields; its fix falls between
+  // them and would seed a ghost line. The sample still counts for nothing
+  // in the choice of the strongest signal. 0 = off.
+  double max_dipole_misfit = 0.0;
 
   bool IsValid(std::string* error) const;
 };
