@@ -50,8 +50,8 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
               {"k", "lat", "lon", "cov_lat_lat", "cov_lat_lon", "cov_lon_lon", "ess", "particles", "unique_particles",
                "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost", "bias_nT", "bias_sigma_nT",
                "sigma_nT", "likelihood_exponent", "track_check_chi2", "innovation_nT", "predicted_spread_nT", "innovation_bias_chi2",
-               "reacquiring"},
-              {{"frame", "estimate lat/lon deg, covariance deg^2 (particle_filter.h StepDiagnostics)"}});
+               "reacquiring", "cloud_cov_lat_lat", "cloud_cov_lat_lon", "cloud_cov_lon_lon", "track_check_failed"},
+              {{"frame", "estimate lat/lon deg, covariance deg^2 (published; cloud_cov_*: the cloud's own; particle_filter.h StepDiagnostics)"}});
   for (std::size_t p = 0; p < steps.size(); ++p) {
     const mapmatch::StepDiagnostics& d = steps[p];
     w.WriteRow({std::to_string(path.k[p]), FormatNumber(d.lat_deg), FormatNumber(d.lon_deg),
@@ -61,7 +61,9 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                 d.ins_jump ? "1" : "0", UpdateName(d.update), d.lost ? "1" : "0", FormatNumber(d.bias_nT),
                 FormatNumber(d.bias_sigma_nT), FormatNumber(d.sigma_nT), FormatNumber(d.likelihood_exponent),
                 FormatNumber(d.track_check_chi2), FormatNumber(d.innovation_nT),
-                FormatNumber(d.predicted_spread_nT), FormatNumber(d.innovation_bias_chi2), d.reacquiring ? "1" : "0"});
+                FormatNumber(d.predicted_spread_nT), FormatNumber(d.innovation_bias_chi2), d.reacquiring ? "1" : "0",
+                FormatNumber(d.cloud_cov_lat_lat), FormatNumber(d.cloud_cov_lat_lon), FormatNumber(d.cloud_cov_lon_lon),
+                d.track_check_failed ? "1" : "0"});
   }
   w.Close();
 }
@@ -197,7 +199,8 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "
-                  "occupied map cells, NIS, resampled, INS jump, update and lost flags to this CSV");
+                  "occupied map cells, NIS, resampled, INS jump, update and lost flags to this CSV (cov_*: the published "
+                  "covariance, the prior's while lost; cloud_cov_*: the cloud's own)");
   cli::AddParticleFilterOptions(*cmd, &o.particle_filter);
   cmd->callback([args] {
     MatchArgs a = *args;

@@ -102,7 +102,7 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
   }
   Update(measured_nT, &d);
   Estimate(&d);
-  if (o_.track_check_window > 0) CheckTrack(measured_nT, &d);
+  if (o_.track_check_window > 0) CheckTrack(ins_lat, ins_lon, measured_nT, &d);
   if (kind_ == ParticleFilterKind::kAfpf) AdaptCount(d);
   d.particles = static_cast<int>(p_.size());
   d.unique_particles = std::min(d.unique_particles, d.particles);  // after the AFPF's trim
@@ -113,8 +113,8 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
                        ++reacquiring_steps_ > 2 * o_.divergence_window)) {
     reacquiring_ = false;
   }
-  // The bias test alone flags but does not re-spread the cloud (see the header).
-  const bool respread = d.lost && (Diverged() || d.track_check_failed);
+  // The bias test and the track check flag but do not re-spread the cloud (see the header).
+  const bool respread = d.lost && Diverged();
   if (!d.lost && reacquiring_) d.lost = d.reacquiring = true;
   if (d.lost) {
     ++counters_.lost_steps;
@@ -124,12 +124,14 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
       bias_window_.clear();
       innov_.clear();
       track_.clear();
+      track_lost_ = false;
       sigma_ = 0.0;  // starts again at measurement_sigma_nT
       ++counters_.reinitialisations;
       reacquiring_ = o_.settled_sigma_deg > 0.0;
       reacquiring_steps_ = 0;
     }
   }
+  PublishCovariance(&d);
   last_ = d;
   return last_;
 }

@@ -96,74 +96,103 @@ void Filter::RecordInnovation(double r, double spread2, StepDiagnostics* d) {
   bias_failed_ = d->innovation_bias_chi2 > threshold;
 }
 
-// The track check (track_check_window, see the header): does the estimated
-// track of the last W updates, shifted as a whole by some offset o within
-// the prior's half-width, fit its readings much better than where the filter
-// has it? SSE(o) = Σ (z_j − m(x̂_j + o))² over the readings; o on a coarse
-// grid, the best few refined. Lost when (SSE(0) − min SSE) / σ_n² exceeds
-// track_check_chi2 × max(σ_n², SSE(best)/W) and the best o lies beyond 3 σ
-// of the filter's own covariance (plus the refined grid's step). σ_n: the
-// noise the filter sees (the PF's σ; the AFPF's σ / afpf_sigma_factor), at
-// least 0.5 nT.
-void Filter::CheckTrack(double z, StepDiagnostics* d) {
-  if (d->update != StepUpdate::kUpdated || !std::isfinite(z)) return;
-  track_.push_back({d->lat_deg, d->lon_deg, z});
-  if (static_cast<int>(track_.size()) > o_.track_check_window) track_.pop_front();
-  if (static_cast<int>(track_.size()) < o_.track_check_window) return;
-  if (++since_check_ < o_.track_check_every) return;
-  // Only a settled filter is checked (its 1-σ spread within the coarse grid's step): an acquiring,
-  // spread cloud's mean lies between its basins, and any shift fits better than it.
-  if (d->cov_lat_lat + d->cov_lon_lon > o_.track_check_step_deg * o_.track_check_step_deg) return;
+// The track check (track_check_window, see the header): a coarse re-search of
+// the map around the filter's estimate. The last W readings are placed where
+// the INS increments put them relative to the estimate now (the increments
+// are what the particles moved by: the INS track has no filter jitter) and
+// the whole track is shifted by offsets o within ±prior_half_width_deg
+// (grid track_check_step_deg, the best 5 refined 5×); SSE(o) = Σ (z_j −
+// m(a_j + o))². local = the best SSE within 3 σ of the filter's covariance
+// (plus the refined grid's step), best = the best anywhere. Lost when the best
+// lies outside that disc and (local − best) / max(σ_n², best / W) exceeds
+// track_check_chi2: a far-away place explains the last W readings much better
+// than anywhere the filter allows. σ_n: the noise the filter sees
+// (NoiseSigma). The verdict holds until the next check.
+void Filter::CheckTrack(double ins_lat, double ins_lon, double z, StepDiagnostics* d) {
+  if (d->ins_jump) {  // a jump not applied breaks the INS-relative track
+    track_.clear();
+    track_lost_ = false;
+  }
+  if (d->update == StepUpdate::kUpdated && std::isfinite(z) && std::isfinite(ins_lat) && std::isfinite(ins_lon)) {
+    track_.push_back({ins_lat, ins_lon, z});
+    if (static_cast<int>(track_.size()) > o_.track_check_window) track_.pop_front();
+    ++since_check_;
+  }
+  if (static_cast<int>(track_.size()) < o_.track_check_window || since_check_ < o_.track_check_every) {
+    d->lost = d->lost || track_lost_;
+    d->track_check_failed = track_lost_;
+    if (track_lost_) ++counters_.track_check_failures;
+    return;
+  }
   since_check_ = 0;
-  auto sse = [this](double dlat, double dlon) {
+  const auto& now = track_.back();
+  auto sse = [&](double dlat, double dlon) {
     double s = 0.0;
     for (const auto& t : track_) {
-      const auto m = grid_.Sample(layer_, t[0] + dlat, t[1] + dlon);
+      const auto m = grid_.Sample(layer_, d->lat_deg + (t[0] - now[0]) + dlat, d->lon_deg + (t[1] - now[1]) + dlon);
       if (!m) return std::numeric_limits<double>::infinity();  // the whole window must be on the map
       const double r = t[2] - m->value_nT;
       s += r * r;
     }
     return s;
   };
-  const double here = sse(0.0, 0.0);
-  if (!std::isfinite(here)) return;
-  const double h = o_.prior_half_width_deg, coarse = o_.track_check_step_deg;
+  const double h = o_.prior_half_width_deg, coarse = o_.track_check_step_deg, fine = coarse / 5.0;
+  const double reach2 = 9.0 * (d->cov_lat_lat + d->cov_lon_lon) + fine * fine;  // the filter's 3-σ disc
   const int nc = static_cast<int>(std::floor(h / coarse));
   std::vector<std::array<double, 3>> best;  // (sse, dlat, dlon), the 5 best coarse offsets
+  std::array<double, 3> local = {sse(0.0, 0.0), 0.0, 0.0};
   for (int i = -nc; i <= nc; ++i) {
     for (int j = -nc; j <= nc; ++j) {
-      const double v = sse(i * coarse, j * coarse);
+      const double dl = i * coarse, dn = j * coarse;
+      const double v = sse(dl, dn);
       if (!std::isfinite(v)) continue;
+      if (dl * dl + dn * dn <= reach2 && v < local[0]) local = {v, dl, dn};
       if (best.size() < 5 || v < best.back()[0]) {
         if (best.size() == 5) best.pop_back();
-        best.push_back({v, i * coarse, j * coarse});
+        best.push_back({v, dl, dn});
         std::sort(best.begin(), best.end());
       }
     }
   }
-  const double fine = coarse / 5.0;
-  std::array<double, 3> top = {here, 0.0, 0.0};
+  best.push_back(local);
+  std::array<double, 3> top = local;
   for (const auto& b : best) {
+    if (!std::isfinite(b[0])) continue;
     for (int i = -5; i <= 5; ++i) {
       for (int j = -5; j <= 5; ++j) {
-        const double v = sse(b[1] + i * fine, b[2] + j * fine);
-        if (v < top[0]) top = {v, b[1] + i * fine, b[2] + j * fine};
+        const double dl = b[1] + i * fine, dn = b[2] + j * fine;
+        const double v = sse(dl, dn);
+        if (!std::isfinite(v)) continue;
+        if (dl * dl + dn * dn <= reach2 && v < local[0]) local = {v, dl, dn};
+        if (v < top[0]) top = {v, dl, dn};
       }
     }
   }
-  double sn = d->sigma_nT > 0.0 ? d->sigma_nT : o_.measurement_sigma_nT;
-  if (kind_ == ParticleFilterKind::kAfpf && adaptive_) sn /= o_.afpf_sigma_factor;
-  sn = std::max(sn, 0.5);
-  // The scale: the larger of σ_n² and the residual variance at the best offset (the noise as the
-  // best fit sees it: a track estimated step by step carries its own jitter, which no shift removes).
-  d->track_check_chi2 = (here - top[0]) / std::max(sn * sn, top[0] / static_cast<double>(track_.size()));
-  const double dist2 = top[1] * top[1] + top[2] * top[2];
-  const double reach2 = 9.0 * (d->cov_lat_lat + d->cov_lon_lon) + fine * fine;
-  if (d->track_check_chi2 > o_.track_check_chi2 && dist2 > reach2) {
-    d->lost = true;
-    d->track_check_failed = true;
-    ++counters_.track_check_failures;
+  track_lost_ = false;
+  if (std::isfinite(local[0]) && std::isfinite(top[0])) {
+    const double sn = NoiseSigma();
+    d->track_check_chi2 = (local[0] - top[0]) / std::max(sn * sn, top[0] / static_cast<double>(track_.size()));
+    track_lost_ = d->track_check_chi2 > o_.track_check_chi2 && top[1] * top[1] + top[2] * top[2] > reach2;
   }
+  d->lost = d->lost || track_lost_;
+  d->track_check_failed = track_lost_;
+  if (track_lost_) ++counters_.track_check_failures;
+}
+
+// The published covariance: the cloud's, or, while the filter is lost, at
+// least the prior square's (a uniform over ±prior_half_width_deg: h²/3 per
+// axis): a lost filter does not know where it is within the region it would
+// search, and a collapsed cloud's spread says nothing then.
+void Filter::PublishCovariance(StepDiagnostics* d) const {
+  d->cloud_cov_lat_lat = d->cov_lat_lat;
+  d->cloud_cov_lat_lon = d->cov_lat_lon;
+  d->cloud_cov_lon_lon = d->cov_lon_lon;
+  if (!d->lost || !o_.lost_covariance_is_prior) return;
+  const double v = o_.prior_half_width_deg * o_.prior_half_width_deg / 3.0;
+  if (d->cov_lat_lat + d->cov_lon_lon >= 2.0 * v) return;
+  d->cov_lat_lat = v;
+  d->cov_lat_lon = 0.0;
+  d->cov_lon_lon = v;
 }
 
 }  // namespace internal

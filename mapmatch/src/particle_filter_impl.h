@@ -79,7 +79,8 @@ class Filter final : public SequentialMatcher {
   bool Diverged() const;
   double NoiseSigma() const;
   void RecordInnovation(double r, double spread2, StepDiagnostics* d);
-  void CheckTrack(double z, StepDiagnostics* d);
+  void CheckTrack(double ins_lat, double ins_lon, double z, StepDiagnostics* d);
+  void PublishCovariance(StepDiagnostics* d) const;
 
   ParticleFilterKind kind_;
   const GeoGrid& grid_;
@@ -101,8 +102,9 @@ class Filter final : public SequentialMatcher {
   bool bias_failed_ = false;                          // the bias test fired at this update
   bool reacquiring_ = false;                          // re-initialised and not settled yet
   int reacquiring_steps_ = 0;                         // steps since that re-initialisation
-  std::deque<std::array<double, 3>> track_;  // track check: (estimate lat, lon, reading) per update
+  std::deque<std::array<double, 3>> track_;  // track check: (INS lat, lon, reading) per update
   int since_check_ = 0;
+  bool track_lost_ = false;  // the last track check's verdict (held until the next check)
   std::deque<std::pair<double, double>> innov_;  // adaptive σ: (z − m̄)², Var(m) per update
   double sigma_ = 0.0;
   bool adaptive_ = false;  // PF: adaptive_sigma; AFPF: afpf_sigma_factor > 0

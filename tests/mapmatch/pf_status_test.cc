@@ -21,6 +21,11 @@
 //   * the AFPF there with its defaults (direction 1): a run lost at its end
 //     never says "converged" (its detection rate is below target:
 //     docs/ACCURACY.md, "Lost-track detection").
+//   * the AFPF there with its defaults, 6 directions: at least 2 of its
+//     losses flagged within 20 steps (3 of 4 measured; none with the
+//     divergence rule alone);
+//   * a lost filter publishes at least the prior square's covariance, not
+//     its collapsed cloud's (issue 25 item 4).
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -137,16 +142,21 @@ PathRun Kidnapped(double dir_rad, std::size_t from = 60, double deg = 0.008) {
   return run;
 }
 
-// Per step: the estimate beyond 3 σ of its own covariance (2-D NEES > 9).
+// 2-D NEES of step k's estimate against a covariance (deg²).
+double Nees(const PathRun& run, std::size_t k, const StepDiagnostics& d, double cll, double cln, double cnn) {
+  const double e0 = d.lat_deg - run.true_lat[k], e1 = d.lon_deg - run.true_lon[k];
+  const double det = cll * cnn - cln * cln;
+  return det > 0.0 ? (cnn * e0 * e0 - 2.0 * cln * e0 * e1 + cll * e1 * e1) / det
+                   : std::numeric_limits<double>::infinity();
+}
+
+// Per step: the estimate beyond 3 σ of its cloud's own covariance (2-D NEES > 9; a lost filter
+// publishes the prior's, cov_*, which would hide the loss).
 std::vector<bool> Beyond3Sigma(const PathRun& run, const std::vector<StepDiagnostics>& steps) {
   std::vector<bool> bad;
   for (std::size_t k = 0; k < steps.size(); ++k) {
     const StepDiagnostics& d = steps[k];
-    const double e0 = d.lat_deg - run.true_lat[k], e1 = d.lon_deg - run.true_lon[k];
-    const double det = d.cov_lat_lat * d.cov_lon_lon - d.cov_lat_lon * d.cov_lat_lon;
-    const double nees = det > 0.0 ? (d.cov_lon_lon * e0 * e0 - 2.0 * d.cov_lat_lon * e0 * e1 + d.cov_lat_lat * e1 * e1) / det
-                                   : std::numeric_limits<double>::infinity();
-    bad.push_back(!(nees <= 9.0));
+    bad.push_back(!(Nees(run, k, d, d.cloud_cov_lat_lat, d.cloud_cov_lat_lon, d.cloud_cov_lon_lon) <= 9.0));
   }
   return bad;
 }
@@ -194,6 +204,80 @@ TEST(PfStatus, AKidnappedAfpfLostAtItsEndNeverSaysConverged) {
       EXPECT_FALSE(r.converged) << r.BriefReport();
     }
   }
+}
+
+}  // namespace
+}  // namespace magnav::mapmatch
+
+namespace magnav::mapmatch {
+namespace {
+
+// A lost filter's published covariance says so (issue 25 item 4): at every
+// step flagged lost it is at least the prior square's (h²/3 per axis), and
+// the estimate lies within 3 σ of it, while the cloud's own covariance puts
+// it beyond 3 σ at some of those steps (the kidnapped AFPF, direction 1,
+// flagged at the end of its run; with lost_covariance_is_prior = false the
+// published NEES is the cloud's and this test fails). Steps not flagged lost publish the cloud's covariance.
+TEST(PfStatus, ALostFilterPublishesThePriorsCovariance) {
+  const PathRun run = Kidnapped(1 * 2.399963);
+  ParticleFilterOptions o;
+  o.seed = 1;
+  std::vector<StepDiagnostics> steps;
+  MatchParticleFilter(ParticleFilterKind::kAfpf, Map(), 0, run.path, o, &steps);
+  const double v = o.prior_half_width_deg * o.prior_half_width_deg / 3.0;
+  int lost = 0, cloud_beyond = 0;
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    const StepDiagnostics& d = steps[k];
+    if (!d.lost) {
+      EXPECT_EQ(d.cov_lat_lat, d.cloud_cov_lat_lat) << "k " << k;
+      EXPECT_EQ(d.cov_lon_lon, d.cloud_cov_lon_lon) << "k " << k;
+      continue;
+    }
+    ++lost;
+    EXPECT_GE(d.cov_lat_lat + d.cov_lon_lon, 2.0 * v * (1.0 - 1e-12)) << "k " << k;
+    EXPECT_LE(Nees(run, k, d, d.cov_lat_lat, d.cov_lat_lon, d.cov_lon_lon), 9.0) << "k " << k;
+    if (Nees(run, k, d, d.cloud_cov_lat_lat, d.cloud_cov_lat_lon, d.cloud_cov_lon_lon) > 9.0) ++cloud_beyond;
+  }
+  EXPECT_GE(lost, 3);  // measured 4 (the bias test)
+  EXPECT_GE(cloud_beyond, 3);  // measured 4: what the cloud alone would have published
+}
+
+}  // namespace
+}  // namespace magnav::mapmatch
+
+namespace magnav::mapmatch {
+namespace {
+
+// The AFPF's detection rate on fixed seeds (issue 25 item 3; the full
+// measurement is scripts/calibration_pf): the 0.5 nT reference path
+// kidnapped 0.008° at step 60 in 6 directions, defaults. A direction counts
+// when its run is beyond 3 σ of its cloud for 10 steps in a row and the lost
+// flag comes within 20 steps of that loss's start. Not the target (90 %):
+// a margin under today's 3 of 4 that a halving breaks (≈ 3 s).
+TEST(PfStatus, AKidnappedAfpfIsFlaggedOnMostDirections) {
+  int losses = 0, detected = 0;
+  for (int j = 0; j < 6; ++j) {
+    const PathRun run = Kidnapped(j * 2.399963);
+    ParticleFilterOptions o;
+    o.seed = 1;
+    std::vector<StepDiagnostics> steps;
+    MatchParticleFilter(ParticleFilterKind::kAfpf, Map(), 0, run.path, o, &steps);
+    const std::vector<bool> bad = Beyond3Sigma(run, steps);
+    int streak = 0;
+    for (std::size_t k = 0; k < bad.size(); ++k) {
+      streak = bad[k] ? streak + 1 : 0;
+      if (streak == 10) {
+        ++losses;
+        const bool flagged = FlaggedIn(steps, k - 9, k + 11);
+        detected += flagged ? 1 : 0;
+        break;
+      }
+    }
+  }
+  // Measured: directions 1–4 lost from step 60, 1, 3 and 4 flagged within 20 steps (3 of 4);
+  // with the divergence rule alone (afpf_bias_test_chi2 = 0) none of them.
+  EXPECT_GE(losses, 3);
+  EXPECT_GE(detected, 2) << losses << " losses";
 }
 
 }  // namespace

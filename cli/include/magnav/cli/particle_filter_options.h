@@ -43,11 +43,12 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
   opt("--divergence-window", &f->divergence_window, "pf, afpf: updates in the divergence test");
   opt("--divergence-nis", &f->divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
   opt("--track-check-window", &f->track_check_window,
-      "pf, afpf: updates in the track check (lost when the recent estimated track fits much better shifted "
-      "beyond 3 sigma); 0 = off");
+      "pf, afpf: readings in the track check (a coarse re-search: lost when the recent readings, placed by the "
+      "INS increments, fit much better shifted beyond 3 sigma of the filter); 0 = off");
   opt("--track-check-every", &f->track_check_every, "pf, afpf: run the track check every this many updates");
   opt("--track-check-chi2", &f->track_check_chi2,
-      "pf, afpf: lost when the best shift lowers the track's squared residuals by more than this x sigma_n^2");
+      "pf, afpf: lost when the best shift lowers the track's squared residuals, against the best within 3 sigma, "
+      "by more than this x max(sigma_n^2, best residual mean square)");
   opt("--track-check-step", &f->track_check_step_deg, "pf, afpf: the track check's coarse offset grid, deg");
   opt("--bias-test-window", &f->bias_test_window,
       "pf, afpf: updates in the innovation-bias test (lost when (sum r)^2 / sum(sigma_n^2 + V) > --bias-test-chi2); "
@@ -58,6 +59,8 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "pf, afpf: after a re-initialisation stay lost until the cloud's 1-sigma spread is below this, deg; 0 = off");
   opt("--reinitialize-when-lost", &f->reinitialize_when_lost,
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
+  opt("--lost-covariance-is-prior", &f->lost_covariance_is_prior,
+      "pf, afpf: while lost publish at least the prior square's covariance (1) or the cloud's (0)");
   app.add_flag("--estimate-bias", f->estimate_bias, "pf, afpf: a map bias per particle (reading - bias vs the map)");
   opt("--bias-prior-sigma", &f->bias_prior_sigma_nT, "pf, afpf with --estimate-bias: prior sigma of the bias, nT");
   opt("--bias-drift-sigma", &f->bias_drift_sigma_nT, "pf, afpf with --estimate-bias: random walk of the bias per step, nT");

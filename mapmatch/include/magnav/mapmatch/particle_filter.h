@@ -100,7 +100,10 @@
 // are then spread again over the prior square around the current INS position,
 // and the filter stays lost until the new cloud has settled (settled_sigma_deg).
 // A second rule, the innovation-bias test (bias_test_window, on for the AFPF),
-// flags a run of biased innovations without re-spreading the cloud.
+// flags a run of biased innovations without re-spreading the cloud; a third,
+// the track check (a coarse re-search, off by default), likewise. While lost
+// the published covariance is at least the prior square's
+// (lost_covariance_is_prior), not the cloud's.
 //
 // Randomness: one std::mt19937_64 seeded with `seed`; a run is reproducible
 // bit for bit on one platform (the standard library's normal distribution
@@ -198,20 +201,25 @@ struct ParticleFilterOptions {
   // Divergence rule (see above).
   int divergence_window = 10;
   double divergence_nis = 9.0;
-  // Track check (a second lost-track detector, issue 25): the divergence rule
-  // only hears readings that do not fit the cloud, and a filter in a wrong
-  // basin, or moved off the truth by an unseen INS jump, often fits them well
-  // enough. Every track_check_every updates the estimated track of the last
-  // track_check_window updates is shifted as a whole over offsets within
-  // ±prior_half_width_deg (grid track_check_step_deg, the best 5 refined 5×);
-  // the filter is lost when the best offset's sum of squared residuals is
-  // lower than the filter's own by more than track_check_chi2 σ_n² and lies
-  // beyond 3 σ of the filter's covariance (only a settled filter is checked:
-  // 1-σ spread within track_check_step_deg). 0 = off, the default: measured
-  // over 10 generated paths per regime (scripts/calibration_pf, window 20) it
-  // raised the alarm on 30–90 % of clean runs and caught 10–60 % of losses —
-  // worse than the divergence rule alone (docs/ACCURACY.md, "Lost-track
-  // detection"); kept as an option to measure, not as a detector to trust.
+  // Track check (a second lost-track detector, issue 25): a coarse re-search
+  // of the map. The divergence rule only hears readings that do not fit the
+  // cloud, and a filter in a wrong basin, or moved off the truth by an unseen
+  // INS jump, often fits them well enough locally. Every track_check_every
+  // updates the last track_check_window readings are placed where the INS
+  // increments put them relative to the estimate (the increments are what the
+  // particles moved by; the estimated track's own jitter is not used) and the
+  // whole track is shifted over offsets within ±prior_half_width_deg (grid
+  // track_check_step_deg, the best 5 refined 5×). The filter is lost when the
+  // best offset lies beyond 3 σ of its covariance and (SSE within 3 σ − best
+  // SSE) / max(σ_n², best SSE / W) exceeds track_check_chi2; the verdict holds
+  // until the next check; it flags, it does not re-spread the cloud. 0 = off,
+  // the default: measured open-loop on the tuning paths 301–420 (window 20
+  // and 10), at thresholds with ≤ 6 % false alarms it adds 0–3 losses of 51
+  // (PF) and 0–1 of 59 (AFPF) to the other rules; at lower ones it flags
+  // 6–87 % of clean runs (an INS-relative track drifts ≈ 0.001° over 20 steps, and
+  // among the ≈ 15,000 offsets some fit such a track 2× better by chance;
+  // docs/ACCURACY.md, "Lost-track detection, third round"). An option to
+  // measure, not a detector to trust.
   int track_check_window = 0;
   int track_check_every = 5;
   double track_check_chi2 = 40.0;
@@ -252,6 +260,11 @@ struct ParticleFilterOptions {
   // onto a wrong basin early; the rule flags it and a fresh prior finds the
   // track (docs/ACCURACY.md).
   bool reinitialize_when_lost = true;
+  // While lost, the published covariance (StepDiagnostics::cov_*, the CLI's
+  // output and MapFix's σ) is at least the prior square's, h²/3 per axis
+  // (h = prior_half_width_deg), not the cloud's: a cloud collapsed on a wrong
+  // place says nothing of the error (issue 25 item 4; docs/ACCURACY.md).
+  bool lost_covariance_is_prior = true;
   // AFPF: λ (the paper: 0.001) and μ, the parents' sampling variance per axis
   // (the paper: 1.6454e-4 deg²).
   double fission_lambda = 0.001;
@@ -289,7 +302,10 @@ enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap, kOutlier };
 // Diagnostics after one step.
 struct StepDiagnostics {
   double lat_deg = 0.0, lon_deg = 0.0;                    // weighted mean
-  double cov_lat_lat = 0.0, cov_lat_lon = 0.0, cov_lon_lon = 0.0;  // weighted covariance, deg²
+  // The published covariance, deg²: the cloud's (weighted), or while lost at least the prior
+  // square's (lost_covariance_is_prior); the cloud's own in cloud_cov_*.
+  double cov_lat_lat = 0.0, cov_lat_lon = 0.0, cov_lon_lon = 0.0;
+  double cloud_cov_lat_lat = 0.0, cloud_cov_lat_lon = 0.0, cloud_cov_lon_lon = 0.0;
   double bias_nT = 0.0, bias_sigma_nT = 0.0;                       // weighted mean and sd of the map bias
   double ess = 0.0;              // 1/Σw² after the update (before resampling)
   int particles = 0;             // after the step
