@@ -521,5 +521,37 @@ TEST(InitializeTrack, PairOfDipolesStartsBothVesselsAbreast) {
   EXPECT_TRUE(InitializePair(epochs, sc.B0, opt, 8.0).empty());
 }
 
+// Two pairs abreast at once, 80 m apart, each over its own sensor (as the
+// pairs of bench_multi_tracker's abreast layout): the pair start fits the
+// pair around the strongest mixed sample only; with every sample of the span
+// in one two-dipole fit (cluster_gate_m = 0) no pair explains them.
+TEST(InitializeTrack, PairStartTakesOnePairWhenTwoPairsAreInTheField) {
+  FieldScenario sc = AbreastOverOneSensor(true);
+  sc.sensors.push_back({0.0, 80.0, 0.0});
+  for (int v = 0; v < 2; ++v) {
+    FieldVessel w = sc.vessels[static_cast<std::size_t>(v)];
+    w.vessel_id = static_cast<std::uint32_t>(3 + v);
+    w.start_position.y() += 80.0;
+    w.moment_body *= 0.8;  // the first pair is the stronger
+    sc.vessels.push_back(w);
+  }
+  const SimulatedField f = SimulateField(sc);
+  TrackerOptions opt;
+  opt.init.min_tensor_snr = 20.0;
+  opt.init.max_dipole_misfit = MultiTrackerOptions::kFieldMaxDipoleMisfit;
+  const std::vector<Epoch> epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
+  const auto pair = InitializePair(epochs, sc.B0, opt, 8.0);
+  ASSERT_EQ(pair.size(), 2u);
+  for (std::size_t v = 0; v < 2; ++v) {
+    const auto k = static_cast<std::size_t>(std::llround(pair[v].t_ref_s * sc.rate_hz));
+    const Eigen::Vector3d p(pair[v].state.x, pair[v].state.y, pair[v].state.z);
+    const double d = (p - f.truth[v].at(k).p_VinW).norm();
+    std::printf("pair %zu of two pairs: %.3f m from vessel %zu\n", v, d, v + 1);
+    EXPECT_LT(d, 0.5) << "vessel " << v + 1;
+  }
+  opt.init.cluster_gate_m = 0.0;
+  EXPECT_TRUE(InitializePair(epochs, sc.B0, opt, 8.0).empty());
+}
+
 }  // namespace
 }  // namespace magnav::tracker

@@ -445,6 +445,7 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
     double t_s;
     double snr;
     DipoleFix fix;
+    Eigen::Vector3d p_S;  // the sensor's position (world NED, m)
   };
   std::vector<Mixed> mixed;
   for (const Epoch& e : epochs) {
@@ -453,27 +454,42 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
       if (!(snr >= io.min_tensor_snr)) continue;
       const auto r = SingleSampleOffset(s.B - B0_W, s.T);
       if (!r || !NotOneDipole(s, s.B - B0_W, *r, options)) continue;
-      mixed.push_back({e.t_s, snr, MakeFix(e.t_s, s.sensor_id, s.p_SinW - *r)});
+      mixed.push_back({e.t_s, snr, MakeFix(e.t_s, s.sensor_id, s.p_SinW - *r), s.p_SinW});
     }
   }
   if (static_cast<int>(mixed.size()) < io.min_fixes) return {};
   const auto peak = std::max_element(mixed.begin(), mixed.end(), [](const Mixed& a, const Mixed& b) { return a.snr < b.snr; });
   const double t_peak = peak->t_s;
+  // Several pairs in the field at once: with cluster_gate_m on, only the
+  // fixes from sensors within kPairReachGates cluster gates (horizontally)
+  // of the peak's sensor, and below only the samples of sensors that near the
+  // ghost line (the pair's vessels are within a few metres of it, a sensor
+  // that sees either strongly within ~20 m of them), so that another pair
+  // elsewhere in the field does not enter the fit.
+  constexpr double kPairReachGates = 3.0;
+  const double reach_m = kPairReachGates * io.cluster_gate_m;
   std::vector<DipoleFix> ghost_fixes;
   for (const Mixed& x : mixed) {
-    if (std::abs(x.t_s - t_peak) <= 0.5 * io.span_s) ghost_fixes.push_back(x.fix);
+    if (std::abs(x.t_s - t_peak) > 0.5 * io.span_s) continue;
+    if (io.cluster_gate_m > 0.0 && (x.p_S - peak->p_S).head<2>().norm() > reach_m) continue;
+    ghost_fixes.push_back(x.fix);
   }
   if (static_cast<int>(ghost_fixes.size()) < io.min_fixes) return {};
   std::vector<bool> use(ghost_fixes.size(), true);
   if (!RobustLine(ghost_fixes, io, &use)) return {};
   const LineFit ghost = FitLine(ghost_fixes, use);
-  // The samples: every strong one within the span.
+  // The samples: every strong one within the span (and the reach above).
   std::vector<PairSample> samples;
   double t_min = 1e300, t_max = -1e300;
   for (const Epoch& e : epochs) {
     if (std::abs(e.t_s - t_peak) > 0.5 * io.span_s) continue;
+    const Eigen::Vector3d on_ghost = ghost.At(e.t_s);
     for (const GradiometerSample& s : e.samples) {
       if (!(Snr(s, options) >= io.min_tensor_snr)) continue;
+      if (io.cluster_gate_m > 0.0 &&
+          (s.p_SinW - on_ghost).head<2>().norm() > reach_m) {
+        continue;
+      }
       samples.push_back({e.t_s - ghost.t_ref, s.p_SinW, s.B - B0_W, s.T, SigmaB(s, options), SigmaT(s, options)});
       t_min = std::min(t_min, e.t_s);
       t_max = std::max(t_max, e.t_s);
