@@ -27,6 +27,7 @@ struct LocalizeArgs {
   std::string gnss_loss = LossTypeName(localizer::LocalizerOptions{}.gnss_loss);
   localizer::LocalizerOptions options;
   localizer::IncrementalCrlbOptions bound;
+  bool check_batch = true;
 };
 
 std::string Sqrt(double variance) { return FormatNumber(std::sqrt(std::max(variance, 0.0))); }
@@ -70,6 +71,13 @@ void RunLocalize(LocalizeArgs a) {
     out = localizer::SolveBatch(f.pass, a.options);
   } else {
     throw InputError("--method: expected ekf, ekf-bounded or batch, got '" + a.method + "'");
+  }
+  if (a.method != "batch" && a.check_batch && out.summary.converged) {
+    // The smoother over the same pass (started from the EKF's trajectory for
+    // ekf; ekf-bounded keeps none, so the batch runs its own EKF first).
+    const localizer::Localization smoother =
+        localizer::SolveBatch(f.pass, a.options, a.method == "ekf" ? &out : nullptr);
+    localizer::CheckAgainstSmoother(smoother, a.options.gate_probability, &out);
   }
   double known = 0.0;
   for (const auto& e : out.sensors) known += e.crlb_known_trajectory_m2.trace() / static_cast<double>(out.sensors.size());
@@ -135,8 +143,8 @@ void AddLocalizeCommand(CLI::App& app) {
                   "ekf-bounded: at most this many samples and fixes in the bound's window")
       ->capture_default_str();
   cmd->add_option("--output", args->output, "sensor_id,x,y,z,sigma_x,sigma_y,crlb_x,crlb_y (m), cov_xy (m^2); '# status:' converged, NOT "
-                  "converged or diverged (the outlier counts show the estimate lost: docs/ACCURACY.md \"Trust: honest "
-                  "status\"); exit 0 in every case")->required();
+                  "converged or diverged (the outlier counts show the estimate lost, or, see --check-batch, the EKF "
+                  "disagrees with the smoother: docs/ACCURACY.md \"Trust: honest status\"); exit 0 in every case")->required();
   cmd->add_option("--sigma-b", args->sigma_B_T,
                   "magnetometer noise per axis, T (default: the measurements file's '# sigma_B_T:')");
   cmd->add_option("--loss", args->loss, "batch: robust loss on each sample: huber, cauchy or trivial")
@@ -153,6 +161,12 @@ void AddLocalizeCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--ekf-iterations", args->options.magnetometer_iterations,
                   "EKF: iterations of each magnetometer update (iterated EKF); 1 = plain EKF")
+      ->capture_default_str();
+  cmd->add_option("--check-batch", args->check_batch,
+                  "ekf, ekf-bounded: also solve the batch smoother over the pass and report 'diverged' when a "
+                  "sensor's EKF estimate is beyond the gate of its own covariance from the smoother's (2-dof NEES of "
+                  "the difference > chi-square quantile of --gate-probability; docs/ACCURACY.md \"Trust: honest "
+                  "status\"); 0 = the EKF alone")
       ->capture_default_str();
   auto& q = args->options.process;
   cmd->add_option("--q-position", q.position_m_per_sqrt_s, "position random walk, m/sqrt(s)");

@@ -71,6 +71,11 @@ TEST(LocalizeCli, EkfAndBatchFilesEqualTheLibrary) {
                              : method == "ekf-bounded" ? RunEkfBounded(f.pass, opt)
                                                        : SolveBatch(f.pass, opt);
     ExpectFileEqualsLibrary(dir + "/" + method + ".csv", lib);
+    // --check-batch (default 1): the EKF's estimate was taken against the
+    // smoother's (docs/ACCURACY.md "Trust: honest status"); a clean pass.
+    const CsvTable t = CsvTable::Read(dir + "/" + method + ".csv");
+    EXPECT_EQ(t.params().at("summary").find("against the batch: NEES") != std::string::npos, method != "batch")
+        << t.params().at("summary");
   }
 }
 
@@ -78,9 +83,11 @@ TEST(LocalizeCli, MomentFlagReplacesTheFileLine) {
   const std::string dir = testing::TempDir();
   auto args = ReferenceArgs("ekf", dir + "/m.csv");
   args.insert(args.end(), {"--moment-body", "15000,1000,5000"});  // half the true moment
+  args.insert(args.end(), {"--check-batch", "0"});                  // the EKF alone
   const auto [rc, out] = Localize(args);
   ASSERT_EQ(rc, 0) << out;
   const CsvTable t = CsvTable::Read(dir + "/m.csv");
+  EXPECT_EQ(t.params().at("summary").find("against the batch"), std::string::npos) << t.params().at("summary");
   EXPECT_EQ(t.params().at("moment_body_Am2"), "15000, 1000, 5000");
   // The wrong moment gives a visibly different answer than the true one.
   const PassFile f = test::ReferencePass();
