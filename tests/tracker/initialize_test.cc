@@ -494,24 +494,34 @@ TEST(InitializeTrack, DipoleMisfitGateKeepsOneVesselsFixes) {
   EXPECT_GT(ungated, 50u);
 }
 
-TEST(InitializeTrack, PairOfDipolesStartsBothVesselsAbreast) {
-  const FieldScenario sc = AbreastOverOneSensor(true);
-  const SimulatedField f = SimulateField(sc);
+// The pair start's options as the field tracker's; its two lines against
+// vessels 1 and 2 (ordered by y): each within 0.5 m of its vessel at its
+// reference time, at the vessel's 1.5 m/s.
+TrackerOptions PairOptions() {
   TrackerOptions opt;
   opt.init.min_tensor_snr = 20.0;
   opt.init.max_dipole_misfit = MultiTrackerOptions::kFieldMaxDipoleMisfit;
-  const std::vector<Epoch> epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
-  const auto pair = InitializePair(epochs, sc.B0, opt, 8.0);
+  return opt;
+}
+void ExpectPairOnVessels12(const std::vector<InitialTrack>& pair, const FieldScenario& sc, const SimulatedField& f) {
   ASSERT_EQ(pair.size(), 2u);
-  // Ordered by y: vessel 1 (y = -8 m), then vessel 2 (y = +8 m).
   for (std::size_t v = 0; v < 2; ++v) {
     const auto k = static_cast<std::size_t>(std::llround(pair[v].t_ref_s * sc.rate_hz));
     const Eigen::Vector3d p(pair[v].state.x, pair[v].state.y, pair[v].state.z);
     const double d = (p - f.truth[v].at(k).p_VinW).norm();
     std::printf("pair %zu: %.3f m from vessel %zu, speed %.3f m/s\n", v, d, v + 1, pair[v].state.v);
-    EXPECT_LT(d, 0.5) << "vessel " << v + 1;  // measured 0.057 m / 0.066 m
+    EXPECT_LT(d, 0.5) << "vessel " << v + 1;  // measured 0.057 m / 0.066 m (one pair)
     EXPECT_NEAR(pair[v].state.v, 1.5, 0.15);
   }
+}
+
+TEST(InitializeTrack, PairOfDipolesStartsBothVesselsAbreast) {
+  const FieldScenario sc = AbreastOverOneSensor(true);
+  const SimulatedField f = SimulateField(sc);
+  TrackerOptions opt = PairOptions();
+  const std::vector<Epoch> epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
+  // Ordered by y: vessel 1 (y = -8 m), then vessel 2 (y = +8 m).
+  ExpectPairOnVessels12(InitializePair(epochs, sc.B0, opt, 8.0), sc, f);
   // One vessel: one dipole explains it; no pair.
   const FieldScenario one = AbreastOverOneSensor(false);
   const SimulatedField g = SimulateField(one);
@@ -536,19 +546,9 @@ TEST(InitializeTrack, PairStartTakesOnePairWhenTwoPairsAreInTheField) {
     sc.vessels.push_back(w);
   }
   const SimulatedField f = SimulateField(sc);
-  TrackerOptions opt;
-  opt.init.min_tensor_snr = 20.0;
-  opt.init.max_dipole_misfit = MultiTrackerOptions::kFieldMaxDipoleMisfit;
+  TrackerOptions opt = PairOptions();
   const std::vector<Epoch> epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
-  const auto pair = InitializePair(epochs, sc.B0, opt, 8.0);
-  ASSERT_EQ(pair.size(), 2u);
-  for (std::size_t v = 0; v < 2; ++v) {
-    const auto k = static_cast<std::size_t>(std::llround(pair[v].t_ref_s * sc.rate_hz));
-    const Eigen::Vector3d p(pair[v].state.x, pair[v].state.y, pair[v].state.z);
-    const double d = (p - f.truth[v].at(k).p_VinW).norm();
-    std::printf("pair %zu of two pairs: %.3f m from vessel %zu\n", v, d, v + 1);
-    EXPECT_LT(d, 0.5) << "vessel " << v + 1;
-  }
+  ExpectPairOnVessels12(InitializePair(epochs, sc.B0, opt, 8.0), sc, f);
   opt.init.cluster_gate_m = 0.0;
   EXPECT_TRUE(InitializePair(epochs, sc.B0, opt, 8.0).empty());
 }

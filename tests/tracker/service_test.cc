@@ -323,6 +323,20 @@ TEST(TrackerService, BadSamplesMidPassDoNotPoisonTheTrack) {
   EXPECT_LT(rms, 0.3);
 }
 
+// The field scores (track_metrics.h) of the estimates that arrived over the
+// wire, against the scenario's truth.
+testing::FieldScores ScoreWire(const FieldScenario& sc, const SimulatedField& field,
+                               const std::vector<msg::TrackEstimate>& got) {
+  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
+  for (const auto& m : got) {
+    EpochEstimate e;
+    e.t_s = NanosToSeconds(m.stamp_ns());
+    e.p_VinW = {m.position()[0], m.position()[1], m.position()[2]};
+    rows.emplace_back(m.track_id(), e);
+  }
+  return testing::ScoreField(sc, field, rows);
+}
+
 // Two vessels cross a 3x3 field at once (two_vessels.h, held out): the
 // service publishes two tracks with distinct ids, logs their starts and
 // ends, and every estimate is the library's MultiTracker's; each track
@@ -339,14 +353,7 @@ TEST(TrackerService, TwoVesselsGetTwoTracks) {
   EXPECT_NE(log.find("track 2 ended"), std::string::npos) << log;
   ExpectSameEstimates(got, want);
   // Scored against the truth from what arrived over the wire.
-  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
-  for (const auto& m : got) {
-    EpochEstimate e;
-    e.t_s = NanosToSeconds(m.stamp_ns());
-    e.p_VinW = {m.position()[0], m.position()[1], m.position()[2]};
-    rows.emplace_back(m.track_id(), e);
-  }
-  const testing::FieldScores s = testing::ScoreField(sc, field, rows);
+  const testing::FieldScores s = ScoreWire(sc, field, got);
   EXPECT_EQ(s.false_rows, 0u);
   ASSERT_EQ(s.ids.size(), 2u);
   EXPECT_EQ(s.ids[0], 1u);
@@ -378,14 +385,7 @@ TEST(TrackerService, TwoVesselsAbreastGetTwoTracks) {
   EXPECT_NE(log.find("track 1 started"), std::string::npos) << log;
   EXPECT_NE(log.find("track 2 started"), std::string::npos) << log;
   ExpectSameEstimates(got, want);
-  std::vector<std::pair<std::uint32_t, EpochEstimate>> rows;
-  for (const auto& m : got) {
-    EpochEstimate e;
-    e.t_s = NanosToSeconds(m.stamp_ns());
-    e.p_VinW = {m.position()[0], m.position()[1], m.position()[2]};
-    rows.emplace_back(m.track_id(), e);
-  }
-  const testing::FieldScores s = testing::ScoreField(sc, field, rows);
+  const testing::FieldScores s = ScoreWire(sc, field, got);
   testing::PrintFieldScores("held-out abreast, magnav-tracker", s);
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   ASSERT_EQ(s.ids.size(), 2u);
