@@ -24,13 +24,26 @@ FieldScenario HeldOut(const std::string& kind) {
 }
 FieldScenario HeldOutCrossing() { return HeldOut("crossing"); }
 
-TEST(HarbourScenario, WindowTracksTheHeldOutCrossing) {
-  const FieldScenario sc = HeldOutCrossing();
+// The field scores (track_metrics.h) of the window tracker (as magnav-tracker)
+// and of the batch (as `magnav track`) on a scenario, printed under `name`.
+magnav::testing::FieldScores ScoreWindow(const FieldScenario& sc, const std::string& name) {
   const SimulatedField f = SimulateField(sc);
   MultiTracker tracker(sc.B0, MultiTrackerOptions{});
-  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
-  const auto s = magnav::testing::ScoreField(sc, f, rows);
-  magnav::testing::PrintFieldScores("held-out crossing, window", s);
+  const auto s = magnav::testing::ScoreField(sc, f, magnav::testing::WindowRows(&tracker, f.samples));
+  magnav::testing::PrintFieldScores((name + ", window").c_str(), s);
+  return s;
+}
+magnav::testing::FieldScores ScoreBatch(const FieldScenario& sc, const std::string& name) {
+  const SimulatedField f = SimulateField(sc);
+  const MultiTrackerOptions opt;
+  const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
+  const auto s = magnav::testing::ScoreField(sc, f, magnav::testing::BatchRows(tracks));
+  magnav::testing::PrintFieldScores((name + ", batch").c_str(), s);
+  return s;
+}
+
+TEST(HarbourScenario, WindowTracksTheHeldOutCrossing) {
+  const auto s = ScoreWindow(HeldOutCrossing(), "held-out crossing");
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
@@ -41,19 +54,16 @@ TEST(HarbourScenario, WindowTracksTheHeldOutCrossing) {
 }
 
 TEST(HarbourScenario, BatchTracksTheHeldOutCrossing) {
-  const FieldScenario sc = HeldOutCrossing();
-  const SimulatedField f = SimulateField(sc);
-  const MultiTrackerOptions opt;
-  const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
-  const auto s = magnav::testing::ScoreField(sc, f, magnav::testing::BatchRows(tracks));
-  magnav::testing::PrintFieldScores("held-out crossing, batch", s);
+  const auto s = ScoreBatch(HeldOutCrossing(), "held-out crossing");
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
     EXPECT_GE(s.coverage[v], 0.9) << "vessel " << v + 1;
   }
-  EXPECT_LE(s.rms[0], 1.5 * 0.0179);  // m, measured 0.0179 (coverage 0.992)
-  EXPECT_LE(s.rms[1], 1.5 * 0.0174);  // m, measured 0.0174 (coverage 0.952)
+  // m; measured 0.0179 / 0.0174 (coverage 0.99 / 0.95) before the batch over all the evidence,
+  // 0.0245 / 0.0155 (coverage 1.00 / 1.00) after it (docs/ACCURACY.md, "Single-vessel passes").
+  EXPECT_LE(s.rms[0], 1.5 * 0.0179);
+  EXPECT_LE(s.rms[1], 1.5 * 0.0174);
 }
 
 
@@ -63,12 +73,7 @@ TEST(HarbourScenario, BatchTracksTheHeldOutCrossing) {
 // (InitOptions::max_dipole_misfit, InitializePair) no vessel got a track and
 // every row was false (docs/ACCURACY.md, "Harbour-like scenarios").
 TEST(HarbourScenario, WindowStartsOneTrackPerVesselAbreast) {
-  const FieldScenario sc = HeldOut("abreast");
-  const SimulatedField f = SimulateField(sc);
-  MultiTracker tracker(sc.B0, MultiTrackerOptions{});
-  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
-  const auto s = magnav::testing::ScoreField(sc, f, rows);
-  magnav::testing::PrintFieldScores("held-out abreast, window", s);
+  const auto s = ScoreWindow(HeldOut("abreast"), "held-out abreast");
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
@@ -81,20 +86,17 @@ TEST(HarbourScenario, WindowStartsOneTrackPerVesselAbreast) {
 }
 
 TEST(HarbourScenario, BatchStartsOneTrackPerVesselAbreast) {
-  const FieldScenario sc = HeldOut("abreast");
-  const SimulatedField f = SimulateField(sc);
-  const MultiTrackerOptions opt;
-  const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
-  const auto s = magnav::testing::ScoreField(sc, f, magnav::testing::BatchRows(tracks));
-  magnav::testing::PrintFieldScores("held-out abreast, batch", s);
+  const auto s = ScoreBatch(HeldOut("abreast"), "held-out abreast");
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
-    // Just below the 0.9 (measured 0.896 / 0.896); a 2x regression fails.
+    // Below the 0.9: measured 0.896 / 0.896 before the batch over all
+    // the evidence, 0.784 / 0.784 (the window's) after it (docs/ACCURACY.md).
     EXPECT_GE(s.coverage[v], 0.75) << "vessel " << v + 1;
   }
-  EXPECT_LE(s.rms[0], 1.5 * 0.0299);  // m, measured 0.0299
-  EXPECT_LE(s.rms[1], 1.5 * 0.0370);  // m, measured 0.0370
+  // m; measured 0.0299 / 0.0370 before the batch over all the evidence, 0.0324 / 0.0396 after it.
+  EXPECT_LE(s.rms[0], 1.5 * 0.0299);
+  EXPECT_LE(s.rms[1], 1.5 * 0.0370);
 }
 }  // namespace
 }  // namespace magnav::tracker
