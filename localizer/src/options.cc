@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "magnav/core/option_check.h"
 
@@ -40,7 +41,9 @@ bool LocalizerOptions::IsValid(std::string* error) const {
     return Fail(error, "gate_probability must be in (0, 1] (1 = no gate)");
   }
   if (gate_release_after < 0) return Fail(error, "gate_release_after must be >= 0 (0 = never)");
-  if (magnetometer_iterations < 1) return Fail(error, "magnetometer_iterations must be >= 1");
+  if (magnetometer_iterations < 1 || magnetometer_iterations > kMaxMagnetometerIterations) {
+    return Fail(error, "magnetometer_iterations must be in [1, " + std::to_string(kMaxMagnetometerIterations) + "]");
+  }
   if (max_num_iterations < 1) return Fail(error, "max_num_iterations must be >= 1");
   if (!(function_tolerance >= 0.0) || !(gradient_tolerance >= 0.0) || !(parameter_tolerance >= 0.0)) {
     return Fail(error, "solver tolerances must be >= 0");

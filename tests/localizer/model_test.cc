@@ -381,6 +381,14 @@ TEST(LocalizerOptions, DefaultsAreValidAndBadOnesNamed) {
   o.sigma_B_T = std::nan("");
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("sigma_B_T"), std::string::npos);
+  for (const int iterations : {0, LocalizerOptions::kMaxMagnetometerIterations + 1, 1000000000}) {
+    o = LocalizerOptions{};
+    o.magnetometer_iterations = iterations;
+    EXPECT_FALSE(o.IsValid(&why)) << iterations;
+    EXPECT_NE(why.find("magnetometer_iterations"), std::string::npos);
+  }
+  o.magnetometer_iterations = LocalizerOptions::kMaxMagnetometerIterations;
+  EXPECT_TRUE(o.IsValid(&why)) << why;
 }
 
 }  // namespace

@@ -97,7 +97,10 @@ struct LocalizerOptions {
   // inside their 95 % interval; with 2: 1.25 × dof, 78 %; 5 and 10 iterations
   // gave the same figures). The gate uses the first iteration's NIS (the
   // prior's), as the plain EKF. Iterating stops early when an iteration moves
-  // the state by < 1 mm.
+  // the state by < 1 mm. At most kMaxMagnetometerIterations (each iteration
+  // is a full field and Jacobian evaluation per update; beyond a handful
+  // they change nothing, above).
+  static constexpr int kMaxMagnetometerIterations = 20;
   int magnetometer_iterations = 2;
   // Batch: Ceres trust-region iterations and tolerances.
   int max_num_iterations = 50;
