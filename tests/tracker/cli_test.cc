@@ -65,13 +65,16 @@ TEST(TrackCli, BatchFileEqualsTheLibraryAndCarriesTheMoment) {
   ASSERT_EQ(tracks.size(), 1u);
   ASSERT_EQ(tracks[0].track_id, 1u);
   std::vector<EpochEstimate> rows;
-  for (const auto& e : tracks[0].track.epochs) {
-    if (e.usable) rows.push_back(e);
+  std::vector<TrackState> states;
+  for (std::size_t k = 0; k < tracks[0].track.epochs.size(); ++k) {
+    if (!tracks[0].track.epochs[k].usable) continue;
+    rows.push_back(tracks[0].track.epochs[k]);
+    states.push_back(tracks[0].states.at(k));
   }
   const TrackEstimate& lib = tracks[0].track;
   const CsvTable t = CsvTable::Read(dir + "/track.csv");
   const std::vector<std::string> header = {"t",  "track_id", "x",       "y",       "z",      "vx",
-                                           "vy", "heading",  "sigma_x", "sigma_y", "sigma_z"};
+                                           "vy", "heading",  "sigma_x", "sigma_y", "sigma_z", "state"};
   ASSERT_EQ(t.header(), header);
   ASSERT_EQ(t.num_rows(), rows.size());
   ASSERT_GT(t.num_rows(), 1000u);  // the part of the 200 s pass where the vessel is seen
@@ -86,6 +89,7 @@ TEST(TrackCli, BatchFileEqualsTheLibraryAndCarriesTheMoment) {
     EXPECT_EQ(t.number(k, t.column("vx")), e.v_VinW().x());
     EXPECT_EQ(t.number(k, t.column("heading")), e.heading_rad);
     EXPECT_EQ(t.number(k, t.column("sigma_z")), std::sqrt(e.cov_state(2, 2)));
+    EXPECT_EQ(t.text(k, t.column("state")), TrackStateName(states[k]));
   }
   EXPECT_EQ(t.params().at("track_moment_body_Am2").substr(0, 3), "1, ");
   const auto m = t.param_vec3("moment_body_Am2");
@@ -158,8 +162,11 @@ TEST(TrackCli, FixesFromInvertStartTheTrack) {
   const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), *f.B0, opt, &fixes);
   ASSERT_EQ(tracks.size(), 1u);
   std::vector<EpochEstimate> rows;
-  for (const auto& e : tracks[0].track.epochs) {
-    if (e.usable) rows.push_back(e);
+  std::vector<TrackState> states;
+  for (std::size_t k = 0; k < tracks[0].track.epochs.size(); ++k) {
+    if (!tracks[0].track.epochs[k].usable) continue;
+    rows.push_back(tracks[0].track.epochs[k]);
+    states.push_back(tracks[0].states.at(k));
   }
   const CsvTable t = CsvTable::Read(dir + "/track.csv");
   EXPECT_NE(t.params().at("summary").find("external init fixes"), std::string::npos);
@@ -256,7 +263,7 @@ TEST(TrackCli, NothingToTrackGivesAnEmptyTrackFileAndExitZero) {
     ASSERT_EQ(rc, 0) << mode << ": " << out;
     EXPECT_NE(out.find("no track: too few strong single-sample fixes to initialise"), std::string::npos) << out;
     const EmptyTrackFile t = ReadEmptyTrackFile(o);
-    EXPECT_EQ(t.header, "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z") << mode;
+    EXPECT_EQ(t.header, "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state") << mode;
     EXPECT_EQ(t.data_lines, 0) << mode;
     EXPECT_EQ(t.params.at("mode"), mode);
     EXPECT_EQ(t.params.at("summary").rfind("no track: too few strong single-sample fixes to initialise", 0), 0u)
@@ -335,6 +342,59 @@ TEST(TrackCli, SimulatedTwoVesselFieldIsTrackedAndScoredPerVessel) {
       {kMagnav, "simulate", "--vessel", "id=1", "--vessel", "id=1", "--output", dir + "/x.csv"});
   EXPECT_EQ(rc5, 2);
   EXPECT_NE(out5.find("vessel ids must be unique"), std::string::npos) << out5;
+}
+
+// `magnav evaluate`'s NEES per regime (issue 24 item 6), on a hand-made track
+// file whose every NEES is known: coasting rows (state column) apart, the
+// others inside or outside --reach (15 m) of the sensor by the true position;
+// a file without the state column (an older track file) has no coasting rows.
+TEST(TrackCli, EvaluateGivesTheNeesPerRegime) {
+  const std::string dir = testing::TempDir();
+  // Truth 5, 30, 40 and 10 m from the sensor at the origin; errors of 1, 2, 3
+  // and (1, 1) sigma: NEES 1, 4, 9, 2.
+  std::ofstream(dir + "/truth.csv") << "t,x,y,z\n0,5,0,-5\n1,30,0,-5\n2,40,0,-5\n3,10,0,-5\n";
+  const std::string cols = "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z";
+  const std::string rows[] = {"0,1,5.1,0,-5,1,0,0,0.1,0.1,0.1", "1,1,30,0.2,-5,1,0,0,0.1,0.1,0.1",
+                              "2,1,40,0,-4.7,1,0,0,0.1,0.1,0.1", "3,1,10.1,0.1,-5,1,0,0,0.1,0.1,0.1"};
+  const std::string states[] = {"confirmed", "confirmed", "coasting", "confirmed"};
+  {
+    std::ofstream with(dir + "/with.csv"), without(dir + "/without.csv");
+    with << cols << ",state\n";
+    without << cols << "\n";
+    for (int k = 0; k < 4; ++k) {
+      with << rows[k] << "," << states[k] << "\n";
+      without << rows[k] << "\n";
+    }
+  }
+  const auto evaluate = [&](const std::string& est, const std::string& truth) {
+    return testing::RunCommand(
+        {kMagnav, "evaluate", "--estimate", est, "--truth", truth, "--sensors", "0,0,0"});
+  };
+  auto [rc, out] = evaluate(dir + "/with.csv", dir + "/truth.csv");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("regime inside: 1.5 over 2 rows"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime outside: 4 over 1 rows"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime coasting: 9 over 1 rows, RMS 0.3 m"), std::string::npos) << out;
+  std::tie(rc, out) = evaluate(dir + "/without.csv", dir + "/truth.csv");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("no state column"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime outside: 6.5 over 2 rows"), std::string::npos) << out;
+  EXPECT_EQ(out.find("regime coasting"), std::string::npos) << out;
+  // The same rows against a multi-vessel truth (vessel_id): the same regimes.
+  std::ofstream(dir + "/truth_multi.csv")
+      << "t,vessel_id,x,y,z\n0,1,5,0,-5\n1,1,30,0,-5\n2,1,40,0,-5\n3,1,10,0,-5\n";
+  std::tie(rc, out) = evaluate(dir + "/with.csv", dir + "/truth_multi.csv");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("regime inside: 1.5 over 2 rows"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime coasting: 9 over 1 rows"), std::string::npos) << out;
+  // An unknown state is refused, naming the place.
+  {
+    std::ofstream bad(dir + "/bad.csv");
+    bad << cols << ",state\n" << rows[0] << ",lost\n";
+  }
+  std::tie(rc, out) = evaluate(dir + "/bad.csv", dir + "/truth.csv");
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("column 'state': expected confirmed or coasting, got 'lost'"), std::string::npos) << out;
 }
 
 // A long pass (100,001 rows, a vessel passing and then 10,000 s of data):
