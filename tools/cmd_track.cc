@@ -269,9 +269,6 @@ void AddTrackCommand(CLI::App& app) {
                   "batch: each round grows a track's span by at most this much per side, over the epochs where its "
                   "predicted tensor SNR reaches --batch-gate-snr, s")
       ->capture_default_str();
-  cmd->add_flag("--batch-turn-restart", args->flags.options.batch_turn_restart,
-               "batch: solve each track once more from a start that follows the turn (the window's turn-rate "
-               "model) and keep the lower-cost solution");
   cmd->callback([args] { RunTrack(*args); });
 }
 

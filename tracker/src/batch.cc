@@ -13,12 +13,8 @@
 
 namespace magnav::tracker {
 
-namespace {
-
-// SolveBatch (start == nullptr: from the initialiser, growing spans) or
-// SolveBatchFrom (from `start`'s states and moment, the whole span at once).
-TrackEstimate Solve(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W, const TrackerOptions& options,
-                    const std::vector<DipoleFix>* fixes, const TrackEstimate* start) {
+TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
+                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
   if (!B0_W.allFinite()) throw InputError("tracker: B0 is not finite");
@@ -41,39 +37,24 @@ TrackEstimate Solve(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W
   }
   sum.num_epochs = static_cast<int>(epochs.size());
 
-  std::optional<InitialTrack> init;
-  if (start != nullptr) {
-    if (start->epochs.size() != epochs.size()) {
-      throw InputError("SolveBatchFrom: the start has " + std::to_string(start->epochs.size()) +
-                       " states for " + std::to_string(epochs.size()) + " epochs");
-    }
-  } else {
-    init = InitializeTrack(epochs, B0_W, options, fixes);
-    if (!init) {
-      sum.message = NoTrackMessage(options, fixes != nullptr);
-      sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
-      return out;
-    }
-    sum.num_init_fixes = static_cast<int>(init->fixes.size());
-    sum.init_from_external_fixes = init->from_external_fixes;
+  const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options, fixes);
+  if (!init) {
+    sum.message = NoTrackMessage(options, fixes != nullptr);
+    sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
+    return out;
   }
   sum.initialized = true;
+  sum.num_init_fixes = static_cast<int>(init->fixes.size());
+  sum.init_from_external_fixes = init->from_external_fixes;
 
-  // Parameters: one state per epoch (straight-line initial guess, or the
-  // start's states), one moment.
-  const Eigen::Vector3d m0 = start != nullptr ? start->m_B_Am2 : init->m_B_Am2;
-  const double moment_scale = std::max(m0.norm(), 1.0);
+  // Parameters: one state per epoch (straight-line initial guess), one moment.
+  const double moment_scale = std::max(init->m_B_Am2.norm(), 1.0);
   std::vector<StateVector> x(epochs.size());
   for (std::size_t k = 0; k < epochs.size(); ++k) {
-    if (start != nullptr) {
-      const EpochEstimate& e = start->epochs[k];
-      x[k] << e.p_VinW.x(), e.p_VinW.y(), e.p_VinW.z(), e.speed_mps, e.heading_rad, e.turn_rate_radps;
-      continue;
-    }
     const CtState<double> s = PropagateCoordinatedTurn(init->state, epochs[k].t_s - init->t_ref_s);
     x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
   }
-  Eigen::Vector3d moment = m0 / moment_scale;
+  Eigen::Vector3d moment = init->m_B_Am2 / moment_scale;
 
   // Factors grouped by their earliest epoch (measurements of k, process k→k+1).
   const auto turn_loss =
@@ -120,8 +101,8 @@ TrackEstimate Solve(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W
   // Growing solve: the initialiser's span first, then spans grown by
   // batch_growth_factor with the new epochs predicted from the span's ends
   // by the coordinated-turn model, until the whole pass is included.
-  while (init && i0 + 1 < epochs.size() && epochs[i0].t_s < init->t_first_s) ++i0;
-  while (init && i1 > i0 && epochs[i1].t_s > init->t_last_s) --i1;
+  while (i0 + 1 < epochs.size() && epochs[i0].t_s < init->t_first_s) ++i0;
+  while (i1 > i0 && epochs[i1].t_s > init->t_last_s) --i1;
   std::vector<internal::Factor*> measurements;
   // The span [i0, i1] as a chain problem; `warm`: Gaussian warm-up
   // turn-rate factors instead of the robust ones.
@@ -248,18 +229,6 @@ TrackEstimate Solve(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W
   }
   sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
   return out;
-}
-
-}  // namespace
-
-TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
-                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
-  return Solve(input, B0_W, options, fixes, nullptr);
-}
-
-TrackEstimate SolveBatchFrom(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                             const TrackerOptions& options, const TrackEstimate& start) {
-  return Solve(epochs, B0_W, options, nullptr, &start);
 }
 
 }  // namespace magnav::tracker

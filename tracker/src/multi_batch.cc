@@ -2,8 +2,6 @@
 // each over its own samples.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <map>
 
@@ -238,10 +236,6 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   const double seen_gate = options.batch_gate_snr;  // an epoch extends the span (tensor)
   TrackerOptions topt = options.track;
   if (topt.init.source == InitSource::kExternal) topt.init.source = InitSource::kAuto;
-  // Each track's last problem (its samples and start fixes), for the
-  // turn-rate restart below.
-  std::vector<std::vector<Epoch>> last_mine(result.size());
-  std::vector<std::vector<DipoleFix>> last_fixes(result.size());
   bool grew = true;
   const int max_rounds = std::max(options.batch_rounds, MultiTrackerOptions::kMaxBatchRounds);
   for (int round = 0; round < max_rounds && (round < options.batch_rounds || grew); ++round) {
@@ -311,8 +305,6 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       if (ok) {
         result[i].states = BatchStates(est, mine, B0_W, options);
         result[i].track = std::move(est);
-        last_mine[i] = std::move(mine);
-        last_fixes[i] = std::move(track_fixes);
       } else {
         result[i].track.summary.message =
             "window estimates: batch refinement failed (" + est.summary.message + ")";
@@ -331,51 +323,6 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       const Others others{&refined, &spans, i, max_gap};
       if (ExtendSpan(epochs, refined[i], seen_gate, step, grow_end[i], topt, others, &spans[i])) grew = true;
       spans[i].second = std::min(spans[i].second, end_limit[i]);
-    }
-  }
-  // 3. Turn-rate restart (batch_turn_restart): the same problem solved again
-  // from a start that follows the turn — SolveBatch with the window's looser
-  // turn-rate model — then with the batch's own model from there
-  // (SolveBatchFrom, no warm-up); the lower final cost wins.
-  if (options.batch_turn_restart) {
-    TrackerOptions loose = topt;
-    loose.process.turn_rate_radps_per_sqrt_s = topt.process.window_turn_rate_radps_per_sqrt_s;
-    TrackerOptions from = topt;
-    from.process.turn_rate_warmup_radps_per_sqrt_s = 0.0;
-    for (std::size_t i = 0; i < result.size(); ++i) {
-      if (last_mine[i].empty()) continue;
-      const TrackEstimate start = SolveBatch(last_mine[i], B0_W, loose, &last_fixes[i]);
-      if (!start.summary.initialized || !start.summary.usable ||
-          start.epochs.size() != last_mine[i].size() ||
-          !std::all_of(start.epochs.begin(), start.epochs.end(), [](const EpochEstimate& e) { return e.usable; })) {
-        continue;
-      }
-      // Continuation on the turn-rate noise: from the loose model to the
-      // batch's in geometric steps, each solve starting from the previous.
-      TrackEstimate est = start;
-      const double q_loose = loose.process.turn_rate_radps_per_sqrt_s, q = topt.process.turn_rate_radps_per_sqrt_s;
-      const int steps = std::getenv("MAGNAV_TURN_STEPS") ? std::atoi(std::getenv("MAGNAV_TURN_STEPS")) : 1;
-      for (int k = 1; k <= steps; ++k) {
-        TrackerOptions step = from;
-        step.process.turn_rate_radps_per_sqrt_s = q_loose * std::pow(q / q_loose, static_cast<double>(k) / steps);
-        TrackEstimate next = SolveBatchFrom(last_mine[i], B0_W, step, est);
-        if (!next.summary.usable ||
-            !std::all_of(next.epochs.begin(), next.epochs.end(), [](const EpochEstimate& e) { return e.usable; })) {
-          break;
-        }
-        est = std::move(next);
-      }
-      const bool ok = est.summary.usable &&
-                      std::any_of(est.epochs.begin(), est.epochs.end(), [](const EpochEstimate& e) { return e.usable; });
-      if (std::getenv("MAGNAV_DEBUG_TURN")) {
-        std::fprintf(stderr, "track %u: cost %.6g (default) vs %.6g (restart from the loose turn model, %s)\n",
-                     result[i].track_id, result[i].track.summary.final_cost, est.summary.final_cost,
-                     ok ? "usable" : "not usable");
-      }
-      if (ok && est.summary.final_cost < result[i].track.summary.final_cost) {
-        result[i].states = BatchStates(est, last_mine[i], B0_W, options);
-        result[i].track = std::move(est);
-      }
     }
   }
   return result;

@@ -137,11 +137,6 @@ struct MultiTrackerOptions {
   // grows at most 5 s past its last detection, on its tensor alone. Both > 0.
   double batch_gate_snr = 1.0;
   double batch_extension_step_s = 20.0;
-  // Batch: after the rounds, each track's last problem is solved once more
-  // from a start that follows the turn (SolveBatch with the window's looser
-  // turn-rate model, then SolveBatchFrom with the batch's own), and the
-  // solution with the lower final cost is kept.
-  bool batch_turn_restart = false;
   // Window and batch: the fields of the other tracks removed from a sample
   // are models, taken as uncertain by this share of their norm (per
   // element: the norm over √3 for B, over 3 for T), added in quadrature to

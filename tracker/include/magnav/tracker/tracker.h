@@ -92,16 +92,6 @@ struct InitialTrack;  // initialize.h
 TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                          const TrackerOptions& options, const std::vector<DipoleFix>* fixes = nullptr);
 
-// Batch solve of the same problem from a given trajectory: `start` holds one
-// estimate per epoch of `epochs` (after CheckSample; its states and moment
-// are the starting point, e.g. another SolveBatch's result over the same
-// epochs). No initialiser and no growing spans: the whole span at once, with
-// SolveBatch's continuation and covariance; summary.final_cost is over the
-// same factors as SolveBatch's, so two solves can be compared. Throws
-// InputError if `start` and `epochs` differ in size.
-TrackEstimate SolveBatchFrom(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                             const TrackerOptions& options, const TrackEstimate& start);
-
 // Sliding-window (fixed-lag) tracker. Not thread-safe; one track.
 class WindowTracker {
  public:
