@@ -25,6 +25,7 @@ namespace {
 struct EvaluateArgs {
   std::string estimate, truth, sensors, pass;
   double max_range_m = 0.0;  // 0 = every epoch
+  double reach_m = 15.0;     // NEES regimes: "inside" within this of a sensor (horizontal)
   double gate_m = 5.0;       // multi-track: a row farther than this from every vessel is false
   double gospa_c_m = 10.0, gospa_p = 2.0;
   std::string gospa_csv;     // per-epoch GOSPA, if given
@@ -40,6 +41,69 @@ Xyz PositionColumns(const CsvTable& t) {
   if (t.has_column("dipole_x")) return {t.column("dipole_x"), t.column("dipole_y"), t.column("dipole_z")};
   return {t.column("x"), t.column("y"), t.column("z")};
 }
+
+// Mean NEES (3 dof, diagonal σ) of the scored rows per regime (issue 24
+// item 6): "coasting" = a track row whose `state` is coasting (magnav track:
+// not detected at that epoch); every other row "inside" (its true position
+// within --reach of a sensor, horizontally) or "outside"; without sensor
+// positions "not coasting". A file without a `state` column (older track
+// files, fixes, a recorded track topic) has no coasting rows.
+class RegimeNees {
+ public:
+  RegimeNees(const EvaluateArgs& a, const CsvTable& est, const std::vector<Eigen::Vector3d>& sensors)
+      : est_(est), sensors_(sensors), reach_m_(a.reach_m), state_(est.find_column("state")) {
+    if (est.has_column("sigma_x")) sigma_ = Xyz{est.column("sigma_x"), est.column("sigma_y"), est.column("sigma_z")};
+  }
+  // Row i of the estimate, error e against the true position p_true.
+  void Add(std::size_t i, const Eigen::Vector3d& e, const Eigen::Vector3d& p_true) {
+    if (!sigma_) return;
+    const Eigen::Vector3d s(est_.number(i, sigma_->x), est_.number(i, sigma_->y), est_.number(i, sigma_->z));
+    if (!(s.array() > 0).all()) return;
+    Sum& r = sums_[Regime(i, p_true)];
+    r.nees += (e.array() / s.array()).square().sum();
+    r.error_sq += e.squaredNorm();
+    ++r.n;
+  }
+  void Print() const {
+    if (!sigma_) return;
+    std::printf("mean NEES per regime (diagonal sigmas, 3 dof; %s):\n",
+                !state_ ? "no state column: no coasting rows"
+                        : "coasting: state = coasting, the others by the true position");
+    for (const char* name : {"inside", "outside", "not coasting", "coasting"}) {
+      const auto it = sums_.find(name);
+      if (it == sums_.end()) continue;
+      const Sum& r = it->second;
+      std::printf("  regime %s: %.3g over %zu rows, RMS %.4g m\n", name, r.nees / r.n, r.n,
+                  std::sqrt(r.error_sq / r.n));
+    }
+  }
+
+ private:
+  struct Sum {
+    double nees = 0.0, error_sq = 0.0;
+    std::size_t n = 0;
+  };
+  std::string Regime(std::size_t i, const Eigen::Vector3d& p_true) const {
+    if (state_) {
+      const std::string_view v = est_.text(i, *state_);
+      if (v == "coasting") return "coasting";
+      if (v != "confirmed") {
+        throw InputError(est_.source() + ":" + std::to_string(est_.line_of(i)) +
+                         ": column 'state': expected confirmed or coasting, got '" + std::string(v) + "'");
+      }
+    }
+    if (sensors_.empty()) return "not coasting";
+    double best = 1e300;
+    for (const auto& s : sensors_) best = std::min(best, (p_true - s).head<2>().norm());
+    return best <= reach_m_ ? "inside" : "outside";
+  }
+  const CsvTable& est_;
+  const std::vector<Eigen::Vector3d>& sensors_;
+  double reach_m_;
+  std::optional<std::size_t> state_;
+  std::optional<Xyz> sigma_;
+  std::map<std::string, Sum> sums_;
+};
 
 // Multi-vessel scoring (truth with vessel_id). Track files (t, track_id,
 // x..z, usable): each usable row goes to the nearest vessel at its time (3-D)
@@ -70,7 +134,7 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
     truth_t_s.emplace(t_ns, truth.number(i, tt));
   }
   const auto in_field = [&](const Eigen::Vector3d& p) {
-    if (sensors.empty()) return true;
+    if (sensors.empty() || a.max_range_m <= 0) return true;
     double best = 1e300;
     for (const auto& s : sensors) best = std::min(best, (p - s).head<2>().norm());
     return best <= a.max_range_m;
@@ -102,6 +166,8 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
   const auto tid = est != nullptr ? est->find_column("track_id") : std::nullopt;
   const auto usable =
       est == nullptr ? std::nullopt : fix_file ? est->find_column("valid") : est->find_column("usable");
+  std::optional<RegimeNees> regimes;
+  if (est != nullptr && !fix_file) regimes.emplace(a, *est, sensors);
   for (std::size_t i = 0; i < num_rows; ++i) {
     if (usable && est->integer(i, *usable) == 0) {
       ++skipped;
@@ -128,6 +194,7 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
     ++ve.ids[id];
     ve.id_last[id] = std::max(ve.id_last.count(id) ? ve.id_last[id] : -1e300, t * 1e-9);
     if (!in_field(it->second.at(best_v))) continue;
+    if (regimes) regimes->Add(i, p - it->second.at(best_v), it->second.at(best_v));
     gospa_est[t].push_back(p);
     ++ve.rows;
     ve.sum_sq += best * best;
@@ -171,6 +238,7 @@ void RunMulti(const EvaluateArgs& a, const CsvTable* est, const CsvTable& truth,
                 ve.rows > 0 ? std::sqrt(ve.sum_sq / ve.rows) : 0.0, ve.max_err,
                 main_id >= 0 && ve.instants > 0 ? ve.id_last.at(main_id) - ve.last_in_field : 0.0);
   }
+  if (regimes) regimes->Print();
   if (rows == 0 && est != nullptr) throw InputError(a.estimate + ": no usable estimate row");
   if (est == nullptr) {
     std::printf("the track file has no row (its summary: no track): every vessel in scope is missed\n");
@@ -360,19 +428,16 @@ void Run(const EvaluateArgs& a) {
   }
   std::vector<Eigen::Vector3d> sensors;
   if (!a.sensors.empty() && !a.pass.empty()) throw InputError("give --sensors or --pass, not both");
-  if (a.max_range_m > 0) {
-    if (a.sensors.empty() && a.pass.empty()) {
-      throw InputError("--max-range needs --sensors X,Y,Z[;X,Y,Z...] or --pass PASS.csv");
-    }
-    if (!a.sensors.empty()) {
-      sensors = cli::ParseVec3List("--sensors", a.sensors);
-    } else {
-      std::map<std::uint32_t, Eigen::Vector3d> by_id;
-      for (const auto& s : ReadGradiometerFile(a.pass).samples) by_id.emplace(s.sensor_id, s.p_SinW);
-      for (const auto& [id, p] : by_id) sensors.push_back(p);
-    }
-  } else if (!a.sensors.empty() || !a.pass.empty()) {
-    throw InputError("--sensors and --pass are used only with --max-range");
+  if (a.max_range_m > 0 && a.sensors.empty() && a.pass.empty()) {
+    throw InputError("--max-range needs --sensors X,Y,Z[;X,Y,Z...] or --pass PASS.csv");
+  }
+  // Sensor positions: for --max-range and the NEES regimes (inside/outside --reach).
+  if (!a.sensors.empty()) {
+    sensors = cli::ParseVec3List("--sensors", a.sensors);
+  } else if (!a.pass.empty()) {
+    std::map<std::uint32_t, Eigen::Vector3d> by_id;
+    for (const auto& s : ReadGradiometerFile(a.pass).samples) by_id.emplace(s.sensor_id, s.p_SinW);
+    for (const auto& [id, p] : by_id) sensors.push_back(p);
   }
   if (!a.gospa_csv.empty()) {
     RefuseOutputOverInput(a.gospa_csv, {a.estimate, a.truth, a.pass});
@@ -400,6 +465,7 @@ void Run(const EvaluateArgs& a) {
   std::map<long long, std::size_t> truth_at;
   for (std::size_t i = 0; i < truth.num_rows(); ++i) truth_at[std::llround(truth.number(i, tt) * 1e9)] = i;
 
+  RegimeNees regimes(a, est, sensors);
   std::size_t rows = 0, used = 0, invalid = 0, unmatched = 0, out_of_range = 0;
   double sum_sq = 0, max_err = 0, sum_nees = 0;
   std::size_t nees_n = 0;
@@ -416,7 +482,7 @@ void Run(const EvaluateArgs& a) {
     }
     const std::size_t j = it->second;
     const Eigen::Vector3d p_true(truth.number(j, pt.x), truth.number(j, pt.y), truth.number(j, pt.z));
-    if (!sensors.empty()) {
+    if (a.max_range_m > 0) {
       double best = 1e300;
       for (const auto& s : sensors) best = std::min(best, (p_true - s).head<2>().norm());
       if (best > a.max_range_m) {
@@ -429,6 +495,7 @@ void Run(const EvaluateArgs& a) {
     sum_sq += e.squaredNorm();
     max_err = std::max(max_err, e.norm());
     ++used;
+    regimes.Add(i, e, p_true);
     if (has_sigma) {
       const Eigen::Vector3d s(est.number(i, ps.x), est.number(i, ps.y), est.number(i, ps.z));
       if ((s.array() > 0).all()) {
@@ -444,6 +511,7 @@ void Run(const EvaluateArgs& a) {
   if (nees_n > 0) {
     std::printf("mean NEES (diagonal sigmas, 3 dof): %.3g over %zu epochs\n", sum_nees / nees_n, nees_n);
   }
+  regimes.Print();
 }
 
 // What every printed figure means (--help; docs/ACCURACY.md "Scoring").
@@ -455,6 +523,11 @@ One-vessel truth (t,x,y,z), estimate = fixes (magnav invert) or a track:
   position error RMS / max: sqrt(mean |p - p_true|^2) and the largest |p - p_true| over used rows, m.
   mean NEES (diagonal sigmas, 3 dof): mean over used rows with sigma_x..z > 0 of
     sum_i (e_i / sigma_i)^2; 3 when the sigmas are honest.
+  mean NEES per regime (also for a multi-vessel truth, over the rows scored): coasting = rows whose
+    state column (magnav track) says coasting (the track not detected at that epoch); the other rows
+    inside = the true position within --reach (15 m) of a sensor horizontally (--pass or --sensors),
+    outside = farther; without sensor positions "not coasting". RMS per regime, m. A file without a
+    state column (older track files, a recorded track topic) has no coasting rows.
 Sensor positions (estimate: magnav localize output or a recorded sensor_position topic, the last row
 of each sensor; truth: sensor_id,x,y[,z], e.g. localize_truth_sensors.csv), horizontal only (z is the
 known deployment depth):
@@ -511,8 +584,15 @@ void AddEvaluateCommand(CLI::App& app) {
   sub->add_option("--dof", args->dof, "with --nees: degrees of freedom of each NEES value")->check(CLI::PositiveNumber);
   sub->add_option("--max-range", args->max_range_m, "use only epochs within this horizontal range of a sensor, m")
       ->check(CLI::PositiveNumber);
-  sub->add_option("--sensors", args->sensors, "sensor positions X,Y,Z[;X,Y,Z...] for --max-range");
-  sub->add_option("--pass", args->pass, "pass file whose sensors are used for --max-range (instead of --sensors)");
+  sub->add_option("--sensors", args->sensors,
+                  "sensor positions X,Y,Z[;X,Y,Z...] for --max-range and the NEES regimes (--reach)");
+  sub->add_option("--pass", args->pass,
+                  "pass file whose sensors are used for --max-range and the NEES regimes (instead of --sensors)");
+  sub->add_option("--reach", args->reach_m,
+                  "NEES regimes: a row is 'inside' when its true position is within this horizontal range of a "
+                  "sensor, 'outside' when farther (coasting rows apart), m")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   sub->add_option("--gate", args->gate_m,
                   "multi-vessel truth (vessel_id): a row farther than this from every vessel is a false row, m")
       ->check(CLI::PositiveNumber);

@@ -81,6 +81,7 @@ std::vector<tracker::DipoleFix> ReadFixes(const std::string& path, const std::se
 struct Row {
   std::uint32_t track_id = 0;
   tracker::EpochEstimate e;
+  tracker::TrackState state = tracker::TrackState::kConfirmed;
 };
 
 void WriteTracks(const std::string& path, const std::string& input, const std::string& mode, std::vector<Row> rows,
@@ -111,9 +112,12 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
   params.push_back({"frame",
                     "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
                     "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
-                    "unknown; track_id: one per vessel, never reused"});
+                    "unknown; track_id: one per vessel, never reused; state: confirmed (the track detected at "
+                    "this epoch) or coasting (not detected: predicted, corrected at most by samples too weak for "
+                    "a detection)"});
   params.push_back({"summary", summary});
-  CsvWriter w(path, {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z"},
+  CsvWriter w(path,
+              {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z", "state"},
               params);
   for (const auto& r : rows) {
     const auto& e = r.e;
@@ -125,6 +129,7 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
     for (int i = 0; i < 3; ++i) {
       row.push_back(e.has_covariance ? FormatNumber(std::sqrt(std::max(e.cov_state(i, i), 0.0))) : "");
     }
+    row.push_back(tracker::TrackStateName(r.state));
     w.WriteRow(row);
   }
   w.Close();
@@ -193,8 +198,9 @@ void RunTrack(const TrackArgs& a) {
       r.t_start_s = t.track.epochs.empty() ? 0.0 : t.track.epochs.front().t_s;
       r.t_end_s = t.track.epochs.empty() ? 0.0 : t.track.epochs.back().t_s;
       records.push_back(r);
-      for (const auto& e : t.track.epochs) {
-        if (e.usable) rows.push_back({t.track_id, e});
+      for (std::size_t k = 0; k < t.track.epochs.size(); ++k) {
+        const tracker::EpochEstimate& e = t.track.epochs[k];
+        if (e.usable) rows.push_back({t.track_id, e, t.states.at(k)});
       }
       summary += "track " + std::to_string(t.track_id) + ": " + t.track.summary.BriefReport() + "; ";
     }
@@ -203,7 +209,7 @@ void RunTrack(const TrackArgs& a) {
     tracker::MultiTracker tr(B0, mopt);
     std::size_t next_fix = 0;
     const auto take = [&](const std::vector<tracker::TrackOutput>& out) {
-      for (const auto& o : out) rows.push_back({o.track_id, o.estimate});
+      for (const auto& o : out) rows.push_back({o.track_id, o.estimate, o.state});
     };
     cli::Progress progress("track", "samples", f.samples.size(), stderr);
     for (std::size_t i = 0; i < f.samples.size(); ++i) {
@@ -238,7 +244,8 @@ void AddTrackCommand(CLI::App& app) {
   auto args = std::make_shared<TrackArgs>();
   CLI::App* cmd = app.add_subcommand("track", "Track every dipole (vessel) of a gradiometer pass or field");
   cmd->add_option("--input", args->input, "pass file: t,sensor_id,sensor_x..z,B_x..B_z,T00..T22")->required();
-  cmd->add_option("--output", args->output, "track file: t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z")
+  cmd->add_option("--output", args->output,
+                  "track file: t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state (confirmed|coasting)")
       ->required();
   AddVec3Option(*cmd, "--b0", &args->b0, "background field B0 in tesla, NED (default: the file's '# B0_T:')");
   cmd->add_option("--mode", args->mode, "batch (whole pass) or window (fixed-lag, causal)")

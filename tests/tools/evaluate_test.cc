@@ -1,10 +1,12 @@
 // `magnav evaluate` on tiny multi-vessel files whose scores are worked out by
 // hand: GOSPA per epoch and overall (c = 10 m, p = 2: a missed vessel or a
 // false row costs c²/2 = 50 m²), its CSV, and single-sample fix files with
-// rejected fixes scored against a multi-vessel truth.
+// rejected fixes scored against a multi-vessel truth; the mean NEES per
+// regime (inside, outside, coasting) of a track file.
 #include <cmath>
 #include <fstream>
 #include <string>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -101,11 +103,64 @@ TEST(EvaluateCli, FixFilesWithRejectedFixesAreScoredAgainstTheNearestVessel) {
   EXPECT_NE(out2.find("--gospa needs a track file"), std::string::npos) << out2;
 }
 
+// `magnav evaluate`'s NEES per regime (issue 24 item 6), on a hand-made track
+// file whose every NEES is known: coasting rows (state column) apart, the
+// others inside or outside --reach (15 m) of the sensor by the true position;
+// a file without the state column (an older track file) has no coasting rows.
+TEST(EvaluateCli, MeanNeesPerRegimeOfATrackFile) {
+  const std::string dir = testing::TempDir();
+  // Truth 5, 30, 40 and 10 m from the sensor at the origin; errors of 1, 2, 3
+  // and (1, 1) sigma: NEES 1, 4, 9, 2.
+  std::ofstream(dir + "/truth.csv") << "t,x,y,z\n0,5,0,-5\n1,30,0,-5\n2,40,0,-5\n3,10,0,-5\n";
+  const std::string cols = "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z";
+  const std::string rows[] = {"0,1,5.1,0,-5,1,0,0,0.1,0.1,0.1", "1,1,30,0.2,-5,1,0,0,0.1,0.1,0.1",
+                              "2,1,40,0,-4.7,1,0,0,0.1,0.1,0.1", "3,1,10.1,0.1,-5,1,0,0,0.1,0.1,0.1"};
+  const std::string states[] = {"confirmed", "confirmed", "coasting", "confirmed"};
+  {
+    std::ofstream with(dir + "/with.csv"), without(dir + "/without.csv");
+    with << cols << ",state\n";
+    without << cols << "\n";
+    for (int k = 0; k < 4; ++k) {
+      with << rows[k] << "," << states[k] << "\n";
+      without << rows[k] << "\n";
+    }
+  }
+  const auto evaluate = [&](const std::string& est, const std::string& truth) {
+    return Evaluate({"--estimate", est, "--truth", truth, "--sensors", "0,0,0"});
+  };
+  auto [rc, out] = evaluate(dir + "/with.csv", dir + "/truth.csv");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("regime inside: 1.5 over 2 rows"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime outside: 4 over 1 rows"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime coasting: 9 over 1 rows, RMS 0.3 m"), std::string::npos) << out;
+  std::tie(rc, out) = evaluate(dir + "/without.csv", dir + "/truth.csv");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("no state column"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime outside: 6.5 over 2 rows"), std::string::npos) << out;
+  EXPECT_EQ(out.find("regime coasting"), std::string::npos) << out;
+  // The same rows against a multi-vessel truth (vessel_id): the same regimes.
+  std::ofstream(dir + "/truth_multi.csv")
+      << "t,vessel_id,x,y,z\n0,1,5,0,-5\n1,1,30,0,-5\n2,1,40,0,-5\n3,1,10,0,-5\n";
+  std::tie(rc, out) = evaluate(dir + "/with.csv", dir + "/truth_multi.csv");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("regime inside: 1.5 over 2 rows"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime coasting: 9 over 1 rows"), std::string::npos) << out;
+  // An unknown state is refused, naming the place.
+  {
+    std::ofstream bad(dir + "/bad.csv");
+    bad << cols << ",state\n" << rows[0] << ",lost\n";
+  }
+  std::tie(rc, out) = evaluate(dir + "/bad.csv", dir + "/truth.csv");
+  EXPECT_EQ(rc, 2) << out;
+  EXPECT_NE(out.find("column 'state': expected confirmed or coasting, got 'lost'"), std::string::npos) << out;
+}
+
 TEST(EvaluateCli, HelpDefinesEveryFigure) {
   const auto [rc, out] = Evaluate({"--help"});
   ASSERT_EQ(rc, 0) << out;
   for (const char* w : {"coverage:", "purity", "overrun:", "GOSPA", "localisation =", "missed =", "false =",
-                        "mean NEES", "in-field instants:", "beyond range", "ANEES:", "inside 95 %:"}) {
+                        "mean NEES", "mean NEES per regime", "in-field instants:", "beyond range", "ANEES:",
+                        "inside 95 %:"}) {
     EXPECT_NE(out.find(w), std::string::npos) << w;
   }
 }

@@ -35,6 +35,7 @@ void ExpectSame(const TrackOutput& a, const TrackOutput& b) {
   EXPECT_EQ(a.track_id, b.track_id);
   EXPECT_EQ(a.estimate.t_s, b.estimate.t_s);
   EXPECT_EQ(a.estimate.usable, b.estimate.usable);
+  EXPECT_EQ(a.state, b.state) << a.estimate.t_s;
   EXPECT_TRUE((a.estimate.p_VinW.array() == b.estimate.p_VinW.array()).all()) << a.estimate.t_s;
   EXPECT_EQ(a.estimate.heading_rad, b.estimate.heading_rad);
   EXPECT_EQ(a.estimate.turn_rate_radps, b.estimate.turn_rate_radps);
@@ -171,8 +172,9 @@ TEST(TrackerCheckpoint, BadFilesAreRefusedWithTheReason) {
   EXPECT_NE(Refusal(flipped, fx.options, fx.B0).find("checksum"), std::string::npos);
   EXPECT_NE(Refusal(good.substr(0, good.size() - 3), fx.options, fx.B0).find("truncated"), std::string::npos);
   std::string version = good;
-  version[8] = 2;  // u32 version at offset 8
-  EXPECT_NE(Refusal(version, fx.options, fx.B0).find("version 2"), std::string::npos);
+  version[8] = static_cast<char>(kTrackerCheckpointVersion + 1);  // u32 version at offset 8
+  EXPECT_NE(Refusal(version, fx.options, fx.B0).find("version " + std::to_string(kTrackerCheckpointVersion + 1)),
+            std::string::npos);
   // A localizer's checkpoint (another magic) is not a tracker's.
   const std::string other = EncodeCheckpoint({"MAGNAVLC", 1, "magnav-localizer"}, fx.payload);
   EXPECT_NE(Refusal(other, fx.options, fx.B0).find("not a magnav-tracker checkpoint"), std::string::npos);

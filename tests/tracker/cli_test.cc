@@ -65,13 +65,16 @@ TEST(TrackCli, BatchFileEqualsTheLibraryAndCarriesTheMoment) {
   ASSERT_EQ(tracks.size(), 1u);
   ASSERT_EQ(tracks[0].track_id, 1u);
   std::vector<EpochEstimate> rows;
-  for (const auto& e : tracks[0].track.epochs) {
-    if (e.usable) rows.push_back(e);
+  std::vector<TrackState> states;
+  for (std::size_t k = 0; k < tracks[0].track.epochs.size(); ++k) {
+    if (!tracks[0].track.epochs[k].usable) continue;
+    rows.push_back(tracks[0].track.epochs[k]);
+    states.push_back(tracks[0].states.at(k));
   }
   const TrackEstimate& lib = tracks[0].track;
   const CsvTable t = CsvTable::Read(dir + "/track.csv");
   const std::vector<std::string> header = {"t",  "track_id", "x",       "y",       "z",      "vx",
-                                           "vy", "heading",  "sigma_x", "sigma_y", "sigma_z"};
+                                           "vy", "heading",  "sigma_x", "sigma_y", "sigma_z", "state"};
   ASSERT_EQ(t.header(), header);
   ASSERT_EQ(t.num_rows(), rows.size());
   ASSERT_GT(t.num_rows(), 1000u);  // the part of the 200 s pass where the vessel is seen
@@ -86,6 +89,7 @@ TEST(TrackCli, BatchFileEqualsTheLibraryAndCarriesTheMoment) {
     EXPECT_EQ(t.number(k, t.column("vx")), e.v_VinW().x());
     EXPECT_EQ(t.number(k, t.column("heading")), e.heading_rad);
     EXPECT_EQ(t.number(k, t.column("sigma_z")), std::sqrt(e.cov_state(2, 2)));
+    EXPECT_EQ(t.text(k, t.column("state")), TrackStateName(states[k]));
   }
   EXPECT_EQ(t.params().at("track_moment_body_Am2").substr(0, 3), "1, ");
   const auto m = t.param_vec3("moment_body_Am2");
@@ -158,8 +162,11 @@ TEST(TrackCli, FixesFromInvertStartTheTrack) {
   const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), *f.B0, opt, &fixes);
   ASSERT_EQ(tracks.size(), 1u);
   std::vector<EpochEstimate> rows;
-  for (const auto& e : tracks[0].track.epochs) {
-    if (e.usable) rows.push_back(e);
+  std::vector<TrackState> states;
+  for (std::size_t k = 0; k < tracks[0].track.epochs.size(); ++k) {
+    if (!tracks[0].track.epochs[k].usable) continue;
+    rows.push_back(tracks[0].track.epochs[k]);
+    states.push_back(tracks[0].states.at(k));
   }
   const CsvTable t = CsvTable::Read(dir + "/track.csv");
   EXPECT_NE(t.params().at("summary").find("external init fixes"), std::string::npos);
@@ -256,7 +263,7 @@ TEST(TrackCli, NothingToTrackGivesAnEmptyTrackFileAndExitZero) {
     ASSERT_EQ(rc, 0) << mode << ": " << out;
     EXPECT_NE(out.find("no track: too few strong single-sample fixes to initialise"), std::string::npos) << out;
     const EmptyTrackFile t = ReadEmptyTrackFile(o);
-    EXPECT_EQ(t.header, "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z") << mode;
+    EXPECT_EQ(t.header, "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state") << mode;
     EXPECT_EQ(t.data_lines, 0) << mode;
     EXPECT_EQ(t.params.at("mode"), mode);
     EXPECT_EQ(t.params.at("summary").rfind("no track: too few strong single-sample fixes to initialise", 0), 0u)

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "magnav/core/error.h"
+#include "magnav/tracker/association.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/multi_tracker.h"
 #include "other_fields.h"
@@ -142,6 +143,27 @@ bool ExtendSpan(const std::vector<Epoch>& epochs, const TrackPath& path, double 
   return grew;
 }
 
+// Each estimate's state (TrackState): the associator's detection test
+// (AssociateEpoch: gate, LLR ≥ detect_llr, not a poor fit) on the track's
+// own samples of that epoch (`mine`: others' fields and background
+// removed, as solved), predicted from the refined state and moment.
+std::vector<TrackState> BatchStates(const TrackEstimate& est, const std::vector<Epoch>& mine,
+                                    const Eigen::Vector3d& B0_W, const MultiTrackerOptions& options) {
+  std::vector<TrackState> states(est.epochs.size(), TrackState::kCoasting);
+  auto m = mine.begin();
+  for (std::size_t k = 0; k < est.epochs.size(); ++k) {
+    const EpochEstimate& e = est.epochs[k];
+    while (m != mine.end() && m->t_s < e.t_s) ++m;
+    if (m == mine.end() || m->t_s != e.t_s || !e.usable) continue;
+    const CtState<double> s{e.p_VinW.x(), e.p_VinW.y(), e.p_VinW.z(), e.speed_mps, e.heading_rad, e.turn_rate_radps};
+    std::vector<TrackPrediction> pred(1);
+    pred[0].valid = true;
+    for (const auto& g : m->samples) pred[0].at.push_back(PredictAtSample(s, est.m_B_Am2, g, options.track));
+    if (AssociateEpoch(*m, pred, B0_W, options)[0].detected) states[k] = TrackState::kConfirmed;
+  }
+  return states;
+}
+
 }  // namespace
 
 std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
@@ -153,10 +175,13 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   // 1. The causal pass finds the vessels.
   MultiTracker finder(B0_W, options);
   std::map<std::uint32_t, TrackPath> paths;
+  std::map<std::uint32_t, std::vector<TrackState>> window_states;  // per paths[id].epochs
   std::size_t next_fix = 0;
   const auto take = [&](const std::vector<TrackOutput>& out) {
     for (const auto& o : out) {
-      if (o.estimate.usable) paths[o.track_id].epochs.push_back(o.estimate);
+      if (!o.estimate.usable) continue;
+      paths[o.track_id].epochs.push_back(o.estimate);
+      window_states[o.track_id].push_back(o.state);
     }
   };
   // Each sample's background prior from the finder (background.h), taken
@@ -189,6 +214,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     MultiTrackEstimate m;
     m.track_id = r.track_id;
     m.track.epochs = it->second.epochs;
+    m.states = window_states[r.track_id];
     m.track.m_B_Am2 = r.m_B_Am2;
     m.track.cov_m_B = r.cov_m_B;
     m.track.summary.initialized = true;
@@ -277,6 +303,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       const bool ok = est.summary.initialized && est.summary.usable &&
                       std::any_of(est.epochs.begin(), est.epochs.end(), [](const EpochEstimate& e) { return e.usable; });
       if (ok) {
+        result[i].states = BatchStates(est, mine, B0_W, options);
         result[i].track = std::move(est);
       } else {
         result[i].track.summary.message =

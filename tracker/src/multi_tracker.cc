@@ -65,6 +65,10 @@ std::string MultiSummary::BriefReport() const {
   return o.str();
 }
 
+const char* TrackStateName(TrackState state) {
+  return state == TrackState::kCoasting ? "coasting" : "confirmed";
+}
+
 void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2, const Eigen::Vector3d& p_SinW,
                     Eigen::Vector3d* B, Eigen::Matrix3d* T) {
   const Eigen::Vector3d m_W = HeadingRotation(state.heading) * m_B_Am2;
@@ -92,6 +96,9 @@ struct Track {
     Eigen::Matrix3d T;
   };
   std::vector<Taken> taken;
+  // The associator's verdict (detected or not) of each epoch whose estimate
+  // its engine has not given yet, in time order: the estimates' states.
+  std::deque<std::pair<double, bool>> verdicts;
 };
 
 double HorizontalSigma(const EpochEstimate& e) {
@@ -174,16 +181,29 @@ struct MultiTracker::Impl {
     events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed; " + tr.origin});
   }
 
-  // The estimates of a track's engine, as outputs (confirmed tracks only).
+  // The estimates of a track's engine, as outputs (confirmed tracks only),
+  // each with its epoch's state (TrackState): coasting where the associator
+  // did not detect the track. An epoch from before the track existed (the
+  // initiator's buffer it was started on) has no verdict: confirmed, as the
+  // initiator found the vessel there.
   void Collect(Track& tr, const std::vector<EpochEstimate>& est, std::vector<TrackOutput>* out) {
     if (est.empty()) return;
     tr.life.OnEstimate(est.back().t_s, est.back().usable, HorizontalSigma(est.back()));
+    std::vector<TrackState> states(est.size(), TrackState::kConfirmed);
+    for (std::size_t k = 0; k < est.size(); ++k) {
+      while (!tr.verdicts.empty() && tr.verdicts.front().first < est[k].t_s) tr.verdicts.pop_front();
+      if (!tr.verdicts.empty() && tr.verdicts.front().first == est[k].t_s) {
+        if (!tr.verdicts.front().second) states[k] = TrackState::kCoasting;
+        tr.verdicts.pop_front();
+      }
+    }
     if (tr.id == 0) return;
     TrackRecord& r = records[tr.id - 1];
     const Eigen::Vector3d m = tr.engine->m_B_Am2();
     const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
-    for (const auto& e : est) {
-      out->push_back({tr.id, e, m, Pm});
+    for (std::size_t k = 0; k < est.size(); ++k) {
+      const EpochEstimate& e = est[k];
+      out->push_back({tr.id, e, states[k], m, Pm});
       r.t_end_s = e.t_s;
       ++r.num_estimates;
     }
@@ -254,6 +274,7 @@ struct MultiTracker::Impl {
       const TrackAssociation& a = assoc[i];
       const bool had_samples = !a.mine.samples.empty();
       tr.life.OnAssociation(t, a.detected, a.missed, had_samples);
+      tr.verdicts.emplace_back(t, a.detected);
       Collect(tr, tr.engine->AddEpoch(a.mine), &out);
     }
     // Track status: confirmation and end rules (track_life_cycle.h).
@@ -566,6 +587,11 @@ std::string MultiTracker::SaveState() const {
       w.Matrix(k.B);
       w.Matrix(k.T);
     }
+    w.U64(tr.verdicts.size());
+    for (const auto& [t_s, detected] : tr.verdicts) {
+      w.F64(t_s);
+      w.U8(detected ? 1 : 0);
+    }
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -634,6 +660,10 @@ void MultiTracker::RestoreState(const std::string& payload) {
       k.index = static_cast<std::size_t>(r.U64());
       k.B = internal::GetMatrix(r, 3, 1);
       k.T = internal::GetMatrix(r, 3, 3);
+    }
+    for (std::size_t v = r.Count(internal::kMaxStateCount); v > 0; --v) {
+      const double t_s = r.F64();
+      tr.verdicts.emplace_back(t_s, r.U8() != 0);
     }
     m.tracks.push_back(std::move(tr));
   }

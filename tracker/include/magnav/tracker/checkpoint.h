@@ -3,7 +3,7 @@
 // container (header, checksum, field writer/reader, atomic write) is
 // core/checkpoint.h's; this is the tracker's kind of it:
 //
-//   magic "MAGNAVTC", format version 1 (kTrackerCheckpointVersion), payload
+//   magic "MAGNAVTC", format version 2 (kTrackerCheckpointVersion), payload
 //   written by the service node: its stream position and counters around
 //   MultiTracker::SaveState (configuration, tracks, records, initiator).
 #pragma once
@@ -16,14 +16,17 @@
 
 namespace magnav::tracker {
 
-inline constexpr std::uint32_t kTrackerCheckpointVersion = 1;
+// Version 2 (2026-11-26): each live track also carries the associator's
+// verdicts of the epochs its engine has not estimated yet (the rows'
+// TrackState); a version-1 file is refused ("format version 1").
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 2;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 
 // Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).
 inline std::string EncodeTrackerCheckpoint(std::string_view payload) {
   return EncodeCheckpoint(kTrackerCheckpointKind, payload);
 }
-// The payload; throws CheckpointError if the file is not a version-1 tracker checkpoint.
+// The payload; throws CheckpointError if the file is not a tracker checkpoint of this version.
 inline std::string DecodeTrackerCheckpoint(std::string_view file) {
   return DecodeCheckpoint(kTrackerCheckpointKind, file);
 }

@@ -150,10 +150,23 @@ struct MultiTrackerOptions {
   bool IsValid(std::string* error) const;
 };
 
+// What a confirmed track's estimate of one epoch rests on (the life cycle's
+// words; a tentative track produces no estimate):
+//  - kConfirmed: the track was detected at that epoch (the associator's
+//    verdict, association.h: LLR ≥ detect_llr and not a poor fit);
+//  - kCoasting: it was not (missed, or unobserved: no sensor within its
+//    gate, or too weak a signal there): the estimate is the motion model's
+//    prediction, corrected at most by samples too weak for a detection.
+//    A confirmed track ends "lost" after max_coast_s of it.
+// Written per row by `magnav track` (column `state`).
+enum class TrackState { kConfirmed, kCoasting };
+const char* TrackStateName(TrackState state);  // "confirmed", "coasting"
+
 // One estimate of one track.
 struct TrackOutput {
   std::uint32_t track_id = 0;
   EpochEstimate estimate;
+  TrackState state = TrackState::kConfirmed;  // at estimate.t_s
   Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();  // the track's body moment now
   Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();
 };
@@ -250,6 +263,12 @@ class MultiTracker {
 struct MultiTrackEstimate {
   std::uint32_t track_id = 0;
   TrackEstimate track;  // epochs, moment, summary (SolveBatch over the track's own samples)
+  // One per track.epochs: kConfirmed where the refined track is detected
+  // at that epoch — the associator's test (AssociateEpoch, association.h)
+  // on the track's own samples with the refined state and moment —,
+  // kCoasting where it is not. A track whose refinement failed keeps its
+  // window estimates and their states.
+  std::vector<TrackState> states;
 };
 
 // Every vessel of a pass: the window tracker finds the tracks, then each is
