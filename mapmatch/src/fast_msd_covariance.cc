@@ -105,6 +105,115 @@ struct Tridiag {
 
 }  // namespace
 
+std::vector<M2> SandwichDiagonalBlocks(const BlockTridiagonal& m, const BlockTridiagonal& a) {
+  const std::size_t n = m.diag.size();
+  std::vector<M2> x(n);
+  if (n == 0) return x;
+  // Forward: S_i⁻¹ (p), Q_i = S_i⁻¹ B_i (q), K_i = S_i⁻¹ Ṡ_i S_i⁻¹ (k).
+  std::vector<M2> p(n), k(n), q(n - 1);
+  M2 s = m.diag[0], sd = a.diag[0];
+  for (std::size_t i = 0;; ++i) {
+    p[i] = s.inverse();
+    k[i] = p[i] * sd * p[i];
+    k[i] = 0.5 * (k[i] + k[i].transpose());
+    if (i + 1 == n) break;
+    q[i] = p[i] * m.upper[i];
+    const M2 aq = a.upper[i].transpose() * q[i];
+    s = m.diag[i + 1] - q[i].transpose() * m.upper[i];
+    s = 0.5 * (s + s.transpose());
+    sd = a.diag[i + 1] - aq - aq.transpose() + q[i].transpose() * sd * q[i];
+    sd = 0.5 * (sd + sd.transpose());
+  }
+  // Backward: Σ_i (M⁻¹'s diagonal blocks) and X_i.
+  M2 sigma = p[n - 1];
+  x[n - 1] = k[n - 1];
+  for (std::size_t i = n - 1; i-- > 0;) {
+    const M2 qd = p[i] * a.upper[i] - k[i] * m.upper[i];
+    const M2 t = qd * sigma * q[i].transpose();
+    x[i] = k[i] + q[i] * x[i + 1] * q[i].transpose() - t - t.transpose();
+    x[i] = 0.5 * (x[i] + x[i].transpose());
+    sigma = p[i] + q[i] * sigma * q[i].transpose();
+    sigma = 0.5 * (sigma + sigma.transpose());
+  }
+  return x;
+}
+
+namespace {
+
+// The smoother's error covariance (the sandwich), with the curvature term iterated: per point
+// the diagonal block of M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹, M = Gᵀ W G + (λ/2) L
+// (h = λ/2, ω = W's diagonal).
+std::vector<M2> SmootherErrorCovariance(const std::vector<V2>& g, const std::vector<double>& omega, double h,
+                                        double s2, double tau2, const std::vector<double>& h_ll,
+                                        const std::vector<double>& h_ln, const std::vector<double>& h_nn,
+                                        int curvature_iterations) {
+  const std::size_t n = g.size();
+  const auto degree = [n](std::size_t i) { return (i == 0 || i + 1 == n) ? 1.0 : 2.0; };  // the path graph's
+  const double kt2 = h * h * tau2;                                                          // (λ/2)² τ²
+  BlockTridiagonal m, a;  // M and the middle factor A
+  m.upper.assign(n - 1, -h * M2::Identity());
+  a.upper.assign(n - 1, -kt2 * M2::Identity());
+  for (std::size_t i = 0; i < n; ++i) {
+    m.diag.push_back(h * degree(i) * M2::Identity() + omega[i] * g[i] * g[i].transpose());
+  }
+  a.diag.resize(n);
+  std::vector<double> v(n, 0.0);  // the curvature term's second moment per reading (nT²)
+  std::vector<M2> cov;
+  for (int pass = 0;; ++pass) {
+    for (std::size_t i = 0; i < n; ++i) {
+      a.diag[i] =
+          kt2 * degree(i) * M2::Identity() + omega[i] * omega[i] * (s2 + v[i]) * g[i] * g[i].transpose();
+    }
+    cov = SandwichDiagonalBlocks(m, a);
+    if (pass + 1 >= curvature_iterations) return cov;
+    for (std::size_t i = 0; i < n; ++i) {
+      M2 H;
+      H << h_ll[i], h_ln[i], h_ln[i], h_nn[i];
+      const M2 hc = H * cov[i];
+      v[i] = 0.5 * (hc(0, 0) * hc(0, 0) + 2.0 * hc(0, 1) * hc(1, 0) + hc(1, 1) * hc(1, 1)) +
+             0.25 * hc.trace() * hc.trace();
+      if (!std::isfinite(v[i])) v[i] = 0.0;
+    }
+  }
+}
+
+// EM for σ², τ² in the linearised model (the posterior at h* = σ²/τ²) from *s2_io, *tau2_io:
+// readings y at gradients g with weights w (their sum sw). At most 100 iterations.
+void EstimateScales(const std::vector<V2>& g, const std::vector<double>& w, const std::vector<double>& y,
+                    double sw, double* s2_io, double* tau2_io) {
+  const std::size_t n = g.size();
+  double s2 = *s2_io, tau2 = *tau2_io;
+  std::vector<M2> diag, off;
+  std::vector<V2> mu(n), b(n);
+  for (int it = 0; it < 100; ++it) {
+    const Tridiag t(g, w, s2 / tau2);
+    for (std::size_t i = 0; i < n; ++i) b[i] = w[i] * y[i] * g[i];
+    t.Solve(&b, &mu);
+    t.Blocks(&diag, &off);
+    double rs = 0.0, ds = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (w[i] > 0.0) {
+        const double r = y[i] - g[i].dot(mu[i]);
+        rs += w[i] * (r * r + s2 * g[i].dot(diag[i] * g[i]));
+      }
+      if (i + 1 < n) {
+        ds += (mu[i + 1] - mu[i]).squaredNorm() +
+              s2 * (diag[i].trace() + diag[i + 1].trace() - 2.0 * off[i].trace());
+      }
+    }
+    const double s2_new = rs / sw, tau2_new = ds / (2.0 * static_cast<double>(n - 1));
+    if (!(s2_new > 0.0) || !(tau2_new > 0.0) || !std::isfinite(s2_new) || !std::isfinite(tau2_new)) break;
+    const bool done = std::abs(s2_new - s2) <= 1e-9 * s2 && std::abs(tau2_new - tau2) <= 1e-9 * tau2;
+    s2 = s2_new;
+    tau2 = tau2_new;
+    if (done) break;
+  }
+  *s2_io = s2;
+  *tau2_io = tau2;
+}
+
+}  // namespace
+
 ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const std::vector<double>& g_lon,
                                        const std::vector<double>& resid, const std::vector<char>& data,
                                        const std::vector<double>& e_lat, const std::vector<double>& e_lon,
@@ -135,71 +244,13 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
     y[i] = g[i].dot(V2(e_lat[i], e_lon[i])) - resid[i];
     sw += w[i];
   }
-  // EM for σ², τ² in the linearised model (the posterior at h* = σ²/τ²).
   double s2 = laplace.s2_nT2, tau2 = s2 / h;
-  std::vector<M2> diag, off;
-  std::vector<V2> mu(n), b(n);
-  for (int it = 0; it < 100; ++it) {
-    const Tridiag t(g, w, s2 / tau2);
-    for (std::size_t i = 0; i < n; ++i) b[i] = w[i] * y[i] * g[i];
-    t.Solve(&b, &mu);
-    t.Blocks(&diag, &off);
-    double rs = 0.0, ds = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (w[i] > 0.0) {
-        const double r = y[i] - g[i].dot(mu[i]);
-        rs += w[i] * (r * r + s2 * g[i].dot(diag[i] * g[i]));
-      }
-      if (i + 1 < n) {
-        ds += (mu[i + 1] - mu[i]).squaredNorm() +
-              s2 * (diag[i].trace() + diag[i + 1].trace() - 2.0 * off[i].trace());
-      }
-    }
-    const double s2_new = rs / sw, tau2_new = ds / (2.0 * static_cast<double>(n - 1));
-    if (!(s2_new > 0.0) || !(tau2_new > 0.0) || !std::isfinite(s2_new) || !std::isfinite(tau2_new)) break;
-    const bool done = std::abs(s2_new - s2) <= 1e-9 * s2 && std::abs(tau2_new - tau2) <= 1e-9 * tau2;
-    s2 = s2_new;
-    tau2 = tau2_new;
-    if (done) break;
-  }
+  EstimateScales(g, w, y, sw, &s2, &tau2);
   out.s2_nT2 = s2;
   out.tau2_deg2 = tau2;
   out.edf = laplace.edf;
-  // The smoother's error covariance (sandwich), with the curvature term iterated.
-  const Tridiag m(g, w, h);
-  std::vector<double> v(n, 0.0);
-  std::vector<M2> cov(n);
-  std::vector<V2> x(n);
-  const double kt = h * std::sqrt(tau2);
-  for (int pass = 0; pass <= std::max(curvature_iterations - 1, 0); ++pass) {
-    std::fill(cov.begin(), cov.end(), M2::Zero());
-    const auto accumulate = [&]() {
-      m.Solve(&b, &x);
-      for (std::size_t i = 0; i < n; ++i) cov[i] += x[i] * x[i].transpose();
-    };
-    for (std::size_t j = 0; j < n; ++j) {  // the readings: ω_j √R_j g_j at block j
-      if (w[j] == 0.0) continue;
-      std::fill(b.begin(), b.end(), V2::Zero());
-      b[j] = w[j] * std::sqrt(s2 + v[j]) * g[j];
-      accumulate();
-    }
-    for (std::size_t j = 0; j + 1 < n; ++j) {  // the random walk: (λ/2) τ (e_{j+1} − e_j) per axis
-      for (int axis = 0; axis < 2; ++axis) {
-        std::fill(b.begin(), b.end(), V2::Zero());
-        b[j + 1](axis) = kt;
-        b[j](axis) = -kt;
-        accumulate();
-      }
-    }
-    if (pass + 1 >= curvature_iterations) break;
-    for (std::size_t i = 0; i < n; ++i) {
-      M2 H;
-      H << h_ll[i], h_ln[i], h_ln[i], h_nn[i];
-      const M2 a = H * cov[i];
-      v[i] = 0.5 * (a(0, 0) * a(0, 0) + 2.0 * a(0, 1) * a(1, 0) + a(1, 1) * a(1, 1)) + 0.25 * a.trace() * a.trace();
-      if (!std::isfinite(v[i])) v[i] = 0.0;
-    }
-  }
+  const std::vector<M2> cov =
+      SmootherErrorCovariance(g, w, h, s2, tau2, h_ll, h_ln, h_nn, curvature_iterations);
   for (std::size_t i = 0; i < n; ++i) {
     out.lat_lat[i] = cov[i](0, 0);
     out.lat_lon[i] = 0.5 * (cov[i](0, 1) + cov[i](1, 0));
