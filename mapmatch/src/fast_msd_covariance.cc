@@ -70,39 +70,6 @@ namespace {
 using M2 = Eigen::Matrix2d;
 using V2 = Eigen::Vector2d;
 
-// Block-tridiagonal M = blkdiag(ω_i g gᵀ + h d_i I) − h (neighbours), factored by forward Schur complements.
-struct Tridiag {
-  std::vector<M2> s_inv;
-  double h = 0.0;
-  Tridiag(const std::vector<V2>& g, const std::vector<double>& omega, double h_) : s_inv(g.size()), h(h_) {
-    const std::size_t n = g.size();
-    for (std::size_t i = 0; i < n; ++i) {
-      M2 D = h * ((i == 0 || i == n - 1) ? 1.0 : 2.0) * M2::Identity() + omega[i] * g[i] * g[i].transpose();
-      if (i > 0) D -= h * h * s_inv[i - 1];
-      s_inv[i] = D.inverse();
-    }
-  }
-  // x = M⁻¹ b (b overwritten by the forward pass).
-  void Solve(std::vector<V2>* b, std::vector<V2>* x) const {
-    const std::size_t n = s_inv.size();
-    for (std::size_t i = 1; i < n; ++i) (*b)[i] += h * (s_inv[i - 1] * (*b)[i - 1]);
-    (*x)[n - 1] = s_inv[n - 1] * (*b)[n - 1];
-    for (std::size_t i = n - 1; i-- > 0;) (*x)[i] = s_inv[i] * ((*b)[i] + h * (*x)[i + 1]);
-  }
-  // Diagonal blocks Σ_i of M⁻¹ and the off-diagonal Σ_{i,i+1}.
-  void Blocks(std::vector<M2>* diag, std::vector<M2>* off) const {
-    const std::size_t n = s_inv.size();
-    diag->assign(n, M2::Zero());
-    off->assign(n, M2::Zero());
-    (*diag)[n - 1] = s_inv[n - 1];
-    for (std::size_t i = n - 1; i-- > 0;) {
-      (*off)[i] = h * s_inv[i] * (*diag)[i + 1];
-      (*diag)[i] = s_inv[i] + h * (*off)[i] * s_inv[i].transpose();
-      (*diag)[i] = 0.5 * ((*diag)[i] + (*diag)[i].transpose());
-    }
-  }
-};
-
 }  // namespace
 
 std::vector<M2> SandwichDiagonalBlocks(const BlockTridiagonal& m, const BlockTridiagonal& a) {
@@ -178,28 +145,52 @@ std::vector<M2> SmootherErrorCovariance(const std::vector<V2>& g, const std::vec
 }
 
 // EM for σ², τ² in the linearised model (the posterior at h* = σ²/τ²) from *s2_io, *tau2_io:
-// readings y at gradients g with weights w (their sum sw). At most 100 iterations.
+// readings y at gradients g with weights w (their sum sw). At most 100 iterations. Each is one
+// block-tridiagonal factorisation (forward) and one pass back for the posterior mean and M(h*)⁻¹'s
+// diagonal and first off-diagonal blocks (the oracle in tests/mapmatch/fast_msd_covariance_test.cc
+// computes the same with separate solve and block passes).
 void EstimateScales(const std::vector<V2>& g, const std::vector<double>& w, const std::vector<double>& y,
                     double sw, double* s2_io, double* tau2_io) {
   const std::size_t n = g.size();
   double s2 = *s2_io, tau2 = *tau2_io;
-  std::vector<M2> diag, off;
-  std::vector<V2> mu(n), b(n);
+  std::vector<M2> s_inv(n), wggt(n);
+  std::vector<V2> b(n), mu(n), wyg(n);
+  std::vector<double> gsg(n), tr(n), tr_off(n);  // gᵀ Σ_i g, trace Σ_i, trace Σ_{i,i+1}
+  for (std::size_t i = 0; i < n; ++i) {
+    wggt[i] = w[i] * g[i] * g[i].transpose();
+    wyg[i] = w[i] * y[i] * g[i];
+  }
   for (int it = 0; it < 100; ++it) {
-    const Tridiag t(g, w, s2 / tau2);
-    for (std::size_t i = 0; i < n; ++i) b[i] = w[i] * y[i] * g[i];
-    t.Solve(&b, &mu);
-    t.Blocks(&diag, &off);
+    const double h = s2 / tau2;
+    for (std::size_t i = 0; i < n; ++i) {
+      M2 D = h * ((i == 0 || i == n - 1) ? 1.0 : 2.0) * M2::Identity() + wggt[i];
+      b[i] = wyg[i];
+      if (i > 0) {
+        D -= h * h * s_inv[i - 1];
+        b[i] += h * (s_inv[i - 1] * b[i - 1]);
+      }
+      s_inv[i] = D.inverse();
+    }
+    mu[n - 1] = s_inv[n - 1] * b[n - 1];
+    M2 sigma = s_inv[n - 1];
+    gsg[n - 1] = g[n - 1].dot(sigma * g[n - 1]);
+    tr[n - 1] = sigma.trace();
+    for (std::size_t i = n - 1; i-- > 0;) {
+      mu[i] = s_inv[i] * (b[i] + h * mu[i + 1]);
+      const M2 off = h * s_inv[i] * sigma;
+      sigma = s_inv[i] + h * off * s_inv[i].transpose();
+      sigma = 0.5 * (sigma + sigma.transpose());
+      gsg[i] = g[i].dot(sigma * g[i]);
+      tr[i] = sigma.trace();
+      tr_off[i] = off.trace();
+    }
     double rs = 0.0, ds = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
       if (w[i] > 0.0) {
         const double r = y[i] - g[i].dot(mu[i]);
-        rs += w[i] * (r * r + s2 * g[i].dot(diag[i] * g[i]));
+        rs += w[i] * (r * r + s2 * gsg[i]);
       }
-      if (i + 1 < n) {
-        ds += (mu[i + 1] - mu[i]).squaredNorm() +
-              s2 * (diag[i].trace() + diag[i + 1].trace() - 2.0 * off[i].trace());
-      }
+      if (i + 1 < n) ds += (mu[i + 1] - mu[i]).squaredNorm() + s2 * (tr[i] + tr[i + 1] - 2.0 * tr_off[i]);
     }
     const double s2_new = rs / sw, tau2_new = ds / (2.0 * static_cast<double>(n - 1));
     if (!(s2_new > 0.0) || !(tau2_new > 0.0) || !std::isfinite(s2_new) || !std::isfinite(tau2_new)) break;
