@@ -1,5 +1,6 @@
 // Map-matching benchmarks: one bilinear map evaluation (the unit the others
-// are compared with in the same run), fast MSD on a 200-point path, ICP on a
+// are compared with in the same run), fast MSD on a 200-point path and its
+// covariance step alone on 200 to 20 000 points, ICP on a
 // 1-million-cell map, the coarse MSD search over ±0.15° on the crustal map,
 // a single-point query, and the particle filters (a PF step with 3000
 // particles, an AFPF step at its adaptive count, the AFPF's first step, whole
@@ -8,8 +9,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 #include <string>
+#include <vector>
 
+#include "fast_msd_covariance.h"
 #include "magnav/mapmatch/match.h"
 
 namespace magnav::mapmatch {
@@ -85,6 +89,66 @@ void BM_FastMsd200Jacobi(benchmark::State& state) {
   state.counters["jacobi_iterations"] = iterations;
 }
 BENCHMARK(BM_FastMsd200Jacobi)->Unit(benchmark::kMillisecond);
+
+// Fast MSD's covariance step alone (mapmatch/src/fast_msd_covariance.h), as MatchFastMsd runs it after
+// the rounds: the EM for σ², τ² (at most 100 iterations, O(N) each) and the smoother's error covariance
+// with its 6 curvature passes (O(N) each). Input: an n-point linearisation with the crustal map's
+// gradients along BM_FastMsd200's path (repeated past 200 points), 0.5 nT residuals, corrections a random
+// walk of 3e-4° per point, every 10th point without data, the map's Hessian zero (the cost does not
+// depend on it). Time per point constant in n = O(N).
+void BM_FastMsdErrorCovariance(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  static const MatchPath p = SyntheticCrustalPath(200);
+  std::vector<double> gl(n), gn(n), r(n), el(n), en(n), zero(n, 0.0);
+  std::vector<char> data(n, 1);
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 0.5), step(0.0, 3e-4);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto s = Crustal().Sample(0, p.lat_deg[i % 200], p.lon_deg[i % 200]);
+    gl[i] = s->dvalue_dlat_nT_per_deg;
+    gn[i] = s->dvalue_dlon_nT_per_deg;
+    r[i] = noise(rng);
+    el[i] = (i > 0 ? el[i - 1] : 0.0) + step(rng);
+    en[i] = (i > 0 ? en[i - 1] : 0.0) + step(rng);
+    data[i] = i % 10 == 9 ? 0 : 1;
+  }
+  for (auto _ : state) {
+    const internal::ErrorCovariance c =
+        internal::FastMsdErrorCovariance(gl, gn, r, data, el, en, zero, zero, zero, 1e7);
+    benchmark::DoNotOptimize(c.lat_lat.data());
+  }
+  state.counters["points"] =
+      benchmark::Counter(static_cast<double>(n), benchmark::Counter::kIsIterationInvariantRate);
+}
+BENCHMARK(BM_FastMsdErrorCovariance)->Arg(200)->Arg(2000)->Arg(20000)->Unit(benchmark::kMicrosecond);
+
+// One curvature pass of it: the diagonal blocks of the sandwich M⁻¹ A M⁻¹ (SandwichDiagonalBlocks,
+// the part that was O(N²) before 2026-11-26 06:00) for the smoother's M and A on the same gradients
+// (λ = 1e7, σ² = 0.25 nT², τ² = 8e-8 deg²).
+void BM_FastMsdSandwich(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  static const MatchPath p = SyntheticCrustalPath(200);
+  const double h = 0.5e7, kt2 = h * h * 8e-8;
+  internal::BlockTridiagonal m, a;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto s = Crustal().Sample(0, p.lat_deg[i % 200], p.lon_deg[i % 200]);
+    const Eigen::Vector2d g(s->dvalue_dlat_nT_per_deg, s->dvalue_dlon_nT_per_deg);
+    const double d = (i == 0 || i + 1 == n) ? 1.0 : 2.0, w = (i == 0 || i + 1 == n) ? 0.5 : 1.0;
+    m.diag.push_back(h * d * Eigen::Matrix2d::Identity() + w * g * g.transpose());
+    a.diag.push_back(kt2 * d * Eigen::Matrix2d::Identity() + w * w * 0.25 * g * g.transpose());
+    if (i + 1 < n) {
+      m.upper.push_back(-h * Eigen::Matrix2d::Identity());
+      a.upper.push_back(-kt2 * Eigen::Matrix2d::Identity());
+    }
+  }
+  for (auto _ : state) {
+    const std::vector<Eigen::Matrix2d> x = internal::SandwichDiagonalBlocks(m, a);
+    benchmark::DoNotOptimize(x.data());
+  }
+  state.counters["points"] =
+      benchmark::Counter(static_cast<double>(n), benchmark::Counter::kIsIterationInvariantRate);
+}
+BENCHMARK(BM_FastMsdSandwich)->Arg(200)->Arg(20000)->Unit(benchmark::kMicrosecond);
 
 void BM_IcpMillionCells(benchmark::State& state) {
   // 1000 x 1000 nodes, 0.01° spacing, a smooth main-field-like layer.

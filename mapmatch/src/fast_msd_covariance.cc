@@ -70,38 +70,138 @@ namespace {
 using M2 = Eigen::Matrix2d;
 using V2 = Eigen::Vector2d;
 
-// Block-tridiagonal M = blkdiag(ω_i g gᵀ + h d_i I) − h (neighbours), factored by forward Schur complements.
-struct Tridiag {
-  std::vector<M2> s_inv;
-  double h = 0.0;
-  Tridiag(const std::vector<V2>& g, const std::vector<double>& omega, double h_) : s_inv(g.size()), h(h_) {
-    const std::size_t n = g.size();
+}  // namespace
+
+std::vector<M2> SandwichDiagonalBlocks(const BlockTridiagonal& m, const BlockTridiagonal& a) {
+  const std::size_t n = m.diag.size();
+  std::vector<M2> x(n);
+  if (n == 0) return x;
+  // Forward: S_i⁻¹ (p), Q_i = S_i⁻¹ B_i (q), K_i = S_i⁻¹ Ṡ_i S_i⁻¹ (k).
+  std::vector<M2> p(n), k(n), q(n - 1);
+  M2 s = m.diag[0], sd = a.diag[0];
+  for (std::size_t i = 0;; ++i) {
+    p[i] = s.inverse();
+    k[i] = p[i] * sd * p[i];
+    k[i] = 0.5 * (k[i] + k[i].transpose());
+    if (i + 1 == n) break;
+    q[i] = p[i] * m.upper[i];
+    const M2 aq = a.upper[i].transpose() * q[i];
+    s = m.diag[i + 1] - q[i].transpose() * m.upper[i];
+    s = 0.5 * (s + s.transpose());
+    sd = a.diag[i + 1] - aq - aq.transpose() + q[i].transpose() * sd * q[i];
+    sd = 0.5 * (sd + sd.transpose());
+  }
+  // Backward: Σ_i (M⁻¹'s diagonal blocks) and X_i.
+  M2 sigma = p[n - 1];
+  x[n - 1] = k[n - 1];
+  for (std::size_t i = n - 1; i-- > 0;) {
+    const M2 qd = p[i] * a.upper[i] - k[i] * m.upper[i];
+    const M2 t = qd * sigma * q[i].transpose();
+    x[i] = k[i] + q[i] * x[i + 1] * q[i].transpose() - t - t.transpose();
+    x[i] = 0.5 * (x[i] + x[i].transpose());
+    sigma = p[i] + q[i] * sigma * q[i].transpose();
+    sigma = 0.5 * (sigma + sigma.transpose());
+  }
+  return x;
+}
+
+namespace {
+
+// The smoother's error covariance (the sandwich), with the curvature term iterated: per point
+// the diagonal block of M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹, M = Gᵀ W G + (λ/2) L
+// (h = λ/2, ω = W's diagonal).
+std::vector<M2> SmootherErrorCovariance(const std::vector<V2>& g, const std::vector<double>& omega, double h,
+                                        double s2, double tau2, const std::vector<double>& h_ll,
+                                        const std::vector<double>& h_ln, const std::vector<double>& h_nn,
+                                        int curvature_iterations) {
+  const std::size_t n = g.size();
+  const auto degree = [n](std::size_t i) { return (i == 0 || i + 1 == n) ? 1.0 : 2.0; };  // the path graph's
+  const double kt2 = h * h * tau2;                                                          // (λ/2)² τ²
+  BlockTridiagonal m, a;  // M and the middle factor A
+  m.upper.assign(n - 1, -h * M2::Identity());
+  a.upper.assign(n - 1, -kt2 * M2::Identity());
+  for (std::size_t i = 0; i < n; ++i) {
+    m.diag.push_back(h * degree(i) * M2::Identity() + omega[i] * g[i] * g[i].transpose());
+  }
+  a.diag.resize(n);
+  std::vector<double> v(n, 0.0);  // the curvature term's second moment per reading (nT²)
+  std::vector<M2> cov;
+  for (int pass = 0;; ++pass) {
     for (std::size_t i = 0; i < n; ++i) {
-      M2 D = h * ((i == 0 || i == n - 1) ? 1.0 : 2.0) * M2::Identity() + omega[i] * g[i] * g[i].transpose();
-      if (i > 0) D -= h * h * s_inv[i - 1];
+      a.diag[i] =
+          kt2 * degree(i) * M2::Identity() + omega[i] * omega[i] * (s2 + v[i]) * g[i] * g[i].transpose();
+    }
+    cov = SandwichDiagonalBlocks(m, a);
+    if (pass + 1 >= curvature_iterations) return cov;
+    for (std::size_t i = 0; i < n; ++i) {
+      M2 H;
+      H << h_ll[i], h_ln[i], h_ln[i], h_nn[i];
+      const M2 hc = H * cov[i];
+      v[i] = 0.5 * (hc(0, 0) * hc(0, 0) + 2.0 * hc(0, 1) * hc(1, 0) + hc(1, 1) * hc(1, 1)) +
+             0.25 * hc.trace() * hc.trace();
+      if (!std::isfinite(v[i])) v[i] = 0.0;
+    }
+  }
+}
+
+// EM for σ², τ² in the linearised model (the posterior at h* = σ²/τ²) from *s2_io, *tau2_io:
+// readings y at gradients g with weights w (their sum sw). At most 100 iterations. Each is one
+// block-tridiagonal factorisation (forward) and one pass back for the posterior mean and M(h*)⁻¹'s
+// diagonal and first off-diagonal blocks (the oracle in tests/mapmatch/fast_msd_covariance_test.cc
+// computes the same with separate solve and block passes).
+void EstimateScales(const std::vector<V2>& g, const std::vector<double>& w, const std::vector<double>& y,
+                    double sw, double* s2_io, double* tau2_io) {
+  const std::size_t n = g.size();
+  double s2 = *s2_io, tau2 = *tau2_io;
+  std::vector<M2> s_inv(n), wggt(n);
+  std::vector<V2> b(n), mu(n), wyg(n);
+  std::vector<double> gsg(n), tr(n), tr_off(n);  // gᵀ Σ_i g, trace Σ_i, trace Σ_{i,i+1}
+  for (std::size_t i = 0; i < n; ++i) {
+    wggt[i] = w[i] * g[i] * g[i].transpose();
+    wyg[i] = w[i] * y[i] * g[i];
+  }
+  for (int it = 0; it < 100; ++it) {
+    const double h = s2 / tau2;
+    for (std::size_t i = 0; i < n; ++i) {
+      M2 D = h * ((i == 0 || i == n - 1) ? 1.0 : 2.0) * M2::Identity() + wggt[i];
+      b[i] = wyg[i];
+      if (i > 0) {
+        D -= h * h * s_inv[i - 1];
+        b[i] += h * (s_inv[i - 1] * b[i - 1]);
+      }
       s_inv[i] = D.inverse();
     }
-  }
-  // x = M⁻¹ b (b overwritten by the forward pass).
-  void Solve(std::vector<V2>* b, std::vector<V2>* x) const {
-    const std::size_t n = s_inv.size();
-    for (std::size_t i = 1; i < n; ++i) (*b)[i] += h * (s_inv[i - 1] * (*b)[i - 1]);
-    (*x)[n - 1] = s_inv[n - 1] * (*b)[n - 1];
-    for (std::size_t i = n - 1; i-- > 0;) (*x)[i] = s_inv[i] * ((*b)[i] + h * (*x)[i + 1]);
-  }
-  // Diagonal blocks Σ_i of M⁻¹ and the off-diagonal Σ_{i,i+1}.
-  void Blocks(std::vector<M2>* diag, std::vector<M2>* off) const {
-    const std::size_t n = s_inv.size();
-    diag->assign(n, M2::Zero());
-    off->assign(n, M2::Zero());
-    (*diag)[n - 1] = s_inv[n - 1];
+    mu[n - 1] = s_inv[n - 1] * b[n - 1];
+    M2 sigma = s_inv[n - 1];
+    gsg[n - 1] = g[n - 1].dot(sigma * g[n - 1]);
+    tr[n - 1] = sigma.trace();
     for (std::size_t i = n - 1; i-- > 0;) {
-      (*off)[i] = h * s_inv[i] * (*diag)[i + 1];
-      (*diag)[i] = s_inv[i] + h * (*off)[i] * s_inv[i].transpose();
-      (*diag)[i] = 0.5 * ((*diag)[i] + (*diag)[i].transpose());
+      mu[i] = s_inv[i] * (b[i] + h * mu[i + 1]);
+      const M2 off = h * s_inv[i] * sigma;
+      sigma = s_inv[i] + h * off * s_inv[i].transpose();
+      sigma = 0.5 * (sigma + sigma.transpose());
+      gsg[i] = g[i].dot(sigma * g[i]);
+      tr[i] = sigma.trace();
+      tr_off[i] = off.trace();
     }
+    double rs = 0.0, ds = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (w[i] > 0.0) {
+        const double r = y[i] - g[i].dot(mu[i]);
+        rs += w[i] * (r * r + s2 * gsg[i]);
+      }
+      if (i + 1 < n) ds += (mu[i + 1] - mu[i]).squaredNorm() + s2 * (tr[i] + tr[i + 1] - 2.0 * tr_off[i]);
+    }
+    const double s2_new = rs / sw, tau2_new = ds / (2.0 * static_cast<double>(n - 1));
+    if (!(s2_new > 0.0) || !(tau2_new > 0.0) || !std::isfinite(s2_new) || !std::isfinite(tau2_new)) break;
+    const bool done = std::abs(s2_new - s2) <= 1e-9 * s2 && std::abs(tau2_new - tau2) <= 1e-9 * tau2;
+    s2 = s2_new;
+    tau2 = tau2_new;
+    if (done) break;
   }
-};
+  *s2_io = s2;
+  *tau2_io = tau2;
+}
 
 }  // namespace
 
@@ -135,71 +235,13 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
     y[i] = g[i].dot(V2(e_lat[i], e_lon[i])) - resid[i];
     sw += w[i];
   }
-  // EM for σ², τ² in the linearised model (the posterior at h* = σ²/τ²).
   double s2 = laplace.s2_nT2, tau2 = s2 / h;
-  std::vector<M2> diag, off;
-  std::vector<V2> mu(n), b(n);
-  for (int it = 0; it < 100; ++it) {
-    const Tridiag t(g, w, s2 / tau2);
-    for (std::size_t i = 0; i < n; ++i) b[i] = w[i] * y[i] * g[i];
-    t.Solve(&b, &mu);
-    t.Blocks(&diag, &off);
-    double rs = 0.0, ds = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (w[i] > 0.0) {
-        const double r = y[i] - g[i].dot(mu[i]);
-        rs += w[i] * (r * r + s2 * g[i].dot(diag[i] * g[i]));
-      }
-      if (i + 1 < n) {
-        ds += (mu[i + 1] - mu[i]).squaredNorm() +
-              s2 * (diag[i].trace() + diag[i + 1].trace() - 2.0 * off[i].trace());
-      }
-    }
-    const double s2_new = rs / sw, tau2_new = ds / (2.0 * static_cast<double>(n - 1));
-    if (!(s2_new > 0.0) || !(tau2_new > 0.0) || !std::isfinite(s2_new) || !std::isfinite(tau2_new)) break;
-    const bool done = std::abs(s2_new - s2) <= 1e-9 * s2 && std::abs(tau2_new - tau2) <= 1e-9 * tau2;
-    s2 = s2_new;
-    tau2 = tau2_new;
-    if (done) break;
-  }
+  EstimateScales(g, w, y, sw, &s2, &tau2);
   out.s2_nT2 = s2;
   out.tau2_deg2 = tau2;
   out.edf = laplace.edf;
-  // The smoother's error covariance (sandwich), with the curvature term iterated.
-  const Tridiag m(g, w, h);
-  std::vector<double> v(n, 0.0);
-  std::vector<M2> cov(n);
-  std::vector<V2> x(n);
-  const double kt = h * std::sqrt(tau2);
-  for (int pass = 0; pass <= std::max(curvature_iterations - 1, 0); ++pass) {
-    std::fill(cov.begin(), cov.end(), M2::Zero());
-    const auto accumulate = [&]() {
-      m.Solve(&b, &x);
-      for (std::size_t i = 0; i < n; ++i) cov[i] += x[i] * x[i].transpose();
-    };
-    for (std::size_t j = 0; j < n; ++j) {  // the readings: ω_j √R_j g_j at block j
-      if (w[j] == 0.0) continue;
-      std::fill(b.begin(), b.end(), V2::Zero());
-      b[j] = w[j] * std::sqrt(s2 + v[j]) * g[j];
-      accumulate();
-    }
-    for (std::size_t j = 0; j + 1 < n; ++j) {  // the random walk: (λ/2) τ (e_{j+1} − e_j) per axis
-      for (int axis = 0; axis < 2; ++axis) {
-        std::fill(b.begin(), b.end(), V2::Zero());
-        b[j + 1](axis) = kt;
-        b[j](axis) = -kt;
-        accumulate();
-      }
-    }
-    if (pass + 1 >= curvature_iterations) break;
-    for (std::size_t i = 0; i < n; ++i) {
-      M2 H;
-      H << h_ll[i], h_ln[i], h_ln[i], h_nn[i];
-      const M2 a = H * cov[i];
-      v[i] = 0.5 * (a(0, 0) * a(0, 0) + 2.0 * a(0, 1) * a(1, 0) + a(1, 1) * a(1, 1)) + 0.25 * a.trace() * a.trace();
-      if (!std::isfinite(v[i])) v[i] = 0.0;
-    }
-  }
+  const std::vector<M2> cov =
+      SmootherErrorCovariance(g, w, h, s2, tau2, h_ll, h_ln, h_nn, curvature_iterations);
   for (std::size_t i = 0; i < n; ++i) {
     out.lat_lat[i] = cov[i](0, 0);
     out.lat_lon[i] = 0.5 * (cov[i](0, 1) + cov[i](1, 0));

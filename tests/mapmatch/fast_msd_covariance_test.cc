@@ -2,13 +2,17 @@
 // block-tridiagonal recursion gives the diagonal blocks of the dense inverse
 // of the posterior precision, and its residual variance counts the smoother's
 // effective parameters; the error covariance fast MSD writes
-// (FastMsdErrorCovariance) is the dense sandwich.
+// (FastMsdErrorCovariance) is the dense sandwich, and its O(N) recursion
+// (SandwichDiagonalBlocks) gives what the O(N²) column sums it replaced gave.
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
 #include <gtest/gtest.h>
 
 #include "fast_msd_covariance.h"
@@ -68,7 +72,7 @@ TEST(FastMsdCovariance, NoDataTermIsInfinite) {
   for (double v : c.lat_lat) EXPECT_TRUE(std::isinf(v));
 }
 
-// The error covariance's O(N²) column sums are the dense sandwich
+// The error covariance (FastMsdErrorCovariance) is the dense sandwich
 // M⁻¹ (σ² Gᵀ W R W G + (λ/2)² τ² L) M⁻¹ with its own σ², τ² and no curvature.
 TEST(FastMsdCovariance, ErrorCovarianceIsTheDenseSandwich) {
   std::mt19937 rng(11);
@@ -105,6 +109,299 @@ TEST(FastMsdCovariance, ErrorCovarianceIsTheDenseSandwich) {
     EXPECT_NEAR(c.lat_lat[i], C(2 * i, 2 * i), 1e-6 * C(2 * i, 2 * i)) << i;
     EXPECT_NEAR(c.lat_lon[i], C(2 * i, 2 * i + 1), 1e-6 * std::sqrt(C(2 * i, 2 * i) * C(2 * i + 1, 2 * i + 1))) << i;
     EXPECT_NEAR(c.lon_lon[i], C(2 * i + 1, 2 * i + 1), 1e-6 * C(2 * i + 1, 2 * i + 1)) << i;
+  }
+}
+
+
+// ---- The O(N) sandwich (SandwichDiagonalBlocks) ----
+
+using M2 = Eigen::Matrix2d;
+using V2 = Eigen::Vector2d;
+
+Eigen::MatrixXd Dense(const internal::BlockTridiagonal& t) {
+  const std::size_t n = t.diag.size();
+  Eigen::MatrixXd d = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    d.block<2, 2>(2 * i, 2 * i) = t.diag[i];
+    if (i + 1 < n) {
+      d.block<2, 2>(2 * i, 2 * i + 2) = t.upper[i];
+      d.block<2, 2>(2 * i + 2, 2 * i) = t.upper[i].transpose();
+    }
+  }
+  return d;
+}
+
+// The smoother's M (gradients ~2e4 nT/deg, λ = 1e7, every 7th point and the `gap` points from n/3 on
+// without data) and a middle factor of its form (σ² = 0.3 nT², τ² = 1e-7 deg²) plus, when `generic`,
+// random perturbations of every block (A then need not be of the smoother's form, nor definite).
+std::pair<internal::BlockTridiagonal, internal::BlockTridiagonal> RandomPair(std::size_t n, unsigned seed,
+                                                                              bool generic, std::size_t gap) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gd(0.0, 2e4), u(0.0, 1.0);
+  const double h = 0.5e7, kt2 = h * h * 1e-7;
+  internal::BlockTridiagonal m, a;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double d = (i == 0 || i == n - 1) ? 1.0 : 2.0;
+    const bool none = i % 7 == 3 || (i >= n / 3 && i < n / 3 + gap);
+    const double w = none ? 0.0 : (i == 0 || i == n - 1) ? 0.5 : 1.0;
+    const V2 g(gd(rng), gd(rng));
+    m.diag.push_back(h * d * M2::Identity() + w * g * g.transpose());
+    a.diag.push_back(kt2 * d * M2::Identity() + w * w * 0.3 * g * g.transpose());
+    if (i + 1 < n) {
+      m.upper.push_back(-h * M2::Identity());
+      a.upper.push_back(-kt2 * M2::Identity());
+    }
+    if (generic) {
+      M2 e;
+      e << u(rng), u(rng), u(rng), u(rng);
+      const M2 sym = 0.2 * h * (e + e.transpose());
+      m.diag.back() += sym * sym / (4.0 * h);  // M stays positive definite
+      a.diag.back() += 0.5 * kt2 * (e + e.transpose());
+      if (i + 1 < n) {
+        M2 f;
+        f << u(rng), u(rng), u(rng), u(rng);
+        a.upper.back() += 0.5 * kt2 * f;
+      }
+    }
+  }
+  return {m, a};
+}
+
+TEST(FastMsdSandwich, DiagonalBlocksAreTheDenseProduct) {
+  for (const std::size_t n : {1u, 2u, 3u, 8u, 41u, 300u}) {
+    for (const bool generic : {false, true}) {
+      const auto [m, a] = RandomPair(n, 100 + static_cast<unsigned>(n), generic, n / 10);
+      const std::vector<M2> x = internal::SandwichDiagonalBlocks(m, a);
+      const Eigen::MatrixXd mi = Dense(m).ldlt().solve(Eigen::MatrixXd::Identity(2 * n, 2 * n));
+      const Eigen::MatrixXd c = mi * Dense(a) * mi;
+      ASSERT_EQ(x.size(), n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const M2 ref = c.block<2, 2>(2 * i, 2 * i);
+        EXPECT_LE((x[i] - ref).norm(), 1e-9 * ref.norm())
+            << "n " << n << " generic " << generic << " i " << i;
+      }
+    }
+  }
+}
+
+// The O(N²) computation the recursion replaced (one block-tridiagonal solve per reading and per random-walk
+// step and axis, summed over the columns of a square root of A), kept as the oracle: the same EM, the same
+// curvature passes.
+struct Tridiag {
+  std::vector<M2> s_inv;
+  double h = 0.0;
+  Tridiag(const std::vector<V2>& g, const std::vector<double>& omega, double h_) : s_inv(g.size()), h(h_) {
+    const std::size_t n = g.size();
+    for (std::size_t i = 0; i < n; ++i) {
+      M2 D = h * ((i == 0 || i == n - 1) ? 1.0 : 2.0) * M2::Identity() + omega[i] * g[i] * g[i].transpose();
+      if (i > 0) D -= h * h * s_inv[i - 1];
+      s_inv[i] = D.inverse();
+    }
+  }
+  void Solve(std::vector<V2>* b, std::vector<V2>* x) const {
+    const std::size_t n = s_inv.size();
+    for (std::size_t i = 1; i < n; ++i) (*b)[i] += h * (s_inv[i - 1] * (*b)[i - 1]);
+    (*x)[n - 1] = s_inv[n - 1] * (*b)[n - 1];
+    for (std::size_t i = n - 1; i-- > 0;) (*x)[i] = s_inv[i] * ((*b)[i] + h * (*x)[i + 1]);
+  }
+  void Blocks(std::vector<M2>* diag, std::vector<M2>* off) const {
+    const std::size_t n = s_inv.size();
+    diag->assign(n, M2::Zero());
+    off->assign(n, M2::Zero());
+    (*diag)[n - 1] = s_inv[n - 1];
+    for (std::size_t i = n - 1; i-- > 0;) {
+      (*off)[i] = h * s_inv[i] * (*diag)[i + 1];
+      (*diag)[i] = s_inv[i] + h * (*off)[i] * s_inv[i].transpose();
+      (*diag)[i] = 0.5 * ((*diag)[i] + (*diag)[i].transpose());
+    }
+  }
+};
+
+internal::ErrorCovariance ErrorCovarianceByColumns(
+    const std::vector<double>& g_lat, const std::vector<double>& g_lon, const std::vector<double>& resid,
+    const std::vector<char>& data, const std::vector<double>& e_lat, const std::vector<double>& e_lon,
+    const std::vector<double>& h_ll, const std::vector<double>& h_ln, const std::vector<double>& h_nn,
+    double lambda, int curvature_iterations) {
+  const std::size_t n = g_lat.size();
+  internal::ErrorCovariance out;
+  const internal::PathCovariance laplace = internal::FastMsdCovariance(g_lat, g_lon, resid, data, lambda);
+  const double h = 0.5 * lambda;
+  std::vector<V2> g(n, V2::Zero());
+  std::vector<double> w(n, 0.0), y(n, 0.0);
+  double sw = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!data[i]) continue;
+    g[i] = V2(g_lat[i], g_lon[i]);
+    w[i] = (i == 0 || i == n - 1) ? 0.5 : 1.0;
+    y[i] = g[i].dot(V2(e_lat[i], e_lon[i])) - resid[i];
+    sw += w[i];
+  }
+  double s2 = laplace.s2_nT2, tau2 = s2 / h;
+  std::vector<M2> diag, off;
+  std::vector<V2> mu(n), b(n);
+  for (int it = 0; it < 100; ++it) {
+    const Tridiag t(g, w, s2 / tau2);
+    for (std::size_t i = 0; i < n; ++i) b[i] = w[i] * y[i] * g[i];
+    t.Solve(&b, &mu);
+    t.Blocks(&diag, &off);
+    double rs = 0.0, ds = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (w[i] > 0.0) {
+        const double r = y[i] - g[i].dot(mu[i]);
+        rs += w[i] * (r * r + s2 * g[i].dot(diag[i] * g[i]));
+      }
+      if (i + 1 < n) {
+        ds += (mu[i + 1] - mu[i]).squaredNorm() +
+              s2 * (diag[i].trace() + diag[i + 1].trace() - 2.0 * off[i].trace());
+      }
+    }
+    const double s2_new = rs / sw, tau2_new = ds / (2.0 * static_cast<double>(n - 1));
+    if (!(s2_new > 0.0) || !(tau2_new > 0.0) || !std::isfinite(s2_new) || !std::isfinite(tau2_new)) break;
+    const bool done = std::abs(s2_new - s2) <= 1e-9 * s2 && std::abs(tau2_new - tau2) <= 1e-9 * tau2;
+    s2 = s2_new;
+    tau2 = tau2_new;
+    if (done) break;
+  }
+  out.s2_nT2 = s2;
+  out.tau2_deg2 = tau2;
+  out.edf = laplace.edf;
+  const Tridiag m(g, w, h);
+  std::vector<double> v(n, 0.0);
+  std::vector<M2> cov(n);
+  std::vector<V2> x(n);
+  const double kt = h * std::sqrt(tau2);
+  for (int pass = 0; pass <= std::max(curvature_iterations - 1, 0); ++pass) {
+    std::fill(cov.begin(), cov.end(), M2::Zero());
+    const auto accumulate = [&]() {
+      m.Solve(&b, &x);
+      for (std::size_t i = 0; i < n; ++i) cov[i] += x[i] * x[i].transpose();
+    };
+    for (std::size_t j = 0; j < n; ++j) {
+      if (w[j] == 0.0) continue;
+      std::fill(b.begin(), b.end(), V2::Zero());
+      b[j] = w[j] * std::sqrt(s2 + v[j]) * g[j];
+      accumulate();
+    }
+    for (std::size_t j = 0; j + 1 < n; ++j) {
+      for (int axis = 0; axis < 2; ++axis) {
+        std::fill(b.begin(), b.end(), V2::Zero());
+        b[j + 1](axis) = kt;
+        b[j](axis) = -kt;
+        accumulate();
+      }
+    }
+    if (pass + 1 >= curvature_iterations) break;
+    for (std::size_t i = 0; i < n; ++i) {
+      M2 H;
+      H << h_ll[i], h_ln[i], h_ln[i], h_nn[i];
+      const M2 a = H * cov[i];
+      v[i] = 0.5 * (a(0, 0) * a(0, 0) + 2.0 * a(0, 1) * a(1, 0) + a(1, 1) * a(1, 1)) +
+             0.25 * a.trace() * a.trace();
+      if (!std::isfinite(v[i])) v[i] = 0.0;
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    out.lat_lat.push_back(cov[i](0, 0));
+    out.lat_lon.push_back(0.5 * (cov[i](0, 1) + cov[i](1, 0)));
+    out.lon_lon.push_back(cov[i](1, 1));
+  }
+  return out;
+}
+
+// A path of the generated kind: gradients of a few 1e4 nT/deg, residuals of σ ≈ 0.5 nT, corrections a
+// random walk of ~3e-4 deg per point, the map's curvature ~1e6 nT/deg² (enough that the curvature passes
+// change the result), stretches without a data term.
+struct LinearisedPath {
+  std::vector<double> gl, gn, r, el, en, hll, hln, hnn;
+  std::vector<char> data;
+};
+LinearisedPath RandomPath(std::size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gd(0.0, 2e4), res(0.0, 0.5), step(0.0, 3e-4), hd(0.0, 1e6);
+  LinearisedPath p;
+  double el = 0.0, en = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    el += step(rng);
+    en += step(rng);
+    p.gl.push_back(gd(rng));
+    p.gn.push_back(gd(rng));
+    p.r.push_back(res(rng));
+    p.el.push_back(el);
+    p.en.push_back(en);
+    p.hll.push_back(hd(rng));
+    p.hln.push_back(hd(rng));
+    p.hnn.push_back(hd(rng));
+    p.data.push_back((i % 11 == 5 || (i >= n / 3 && i < n / 3 + n / 10)) ? 0 : 1);
+  }
+  if (n > 3) p.data[0] = 0;  // a first point without data as well
+  return p;
+}
+
+TEST(FastMsdSandwich, ErrorCovarianceIsTheColumnSums) {
+  for (const std::size_t n : {2u, 3u, 9u, 60u, 250u}) {
+    const LinearisedPath p = RandomPath(n, 500 + static_cast<unsigned>(n));
+    for (const int passes : {1, 6}) {
+      const internal::ErrorCovariance c = internal::FastMsdErrorCovariance(
+          p.gl, p.gn, p.r, p.data, p.el, p.en, p.hll, p.hln, p.hnn, 1e7, passes);
+      const internal::ErrorCovariance o =
+          ErrorCovarianceByColumns(p.gl, p.gn, p.r, p.data, p.el, p.en, p.hll, p.hln, p.hnn, 1e7, passes);
+      ASSERT_GT(c.s2_nT2, 0.0);
+      ASSERT_GT(c.tau2_deg2, 0.0);
+      EXPECT_NEAR(c.s2_nT2, o.s2_nT2, 1e-12 * o.s2_nT2);  // the same EM
+      EXPECT_NEAR(c.tau2_deg2, o.tau2_deg2, 1e-12 * o.tau2_deg2);
+      ASSERT_EQ(c.lat_lat.size(), n);
+      ASSERT_EQ(o.lat_lat.size(), n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double s = std::sqrt(o.lat_lat[i] * o.lon_lon[i]);
+        const auto where = [&] { return "n " + std::to_string(n) + " passes " + std::to_string(passes); };
+        EXPECT_NEAR(c.lat_lat[i], o.lat_lat[i], 1e-9 * o.lat_lat[i]) << where() << " i " << i;
+        EXPECT_NEAR(c.lat_lon[i], o.lat_lon[i], 1e-9 * s) << where() << " i " << i;
+        EXPECT_NEAR(c.lon_lon[i], o.lon_lon[i], 1e-9 * o.lon_lon[i]) << where() << " i " << i;
+      }
+    }
+  }
+}
+
+// 20 000 points (a 2 000-point stretch without data among them): every block finite and positive definite,
+// and at sampled points equal to eᵀ M⁻¹ A M⁻¹ e from two sparse solves (Eigen's LDLᵀ of the whole M).
+TEST(FastMsdSandwich, LongPathIsFiniteAndMatchesSampledColumns) {
+  const std::size_t n = 20000;
+  const auto [m, a] = RandomPair(n, 7, false, 2000);
+  const std::vector<M2> x = internal::SandwichDiagonalBlocks(m, a);
+  ASSERT_EQ(x.size(), n);
+  for (std::size_t i = 0; i < n; ++i) {
+    ASSERT_TRUE(x[i].allFinite()) << i;
+    ASSERT_GT(x[i](0, 0), 0.0) << i;
+    ASSERT_GT(x[i].determinant(), 0.0) << i;
+  }
+  const auto sparse = [n](const internal::BlockTridiagonal& t) {
+    std::vector<Eigen::Triplet<double>> e;
+    for (std::size_t i = 0; i < n; ++i) {
+      for (int r = 0; r < 2; ++r) {
+        for (int c = 0; c < 2; ++c) {
+          const auto I = static_cast<int>(2 * i);
+          e.emplace_back(I + r, I + c, t.diag[i](r, c));
+          if (i + 1 < n) {
+            e.emplace_back(I + r, I + 2 + c, t.upper[i](r, c));
+            e.emplace_back(I + 2 + c, I + r, t.upper[i](r, c));
+          }
+        }
+      }
+    }
+    Eigen::SparseMatrix<double> s(static_cast<int>(2 * n), static_cast<int>(2 * n));
+    s.setFromTriplets(e.begin(), e.end());
+    return s;
+  };
+  const Eigen::SparseMatrix<double> ms = sparse(m), as = sparse(a);
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(ms);
+  ASSERT_EQ(ldlt.info(), Eigen::Success);
+  for (const std::size_t i : {0u, 1u, 2u, 4321u, 6665u, 6666u, 7666u, 8665u, 8666u, 12345u, 19998u, 19999u}) {
+    Eigen::MatrixXd e = Eigen::MatrixXd::Zero(static_cast<int>(2 * n), 2);
+    e(static_cast<int>(2 * i), 0) = 1.0;
+    e(static_cast<int>(2 * i) + 1, 1) = 1.0;
+    const Eigen::MatrixXd c = ldlt.solve(e);
+    const M2 ref = c.transpose() * (as * c);
+    EXPECT_LE((x[i] - ref).norm(), 1e-9 * ref.norm()) << i;
   }
 }
 

@@ -100,7 +100,7 @@ struct FastMsdOptions {
 // drift τ² (a random walk of the corrections, per point and axis) are
 // estimated from the path (EM on the linearised model), not tied together by
 // λ: M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹, M = Gᵀ W G + (λ/2) L, with R = σ²
-// plus the variance of the map's second-order term over the position error
+// plus the second moment of the map's second-order term over the position error
 // (the grid's curvature). Widened to cover a second peak when ambiguous
 // (above). Calibration: docs/ACCURACY.md, "Trust: covariance calibration".
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
