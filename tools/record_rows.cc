@@ -63,6 +63,7 @@ std::vector<std::string> Header(const std::string& topic) {
   AppendNamed(h, "moment_cov_", kCov, 9);
   h.push_back("num_sensors");
   h.push_back("usable");
+  h.push_back("state");  // confirmed | coasting | "" (unknown: a publisher older than the field)
   return h;
 }
 
@@ -107,6 +108,19 @@ const char* MapFixStatusName(dds::msg::MapFixStatus s) {
       return "lost";
     case dds::msg::MAP_FIX_STATUS_OFF_MAP:
       return "off_map";
+    default:
+      return "";
+  }
+}
+
+// TrackEstimate.state as written in the CSV (the words of `magnav track`'s
+// state column; "" = unknown: a publisher older than the field).
+const char* TrackStateName(dds::msg::TrackState s) {
+  switch (s) {
+    case dds::msg::TRACK_STATE_CONFIRMED:
+      return "confirmed";
+    case dds::msg::TRACK_STATE_COASTING:
+      return "coasting";
     default:
       return "";
   }
@@ -158,6 +172,7 @@ std::vector<std::string> Row(const dds::msg::TrackEstimate& m) {
   Append(f, m.moment_covariance());
   f.push_back(std::to_string(m.num_sensors()));
   f.push_back(m.usable() ? "1" : "0");
+  f.push_back(TrackStateName(m.state()));
   return f;
 }
 

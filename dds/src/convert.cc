@@ -21,6 +21,9 @@ static_assert(static_cast<std::uint32_t>(MapFixStatus::kUnknown) == msg::MAP_FIX
 static_assert(static_cast<std::uint32_t>(MapFixStatus::kOk) == msg::MAP_FIX_STATUS_OK);
 static_assert(static_cast<std::uint32_t>(MapFixStatus::kLost) == msg::MAP_FIX_STATUS_LOST);
 static_assert(static_cast<std::uint32_t>(MapFixStatus::kOffMap) == msg::MAP_FIX_STATUS_OFF_MAP);
+static_assert(static_cast<std::uint32_t>(TrackState::kUnknown) == msg::TRACK_STATE_UNKNOWN);
+static_assert(static_cast<std::uint32_t>(TrackState::kConfirmed) == msg::TRACK_STATE_CONFIRMED);
+static_assert(static_cast<std::uint32_t>(TrackState::kCoasting) == msg::TRACK_STATE_COASTING);
 static_assert(static_cast<std::uint32_t>(NavSource::kGnss) == msg::NAV_GNSS);
 static_assert(static_cast<std::uint32_t>(NavSource::kIns) == msg::NAV_INS);
 static_assert(static_cast<std::uint32_t>(NavSource::kOther) == msg::NAV_OTHER);
@@ -172,6 +175,7 @@ TrackRecord RecordOf(const msg::TrackEstimate& m) {
   r.cov_m_B = Mat(m.moment_covariance());
   r.num_sensors = m.num_sensors();
   r.usable = m.usable();
+  r.state = static_cast<TrackState>(m.state());  // a value this IDL does not know is carried
   return r;
 }
 
@@ -188,6 +192,7 @@ msg::TrackEstimate ToMsg(const TrackRecord& r) {
   m.moment_covariance(Arr(r.cov_m_B));
   m.num_sensors(r.num_sensors);
   m.usable(r.usable);
+  m.state(static_cast<msg::TrackState>(r.state));
   return m;
 }
 

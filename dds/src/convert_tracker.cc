@@ -10,7 +10,7 @@ tracker::DipoleFix FromMsg(const msg::DipoleFix& m) {
 }
 
 TrackRecord ToRecord(const tracker::EpochEstimate& e, const Eigen::Vector3d& m_B_Am2, const Eigen::Matrix3d& cov_m_B,
-                     std::uint32_t track_id) {
+                     std::uint32_t track_id, tracker::TrackState state) {
   TrackRecord r;
   r.track_id = track_id;
   r.stamp_ns = SecondsToNanos(e.t_s);
@@ -23,12 +23,13 @@ TrackRecord ToRecord(const tracker::EpochEstimate& e, const Eigen::Vector3d& m_B
   r.cov_m_B = cov_m_B;
   r.num_sensors = static_cast<std::uint32_t>(e.num_samples);
   r.usable = e.usable;
+  r.state = state == tracker::TrackState::kCoasting ? TrackState::kCoasting : TrackState::kConfirmed;
   return r;
 }
 
 msg::TrackEstimate ToMsg(const tracker::EpochEstimate& e, const Eigen::Vector3d& m_B_Am2,
-                         const Eigen::Matrix3d& cov_m_B, std::uint32_t track_id) {
-  return ToMsg(ToRecord(e, m_B_Am2, cov_m_B, track_id));
+                         const Eigen::Matrix3d& cov_m_B, std::uint32_t track_id, tracker::TrackState state) {
+  return ToMsg(ToRecord(e, m_B_Am2, cov_m_B, track_id, state));
 }
 
 }  // namespace magnav::dds

@@ -128,6 +128,7 @@ msg::TrackEstimate Track(Filler& f) {
   m.moment_covariance(f.A<9>());
   m.num_sensors(5);
   m.usable(true);
+  m.state(msg::TRACK_STATE_COASTING);
   return m;
 }
 
@@ -183,6 +184,7 @@ TEST(DdsConvert, RecordsHoldEachFieldWhereTheIdlSays) {
   EXPECT_EQ(r.cov_p_m2(0, 1), t.covariance()[1]);  // row-major: [3 i + j] = (i, j)
   EXPECT_EQ(r.cov_p_m2(1, 0), t.covariance()[3]);
   EXPECT_EQ(r.cov_m_B(2, 1), t.moment_covariance()[7]);
+  EXPECT_EQ(r.state, TrackState::kCoasting);
   const msg::MapFix mf = MapFixMsg(f, msg::METHOD_AFPF, msg::MAP_FIX_STATUS_LOST);
   const MapFixRecord mr = RecordOf(mf);
   EXPECT_EQ(mr.cov_ne_m2(0, 1), mf.covariance()[1]);
@@ -211,6 +213,13 @@ TEST(DdsConvert, EveryEnumValueRoundTripsAndUnknownOnesAreCarried) {
     ExpectRoundTrip(m);
     EXPECT_EQ(static_cast<std::uint32_t>(RecordOf(m).status), v);
     EXPECT_EQ(ToMsg(RecordOf(m)).status(), status);
+  }
+  for (std::uint32_t v = 0; v <= msg::TRACK_STATE_COASTING + 1; ++v) {
+    msg::TrackEstimate m = Track(f);
+    m.state(static_cast<msg::TrackState>(v));
+    ExpectRoundTrip(m);
+    EXPECT_EQ(static_cast<std::uint32_t>(RecordOf(m).state), v);
+    EXPECT_EQ(ToMsg(RecordOf(m)).state(), m.state());
   }
   for (std::uint32_t v = 0; v <= msg::NAV_OTHER + 1; ++v) {
     const auto source = static_cast<msg::NavSource>(v);
@@ -278,14 +287,19 @@ TEST(DdsConvert, TrackerEpochOnTheWire) {
   e.has_covariance = true;
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < 6; ++j) e.cov_state(i, j) = 10 * i + j + 1;
-  const msg::TrackEstimate m = ToMsg(e, Eigen::Vector3d(1, 2, 3), Eigen::Matrix3d::Identity(), 77);
+  const msg::TrackEstimate m =
+      ToMsg(e, Eigen::Vector3d(1, 2, 3), Eigen::Matrix3d::Identity(), 77, tracker::TrackState::kConfirmed);
   EXPECT_EQ(m.track_id(), 77u);
   EXPECT_EQ(m.stamp_ns(), SecondsToNanos(12.5));
   EXPECT_EQ(m.covariance()[5], e.cov_state(1, 2));
   EXPECT_EQ(m.num_sensors(), 6u);
   EXPECT_NEAR(std::hypot(m.velocity()[0], m.velocity()[1]), 2.0, 1e-12);
+  EXPECT_EQ(m.state(), msg::TRACK_STATE_CONFIRMED);
+  EXPECT_EQ(ToMsg(e, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(), 77, tracker::TrackState::kCoasting).state(),
+            msg::TRACK_STATE_COASTING);
   e.usable = false;  // an unusable estimate: no covariance
-  EXPECT_EQ(ToMsg(e, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(), 77).covariance(), (std::array<double, 9>{}));
+  EXPECT_EQ(ToMsg(e, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(), 77, tracker::TrackState::kConfirmed).covariance(),
+            (std::array<double, 9>{}));
 }
 
 TEST(DdsConvert, LocalizerTypesOnTheWire) {

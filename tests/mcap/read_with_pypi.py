@@ -96,6 +96,12 @@ class DipoleFix(IdlStruct, typename="magnav::msg::DipoleFix"):
     covariance: array[float64, 9]
 
 
+class TrackState(IdlEnum, typename="magnav::msg::TrackState"):
+    TRACK_STATE_UNKNOWN = 0
+    TRACK_STATE_CONFIRMED = 1
+    TRACK_STATE_COASTING = 2
+
+
 @dataclass
 class TrackEstimate(IdlStruct, typename="magnav::msg::TrackEstimate"):
     track_id: uint32
@@ -109,6 +115,7 @@ class TrackEstimate(IdlStruct, typename="magnav::msg::TrackEstimate"):
     moment_covariance: array[float64, 9]
     num_sensors: uint32
     usable: bool
+    state: TrackState
 
 
 @dataclass

@@ -140,6 +140,9 @@ void ExpectSameEstimates(const std::vector<msg::TrackEstimate>& got, const std::
     for (int k = 0; k < 3; ++k) ASSERT_EQ(got[i].position()[k], w.p_VinW[k]) << i;
     EXPECT_EQ(got[i].heading(), w.heading_rad) << i;
     EXPECT_EQ(got[i].usable(), w.usable) << i;
+    EXPECT_EQ(got[i].state(), want[i].state == TrackState::kCoasting ? msg::TRACK_STATE_COASTING
+                                                                     : msg::TRACK_STATE_CONFIRMED)
+        << i;
     if (w.usable && w.has_covariance) {
       EXPECT_EQ(got[i].covariance()[0], w.cov_state(0, 0)) << i;
     }
@@ -500,7 +503,7 @@ TEST(TrackerService, B0IsGivenOrEstimatedNeverAssumed) {
     EXPECT_NE(log.find("estimated per sensor"), std::string::npos) << log;
     EXPECT_NE(log.find("B0 estimated"), std::string::npos) << log;
     std::vector<msg::TrackEstimate> ref;
-    for (const auto& e : known) ref.push_back(ToMsg(e.estimate, e.m_B_Am2, e.cov_m_B, e.track_id));
+    for (const auto& e : known) ref.push_back(ToMsg(e.estimate, e.m_B_Am2, e.cov_m_B, e.track_id, e.state));
     const auto [rms, n] = RmsWithin30m(got, "auv");
     const auto [rms_known, n_known] = RmsWithin30m(ref, "auv");
     std::printf("AUV fluxgate window, B0 estimated: RMS %.4f m over %d (%zu estimates); true B0: %.4f m over %d "

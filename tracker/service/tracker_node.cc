@@ -298,7 +298,7 @@ void TrackerNode::Publish(const std::vector<TrackOutput>& estimates, bool unregi
       }
     }
   }
-  for (const auto& o : estimates) writer_->Write(ToMsg(o.estimate, o.m_B_Am2, o.cov_m_B, o.track_id));
+  for (const auto& o : estimates) writer_->Write(ToMsg(o.estimate, o.m_B_Am2, o.cov_m_B, o.track_id, o.state));
   for (const std::uint32_t id : ended) {
     dds::msg::TrackEstimate key;
     key.track_id(id);

@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "magnav/dds/convert.h"
+#include "magnav/tracker/multi_tracker.h"
 #include "magnav/tracker/tracker.h"
 
 namespace magnav::dds {
@@ -16,10 +17,11 @@ tracker::DipoleFix FromMsg(const msg::DipoleFix& m);
 
 // magnav/track of one epoch of track `track_id` with the track's body moment
 // and its covariance: the position covariance only when the estimate is
-// usable and has one (else all 0).
+// usable and has one (else all 0); `state` what the epoch's estimate rests on
+// (multi_tracker.h).
 TrackRecord ToRecord(const tracker::EpochEstimate& e, const Eigen::Vector3d& m_B_Am2, const Eigen::Matrix3d& cov_m_B,
-                     std::uint32_t track_id);
+                     std::uint32_t track_id, tracker::TrackState state);
 msg::TrackEstimate ToMsg(const tracker::EpochEstimate& e, const Eigen::Vector3d& m_B_Am2,
-                         const Eigen::Matrix3d& cov_m_B, std::uint32_t track_id);
+                         const Eigen::Matrix3d& cov_m_B, std::uint32_t track_id, tracker::TrackState state);
 
 }  // namespace magnav::dds

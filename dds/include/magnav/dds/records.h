@@ -38,6 +38,12 @@ enum class MapFixStatus : std::uint32_t {
   kLost = 2,     // the lost-track detector is raised: do not use the position
   kOffMap = 3,   // every particle off the map: dead-reckoning on the INS
 };
+// TrackEstimate.state (the wire's TrackState; tracker::TrackState in the library).
+enum class TrackState : std::uint32_t {
+  kUnknown = 0,    // not filled (a publisher older than the field)
+  kConfirmed = 1,  // detected at this epoch
+  kCoasting = 2,   // not detected: the motion model's prediction
+};
 enum class NavSource : std::uint32_t { kGnss = 0, kIns = 1, kOther = 2 };
 
 // magnav/gradiometer.
@@ -104,6 +110,7 @@ struct TrackRecord {
   Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();  // (A·m²)²
   std::uint32_t num_sensors = 0;
   bool usable = false;
+  TrackState state = TrackState::kUnknown;
 };
 
 // magnav/sensor_position.
