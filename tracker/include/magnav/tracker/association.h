@@ -132,7 +132,9 @@ struct EvidenceAssignment {
 // slot — so a track takes at most one fix of each sensor and epoch, and each
 // fix goes to at most one track — and one miss cost per slot, above every
 // allowed pair's (as many pairs as possible are made; among those, the
-// likeliest).
+// likeliest). With at most one fix per sensor (the tracker's own: one per
+// sample) this splits by sensor: each fix goes to the likeliest track whose
+// gates it passes.
 // Throws std::invalid_argument if tensor_snr is not gates × evidence.
 EvidenceAssignment AssignEvidence(const std::vector<Evidence>& evidence, const std::vector<TrackGate>& gates,
                                   const Eigen::MatrixXd& tensor_snr, const TrackManagementOptions& management);
