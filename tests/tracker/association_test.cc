@@ -1,10 +1,15 @@
 // The multi-tracker's associator alone (association.h) on hand-made
 // predictions: the SNR gate, the joint model (the other tracks' fields
 // removed from a shared sample, their model error added to its σ), and the
-// detected / missed / poor-fit / unobserved verdicts.
+// detected / missed / poor-fit / unobserved verdicts; and the evidence
+// assignment (AssignEvidence: which single-sample fix belongs to which track,
+// on cases where the former rule — a fix within min_separation_m, 8 m, of
+// any track is "that track's" — or a nearest-fix choice goes wrong).
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <stdexcept>
+#include <vector>
 
 #include "magnav/tracker/association.h"
 
@@ -121,6 +126,143 @@ TEST(Association, ATrackWithoutPredictionTakesAndRemovesNothing) {
   ASSERT_EQ(a[1].mine.samples.size(), 1u);
   EXPECT_DOUBLE_EQ(a[1].mine.samples[0].sigma_B, 1e-9);  // nothing removed
   EXPECT_TRUE(a[1].detected);
+}
+
+TrackGate Gate(const Eigen::Vector3d& p, const Eigen::Vector3d& sigma) {
+  TrackGate g;
+  g.valid = true;
+  g.p_W = p;
+  g.cov_p_W = sigma.array().square().matrix().asDiagonal();
+  return g;
+}
+
+Evidence Fix(std::uint32_t sensor, const Eigen::Vector3d& p, double sigma) {
+  return {sensor, p, sigma * sigma * Eigen::Matrix3d::Identity()};
+}
+
+// Two tracks 2 m apart, crossing evidence: A's covariance is long along x
+// (1.5 m), B's tight (0.1 m). Fix 0 is nearer B (2.62 m against 2.77 m) but
+// lies along A's long axis (χ² 6.9 for A, 69 for B); fix 1 is B's (χ² 0.03;
+// 12.4 for A, inside A's gate too). A nearest-fix choice, track by track,
+// gives A fix 1 and B fix 0 (outside B's gate); the assignment gives each
+// its own.
+TEST(Evidence, ChiSquareNotDistanceDecidesWhoseFixItIs) {
+  const MultiTrackerOptions opt;
+  const std::vector<TrackGate> gates = {Gate({0, 0, -5}, {1.5, 0.5, 0.3}), Gate({0, 2, -5}, {0.1, 0.1, 0.1})};
+  const std::vector<Evidence> ev = {Fix(0, {2.5, 1.2, -5}, 0.3), Fix(1, {0, 2.05, -5}, 0.3)};
+  EXPECT_LT((ev[0].p_W - gates[1].p_W).norm(), (ev[0].p_W - gates[0].p_W).norm());
+  EXPECT_NEAR(InnovationChi2(ev[0], gates[0]), 6.906, 1e-3);
+  EXPECT_GT(InnovationChi2(ev[0], gates[1]), opt.management.evidence_gate_chi2);
+  EXPECT_NEAR(InnovationChi2(ev[1], gates[0]), 12.36, 1e-2);
+  EXPECT_LT(InnovationChi2(ev[1], gates[0]), opt.management.evidence_gate_chi2);
+  const auto a = AssignEvidence(ev, gates, Eigen::MatrixXd::Constant(2, 2, 100.0), opt.management);
+  EXPECT_EQ(a.track_of_evidence, (std::vector<int>{0, 1}));
+  EXPECT_EQ(a.num_taken, (std::vector<int>{1, 1}));
+  EXPECT_EQ(a.num_clusters, 1);
+  EXPECT_FALSE(a.outbid[0] || a.outbid[1]);
+}
+
+// A duplicate (two tracks 0.3 m apart on one vessel) and one fix of it in
+// both gates: the former rule made it both tracks' (each could count it
+// toward its confirmation); it goes to the likelier one, the other is
+// outbid (not detected while tentative). Two fixes of one sensor and epoch
+// (the inverter's and the tracker's own of one sample): one track takes one.
+TEST(Evidence, OneFixNeverGoesToTwoTracksNorTwoFixesOfOneSensorToOneTrack) {
+  const MultiTrackerOptions opt;
+  const std::vector<TrackGate> dup = {Gate({0, 0, -5}, {0.2, 0.2, 0.2}), Gate({0.3, 0, -5}, {0.2, 0.2, 0.2})};
+  const std::vector<Evidence> one = {Fix(0, {0.05, 0, -5}, 0.1)};
+  EXPECT_LT(InnovationChi2(one[0], dup[1]), opt.management.evidence_gate_chi2);
+  const auto a = AssignEvidence(one, dup, Eigen::MatrixXd::Constant(2, 1, 100.0), opt.management);
+  EXPECT_EQ(a.track_of_evidence, (std::vector<int>{0}));
+  EXPECT_EQ(a.num_taken, (std::vector<int>{1, 0}));
+  EXPECT_FALSE(a.outbid[0]);
+  EXPECT_TRUE(a.outbid[1]);
+
+  const std::vector<Evidence> same_sample = {Fix(0, {0.05, 0, -5}, 0.1), Fix(0, {-0.02, 0.03, -5}, 0.1)};
+  const auto b = AssignEvidence(same_sample, {dup[0]}, Eigen::MatrixXd::Constant(1, 2, 100.0), opt.management);
+  EXPECT_EQ(b.num_taken, (std::vector<int>{1}));
+  EXPECT_EQ((b.track_of_evidence[0] == 0) + (b.track_of_evidence[1] == 0), 1);
+  // A third fix, of another sensor: the track takes it too (one per sensor).
+  std::vector<Evidence> two_sensors = same_sample;
+  two_sensors.push_back(Fix(1, {0.02, -0.01, -5}, 0.1));
+  const auto c = AssignEvidence(two_sensors, {dup[0]}, Eigen::MatrixXd::Constant(1, 3, 100.0), opt.management);
+  EXPECT_EQ(c.num_taken, (std::vector<int>{2}));
+  EXPECT_EQ(c.track_of_evidence[2], 0);
+}
+
+// A fix 5 m from a precise track (σ 5 cm): the former rule (within 8 m of a
+// track) dropped it as the track's; its χ² is 270, so it is unexplained —
+// the initiator's. A fix in the χ² gate at a sensor where the track's
+// predicted tensor SNR is below evidence_min_tensor_snr is not the track's
+// either. Independent clusters are solved apart.
+TEST(Evidence, WhatNoTrackExplainsGoesToTheInitiator) {
+  const MultiTrackerOptions opt;
+  const double gate_snr = opt.management.evidence_min_tensor_snr;
+  const std::vector<TrackGate> gates = {Gate({0, 0, -5}, {0.05, 0.05, 0.05}), Gate({60, 0, -5}, {0.3, 0.3, 0.3})};
+  const std::vector<Evidence> ev = {Fix(0, {5, 0, -5}, 0.3), Fix(1, {0.1, 0, -5}, 0.3), Fix(2, {60.2, 0.1, -5}, 0.3)};
+  EXPECT_NEAR(InnovationChi2(ev[0], gates[0]), 25.0 / (0.0025 + 0.09), 1e-6);
+  Eigen::MatrixXd snr = Eigen::MatrixXd::Constant(2, 3, 100.0);
+  snr(0, 1) = 0.9 * gate_snr;
+  const auto a = AssignEvidence(ev, gates, snr, opt.management);
+  EXPECT_EQ(a.track_of_evidence, (std::vector<int>{-1, -1, 1}));
+  EXPECT_EQ(a.num_clusters, 1);
+  snr(0, 1) = 1.1 * gate_snr;
+  const auto b = AssignEvidence(ev, gates, snr, opt.management);
+  EXPECT_EQ(b.track_of_evidence, (std::vector<int>{-1, 0, 1}));
+  EXPECT_EQ(b.num_clusters, 2);
+  // A track without a gate takes nothing; sizes are checked.
+  TrackGate none = gates[0];
+  none.valid = false;
+  EXPECT_EQ(AssignEvidence(ev, {none, gates[1]}, snr, opt.management).track_of_evidence,
+            (std::vector<int>{-1, -1, 1}));
+  EXPECT_THROW(AssignEvidence(ev, gates, Eigen::MatrixXd::Zero(2, 2), opt.management), std::invalid_argument);
+}
+
+// The gate's covariance: the newest estimate's, grown by the motion model
+// and the window's process noise with time; without a usable estimate, as
+// wide as a live track may be (max_sigma_horizontal_m).
+TEST(Evidence, GateGrowsWithTimeAndIsWideWithoutAnEstimate) {
+  const MultiTrackerOptions opt;
+  EpochEstimate e;
+  e.t_s = 10.0;
+  e.p_VinW = {1, 2, -5};
+  e.speed_mps = 1.5;
+  e.heading_rad = 0.3;
+  e.usable = true;
+  e.has_covariance = true;
+  e.cov_state = (Eigen::Matrix<double, 6, 1>() << 0.01, 0.01, 0.01, 1e-4, 1e-4, 1e-6).finished().asDiagonal();
+  const CtState<double> x{1, 2, -5, 1.5, 0.3, 0.0};
+  const TrackGate now = PredictGate(x, 10.0, &e, opt);
+  EXPECT_TRUE(now.valid);
+  EXPECT_LT((now.cov_p_W - 0.01 * Eigen::Matrix3d::Identity()).norm(), 1e-15);
+  const TrackGate later = PredictGate(PropagateCoordinatedTurn(x, 5.0), 15.0, &e, opt);
+  // Speed and heading uncertainty: along-track 5 s · 0.01 m/s, across 5 s · 1.5 m/s · 0.01 rad.
+  EXPECT_GT(later.cov_p_W.trace(), now.cov_p_W.trace() + 2.0 * 0.0025);
+  EXPECT_NEAR(later.p_W.x(), 1 + 5 * 1.5 * std::cos(0.3), 1e-9);
+  const TrackGate wide = PredictGate(x, 10.0, nullptr, opt);
+  const double s = opt.management.max_sigma_horizontal_m;
+  EXPECT_LT((wide.cov_p_W - s * s * Eigen::Matrix3d::Identity()).norm(), 1e-12);
+}
+
+// The epoch's own evidence: a strong sample under a vessel gives one fix,
+// which goes to the track predicted there, not to a track 60 m off; a weak
+// sample gives none.
+TEST(Evidence, AnEpochsStrongSampleGivesTheTrackThereItsFix) {
+  const MultiTrackerOptions opt;
+  Epoch e{1.0, {Sensor(0, {0, 0, 0}), Sensor(1, {400, 0, 0})}};
+  const auto x = At(1, 0, -5), far = At(61, 0, -5);
+  const TrackPrediction p = Predict(x, e, opt), q = Predict(far, e, opt);
+  for (auto& s : e.samples) {
+    s.B += PredictAtSample(x, kMoment, s, opt.track).B;
+    s.T += PredictAtSample(x, kMoment, s, opt.track).T;
+  }
+  const std::vector<TrackGate> gates = {Gate({61, 0, -5}, {0.3, 0.3, 0.3}), Gate({1.2, 0.1, -5}, {0.3, 0.3, 0.3})};
+  std::vector<std::size_t> sample_of;
+  const auto a = AssignEpochFixes(e, {q, p}, gates, kB0, opt, &sample_of);
+  EXPECT_EQ(sample_of, (std::vector<std::size_t>{0}));
+  EXPECT_EQ(a.track_of_evidence, (std::vector<int>{1}));
+  EXPECT_EQ(a.num_taken, (std::vector<int>{0, 1}));
+  EXPECT_FALSE(a.outbid[0]);
 }
 
 }  // namespace

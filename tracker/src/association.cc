@@ -1,7 +1,16 @@
 #include "magnav/tracker/association.h"
 
+#include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <stdexcept>
+#include <utility>
 
+#include "magnav/core/motion.h"
+#include "magnav/tracker/assignment.h"
 #include "magnav/tracker/initialize.h"
 #include "other_fields.h"
 
@@ -63,6 +72,166 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
     a.missed = a.llr <= -mg.detect_llr || a.poor_fit;
   }
   return out;
+}
+
+TrackGate PredictGate(const CtState<double>& predicted, double t_s, const EpochEstimate* newest,
+                      const MultiTrackerOptions& options) {
+  TrackGate g;
+  g.p_W = {predicted.x, predicted.y, predicted.z};
+  g.valid = g.p_W.allFinite();
+  if (newest == nullptr || !newest->usable || !newest->has_covariance || !newest->cov_state.allFinite()) {
+    const double s = options.management.max_sigma_horizontal_m;
+    g.cov_p_W = s * s * Eigen::Matrix3d::Identity();
+    return g;
+  }
+  const CtState<double> x{newest->p_VinW.x(), newest->p_VinW.y(), newest->p_VinW.z(),
+                          newest->speed_mps,  newest->heading_rad, newest->turn_rate_radps};
+  const double dt = t_s - newest->t_s;
+  const Eigen::Matrix<double, 6, 6> F = CoordinatedTurnJacobian(x, dt);
+  const ProcessNoise& q = options.track.process;
+  Eigen::Matrix<double, 6, 1> w;
+  w << q.position_m_per_sqrt_s, q.position_m_per_sqrt_s, q.position_m_per_sqrt_s, q.speed_mps_per_sqrt_s,
+      q.heading_rad_per_sqrt_s, q.window_turn_rate_radps_per_sqrt_s;
+  const StateCovariance P =
+      F * newest->cov_state * F.transpose() + Eigen::Matrix<double, 6, 1>(w.array().square() * std::abs(dt)).asDiagonal().toDenseMatrix();
+  g.cov_p_W = P.topLeftCorner<3, 3>();
+  g.valid = g.valid && g.cov_p_W.allFinite();
+  return g;
+}
+
+namespace {
+
+// χ² and ln det S (S in m²) of a fix against a gate; false if S is not
+// positive definite or the result not finite.
+bool Innovation(const Evidence& fix, const TrackGate& gate, double* chi2, double* log_det) {
+  if (!gate.valid || !fix.p_W.allFinite()) return false;
+  Eigen::Matrix3d S = gate.cov_p_W;
+  if (fix.cov_p_W.allFinite()) S += fix.cov_p_W;
+  S = 0.5 * (S + S.transpose());
+  const Eigen::LLT<Eigen::Matrix3d> llt(S);
+  if (llt.info() != Eigen::Success) return false;
+  const Eigen::Vector3d d = fix.p_W - gate.p_W;
+  *chi2 = d.dot(llt.solve(d));
+  *log_det = 2.0 * llt.matrixL().toDenseMatrix().diagonal().array().log().sum();
+  return std::isfinite(*chi2) && *chi2 >= 0.0 && std::isfinite(*log_det);
+}
+
+}  // namespace
+
+double InnovationChi2(const Evidence& fix, const TrackGate& gate) {
+  double chi2 = 0.0, log_det = 0.0;
+  return Innovation(fix, gate, &chi2, &log_det) ? chi2 : std::numeric_limits<double>::infinity();
+}
+
+namespace {
+
+// Union-find over tracks (0 … nt−1) and evidence (nt … nt+ne−1).
+struct Components {
+  std::vector<int> parent;
+  explicit Components(int n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int Find(int a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  }
+  void Join(int a, int b) { parent[Find(a)] = Find(b); }
+};
+
+}  // namespace
+
+EvidenceAssignment AssignEvidence(const std::vector<Evidence>& evidence, const std::vector<TrackGate>& gates,
+                                  const Eigen::MatrixXd& tensor_snr, const TrackManagementOptions& mg) {
+  const int nt = static_cast<int>(gates.size()), ne = static_cast<int>(evidence.size());
+  if (tensor_snr.rows() != nt || tensor_snr.cols() != ne) {
+    throw std::invalid_argument("AssignEvidence: tensor_snr must be tracks x evidence");
+  }
+  EvidenceAssignment out;
+  out.track_of_evidence.assign(ne, -1);
+  out.num_taken.assign(nt, 0);
+  out.outbid.assign(nt, false);
+  // Allowed pairs and their cost.
+  Eigen::MatrixXd pair_cost = Eigen::MatrixXd::Constant(nt, ne, kForbidden);
+  Components comp(nt + ne);
+  std::vector<bool> gated(nt, false);
+  for (int i = 0; i < nt; ++i) {
+    for (int k = 0; k < ne; ++k) {
+      if (!(tensor_snr(i, k) >= mg.evidence_min_tensor_snr)) continue;
+      double chi2 = 0.0, log_det = 0.0;
+      if (!Innovation(evidence[k], gates[i], &chi2, &log_det) || !(chi2 <= mg.evidence_gate_chi2)) continue;
+      pair_cost(i, k) = chi2 + log_det;
+      gated[i] = true;
+      comp.Join(i, nt + k);
+    }
+  }
+  // Clusters with at least one allowed pair.
+  std::map<int, std::pair<std::vector<int>, std::vector<int>>> clusters;  // root -> (tracks, evidence)
+  for (int i = 0; i < nt; ++i) {
+    if (gated[i]) clusters[comp.Find(i)].first.push_back(i);
+  }
+  for (int k = 0; k < ne; ++k) {
+    const int root = comp.Find(nt + k);
+    if (clusters.count(root) > 0) clusters[root].second.push_back(k);
+  }
+  for (const auto& [root, members] : clusters) {
+    const auto& [tracks, ev] = members;
+    // One row per (track, sensor) slot the track has an allowed pair at.
+    std::vector<std::pair<int, std::uint32_t>> slots;
+    for (int i : tracks) {
+      std::vector<std::uint32_t> sensors;
+      for (int k : ev) {
+        if (std::isfinite(pair_cost(i, k))) sensors.push_back(evidence[k].sensor_id);
+      }
+      std::sort(sensors.begin(), sensors.end());
+      sensors.erase(std::unique(sensors.begin(), sensors.end()), sensors.end());
+      for (std::uint32_t s : sensors) slots.emplace_back(i, s);
+    }
+    Eigen::MatrixXd cost = Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(slots.size()),
+                                                     static_cast<Eigen::Index>(ev.size()), kForbidden);
+    double most = -std::numeric_limits<double>::infinity();
+    for (std::size_t r = 0; r < slots.size(); ++r) {
+      for (std::size_t c = 0; c < ev.size(); ++c) {
+        if (evidence[ev[c]].sensor_id != slots[r].second) continue;
+        cost(r, c) = pair_cost(slots[r].first, ev[c]);
+        most = std::max(most, cost(r, c));
+      }
+    }
+    // The same miss cost for every slot, above every allowed pair's: the
+    // most pairs are made, and among those the likeliest.
+    const GatedAssignment a = SolveGatedAssignment(cost, std::vector<double>(slots.size(), most + 1.0));
+    for (std::size_t r = 0; r < slots.size(); ++r) {
+      const int c = a.column_of_row[r];
+      if (c < 0) continue;
+      out.track_of_evidence[ev[c]] = slots[r].first;
+      ++out.num_taken[slots[r].first];
+    }
+    ++out.num_clusters;
+  }
+  for (int i = 0; i < nt; ++i) out.outbid[i] = gated[i] && out.num_taken[i] == 0;
+  return out;
+}
+
+EvidenceAssignment AssignEpochFixes(const Epoch& epoch, const std::vector<TrackPrediction>& predictions,
+                                    const std::vector<TrackGate>& gates, const Eigen::Vector3d& B0_W,
+                                    const MultiTrackerOptions& options, std::vector<std::size_t>* sample_of) {
+  if (predictions.size() != gates.size()) throw std::invalid_argument("AssignEpochFixes: one gate per prediction");
+  sample_of->clear();
+  std::vector<Evidence> ev;
+  for (std::size_t j = 0; j < epoch.samples.size(); ++j) {
+    const auto f = SampleFix(epoch.samples[j], epoch.t_s, B0_W, options.track);
+    if (!f) continue;
+    ev.push_back({f->sensor_id, f->p_DinW, f->cov_p_DinW});
+    sample_of->push_back(j);
+  }
+  Eigen::MatrixXd snr =
+      Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(gates.size()), static_cast<Eigen::Index>(ev.size()));
+  for (std::size_t i = 0; i < predictions.size(); ++i) {
+    if (!predictions[i].valid) continue;
+    for (std::size_t k = 0; k < ev.size(); ++k) {
+      const std::size_t j = (*sample_of)[k];
+      snr(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)) =
+          predictions[i].at[j].T.norm() / SigmaT(epoch.samples[j], options.track);
+    }
+  }
+  return AssignEvidence(ev, gates, snr, options.management);
 }
 
 }  // namespace magnav::tracker

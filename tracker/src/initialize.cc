@@ -117,18 +117,38 @@ bool NotOneDipole(const GradiometerSample& s, const Eigen::Vector3d& dB_W, const
   return max > 0.0 && !(DipoleMisfit(s, dB_W, r_DtoS, options) <= max);
 }
 
+}  // namespace
+
+std::optional<DipoleFix> SampleFix(const GradiometerSample& s, double t_s, const Eigen::Vector3d& B0_W,
+                                   const TrackerOptions& options) {
+  const double snr = Snr(s, options);
+  if (!(snr >= options.init.min_tensor_snr)) return std::nullopt;
+  const Eigen::Vector3d dB = s.B - B0_W;
+  // The offset as SingleSampleOffset, with the sample's σ for its covariance
+  // (the offset does not depend on them).
+  inversion::AnalyticSolution sol;
+  const inversion::NoiseSigmas noise{SigmaB(s, options), SigmaT(s, options)};
+  if (!inversion::SolveTedEgt(s.T, dB, inversion::InverterOptions{}.egt_row_weight, noise, &sol) ||
+      !sol.r_DtoS.allFinite() || sol.r_DtoS.squaredNorm() == 0.0) {
+    return std::nullopt;
+  }
+  if (NotOneDipole(s, dB, sol.r_DtoS, options)) return std::nullopt;
+  DipoleFix fix = MakeFix(t_s, s.sensor_id, s.p_SinW - sol.r_DtoS);
+  fix.snr = snr;
+  fix.r_DtoS = sol.r_DtoS;
+  fix.cov_p_DinW = sol.cov_r;
+  fix.position_sigma_3d_m = sol.position_sigma_3d_m;
+  return fix;
+}
+
+namespace {
+
 std::vector<Candidate> StrongCandidates(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                         const TrackerOptions& options) {
   std::vector<Candidate> out;
   for (const Epoch& e : epochs) {
     for (const GradiometerSample& s : e.samples) {
-      const double snr = Snr(s, options);
-      if (!(snr >= options.init.min_tensor_snr)) continue;
-      const auto r = SingleSampleOffset(s.B - B0_W, s.T);
-      if (!r || NotOneDipole(s, s.B - B0_W, *r, options)) continue;
-      DipoleFix fix = MakeFix(e.t_s, s.sensor_id, s.p_SinW - *r);
-      fix.snr = snr;
-      out.push_back({fix, &s});
+      if (auto fix = SampleFix(s, e.t_s, B0_W, options)) out.push_back({*fix, &s});
     }
   }
   return out;

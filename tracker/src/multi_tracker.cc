@@ -38,6 +38,10 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(max_chi2_per_dof)) return Fail(error, "max_chi2_per_dof must be > 0");
   if (!(max_unexplained > 0.0 && max_unexplained <= 1.0)) return Fail(error, "max_unexplained must be in (0, 1]");
   if (!(min_new_share >= 0.0 && min_new_share < 1.0)) return Fail(error, "min_new_share must be in [0, 1)");
+  if (!PositiveFinite(evidence_gate_chi2)) return Fail(error, "evidence_gate_chi2 must be > 0");
+  if (!(evidence_min_tensor_snr >= 0.0) || !std::isfinite(evidence_min_tensor_snr)) {
+    return Fail(error, "evidence_min_tensor_snr must be finite and >= 0");
+  }
   return true;
 }
 
@@ -86,6 +90,9 @@ struct Track {
   bool has_pred = false;
   CtState<double> pred{};
   Eigen::Vector3d m_B = Eigen::Vector3d::Zero();
+  // Its engine's newest estimate (for the evidence gate's covariance).
+  bool has_newest = false;
+  EpochEstimate newest;
   bool ended = false;
   // While tentative: what was taken out of the initiator's buffer for it
   // (given back if it is dropped).
@@ -188,6 +195,8 @@ struct MultiTracker::Impl {
   // initiator found the vessel there.
   void Collect(Track& tr, const std::vector<EpochEstimate>& est, std::vector<TrackOutput>* out) {
     if (est.empty()) return;
+    tr.has_newest = true;
+    tr.newest = est.back();
     tr.life.OnEstimate(est.back().t_s, est.back().usable, HorizontalSigma(est.back()));
     std::vector<TrackState> states(est.size(), TrackState::kConfirmed);
     for (std::size_t k = 0; k < est.size(); ++k) {
@@ -246,6 +255,28 @@ struct MultiTracker::Impl {
     }
   }
 
+  // Step 2b: the gates of the live tracks at t_s (their predicted position;
+  // `at_t`: PredictState(t_s) of each, nullopt for none).
+  std::vector<TrackGate> Gates(double t_s, const std::vector<std::optional<CtState<double>>>& at_t) const {
+    std::vector<TrackGate> g(tracks.size());
+    for (std::size_t i = 0; i < tracks.size(); ++i) {
+      if (!at_t[i]) continue;
+      g[i] = PredictGate(*at_t[i], t_s, tracks[i].has_newest ? &tracks[i].newest : nullptr, options);
+    }
+    return g;
+  }
+
+  // The epoch's own single-sample fixes (`sample_of`: their sample's index)
+  // assigned to the live tracks (association.h AssignEpochFixes).
+  EvidenceAssignment AssignOwnFixes(const Epoch& e, const std::vector<TrackPrediction>& pred,
+                                    std::vector<std::size_t>* sample_of) const {
+    std::vector<std::optional<CtState<double>>> at_t(tracks.size());
+    for (std::size_t i = 0; i < tracks.size(); ++i) {
+      if (tracks[i].has_pred) at_t[i] = tracks[i].pred;
+    }
+    return AssignEpochFixes(e, pred, Gates(e.t_s, at_t), B0_W, options, sample_of);
+  }
+
   std::vector<TrackOutput> Process(const Epoch& raw) {
     ++summary.num_epochs;
     std::vector<TrackOutput> out;
@@ -267,14 +298,20 @@ struct MultiTracker::Impl {
     }
     // 2.–3. Association and score (association.h).
     std::vector<TrackAssociation> assoc = AssociateEpoch(e, pred, B0_W, options);
+    // 2b. Evidence: the epoch's single-sample fixes, one track each at most.
+    std::vector<std::size_t> fix_sample;
+    const EvidenceAssignment evidence = AssignOwnFixes(e, pred, &fix_sample);
     UpdateBackground(raw, pred);
-    // 4. Update, track by track.
+    // 4. Update, track by track. A tentative track whose gated fixes all
+    // went to other tracks is not detected this epoch: one fix never
+    // confirms two tracks.
     for (std::size_t i = 0; i < tracks.size(); ++i) {
       Track& tr = tracks[i];
       const TrackAssociation& a = assoc[i];
       const bool had_samples = !a.mine.samples.empty();
-      tr.life.OnAssociation(t, a.detected, a.missed, had_samples);
-      tr.verdicts.emplace_back(t, a.detected);
+      const bool outbid = tr.id == 0 && evidence.outbid[i];
+      tr.life.OnAssociation(t, a.detected && !outbid, a.missed, had_samples);
+      tr.verdicts.emplace_back(t, a.detected && !outbid);
       Collect(tr, tr.engine->AddEpoch(a.mine), &out);
     }
     // Track status: confirmation and end rules (track_life_cycle.h).
@@ -323,9 +360,17 @@ struct MultiTracker::Impl {
         }
       }
     }
+    // A sample whose fix went to a confirmed track is that track's evidence,
+    // not a new vessel's (a tentative track's stays: it is given back if the
+    // track is dropped); an unassigned one is the initiator's.
+    std::vector<bool> explained(n, false);
+    for (std::size_t k = 0; k < fix_sample.size(); ++k) {
+      const int i = evidence.track_of_evidence[k];
+      if (i >= 0 && tracks[static_cast<std::size_t>(i)].id != 0) explained[fix_sample[k]] = true;
+    }
     for (std::size_t j = 0; j < n; ++j) {
       GradiometerSample& s = residual.samples[j];
-      if (s.T.norm() < mg().min_new_share * strongest[j]) {
+      if (explained[j] || s.T.norm() < mg().min_new_share * strongest[j]) {
         s.B = B0_W;
         s.T.setZero();
       }
@@ -417,7 +462,11 @@ struct MultiTracker::Impl {
     }
     if (mine.empty()) return false;
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
-    tr.engine->Start(*init, mine);
+    const std::vector<EpochEstimate> first = tr.engine->Start(*init, mine);
+    if (!first.empty()) {
+      tr.has_newest = true;
+      tr.newest = first.back();
+    }
     tr.origin = init->fixes.empty() ? std::string("from a two-dipole fit to samples no single dipole explains")
                                     : "from " + std::to_string(init->fixes.size()) +
                                           (init->from_external_fixes ? " dipole_fix fixes" : " fixes of its own TED+EGT");
@@ -439,6 +488,44 @@ struct MultiTracker::Impl {
     fixes.clear();
     tracks.push_back(std::move(tr));
     return true;
+  }
+
+  // The sample a fix was computed from (same sensor, epoch time within the
+  // tolerance): in the epoch being filled or in the initiator's buffer.
+  const GradiometerSample* SampleOf(const DipoleFix& fix) const {
+    const double tol = options.track.epoch_tolerance_s;
+    const auto find = [&](const Epoch& e) -> const GradiometerSample* {
+      if (std::abs(e.t_s - fix.t_s) > tol) return nullptr;
+      for (const auto& s : e.samples) {
+        if (s.sensor_id == fix.sensor_id) return &s;
+      }
+      return nullptr;
+    };
+    if (has_pending) {
+      if (const auto* s = find(pending)) return s;
+    }
+    const auto b = std::lower_bound(buffer.begin(), buffer.end(), fix.t_s - tol,
+                                    [](const Epoch& e, double t) { return e.t_s < t; });
+    return b == buffer.end() ? nullptr : find(*b);
+  }
+
+  // Whether a fix handed in goes to a live track (AssignEvidence at its
+  // time, alone). The tracks' tensor SNR at its sensor from its sample when
+  // that is known; otherwise the χ² gate alone decides.
+  bool ExplainedByATrack(const DipoleFix& fix) const {
+    std::vector<std::optional<CtState<double>>> at_t(tracks.size());
+    for (std::size_t i = 0; i < tracks.size(); ++i) at_t[i] = tracks[i].engine->PredictState(fix.t_s);
+    const GradiometerSample* s = SampleOf(fix);
+    Eigen::MatrixXd snr = Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(tracks.size()), 1,
+                                                    std::numeric_limits<double>::infinity());
+    for (std::size_t i = 0; i < tracks.size() && s != nullptr; ++i) {
+      if (!at_t[i]) continue;
+      const FieldPrediction p = PredictAtSample(*at_t[i], tracks[i].engine->m_B_Am2(), *s, options.track);
+      snr(static_cast<Eigen::Index>(i), 0) = p.T.norm() / SigmaT(*s, options.track);
+    }
+    const EvidenceAssignment a =
+        AssignEvidence({{fix.sensor_id, fix.p_DinW, fix.cov_p_DinW}}, Gates(fix.t_s, at_t), snr, mg());
+    return a.track_of_evidence[0] >= 0;
   }
 
   std::vector<TrackOutput> Epochs(const Epoch& raw) {
@@ -523,11 +610,10 @@ void MultiTracker::AddFix(const DipoleFix& fix) {
   m.any_fix = true;
   if (!fix.valid || m.options.track.init.source == InitSource::kSamples) return;
   if (!m.buffer.empty() && fix.t_s < m.buffer.front().t_s - m.options.track.epoch_tolerance_s) return;
-  // A fix of a vessel that has a track is that track's, not a new vessel's.
-  for (const Track& tr : m.tracks) {
-    const auto p = tr.engine->PredictState(fix.t_s);
-    if (p && (Horizontal(*p) - fix.p_DinW.head<2>()).norm() < m.mg().min_separation_m) return;
-  }
+  // A fix a live track explains (association.h AssignEvidence: in its χ²
+  // and tensor-SNR gates at the fix's time) is that track's evidence, not a
+  // new vessel's; only the others go to the initiator.
+  if (!m.tracks.empty() && m.ExplainedByATrack(fix)) return;
   m.fixes.push_back(fix);
   if (m.fixes.size() > WindowTracker::kMaxPendingFixes) m.fixes.pop_front();
 }
@@ -563,6 +649,24 @@ CtState<double> GetState(StateReader& r) {
   for (double* v : {&s.x, &s.y, &s.z, &s.v, &s.heading, &s.turn_rate}) *v = r.F64();
   return s;
 }
+void PutEstimate(StateWriter& w, const EpochEstimate& e) {
+  for (double v : {e.t_s, e.speed_mps, e.heading_rad, e.turn_rate_radps}) w.F64(v);
+  w.Matrix(e.p_VinW);
+  w.I64(e.num_samples);
+  w.U8(e.usable ? 1 : 0);
+  w.U8(e.has_covariance ? 1 : 0);
+  w.Matrix(e.cov_state);
+}
+EpochEstimate GetEstimate(StateReader& r) {
+  EpochEstimate e;
+  for (double* v : {&e.t_s, &e.speed_mps, &e.heading_rad, &e.turn_rate_radps}) *v = r.F64();
+  e.p_VinW = internal::GetMatrix(r, 3, 1);
+  e.num_samples = static_cast<int>(r.I64());
+  e.usable = r.U8() != 0;
+  e.has_covariance = r.U8() != 0;
+  e.cov_state = internal::GetMatrix(r, 6, 6);
+  return e;
+}
 }  // namespace
 
 std::string MultiTracker::SaveState() const {
@@ -579,6 +683,8 @@ std::string MultiTracker::SaveState() const {
     w.U8(tr.has_pred ? 1 : 0);
     PutState(w, tr.pred);
     w.Matrix(tr.m_B);
+    w.U8(tr.has_newest ? 1 : 0);
+    PutEstimate(w, tr.newest);
     w.U8(tr.ended ? 1 : 0);
     w.U64(tr.taken.size());
     for (const auto& k : tr.taken) {
@@ -653,6 +759,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.has_pred = r.U8() != 0;
     tr.pred = GetState(r);
     tr.m_B = internal::GetMatrix(r, 3, 1);
+    tr.has_newest = r.U8() != 0;
+    tr.newest = GetEstimate(r);
     tr.ended = r.U8() != 0;
     tr.taken.resize(r.Count(internal::kMaxStateCount));
     for (auto& k : tr.taken) {

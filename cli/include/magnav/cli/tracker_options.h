@@ -85,6 +85,12 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--min-new-share", m.min_new_share,
                  "residual below this share of a track's predicted tensor is not offered to the initiator")
       ->capture_default_str();
+  app.add_option("--evidence-gate", m.evidence_gate_chi2,
+                 "a single-sample fix may go to a track if its innovation chi-square (3 dof) is at most this")
+      ->capture_default_str();
+  app.add_option("--evidence-snr", m.evidence_min_tensor_snr,
+                 "... and the track's predicted tensor SNR at the fix's sensor at least this")
+      ->capture_default_str();
   tracker::BackgroundOptions& b = f->options.background;
   app.add_option("--background", f->background,
                  "each sensor's background B0 estimated with the tracks (on) or the fixed B0 (off)")

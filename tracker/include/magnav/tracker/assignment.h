@@ -1,6 +1,10 @@
 // Global assignment for the multi-tracker's associator (issue 24 item 4):
 // which of several competing tracks takes which piece of evidence, decided
-// for all of them at once instead of track by track.
+// for all of them at once instead of track by track. Used by
+// association.h's AssignEvidence (each cluster of tracks and single-sample
+// fixes linked by their gates: rows the tracks' (track, sensor) slots,
+// columns the fixes, cost χ² + ln det S), which MultiTracker calls every
+// epoch and for every fix handed in.
 //
 // Problem: rows (tracks) and columns (evidence) with a cost per pair
 // (kForbidden: the pair is never made, e.g. outside a gate). Each row takes

@@ -40,7 +40,15 @@ struct InitialTrack {
   bool from_external_fixes = false;  // fixes handed in, not the tracker's own
 };
 
-// Fixes of every strong sample of the epochs.
+// The tracker's own fix of one sample (taken at t_s): TED+EGT as
+// SingleSampleOffset, if the sample is strong (‖T‖_F ≥ min_tensor_snr · σ_T)
+// and one dipole explains it (InitOptions::max_dipole_misfit). Its snr,
+// r_DtoS and cov_p_DinW (first-order, from the sample's σ_B, σ_T; m², world
+// NED) are set. nullopt otherwise.
+std::optional<DipoleFix> SampleFix(const GradiometerSample& s, double t_s, const Eigen::Vector3d& B0_W,
+                                   const TrackerOptions& options);
+
+// Fixes of every strong sample of the epochs (SampleFix of each).
 std::vector<DipoleFix> StrongFixes(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                    const TrackerOptions& options);
 

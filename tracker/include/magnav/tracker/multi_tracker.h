@@ -19,6 +19,16 @@
 //     tracks (a joint multi-dipole model solved track by track, so two
 //     vessels seen by one sensor share it). A sensor no track reaches is not
 //     given to any track.
+//  2b. Evidence (association.h AssignEvidence): the epoch's single-sample
+//     fixes (each strong sample one dipole explains, TED+EGT) are assigned
+//     to the live tracks, one track per fix at most and one fix per sensor
+//     per track, by a global assignment per cluster of least total
+//     innovation χ² + ln det S, gated by χ² ≤ evidence_gate_chi2 and the
+//     track's predicted tensor SNR at the fix's sensor ≥
+//     evidence_min_tensor_snr. A tentative track whose gated fixes all went
+//     to other tracks is not detected this epoch (one fix never confirms two
+//     tracks); a sample whose fix a confirmed track took is not offered to
+//     the initiator (step 5); a fix no track takes is.
 //  3. Score: per track, the log-likelihood ratio of "this track's field is
 //     there" against "it is not", over its sensors, with m the whitened
 //     sample minus B0 and the other tracks and ẑ the whitened prediction:
@@ -91,6 +101,16 @@ struct TrackManagementOptions {
   double min_separation_m = 8.0;
   // The initiator runs once per this much data (s).
   double init_interval_s = 1.0;
+  // Evidence assignment (association.h AssignEvidence; step 2b above): a
+  // single-sample fix may go to a track only if its innovation χ² against
+  // the track's predicted position (both covariances, 3 dof) is at most
+  // evidence_gate_chi2 — 16.27, the 0.999 quantile of χ²(3): a true pair
+  // fails it once in 1000 — and the track's predicted tensor SNR at the
+  // fix's sensor, ‖T̂‖_F/σ_T, is at least evidence_min_tensor_snr (3, the
+  // association gate on the tensor alone: a track that does not see that
+  // sensor's tensor cannot explain its fix).
+  double evidence_gate_chi2 = 16.27;
+  double evidence_min_tensor_snr = 3.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -225,7 +245,11 @@ class MultiTracker {
   // every live track ("end of data").
   std::vector<TrackOutput> Flush();
   // A single-sample fix from elsewhere (magnav/dipole_fix) for the
-  // initiator, as WindowTracker::AddFix.
+  // initiator, as WindowTracker::AddFix — unless a live track explains it
+  // (AssignEvidence at the fix's time, with the fix's cov_p_DinW; the
+  // tracks' tensor SNR from its sample while that is in the epoch being
+  // filled or the initiator's buffer, else the χ² gate alone): then it is
+  // that track's evidence and dropped.
   void AddFix(const DipoleFix& fix);
 
   // Starts and ends since the last call.
