@@ -272,11 +272,23 @@ struct ParticleFilterOptions {
   // AFPF: an offspring's weight also pays its fission move as drift,
   // exp(−|x̃ − x|²/(2 drift_sigma_deg²)) (not in the paper; see above).
   bool fission_motion_penalty = true;
-  // Map bias (optional third state): every particle carries a bias b (nT),
-  // the likelihood compares z − b with the map; prior N(0, bias_prior_sigma²),
-  // random walk bias_drift_sigma per step; AFPF offspring draw theirs from
-  // N(parent's b, bias_drift_sigma²). Off by default (no extra random draws: runs without it are
-  // unchanged).
+  // Map bias (optional third state, nT): z = m(x) + b + noise. Given a
+  // particle's track the bias is linear-Gaussian, so it is marginalised, not
+  // sampled (a Rao-Blackwellised filter: Doucet et al. 2000; Schön, Gustafsson
+  // & Nordlund 2005): each particle carries the bias's posterior N(b_i, P_i)
+  // given its own track, a scalar Kalman filter (prior N(0,
+  // bias_prior_sigma²), random walk bias_drift_sigma per step, update by the
+  // residual r = z − m(x_i) − b_i with variance σ² + P_i, the particle's
+  // likelihood N(r; 0, σ² + P_i)); AFPF offspring start from their parent's
+  // prior (b, P) and are updated by their own residual. The predicted spread V
+  // of the innovations (adaptive σ, outlier gate, bias test) includes the mean
+  // P. Why not sampled (the filter before 2026-11-26): a sampled bias moves by
+  // bias_drift_sigma per step, so a cloud that collapsed with a wrong bias
+  // cannot correct it; the AFPF then settled on a wrong position-bias pair
+  // (synthetic map, +25 nT: 1 of 10 seeds with afpf_max_sigma_nT 15, 2 of 10
+  // with 20, each 3× the INS's error with a bias of 9–11 nT; marginalised 0 of
+  // 10 at both; docs/ACCURACY.md). Off by default (no extra random draws: runs
+  // without it are unchanged).
   bool estimate_bias = false;
   double bias_prior_sigma_nT = 30.0;
   double bias_drift_sigma_nT = 0.2;
@@ -290,7 +302,8 @@ struct ParticleFilterOptions {
 // One particle (deg) and its normalised weight.
 struct Particle {
   double lat_deg = 0.0, lon_deg = 0.0;
-  double bias_nT = 0.0;  // map bias (0 unless estimate_bias)
+  double bias_nT = 0.0;       // map bias estimate given this particle's track (0 unless estimate_bias)
+  double bias_var_nT2 = 0.0;  // its variance, nT² (0 unless estimate_bias)
   double weight = 0.0;
 };
 
