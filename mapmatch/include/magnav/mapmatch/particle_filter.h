@@ -337,6 +337,7 @@ struct StepDiagnostics {
   double track_check_chi2 = 0.0;     // the track check's statistic at this step (0: not run)
   // The predictive moments of this reading over the predicted cloud's particles on the map
   // (weights w_(k−1)): innovation z − m̄ and the spread √V of the predicted map values, nT
+  // (with estimate_bias: of m(x) + b, and V includes the particles' mean bias variance P)
   // (NaN when less than half the weight is on the map or the reading is not finite).
   double innovation_nT = std::numeric_limits<double>::quiet_NaN();
   double predicted_spread_nT = std::numeric_limits<double>::quiet_NaN();
