@@ -153,9 +153,8 @@ void Filter::SpreadPrior(double lat, double lon) {
     q.lon_deg = ulon(rng_);
     q.weight = 1.0 / n;
   }
-  if (o_.estimate_bias) {
-    std::normal_distribution<double> b(0.0, o_.bias_prior_sigma_nT);
-    for (Particle& q : p_) q.bias_nT = b(rng_);
+  if (o_.estimate_bias) {  // the bias prior N(0, bias_prior_sigma²), the same for every particle
+    for (Particle& q : p_) q.bias_var_nT2 = o_.bias_prior_sigma_nT * o_.bias_prior_sigma_nT;
   }
 }
 
@@ -180,9 +179,8 @@ bool Filter::Predict(double lat, double lon) {
     q.lat_deg += dlat + n(rng_);
     q.lon_deg += dlon + n(rng_);
   }
-  if (o_.estimate_bias) {
-    std::normal_distribution<double> b(0.0, o_.bias_drift_sigma_nT);
-    for (Particle& q : p_) q.bias_nT += b(rng_);
+  if (o_.estimate_bias) {  // the bias's random walk, in its variance (no draws: it is marginalised)
+    for (Particle& q : p_) q.bias_var_nT2 += o_.bias_drift_sigma_nT * o_.bias_drift_sigma_nT;
   }
   return jump;
 }
@@ -225,24 +223,31 @@ void Filter::Update(double z, StepDiagnostics* d) {
   sigma_ = std::max(CurrentSigma(), prev_sigma * (1.0 - 1.0 / o_.sigma_window));
   inv_two_var_ = 1.0 / (2.0 * sigma_ * sigma_);
   d->sigma_nT = sigma_;
-  double w_on = 0.0, r1 = 0.0, r2 = 0.0;  // predicted residual moments over the particles on the map
+  // Predicted residual moments over the particles on the map; pb: their mean bias variance
+  // (estimate_bias: the predicted spread of z − noise is that of m(x) + b, plus P).
+  double w_on = 0.0, r1 = 0.0, r2 = 0.0, pb = 0.0;
+  if (o_.estimate_bias) resid_.assign(n, std::numeric_limits<double>::quiet_NaN());
   for (std::size_t i = 0; i < n; ++i) {
     bool on = false;
     double r = 0.0;
-    loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, z - p_[i].bias_nT, &on, &r);
+    loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, z - p_[i].bias_nT, p_[i].bias_var_nT2, &on, &r);
     any_on = any_on || on;
     evidence += p_[i].weight * std::exp(loglik_[i]);
-    if (on) w_on += p_[i].weight, r1 += p_[i].weight * r, r2 += p_[i].weight * r * r;
+    if (on) {
+      w_on += p_[i].weight, r1 += p_[i].weight * r, r2 += p_[i].weight * r * r;
+      pb += p_[i].weight * p_[i].bias_var_nT2;
+      if (o_.estimate_bias) resid_[i] = r;
+    }
   }
   if (w_on > 0.5) {  // the predictive moments (lost-track detection and diagnostics)
     const double mean = r1 / w_on;
     d->innovation_nT = mean;
-    d->predicted_spread_nT = std::sqrt(std::max(r2 / w_on - mean * mean, 0.0));
+    d->predicted_spread_nT = std::sqrt(std::max(r2 / w_on - mean * mean, 0.0) + pb / w_on);
     RecordInnovation(mean, d->predicted_spread_nT * d->predicted_spread_nT, d);
   }
   // The outlier gate (see outlier_sigmas): a reading no particle's prediction explains is skipped.
   if (o_.outlier_sigmas > 0.0 && w_on > 0.5 && consecutive_outliers_ < o_.max_consecutive_outliers) {
-    const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0);
+    const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0) + pb / w_on;
     if (mean * mean > o_.outlier_sigmas * o_.outlier_sigmas * (sigma_ * sigma_ + spread)) {
       d->update = StepUpdate::kOutlier;
       ++counters_.outliers;
@@ -261,8 +266,9 @@ void Filter::Update(double z, StepDiagnostics* d) {
   consecutive_outliers_ = 0;
   if (adaptive_ && w_on > 0.5) {
     // (mean residual)² and the cloud's spread of predicted map values:
-    // E[(z − m̄)²] = σ² + Var(m) for a consistent filter.
-    const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0);
+    // E[(z − m̄)²] = σ² + Var(m) for a consistent filter (+ the bias's variance P with estimate_bias:
+    // the innovations are those after removing each particle's bias estimate).
+    const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0) + pb / w_on;
     // (the AFPF: compact against its largest σ, since its own σ starts there)
     const double compact = kind_ == ParticleFilterKind::kAfpf ? o_.afpf_max_sigma_nT : o_.measurement_sigma_nT;
     if (spread <= compact * compact) {
@@ -289,6 +295,11 @@ void Filter::Update(double z, StepDiagnostics* d) {
   Normalise();
   d->ess = Ess();
   if (kind_ == ParticleFilterKind::kPf) {
+    if (o_.estimate_bias && beta > 0.0) {  // each particle's bias posterior (the AFPF's: in Fission)
+      for (std::size_t i = 0; i < n; ++i) {
+        if (std::isfinite(resid_[i])) UpdateBias(&p_[i], resid_[i], sigma_ * sigma_ / beta);
+      }
+    }
     PfResample(d);
   } else {
     Fission(z);

@@ -17,11 +17,18 @@ void Filter::Fission(double z) {
   const double spread = w_max - w_avg;
   pool_.assign(p_.begin(), p_.end());
   pool_logw_.assign(logw_.begin(), logw_.end());
+  // estimate_bias: the parents kept in the pool carry their bias posterior; their offspring start
+  // from the parent's prior bias (p_) and are updated by their own residual.
+  const double noise_var = sigma_ * sigma_;
+  if (o_.estimate_bias) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (std::isfinite(resid_[i])) UpdateBias(&pool_[i], resid_[i], noise_var);
+    }
+  }
   std::normal_distribution<double> unit(0.0, 1.0);
   const double penalty = o_.fission_motion_penalty && o_.drift_sigma_deg > 0.0
                              ? 0.5 / (o_.drift_sigma_deg * o_.drift_sigma_deg)
                              : 0.0;
-  std::normal_distribution<double> bias_spread(0.0, o_.bias_drift_sigma_nT);
   for (std::size_t i = 0; i < n; ++i) {
     const double wi = p_[i].weight;
     const double a = spread > 1e-15 * w_avg ? 1.0 / (1.0 + std::exp((wi - w_avg) / spread)) : 0.5;
@@ -31,11 +38,14 @@ void Filter::Fission(double z) {
       Particle c;
       c.lat_deg = p_[i].lat_deg + sd * unit(rng_);
       c.lon_deg = p_[i].lon_deg + sd * unit(rng_);
-      c.bias_nT = p_[i].bias_nT + (o_.estimate_bias ? bias_spread(rng_) : 0.0);
+      c.bias_nT = p_[i].bias_nT;
+      c.bias_var_nT2 = p_[i].bias_var_nT2;
       bool on = false;
+      double r = 0.0;
       // The parent's prior weight times the offspring's likelihood, with the
       // parents' normaliser: logw_i − loglik_i + loglik(offspring).
-      double lw = logw_[i] - loglik_[i] + LogLik(c.lat_deg, c.lon_deg, z - c.bias_nT, &on);
+      double lw = logw_[i] - loglik_[i] + LogLik(c.lat_deg, c.lon_deg, z - c.bias_nT, c.bias_var_nT2, &on, &r);
+      if (o_.estimate_bias && on) UpdateBias(&c, r, noise_var);
       if (penalty > 0.0) {
         const double dl = c.lat_deg - p_[i].lat_deg, dn = c.lon_deg - p_[i].lon_deg;
         lw -= penalty * (dl * dl + dn * dn);

@@ -23,8 +23,8 @@ void Filter::Estimate(StepDiagnostics* d) {
     lon += q.weight * q.lon_deg;
     bias += q.weight * q.bias_nT;
   }
-  double bias_var = 0.0;
-  for (const Particle& q : p_) bias_var += q.weight * (q.bias_nT - bias) * (q.bias_nT - bias);
+  double bias_var = 0.0;  // the mixture's: each particle's bias variance plus the spread of their estimates
+  for (const Particle& q : p_) bias_var += q.weight * (q.bias_var_nT2 + (q.bias_nT - bias) * (q.bias_nT - bias));
   d->bias_nT = bias;
   d->bias_sigma_nT = std::sqrt(bias_var);
   double cll = 0.0, cln = 0.0, cnn = 0.0;

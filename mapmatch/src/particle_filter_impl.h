@@ -57,7 +57,8 @@ class Filter final : public SequentialMatcher {
   void Update(double z, StepDiagnostics* d);
 
   // particle_filter_likelihood.cc: the measurement model.
-  double LogLik(double lat, double lon, double z, bool* on_map, double* residual = nullptr) const;
+  double LogLik(double lat, double lon, double z, double bias_var, bool* on_map, double* residual = nullptr) const;
+  static void UpdateBias(Particle* q, double r, double noise_var);
   double CurrentSigma() const;
 
   // particle_filter_pf.cc: the PF strategy.
@@ -93,6 +94,7 @@ class Filter final : public SequentialMatcher {
   double prev_lat_ = 0.0, prev_lon_ = 0.0;
   std::vector<Particle> p_;
   std::vector<double> logw_, loglik_;
+  std::vector<double> resid_;  // estimate_bias: each particle's residual z − b − m(x) (NaN off the map)
   std::vector<Particle> pool_;
   std::vector<double> pool_logw_;
   std::vector<std::size_t> order_;

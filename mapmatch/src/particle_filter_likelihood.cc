@@ -8,13 +8,29 @@
 namespace magnav::mapmatch::internal {
 
 // Log-likelihood of a measurement at a point (the off-map floor outside).
-double Filter::LogLik(double lat, double lon, double z, bool* on_map, double* residual) const {
+// With estimate_bias, `z` is the reading less the particle's bias estimate and
+// `bias_var` that estimate's variance P (nT²): the bias marginalised, the
+// residual is N(0, σ² + P); the log of (σ² + P)/σ² keeps particles with
+// different P comparable (0 when P = 0, the likelihood without the bias).
+double Filter::LogLik(double lat, double lon, double z, double bias_var, bool* on_map, double* residual) const {
   const auto s = grid_.Sample(layer_, lat, lon);
   *on_map = s.has_value();
   if (!s) return off_map_loglik_;
   const double r = z - s->value_nT;
   if (residual != nullptr) *residual = r;
-  return -r * r * inv_two_var_;
+  if (bias_var <= 0.0) return -r * r * inv_two_var_;
+  const double var = sigma_ * sigma_, total = var + bias_var;
+  return -0.5 * (r * r / total + std::log(total / var));
+}
+
+// The Kalman update of a particle's bias (estimate_bias) by a reading whose
+// residual from its prediction m(x) + b is `r`, noise variance `noise_var`
+// (σ², or σ²/β for a tempered PF update): b += P r / (σ² + P), P ← P σ² / (σ² + P).
+void Filter::UpdateBias(Particle* q, double r, double noise_var) {
+  const double total = noise_var + q->bias_var_nT2;
+  if (!(total > 0.0)) return;
+  q->bias_nT += q->bias_var_nT2 / total * r;
+  q->bias_var_nT2 *= noise_var / total;
 }
 
 // The likelihood σ for this update (adaptive_sigma: from the innovations of

@@ -2,6 +2,7 @@
 // synthetic map, normalised weights, seeded reproducibility, the divergence
 // rule and its recovery, and the door (NaN reading, INS jump, off the map).
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <random>
 #include <string>
@@ -217,18 +218,28 @@ TEST_P(BothFilters, AllOffTheMapDeadReckonsAndReturns) {
 
 TEST_P(BothFilters, AMapBiasIsEstimatedWhenAsked) {
   // Every reading 25 nT above the map: with the bias state the filter finds
-  // both the track and the bias.
+  // both the track and the bias. Seeds 1 and 7: with the bias sampled per
+  // particle (before it was marginalised) the AFPF settled on a wrong
+  // position-bias pair on seed 7 (afpf_max_sigma_nT 15) and seed 1 (20),
+  // 3.0× the INS's error with a bias of 9–11 nT (measured: 10 seeds each,
+  // docs/ACCURACY.md "AFPF at 5 nT with its defaults"); marginalised, 10 of 10
+  // at both caps, 2.6–4.0 % of the INS's error, bias 23.4–25.7 nT.
   Truth t = SyntheticRun(0.012, -0.008);
   for (double& m : t.path.measured_nT) m += 25.0;
+  const double ins = SecondHalfMeanError(t, t.path.lat_deg, t.path.lon_deg);
   ParticleFilterOptions o = TestOptions();
   o.estimate_bias = true;
   o.num_particles = 4000;
   std::vector<StepDiagnostics> steps;
-  const MatchResult r = MatchParticleFilter(GetParam(), SyntheticMap(), 0, t.path, o, &steps);
-  const double ins = SecondHalfMeanError(t, t.path.lat_deg, t.path.lon_deg);
-  EXPECT_LT(SecondHalfMeanError(t, r.lat_deg, r.lon_deg), 0.15 * ins) << r.BriefReport();
-  EXPECT_NEAR(steps.back().bias_nT, 25.0, 3.0);
-  EXPECT_GT(steps.back().bias_sigma_nT, 0.0);
+  for (const std::uint64_t seed : {1, 7}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    o.seed = seed;
+    const MatchResult r = MatchParticleFilter(GetParam(), SyntheticMap(), 0, t.path, o, &steps);
+    EXPECT_LT(SecondHalfMeanError(t, r.lat_deg, r.lon_deg), 0.15 * ins) << r.BriefReport();
+    EXPECT_NEAR(steps.back().bias_nT, 25.0, 3.0);
+    EXPECT_GT(steps.back().bias_sigma_nT, 0.0);
+    EXPECT_LT(steps.back().bias_sigma_nT, 10.0);
+  }
   // Without it the bias is 0 and the run is the one without the option's draws.
   o.estimate_bias = false;
   MatchParticleFilter(GetParam(), SyntheticMap(), 0, t.path, o, &steps);

@@ -1,9 +1,13 @@
 // The particle filters' status (issue 25, items 3 and 6), on a few fixed seeds
 // with margins (the full measurement is scripts/calibration_pf, outside CI):
 //   * the AFPF at 5 nT noise with its defaults: second-half mean error within
-//     25 % of the INS's on the crustal reference 5 nT paths (measured 16–24 %
-//     and 1.7–2.3 % over seeds 1–3; with the fixed 5 nT σ of before,
-//     --afpf-sigma-factor 0: 133–705 %);
+//     25 % of the INS's on the crustal reference 0.01° 5 nT path (the target;
+//     measured 13–24 % over seeds 1–3 with afpf_max_sigma_nT 20, 16–24 % with
+//     the 15 of before), within 4 % on the 0.1° one (measured 2.0–2.2 %;
+//     1.7–2.3 % with 15: a 2× regression breaks both); with the fixed 5 nT σ
+//     of before issue 25, --afpf-sigma-factor 0: 133–705 %. Its figure on
+//     generated paths (held out: 0.01° mean 16 %) is scripts/calibration_pf's,
+//     outside CI (docs/ACCURACY.md, "AFPF at 5 nT with its defaults");
 //   * clean runs raise no lost-track alarm (reference 0.5 / 3 / 5 nT paths);
 //   * a run whose readings stop matching the map near its end is lost and
 //     says so: never "converged" (before: "converged … lost from k = …,
@@ -28,8 +32,10 @@
 //     its collapsed cloud's (issue 25 item 4).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -74,14 +80,16 @@ double SecondHalfRatio(const PathRun& run, const std::vector<double>& lat, const
 }
 
 TEST(PfStatus, AfpfHoldsAt5nTWithItsDefaults) {
-  for (const char* name : {"mappath_crustal_off0p01deg_noise5nT.csv", "mappath_crustal_off0p1deg_noise5nT.csv"}) {
+  const std::pair<const char*, double> paths[] = {{"mappath_crustal_off0p01deg_noise5nT.csv", 0.25},
+                                                  {"mappath_crustal_off0p1deg_noise5nT.csv", 0.04}};
+  for (const auto& [name, bound] : paths) {
     const PathRun run = Load(name);
     for (std::uint64_t seed = 1; seed <= 2; ++seed) {
       SCOPED_TRACE(std::string(name) + " seed " + std::to_string(seed));
       ParticleFilterOptions o;
       o.seed = seed;
       const MatchResult r = MatchParticleFilter(ParticleFilterKind::kAfpf, Map(), 0, run.path, o);
-      EXPECT_LE(SecondHalfRatio(run, r.lat_deg, r.lon_deg), 0.25) << r.BriefReport();
+      EXPECT_LE(SecondHalfRatio(run, r.lat_deg, r.lon_deg), bound) << r.BriefReport();
     }
   }
 }
