@@ -176,8 +176,10 @@ void AddMatchCommand(CLI::App& app) {
                   "a result whose map information along the least observed direction at the path's end is below "
                   "this fraction of the INS prior's there says 'not converged: partly observable: along-iso-line "
                   "error unconstrained (map information X of the prior's ...)' instead of 'converged' (a total-field "
-                  "map on a smooth main field does not observe the error along its iso-lines); the summary always "
-                  "gives the figure ('map information at the path's end: ...'); 0 = never");
+                  "map on a smooth main field does not observe the error along its iso-lines), and a published "
+                  "covariance (fast-msd's, the pf/afpf diagnostics') is raised along that direction to what the map "
+                  "and the prior can know; the summary always gives the figure ('map information at the path's end: "
+                  "...'); 0 = never");
   cmd->add_option("--outlier-sigmas", args->outlier_sigmas,
                   "robust residuals of every method: a reading whose residual is beyond this many robust sigmas "
                   "(1.4826 MAD) is left out (counted as outliers in the summary); pf/afpf: a reading beyond this "
