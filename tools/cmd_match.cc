@@ -165,6 +165,21 @@ void AddMatchCommand(CLI::App& app) {
                   "largest correction (deg) a result may make and still be called converged (the prior on the "
                   "INS error); 0 = the method's own: 2 x --search-window, 2 x the pf/afpf prior half-width, else "
                   "the INS path's size");
+  cmd->add_option("--ins-start-sd", args->options.observability.prior.start_sd_deg,
+                  "the prior on the INS error at the path's first point, 1 sigma per axis (deg); with "
+                  "--ins-drift-sd, a random walk from there. Both 0: pf/afpf their own prior (--prior-half-width / "
+                  "sqrt(3), --drift-sigma), the others a constant offset of 1/3 of --max-correction (or the method's "
+                  "own plausible correction)");
+  cmd->add_option("--ins-drift-sd", args->options.observability.prior.drift_sd_deg,
+                  "the INS error's random walk per path step, 1 sigma per axis (deg); 0 = a constant offset");
+  cmd->add_option("--min-observability", args->options.observability.min_information_ratio,
+                  "a result whose map information along the least observed direction at the path's end is below "
+                  "this fraction of the INS prior's there says 'not converged: partly observable: along-iso-line "
+                  "error unconstrained (map information X of the prior's ...)' instead of 'converged' (a total-field "
+                  "map on a smooth main field does not observe the error along its iso-lines), and a published "
+                  "covariance (fast-msd's, the pf/afpf diagnostics') is raised along that direction to what the map "
+                  "and the prior can know; the summary always gives the figure ('map information at the path's end: "
+                  "...'); 0 = never");
   cmd->add_option("--outlier-sigmas", args->outlier_sigmas,
                   "robust residuals of every method: a reading whose residual is beyond this many robust sigmas "
                   "(1.4826 MAD) is left out (counted as outliers in the summary); pf/afpf: a reading beyond this "

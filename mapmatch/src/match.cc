@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <utility>
 
@@ -202,6 +203,12 @@ CorrectionSupport SupportOfCorrection(const GeoGrid& grid, std::size_t layer, co
   return c;
 }
 
+std::string Significant(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
 void NotConverged(const std::string& why, MatchResult* r) {
   r->reason = r->converged || r->reason.empty() ? why : why + "; " + r->reason;
   r->converged = false;
@@ -272,6 +279,74 @@ void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
   }
 }
 
+InsErrorPrior ResolvedInsPrior(Method method, const GeoGrid& grid, const MatchPath& path, const MatchOptions& options) {
+  if (options.observability.prior.given()) return options.observability.prior;
+  InsErrorPrior p;
+  if (method == Method::kPf || method == Method::kAfpf) {  // the filters' own prior and motion model
+    p.start_sd_deg = options.particle_filter.prior_half_width_deg / std::sqrt(3.0);
+    p.drift_sd_deg = options.particle_filter.drift_sigma_deg;
+    return p;
+  }
+  p.start_sd_deg = PlausibleCorrectionDeg(method, grid, path, options) / 3.0;
+  return p;
+}
+
+void ReviewObservability(const GeoGrid& grid, std::size_t layer, const MatchPath& path, const InsErrorPrior& prior,
+                         const ObservabilityOptions& options, MatchResult* r, std::vector<StepDiagnostics>* steps) {
+  if (r->lat_deg.size() != path.size()) return;
+  for (std::size_t p = 0; p < path.size(); ++p) {
+    if (!std::isfinite(r->lat_deg[p]) || !std::isfinite(r->lon_deg[p])) return;
+  }
+  double sigma = MatchedResidualRms(grid, layer, path, r->lat_deg, r->lon_deg);
+  if (!(sigma >= options.min_noise_sd_nT)) sigma = options.min_noise_sd_nT;
+  const PathObservability o = ObservePath(grid, layer, path, r->lat_deg, r->lon_deg, prior, sigma);
+  r->observability = o.Summary();
+  if (!o.valid) return;
+  r->observability_ratio = o.ratio_weak();
+  // Partly observable: the map adds less than the prior along the least
+  // observed direction at the end. Only then is the linear posterior imposed
+  // as a floor: where the map observes both directions, its curvature within
+  // the uncertainty can tell a nonlinear method more than the linearisation
+  // (and rough crustal maps keep every covariance as the method gave it).
+  const bool partly = o.ratio_weak() < options.min_information_ratio;
+  if (!partly) return;
+  int raised = 0;
+  if (r->cov_lat_lat.size() == path.size()) {
+    for (std::size_t p = 0; p < path.size(); ++p) {
+      Cov2 c{r->cov_lat_lat[p], r->cov_lat_lon[p], r->cov_lon_lon[p]};
+      if (FloorAlongLeastKnown(o.smoothed[p], &c)) {
+        ++raised;
+        r->cov_lat_lat[p] = c.lat_lat;
+        r->cov_lat_lon[p] = c.lat_lon;
+        r->cov_lon_lon[p] = c.lon_lon;
+      }
+    }
+  }
+  if (steps != nullptr && steps->size() == path.size()) {
+    for (std::size_t p = 0; p < path.size(); ++p) {
+      StepDiagnostics& d = (*steps)[p];
+      Cov2 c{d.cov_lat_lat, d.cov_lat_lon, d.cov_lon_lon};
+      if (FloorAlongLeastKnown(o.filtered[p], &c)) {
+        ++raised;
+        d.cov_lat_lat = c.lat_lat;
+        d.cov_lat_lon = c.lat_lon;
+        d.cov_lon_lon = c.lon_lon;
+      }
+    }
+  }
+  if (raised > 0) {
+    r->observability += "; covariance raised to the map and prior's along the least known direction at " +
+                        std::to_string(raised) + " of " + std::to_string(path.size()) + " points";
+  }
+  if (r->converged) {
+    NotConverged("partly observable: along-iso-line error unconstrained (map information " +
+                     Significant(o.ratio_weak()) + " of the prior's along the least observed direction at the path's "
+                     "end, bearing " + FormatNumber(std::round(o.weak_bearing_deg() * 10.0) / 10.0) +
+                     " deg, below " + FormatNumber(options.min_information_ratio) + ")",
+                 r);
+  }
+}
+
 void RequirePathNearMap(Method method, const GeoGrid& grid, const MatchPath& path, const MatchOptions& options) {
   path.Check();
   const double reach = std::max(SearchReachDeg(method, options), 0.0);
@@ -298,6 +373,7 @@ MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const M
   if (!(std::isfinite(options.max_correction_deg) && options.max_correction_deg >= 0.0)) {
     throw InputError(std::string(MethodName(method)) + ": max_correction_deg must be finite and >= 0 (0 = the method's own)");
   }
+  if (std::string error; !options.observability.IsValid(&error)) throw InputError(std::string(MethodName(method)) + ": " + error);
   RequirePathNearMap(method, grid, path, options);
   MatchResult r;
   switch (method) {
@@ -336,6 +412,7 @@ MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const M
       break;
   }
   ReviewResult(grid, layer, path, PlausibleCorrectionDeg(method, grid, path, options), &r);
+  ReviewObservability(grid, layer, path, ResolvedInsPrior(method, grid, path, options), options.observability, &r, steps);
   return r;
 }
 

@@ -66,6 +66,7 @@ std::string MatchResult::BriefReport() const {
                   ", outliers " + std::to_string(points_outlier);
   if (converged && !reason.empty()) s += " (" + reason + ")";
   if (!notes.empty()) s += "; " + notes;
+  if (!observability.empty()) s += "; " + observability;
   return s;
 }
 

@@ -12,6 +12,7 @@
 #include "magnav/mapmatch/fast_msd.h"
 #include "magnav/mapmatch/geo_grid.h"
 #include "magnav/mapmatch/icp.h"
+#include "magnav/mapmatch/observability.h"
 #include "magnav/mapmatch/particle_filter.h"
 #include "magnav/mapmatch/path.h"
 #include "magnav/mapmatch/point_match.h"
@@ -40,6 +41,10 @@ struct MatchOptions {
   // converged (the prior on the INS error); 0 = the method's own reach
   // (PlausibleCorrectionDeg).
   double max_correction_deg = 0.0;
+  // The prior on the INS error and the "partly observable" threshold
+  // (observability.h; --ins-start-sd, --ins-drift-sd, --min-observability).
+  // Not given: ResolvedInsPrior (the filters' own; else a constant offset whose 3 sigma is PlausibleCorrectionDeg).
+  ObservabilityOptions observability;
 };
 
 // How far (deg) a method looks for the path from its INS positions: the
@@ -59,10 +64,32 @@ double PlausibleCorrectionDeg(Method method, const GeoGrid& grid, const MatchPat
 
 // Throws InputError "METHOD: the path is entirely off the map: ..." when none
 // of the path's INS points lies within SearchReachDeg of the map's grid.
+// What the map observes of the INS error along the result (ObservePath with
+// `prior`, σ = the matched residuals' rms, at least min_noise_sd_nT): sets
+// result->observability (the summary's line) and observability_ratio. When
+// the ratio is below options.min_information_ratio (partly observable): each
+// point's published covariance (fast-msd: MatchResult::cov_*, against the
+// smoothed posterior; pf/afpf: the steps' cov_*, against the filtered one) is
+// raised along its least known direction to what the map and the prior can
+// know there (FloorAlongLeastKnown), and a converged result becomes "not
+// converged: partly observable: along-iso-line error unconstrained (map
+// information X of the prior's ...)". Rough (crustal) maps observe both
+// directions (ratio >> 1): nothing changes there but the summary's line.
+void ReviewObservability(const GeoGrid& grid, std::size_t layer, const MatchPath& path, const InsErrorPrior& prior,
+                         const ObservabilityOptions& options, MatchResult* result,
+                         std::vector<StepDiagnostics>* steps = nullptr);
+
 void RequirePathNearMap(Method method, const GeoGrid& grid, const MatchPath& path, const MatchOptions& options);
 
+// The prior Match uses: options.observability.prior if given; else for pf and
+// afpf their own (start_sd = prior_half_width / sqrt(3), the uniform square's;
+// drift_sd = drift_sigma_deg), for the others a constant offset with start_sd
+// = PlausibleCorrectionDeg / 3.
+InsErrorPrior ResolvedInsPrior(Method method, const GeoGrid& grid, const MatchPath& path, const MatchOptions& options);
+
 // Runs one method over the path (steps: pf, afpf's per-step diagnostics).
-// At the door: RequirePathNearMap. Then the status is reviewed (ReviewResult).
+// At the door: RequirePathNearMap. Then the status is reviewed (ReviewResult)
+// and the observability (ReviewObservability).
 MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                   const MatchOptions& options, std::vector<StepDiagnostics>* steps = nullptr);
 

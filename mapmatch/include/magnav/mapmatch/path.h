@@ -56,9 +56,15 @@ struct MatchResult {
   // Per-point covariance of the matched position (lat, lon), deg², for the
   // methods that publish one (fast-msd: fast_msd.h); empty = none published.
   std::vector<double> cov_lat_lat, cov_lat_lon, cov_lon_lon;
+  // What the map observes of the INS error at the path's end against the
+  // prior (observability.h; set by Match): the summary's line, and the map's
+  // information along the least observed direction as a fraction of the
+  // prior's (NaN = not computed).
+  std::string observability;
+  double observability_ratio = std::numeric_limits<double>::quiet_NaN();
 
   // "method icp, iterations 12, score 0.0123 (rms distance, deg), converged, used 60/60, off map 0,
-  // bad measurement 0, outliers 0"
+  // bad measurement 0, outliers 0; <notes>; <observability>"
   std::string BriefReport() const;
 };
 
