@@ -56,21 +56,22 @@ PathCovariance FastMsdCovariance(const std::vector<double>& g_lat, const std::ve
 //    ½ δᵀ H_i δ over the position error δ ~ N(0, C_i)
 //    (H_i: the map's Hessian at the point, nT/deg²; C_i this covariance,
 //    iterated `curvature_iterations` times from v = 0).
-//  - The curvature passes must contract. v_i grows as C_i² and C_i with v_i,
-//    so where the map's curvature is large against its gradient (near an
-//    extremum or a saddle: |H| C ≳ |g|² C / σ) the loop gains more than 1 and
-//    the passes diverge (they wrote σ up to 2e8° on generated paths,
-//    docs/ACCURACY.md "Fast MSD ... runaway"). Rule: a point's v_i is updated
+//  - The curvature passes must contract. v_i grows as C_i² and C_i with v_i:
+//    roughly C ∝ (σ² + v)/|g|², so v ≈ a (σ² + v)² with a ~ |H|²/|g|⁴, which
+//    has no fixed point once 4 a σ² > 1 — where the map's curvature is large
+//    against its gradient (near an extremum or a saddle) the loop gains more
+//    than 1 and the passes diverge (they wrote σ up to 2e8° on generated paths;
+//    docs/ACCURACY.md, "The runaway fixed"). Rule: a point's v_i is updated
 //    only while its change shrinks, |v_i^(k+1) − v_i^(k)| ≤ |v_i^(k) − v_i^(k−1)|
 //    (or is below 1e-9 of σ² + v_i, i.e. converged); at the first pass where
 //    it does not, v_i is held at its last value (the last contracting pass;
-//    at worst the one correction from the linear covariance, "2 passes") and
-//    the point is flagged curvature-limited: its second-order term is as
-//    large as the linearisation can carry and its covariance is the
-//    linearisation's best, not a converged one. Chosen over a damping factor
-//    (which still diverges when the gain is large enough, and changes the
-//    converged answer's path to it) and over a cap of v_i by the map's
-//    variance over the point's neighbourhood (the map is not an input here).
+//    the first correction from the linear covariance at the earliest) and the
+//    point is flagged curvature-limited: the linearisation cannot carry its
+//    second-order term, and its covariance is the last one before the loop
+//    stopped contracting, not a converged one. Chosen over a damping factor
+//    (a large enough gain still diverges) and over a cap of v_i by the map's
+//    variance over the point's neighbourhood (the map is not an input here;
+//    the prior cap below bounds the result instead).
 //    Points without a data term are never flagged (v does not enter).
 //  - Never wider than the prior: with prior_var_deg2 > 0 (fast_msd.cc: the
 //    coarse search window's, w²/3 per axis for a uniform ±w) a point's
