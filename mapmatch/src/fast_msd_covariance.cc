@@ -108,14 +108,15 @@ std::vector<M2> SandwichDiagonalBlocks(const BlockTridiagonal& m, const BlockTri
 bool CapAtPrior(Eigen::Matrix2d* cov, double prior_var_deg2) {
   if (!(prior_var_deg2 > 0.0)) return false;
   // Positive semi-definite with trace inside: both eigenvalues are (no eigensolver on the usual path).
-  if (cov->allFinite() && (*cov)(0, 0) >= 0.0 && cov->determinant() >= 0.0 && cov->trace() <= prior_var_deg2) {
-    return false;
-  }
+  const bool psd = cov->allFinite() && (*cov)(0, 0) >= 0.0 && cov->determinant() >= 0.0;
+  if (psd && cov->trace() <= prior_var_deg2) return false;
   Eigen::SelfAdjointEigenSolver<M2> es(*cov);
   const V2 ev = es.eigenvalues();
   if (ev.allFinite() && ev.maxCoeff() <= prior_var_deg2) return false;
   V2 capped;
-  for (int k = 0; k < 2; ++k) capped(k) = std::isfinite(ev(k)) ? std::min(ev(k), prior_var_deg2) : prior_var_deg2;
+  for (int k = 0; k < 2; ++k) {
+    capped(k) = std::isfinite(ev(k)) ? std::min(ev(k), prior_var_deg2) : prior_var_deg2;
+  }
   if (!es.eigenvectors().allFinite()) {
     *cov = prior_var_deg2 * M2::Identity();
     return true;
@@ -249,8 +250,8 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
                                        const std::vector<double>& resid, const std::vector<char>& data,
                                        const std::vector<double>& e_lat, const std::vector<double>& e_lon,
                                        const std::vector<double>& h_ll, const std::vector<double>& h_ln,
-                                       const std::vector<double>& h_nn, double lambda, int curvature_iterations,
-                                       double prior_var_deg2) {
+                                       const std::vector<double>& h_nn, double lambda,
+                                       int curvature_iterations, double prior_var_deg2) {
   const std::size_t n = g_lat.size();
   ErrorCovariance out;
   out.lat_lat.assign(n, std::numeric_limits<double>::infinity());
@@ -281,8 +282,8 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
   out.s2_nT2 = s2;
   out.tau2_deg2 = tau2;
   out.edf = laplace.edf;
-  std::vector<M2> cov =
-      SmootherErrorCovariance(g, w, h, s2, tau2, h_ll, h_ln, h_nn, curvature_iterations, &out.curvature_limited);
+  std::vector<M2> cov = SmootherErrorCovariance(g, w, h, s2, tau2, h_ll, h_ln, h_nn, curvature_iterations,
+                                                &out.curvature_limited);
   for (std::size_t i = 0; i < n; ++i) {
     out.curvature_limited_points += out.curvature_limited[i] ? 1 : 0;
     cov[i] = 0.5 * (cov[i] + cov[i].transpose());

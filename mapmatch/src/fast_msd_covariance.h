@@ -100,8 +100,8 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
                                        const std::vector<double>& resid, const std::vector<char>& data,
                                        const std::vector<double>& e_lat, const std::vector<double>& e_lon,
                                        const std::vector<double>& h_ll, const std::vector<double>& h_ln,
-                                       const std::vector<double>& h_nn, double lambda, int curvature_iterations = 6,
-                                       double prior_var_deg2 = 0.0);
+                                       const std::vector<double>& h_nn, double lambda,
+                                       int curvature_iterations = 6, double prior_var_deg2 = 0.0);
 
 // The curvature term's second moment v = ½ tr((H C)²) + ¼ tr(H C)² (nT²) for
 // the map's Hessian H (nT/deg²) and a position covariance C (deg²).

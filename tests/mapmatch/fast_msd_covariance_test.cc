@@ -415,9 +415,10 @@ TEST(FastMsdSandwich, LongPathIsFiniteAndMatchesSampledColumns) {
 
 // Near a map extremum (gradient small, curvature large) the curvature passes' loop gains more than 1:
 // v_i grows as C_i², C_i with v_i. Without the contraction rule (main before 2026-11-26 07:00) the six
-// passes write σ = 8.8e10° on this path (2 passes: 0.023°; generated map paths: up to 2.3e8°). With it (fast_msd_covariance.h) every point's term is held
-// at its last contracting pass: the covariance is linear in σ² + v and each held v is at most
-// (passes − 1) × the first correction, so trace C ≤ 5 × the two-pass trace; the held points are counted.
+// passes write σ = 8.8e10° on this path (2 passes: 0.023°; generated map paths: up to 2.3e8°). With it
+// (fast_msd_covariance.h) every point's term is held at its last contracting pass: the covariance is
+// linear in σ² + v and each v is at most (passes − 1) × the first correction (every change no larger
+// than the first), so trace C ≤ 5 × the two-pass trace; the held points are counted.
 LinearisedPath NearAnExtremum(std::size_t n, unsigned seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> gd(0.0, 300.0), res(0.0, 3.0), step(0.0, 3e-4), hd(0.0, 5e4);
@@ -494,8 +495,8 @@ TEST(FastMsdCurvature, CovarianceIsCappedAtThePrior) {
   EXPECT_LE(bad.trace(), 2.0 * cap * (1.0 + 1e-12));
   // Through FastMsdErrorCovariance: the runaway path above, capped.
   const LinearisedPath p = NearAnExtremum(40, 91);
-  const internal::ErrorCovariance e =
-      internal::FastMsdErrorCovariance(p.gl, p.gn, p.r, p.data, p.el, p.en, p.hll, p.hln, p.hnn, 1e5, 6, 1e-8);
+  const internal::ErrorCovariance e = internal::FastMsdErrorCovariance(p.gl, p.gn, p.r, p.data, p.el, p.en,
+                                                                       p.hll, p.hln, p.hnn, 1e5, 6, 1e-8);
   int capped = 0;
   for (std::size_t i = 0; i < p.gl.size(); ++i) {
     EXPECT_LE(e.lat_lat[i] + e.lon_lon[i], 2e-8 * (1.0 + 1e-9)) << i;
