@@ -305,15 +305,28 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
       e_lon[i] = r.lon_deg[i] - start_lon[i];
       if (final_lin.data[i]) MapHessian(grid, layer, r.lat_deg[i], r.lon_deg[i], &h_ll[i], &h_ln[i], &h_nn[i]);
     }
+    // The prior the method starts from: the coarse search's ±window, uniform (w²/3 per axis); none
+    // without a coarse stage.
+    const double prior_var = options.search_window_deg > 0.0
+                                 ? options.search_window_deg * options.search_window_deg / 3.0
+                                 : 0.0;
     const internal::ErrorCovariance c =
         internal::FastMsdErrorCovariance(final_lin.g_lat, final_lin.g_lon, final_lin.resid, final_lin.data, e_lat,
-                                         e_lon, h_ll, h_ln, h_nn, options.lambda_nT2_per_deg2);
+                                         e_lon, h_ll, h_ln, h_nn, options.lambda_nT2_per_deg2, 6, prior_var);
     r.cov_lat_lat = c.lat_lat;
     r.cov_lat_lon = c.lat_lon;
     r.cov_lon_lon = c.lon_lon;
     r.notes += std::string(r.notes.empty() ? "" : "; ") + "covariance: residual sigma " +
                FormatNumber(std::sqrt(c.s2_nT2)) + " nT, INS drift " + FormatNumber(std::sqrt(c.tau2_deg2)) +
                " deg per point, " + FormatNumber(c.edf) + " effective parameters";
+    // Points whose linearisation could not carry the map's curvature (fast_msd_covariance.h).
+    if (c.curvature_limited_points > 0) {
+      r.notes += "; curvature-limited points: " + std::to_string(c.curvature_limited_points);
+    }
+    if (c.prior_limited_points > 0) {
+      r.notes += "; covariance capped at the search window's at " + std::to_string(c.prior_limited_points) +
+                 " points";
+    }
   }
   r.points_used = on;
   r.score = on > 0 ? sum2 / on : std::numeric_limits<double>::quiet_NaN();

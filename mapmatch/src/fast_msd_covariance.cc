@@ -105,15 +105,50 @@ std::vector<M2> SandwichDiagonalBlocks(const BlockTridiagonal& m, const BlockTri
   return x;
 }
 
+bool CapAtPrior(Eigen::Matrix2d* cov, double prior_var_deg2) {
+  if (!(prior_var_deg2 > 0.0)) return false;
+  // Positive semi-definite with trace inside: both eigenvalues are (no eigensolver on the usual path).
+  const bool psd = cov->allFinite() && (*cov)(0, 0) >= 0.0 && cov->determinant() >= 0.0;
+  if (psd && cov->trace() <= prior_var_deg2) return false;
+  Eigen::SelfAdjointEigenSolver<M2> es(*cov);
+  const V2 ev = es.eigenvalues();
+  if (ev.allFinite() && ev.maxCoeff() <= prior_var_deg2) return false;
+  V2 capped;
+  for (int k = 0; k < 2; ++k) {
+    capped(k) = std::isfinite(ev(k)) ? std::min(ev(k), prior_var_deg2) : prior_var_deg2;
+  }
+  if (!es.eigenvectors().allFinite()) {
+    *cov = prior_var_deg2 * M2::Identity();
+    return true;
+  }
+  *cov = es.eigenvectors() * capped.asDiagonal() * es.eigenvectors().transpose();
+  return true;
+}
+
+double CurvatureSecondMoment(const Eigen::Matrix2d& hessian, const Eigen::Matrix2d& cov) {
+  const M2 hc = hessian * cov;
+  return 0.5 * (hc(0, 0) * hc(0, 0) + 2.0 * hc(0, 1) * hc(1, 0) + hc(1, 1) * hc(1, 1)) +
+         0.25 * hc.trace() * hc.trace();
+}
+
+bool CurvatureUpdateContracts(double v, double next, double last_change, double s2) {
+  if (!std::isfinite(next)) return false;
+  const double change = std::abs(next - v);
+  // A change below 1e-9 of the reading's variance is convergence, whichever way it moves.
+  return change <= last_change || change <= 1e-9 * (s2 + v);
+}
+
 namespace {
 
 // The smoother's error covariance (the sandwich), with the curvature term iterated: per point
 // the diagonal block of M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹, M = Gᵀ W G + (λ/2) L
-// (h = λ/2, ω = W's diagonal).
+// (h = λ/2, ω = W's diagonal). A point's curvature term stops being updated (is held at its last
+// value, and the point flagged in *limited) at the first pass where its change does not shrink
+// (CurvatureUpdateContracts): there the fixed point does not contract (fast_msd_covariance.h).
 std::vector<M2> SmootherErrorCovariance(const std::vector<V2>& g, const std::vector<double>& omega, double h,
                                         double s2, double tau2, const std::vector<double>& h_ll,
                                         const std::vector<double>& h_ln, const std::vector<double>& h_nn,
-                                        int curvature_iterations) {
+                                        int curvature_iterations, std::vector<char>* limited) {
   const std::size_t n = g.size();
   const auto degree = [n](std::size_t i) { return (i == 0 || i + 1 == n) ? 1.0 : 2.0; };  // the path graph's
   const double kt2 = h * h * tau2;                                                          // (λ/2)² τ²
@@ -125,6 +160,8 @@ std::vector<M2> SmootherErrorCovariance(const std::vector<V2>& g, const std::vec
   }
   a.diag.resize(n);
   std::vector<double> v(n, 0.0);  // the curvature term's second moment per reading (nT²)
+  std::vector<double> last_change(n, std::numeric_limits<double>::infinity());
+  limited->assign(n, 0);
   std::vector<M2> cov;
   for (int pass = 0;; ++pass) {
     for (std::size_t i = 0; i < n; ++i) {
@@ -134,12 +171,16 @@ std::vector<M2> SmootherErrorCovariance(const std::vector<V2>& g, const std::vec
     cov = SandwichDiagonalBlocks(m, a);
     if (pass + 1 >= curvature_iterations) return cov;
     for (std::size_t i = 0; i < n; ++i) {
+      if ((*limited)[i]) continue;
       M2 H;
       H << h_ll[i], h_ln[i], h_ln[i], h_nn[i];
-      const M2 hc = H * cov[i];
-      v[i] = 0.5 * (hc(0, 0) * hc(0, 0) + 2.0 * hc(0, 1) * hc(1, 0) + hc(1, 1) * hc(1, 1)) +
-             0.25 * hc.trace() * hc.trace();
-      if (!std::isfinite(v[i])) v[i] = 0.0;
+      const double next = CurvatureSecondMoment(H, cov[i]);
+      if (!CurvatureUpdateContracts(v[i], next, last_change[i], s2)) {
+        (*limited)[i] = omega[i] > 0.0 ? 1 : 0;  // without a data term v does not enter
+        if (omega[i] > 0.0) continue;
+      }
+      last_change[i] = std::abs(next - v[i]);
+      v[i] = std::isfinite(next) ? next : v[i];
     }
   }
 }
@@ -209,7 +250,8 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
                                        const std::vector<double>& resid, const std::vector<char>& data,
                                        const std::vector<double>& e_lat, const std::vector<double>& e_lon,
                                        const std::vector<double>& h_ll, const std::vector<double>& h_ln,
-                                       const std::vector<double>& h_nn, double lambda, int curvature_iterations) {
+                                       const std::vector<double>& h_nn, double lambda,
+                                       int curvature_iterations, double prior_var_deg2) {
   const std::size_t n = g_lat.size();
   ErrorCovariance out;
   out.lat_lat.assign(n, std::numeric_limits<double>::infinity());
@@ -240,11 +282,15 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
   out.s2_nT2 = s2;
   out.tau2_deg2 = tau2;
   out.edf = laplace.edf;
-  const std::vector<M2> cov =
-      SmootherErrorCovariance(g, w, h, s2, tau2, h_ll, h_ln, h_nn, curvature_iterations);
+  std::vector<M2> cov = SmootherErrorCovariance(g, w, h, s2, tau2, h_ll, h_ln, h_nn, curvature_iterations,
+                                                &out.curvature_limited);
   for (std::size_t i = 0; i < n; ++i) {
+    out.curvature_limited_points += out.curvature_limited[i] ? 1 : 0;
+    cov[i] = 0.5 * (cov[i] + cov[i].transpose());
+    out.prior_limited.push_back(CapAtPrior(&cov[i], prior_var_deg2) ? 1 : 0);
+    out.prior_limited_points += out.prior_limited[i];
     out.lat_lat[i] = cov[i](0, 0);
-    out.lat_lon[i] = 0.5 * (cov[i](0, 1) + cov[i](1, 0));
+    out.lat_lon[i] = cov[i](0, 1);
     out.lon_lon[i] = cov[i](1, 1);
   }
   return out;

@@ -56,24 +56,62 @@ PathCovariance FastMsdCovariance(const std::vector<double>& g_lat, const std::ve
 //    ½ δᵀ H_i δ over the position error δ ~ N(0, C_i)
 //    (H_i: the map's Hessian at the point, nT/deg²; C_i this covariance,
 //    iterated `curvature_iterations` times from v = 0).
+//  - The curvature passes must contract. v_i grows as C_i² and C_i with v_i:
+//    roughly C ∝ (σ² + v)/|g|², so v ≈ a (σ² + v)² with a ~ |H|²/|g|⁴, which
+//    has no fixed point once 4 a σ² > 1 — where the map's curvature is large
+//    against its gradient (near an extremum or a saddle) the loop gains more
+//    than 1 and the passes diverge (they wrote σ up to 2e8° on generated paths;
+//    docs/ACCURACY.md, "The runaway fixed"). Rule: a point's v_i is updated
+//    only while its change shrinks, |v_i^(k+1) − v_i^(k)| ≤ |v_i^(k) − v_i^(k−1)|
+//    (or is below 1e-9 of σ² + v_i, i.e. converged); at the first pass where
+//    it does not, v_i is held at its last value (the last contracting pass;
+//    the first correction from the linear covariance at the earliest) and the
+//    point is flagged curvature-limited: the linearisation cannot carry its
+//    second-order term, and its covariance is the last one before the loop
+//    stopped contracting, not a converged one. Chosen over a damping factor
+//    (a large enough gain still diverges) and over a cap of v_i by the map's
+//    variance over the point's neighbourhood (the map is not an input here;
+//    the prior cap below bounds the result instead).
+//    Points without a data term are never flagged (v does not enter).
+//  - Never wider than the prior: with prior_var_deg2 > 0 (fast_msd.cc: the
+//    coarse search window's, w²/3 per axis for a uniform ±w) a point's
+//    covariance whose larger eigenvalue exceeds it has its eigenvalues
+//    clamped to it and is flagged prior-limited: what the method knew before
+//    the readings bounds what it can claim after them. 0 = no cap.
 //  Its diagonal blocks in O(N) time and memory (SandwichDiagonalBlocks
 //  below), once per curvature pass; the EM needs only M(σ²/τ²)⁻¹'s diagonal
 //  and first off-diagonal blocks (the selected-inverse recursion), O(N) per
 //  EM iteration.
 // e_lat/e_lon: the solution's corrections (deg) from the rounds' start;
 // h_*: the map's Hessian per point (nT/deg²); the rest as above.
-// Output s2_nT2 = σ², tau2_deg2 = τ²; edf as above (with the final λ).
+// Output s2_nT2 = σ², tau2_deg2 = τ²; edf as above (with the final λ);
+// per point the curvature-limited and prior-limited flags (above; empty when
+// the Laplace fallback is returned) and their counts.
 struct ErrorCovariance {
   std::vector<double> lat_lat, lat_lon, lon_lon;
   double s2_nT2 = 0.0;
   double tau2_deg2 = 0.0;
   double edf = 0.0;
+  std::vector<char> curvature_limited, prior_limited;
+  int curvature_limited_points = 0;
+  int prior_limited_points = 0;
 };
 ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const std::vector<double>& g_lon,
                                        const std::vector<double>& resid, const std::vector<char>& data,
                                        const std::vector<double>& e_lat, const std::vector<double>& e_lon,
                                        const std::vector<double>& h_ll, const std::vector<double>& h_ln,
-                                       const std::vector<double>& h_nn, double lambda, int curvature_iterations = 6);
+                                       const std::vector<double>& h_nn, double lambda,
+                                       int curvature_iterations = 6, double prior_var_deg2 = 0.0);
+
+// The curvature term's second moment v = ½ tr((H C)²) + ¼ tr(H C)² (nT²) for
+// the map's Hessian H (nT/deg²) and a position covariance C (deg²).
+double CurvatureSecondMoment(const Eigen::Matrix2d& hessian, const Eigen::Matrix2d& cov);
+// The contraction rule above: may v (nT²) be replaced by next, its previous
+// change having been last_change (+inf before the first), σ² = s2?
+bool CurvatureUpdateContracts(double v, double next, double last_change, double s2);
+// Clamps the eigenvalues of *cov (deg², symmetric) to prior_var_deg2 (> 0;
+// non-finite ones too); true when it changed anything. 0 = no cap, false.
+bool CapAtPrior(Eigen::Matrix2d* cov, double prior_var_deg2);
 
 // A symmetric block-tridiagonal matrix with 2 × 2 blocks: diag[i] the block
 // (i, i), upper[i] the block (i, i + 1) (size n − 1; block (i + 1, i) is its

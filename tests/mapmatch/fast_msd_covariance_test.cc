@@ -6,6 +6,7 @@
 // (SandwichDiagonalBlocks) gives what the O(N²) column sums it replaced gave.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <string>
 #include <utility>
@@ -266,7 +267,8 @@ internal::ErrorCovariance ErrorCovarianceByColumns(
   out.tau2_deg2 = tau2;
   out.edf = laplace.edf;
   const Tridiag m(g, w, h);
-  std::vector<double> v(n, 0.0);
+  std::vector<double> v(n, 0.0), last_change(n, std::numeric_limits<double>::infinity());
+  std::vector<char> held(n, 0);  // the contraction rule (fast_msd_covariance.h)
   std::vector<M2> cov(n);
   std::vector<V2> x(n);
   const double kt = h * std::sqrt(tau2);
@@ -292,12 +294,18 @@ internal::ErrorCovariance ErrorCovarianceByColumns(
     }
     if (pass + 1 >= curvature_iterations) break;
     for (std::size_t i = 0; i < n; ++i) {
+      if (held[i]) continue;
       M2 H;
       H << h_ll[i], h_ln[i], h_ln[i], h_nn[i];
       const M2 a = H * cov[i];
-      v[i] = 0.5 * (a(0, 0) * a(0, 0) + 2.0 * a(0, 1) * a(1, 0) + a(1, 1) * a(1, 1)) +
-             0.25 * a.trace() * a.trace();
-      if (!std::isfinite(v[i])) v[i] = 0.0;
+      const double next = 0.5 * (a(0, 0) * a(0, 0) + 2.0 * a(0, 1) * a(1, 0) + a(1, 1) * a(1, 1)) +
+                          0.25 * a.trace() * a.trace();
+      if (!internal::CurvatureUpdateContracts(v[i], next, last_change[i], s2) && w[i] > 0.0) {
+        held[i] = 1;
+        continue;
+      }
+      last_change[i] = std::abs(next - v[i]);
+      if (std::isfinite(next)) v[i] = next;
     }
   }
   for (std::size_t i = 0; i < n; ++i) {
@@ -403,6 +411,98 @@ TEST(FastMsdSandwich, LongPathIsFiniteAndMatchesSampledColumns) {
     const M2 ref = c.transpose() * (as * c);
     EXPECT_LE((x[i] - ref).norm(), 1e-9 * ref.norm()) << i;
   }
+}
+
+// Near a map extremum (gradient small, curvature large) the curvature passes' loop gains more than 1:
+// v_i grows as C_i², C_i with v_i. Without the contraction rule (main before 2026-11-26 07:00) the six
+// passes write σ = 8.8e10° on this path (2 passes: 0.023°; generated map paths: up to 2.3e8°). With it
+// (fast_msd_covariance.h) every point's term is held at its last contracting pass: the covariance is
+// linear in σ² + v and each v is at most (passes − 1) × the first correction (every change no larger
+// than the first), so trace C ≤ 5 × the two-pass trace; the held points are counted.
+LinearisedPath NearAnExtremum(std::size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gd(0.0, 300.0), res(0.0, 3.0), step(0.0, 3e-4), hd(0.0, 5e4);
+  LinearisedPath p;
+  double el = 0.0, en = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    el += step(rng);
+    en += step(rng);
+    p.gl.push_back(gd(rng));
+    p.gn.push_back(gd(rng));
+    p.r.push_back(res(rng));
+    p.el.push_back(el);
+    p.en.push_back(en);
+    const double hh = hd(rng);
+    p.hll.push_back(hh);
+    p.hln.push_back(0.1 * hh);
+    p.hnn.push_back(hh);
+    p.data.push_back(1);
+  }
+  return p;
+}
+
+TEST(FastMsdCurvature, PassesThatDoNotContractAreHeld) {
+  const LinearisedPath p = NearAnExtremum(40, 91);
+  const internal::ErrorCovariance two =
+      internal::FastMsdErrorCovariance(p.gl, p.gn, p.r, p.data, p.el, p.en, p.hll, p.hln, p.hnn, 1e5, 2);
+  const internal::ErrorCovariance six =
+      internal::FastMsdErrorCovariance(p.gl, p.gn, p.r, p.data, p.el, p.en, p.hll, p.hln, p.hnn, 1e5, 6);
+  ASSERT_EQ(six.lat_lat.size(), p.gl.size());
+  EXPECT_GT(six.curvature_limited_points, 0);
+  EXPECT_EQ(two.curvature_limited_points, 0);  // one correction: nothing to compare a change with
+  double largest = 0.0;
+  for (std::size_t i = 0; i < p.gl.size(); ++i) {
+    const double t6 = six.lat_lat[i] + six.lon_lon[i], t2 = two.lat_lat[i] + two.lon_lon[i];
+    ASSERT_TRUE(std::isfinite(t6)) << i;
+    EXPECT_LE(t6, 5.0 * t2 * (1.0 + 1e-9)) << i;
+    EXPECT_GT(six.lat_lat[i] * six.lon_lon[i] - six.lat_lon[i] * six.lat_lon[i], 0.0) << i;
+    largest = std::max(largest, std::sqrt(t6));
+  }
+  EXPECT_LT(largest, 0.1);  // deg; without the rule 8.8e10 here
+}
+
+// The contraction rule itself: a shrinking change is taken, a growing or non-finite one is not, a change
+// below 1e-9 of σ² + v is convergence either way.
+TEST(FastMsdCurvature, ContractionRule) {
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_TRUE(internal::CurvatureUpdateContracts(0.0, 5.0, inf, 1.0));    // the first correction
+  EXPECT_TRUE(internal::CurvatureUpdateContracts(5.0, 7.0, 5.0, 1.0));    // 2 <= 5
+  EXPECT_FALSE(internal::CurvatureUpdateContracts(5.0, 11.0, 5.0, 1.0));  // 6 > 5
+  EXPECT_FALSE(internal::CurvatureUpdateContracts(5.0, inf, 5.0, 1.0));
+  EXPECT_TRUE(internal::CurvatureUpdateContracts(5.0, 5.0 + 1e-10, 1e-12, 1.0));
+}
+
+// Never wider than the prior: eigenvalues above the cap are clamped to it (the eigenvectors kept), one
+// inside is untouched, a non-finite covariance becomes the prior.
+TEST(FastMsdCurvature, CovarianceIsCappedAtThePrior) {
+  const double cap = 0.15 * 0.15 / 3.0;
+  M2 c;
+  c << 1e6, 0.5, 0.5, 1e-6;  // eigenvalues ≈ 1e6 and 7.5e-7
+  ASSERT_TRUE(internal::CapAtPrior(&c, cap));
+  const Eigen::SelfAdjointEigenSolver<M2> es(c);
+  EXPECT_NEAR(es.eigenvalues()(1), cap, 1e-9 * cap);
+  EXPECT_NEAR(es.eigenvalues()(0), 7.5e-7, 1e-9);
+  M2 inside;
+  inside << 1e-6, 2e-7, 2e-7, 3e-6;
+  const M2 before = inside;
+  EXPECT_FALSE(internal::CapAtPrior(&inside, cap));
+  EXPECT_EQ(inside, before);
+  EXPECT_FALSE(internal::CapAtPrior(&inside, 0.0));  // no prior, no cap
+  M2 bad;
+  bad << std::numeric_limits<double>::infinity(), 0.0, 0.0, 1.0;
+  ASSERT_TRUE(internal::CapAtPrior(&bad, cap));
+  EXPECT_TRUE(bad.allFinite());
+  EXPECT_LE(bad.trace(), 2.0 * cap * (1.0 + 1e-12));
+  // Through FastMsdErrorCovariance: the runaway path above, capped.
+  const LinearisedPath p = NearAnExtremum(40, 91);
+  const internal::ErrorCovariance e = internal::FastMsdErrorCovariance(p.gl, p.gn, p.r, p.data, p.el, p.en,
+                                                                       p.hll, p.hln, p.hnn, 1e5, 6, 1e-8);
+  int capped = 0;
+  for (std::size_t i = 0; i < p.gl.size(); ++i) {
+    EXPECT_LE(e.lat_lat[i] + e.lon_lon[i], 2e-8 * (1.0 + 1e-9)) << i;
+    capped += e.prior_limited[i];
+  }
+  EXPECT_EQ(capped, e.prior_limited_points);
 }
 
 }  // namespace

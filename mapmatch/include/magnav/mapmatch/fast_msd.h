@@ -101,7 +101,11 @@ struct FastMsdOptions {
 // estimated from the path (EM on the linearised model), not tied together by
 // λ: M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹, M = Gᵀ W G + (λ/2) L, with R = σ²
 // plus the second moment of the map's second-order term over the position error
-// (the grid's curvature). Widened to cover a second peak when ambiguous
+// (the grid's curvature). Where that term's passes do not contract the point
+// keeps its last contracting pass's term (notes: "curvature-limited points:
+// K"); with a coarse stage no point's covariance is wider than the search
+// window's uniform prior (w²/3 per axis; notes say at how many points it was
+// capped). Widened to cover a second peak when ambiguous
 // (above). Calibration: docs/ACCURACY.md, "Trust: covariance calibration".
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                          const FastMsdOptions& options = {});
