@@ -47,14 +47,18 @@
 #             not all of the fixes (killed mid-path: the recorder writes
 #             those repeats once) and the recorder (never restarted) got
 #             exactly the uninterrupted run's fixes, row for row.
-# Each case runs $MAGNAV_RESTART_RUNS times (default 2; `MAGNAV_RESTART_RUNS=20`
-# for the 20-in-a-row check of issue 15).
+# Each case runs $MAGNAV_RESTART_RUNS times (default 2), $MAGNAV_RESTART_PARALLEL
+# of them at the same time on their own domains (default 2: CI's two runs of
+# the inverter and the localizer side by side; `MAGNAV_RESTART_RUNS=20
+# MAGNAV_RESTART_PARALLEL=1` for the 20-in-a-row check of issue 15).
 # Usage: restart_test.sh CASE BIN_DIR SOURCE_DIR
 set -euo pipefail
 CASE=$1 BIN=$2 SRC=$3
 RUNS=${MAGNAV_RESTART_RUNS:-2}
+PARALLEL=${MAGNAV_RESTART_PARALLEL:-2}
+DOMAIN_BASE=40 DOMAIN_PID=$$
 . "$SRC/tests/support/dds_test_lib.sh"
-dds_test_setup 40
+dds_test_setup "$DOMAIN_BASE"
 PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 TRUTH="$SRC/tests/data/reference/track_truth_auv.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
@@ -76,6 +80,43 @@ restart() {
 # its own is a failure of its own, not something to kill).
 alive() { kill -0 "$1" 2>/dev/null || fail "$2 ended before it was stopped"; }
 
+# run_all: one_run for run = 1..$RUNS, $PARALLEL at a time. Each run is a
+# subshell with its own directory (WORK: a copy of what the case made before
+# its runs) and, among the runs at the same time, its own domain; its output
+# is printed in run order once it ended. The runs spend most of their time
+# waiting on the paced replay (a few % of a core each): side by side they
+# take the time of one.
+run_all() {
+  local r s first_failed=0
+  declare -A job_of=()
+  local running=()
+  finish_run() {
+    local rc=0
+    wait "${job_of[$1]}" || rc=$?
+    cat "$WORK/run-$1/run.out"
+    if [ "$rc" -ne 0 ] && [ "$first_failed" -eq 0 ]; then first_failed=$1; fi
+  }
+  for r in $(seq "$RUNS"); do
+    if [ "${#running[@]}" -ge "$PARALLEL" ]; then
+      finish_run "${running[0]}"
+      running=("${running[@]:1}")
+    fi
+    s=$(( (r - 1) % PARALLEL ))
+    mkdir -p "$WORK/run-$r"
+    find "$WORK" -maxdepth 1 -type f -exec cp {} "$WORK/run-$r/" \;
+    (
+      run=$r WORK="$WORK/run-$r" pids=()
+      export MAGNAV_DOMAIN_ID=$(( DOMAIN_BASE + (DOMAIN_PID + s * 150 / PARALLEL) % 150 ))
+      trap 'for p in "${pids[@]}"; do kill -9 "$p" 2>/dev/null || true; done; wait 2>/dev/null || true' EXIT
+      one_run
+    ) >"$WORK/run-$r/run.out" 2>&1 &
+    job_of[$r]=$!
+    running+=("$r")
+  done
+  for r in "${running[@]}"; do finish_run "$r"; done
+  [ "$first_failed" -eq 0 ] || { echo "FAIL: run $first_failed failed"; exit 1; }
+}
+
 # With MAGNAV_TEST_KEEP=DIR each run's logs and outputs are copied to DIR/run-N.
 keep() {
   [ -n "${MAGNAV_TEST_KEEP:-}" ] || return 0
@@ -86,7 +127,7 @@ case "$CASE" in
 inverter)
   "$BIN/magnav" invert --input "$PASS" --method ted-egt --output "$WORK/offline.csv" >/dev/null
   valid_fixes "$WORK/offline.csv" >"$WORK/want.txt"
-  for run in $(seq "$RUNS"); do
+  one_run() {
     rm -f "$WORK/fixes.csv"
     "$BIN/magnav" record --topic dipole_fix --count "$N" --duration 60 --output "$WORK/fixes.csv" >"$WORK/record.log" 2>&1 &
     rec=$!; pids+=($rec)
@@ -111,7 +152,7 @@ inverter)
     keep
     [ "$rows" -eq "$N" ] && [ "$distinct" -eq "$N" ] || fail "not exactly one fix per sample"
     cmp -s "$WORK/got.txt" "$WORK/want.txt" || fail "the valid fixes differ from magnav invert"
-  done
+  }
   ;;
 tracker)
   evaluate() {
@@ -130,12 +171,13 @@ tracker)
                                               if (d < 0) d = -d; if (d > m) m = d } }
              END { printf "%.3g m over %d rows (%d rows without a match)\n", m, n, miss }' "$1" "$2"
   }
-  TRK=("$BIN/magnav-tracker" --b0 "$B0" --stats-period 0 --state-dir "$WORK/state" --checkpoint-period 0.25)
+  # (--state-dir "$WORK/state" is added where it starts: each run has its own WORK)
+  TRK=("$BIN/magnav-tracker" --b0 "$B0" --stats-period 0 --checkpoint-period 0.25)
   REPLAY=("$BIN/magnav" replay --input "$PASS" --speed 40 --wait-readers 1 --wait 20)
   # The uninterrupted run (no inverter: without fixes the live tracker is deterministic).
   "$BIN/magnav" record --topic track --output "$WORK/want.csv" >"$WORK/record0.log" 2>&1 &
   rec=$!; pids+=($rec)
-  "${TRK[@]}" >"$WORK/tracker0.log" 2>&1 &
+  "${TRK[@]}" --state-dir "$WORK/state" >"$WORK/tracker0.log" 2>&1 &
   tr0=$!; pids+=($tr0)
   "${REPLAY[@]}" >"$WORK/replay0.log" 2>&1 || fail "replay: $(tail -1 "$WORK/replay0.log")"
   sleep 0.5
@@ -143,11 +185,11 @@ tracker)
   sleep 0.5
   kill -TERM "$rec"; wait "$rec" || fail "record failed"
   want=$(evaluate "$WORK/want.csv")
-  for run in $(seq "$RUNS"); do
+  one_run() {
     rm -rf "$WORK/track.csv" "$WORK/state"
     "$BIN/magnav" record --topic track --output "$WORK/track.csv" >"$WORK/record.log" 2>&1 &
     rec=$!; pids+=($rec)
-    "${TRK[@]}" >"$WORK/tracker1.log" 2>&1 &
+    "${TRK[@]}" --state-dir "$WORK/state" >"$WORK/tracker1.log" 2>&1 &
     tr1=$!; pids+=($tr1)
     "${REPLAY[@]}" >"$WORK/replay.log" 2>&1 &
     rp=$!; pids+=($rp)
@@ -156,7 +198,7 @@ tracker)
     for _ in $(seq 200); do grep -q "track 1 started" "$WORK/tracker1.log" && break; sleep 0.05; done
     sleep 0.6
     [ -s "$WORK/state/magnav-tracker.state" ] || fail "no checkpoint written before the kill"
-    restart "$tr1" "$WORK/tracker2.log" "${TRK[@]}"
+    restart "$tr1" "$WORK/tracker2.log" "${TRK[@]}" --state-dir "$WORK/state"
     tr2=$restarted
     wait "$rp" || fail "replay stopped: $(tail -1 "$WORK/replay.log")"
     sleep 0.5
@@ -189,7 +231,7 @@ tracker)
     [ -z "$lost" ] || fail "the recorder lost $lost estimates"
     awk -v g="$got" -v w="$want" 'BEGIN { exit !(g != "" && g <= 1.2 * w) }' \
       || fail "RMS within 30 m $got m, more than 1.2 x the uninterrupted $want m"
-  done
+  }
   ;;
 localizer)
   M="$SRC/tests/data/reference/localize_measurements.csv" G="$SRC/tests/data/reference/localize_gnss_full.csv"
@@ -215,9 +257,9 @@ localizer)
                    printf "%.3g\n", m }' "$1" "$2"
   }
   want=$(rms "$WORK/offline.csv")
-  LOC=("$BIN/magnav-localizer" --deployment "$D" --moment-body 30000,2000,10000 --vessel-z 0 --sigma-b 1e-9
-       --stats-period 0 --state-dir "$WORK/state" --checkpoint-period 1)
-  for run in $(seq "$RUNS"); do
+  one_run() {
+    LOC=("$BIN/magnav-localizer" --deployment "$D" --moment-body 30000,2000,10000 --vessel-z 0 --sigma-b 1e-9
+         --stats-period 0 --state-dir "$WORK/state" --checkpoint-period 1)
     rm -rf "$WORK/state" "$WORK/positions.csv"
     "$BIN/magnav" record --topic sensor_position --output "$WORK/positions.csv" >"$WORK/record.log" 2>&1 &
     rec=$!; pids+=($rec)
@@ -251,7 +293,7 @@ localizer)
     [ "${already:-0}" -gt 0 ] || fail "no history dropped as already in the checkpoint"
     awk -v g="$got" -v w="$want" 'BEGIN { exit !(g != "missing" && g <= 1.2 * w) }' \
       || fail "final RMS error $got m, more than 1.2 x the uninterrupted $want m"
-  done
+  }
   ;;
 matcher)
   MAP="$SRC/tests/data/reference/map_crustal_anomaly.csv"
@@ -275,7 +317,7 @@ matcher)
   kill -TERM "$rec"; wait "$rec" || fail "record failed"
   want=$(col "$WORK/want.csv" t | wc -l)
   [ "$want" -ge 5 ] || fail "the uninterrupted run gave $want fixes"
-  for run in $(seq "$RUNS"); do
+  one_run() {
     rm -f "$WORK/fixes.csv"
     "$BIN/magnav" record --topic map_fix --count "$want" --duration 30 --output "$WORK/fixes.csv" >"$WORK/record.log" 2>&1 &
     rec=$!; pids+=($rec)
@@ -301,8 +343,9 @@ matcher)
     [ "${repeats:-0}" -gt 0 ] && [ "${repeats:-0}" -lt "$want" ] || fail "${repeats:-0} repeated of $want: not killed mid-path"
     cmp -s <(rows "$WORK/fixes.csv") <(rows "$WORK/want.csv") \
       || fail "the fixes differ from the uninterrupted run's: $(diff <(rows "$WORK/fixes.csv") <(rows "$WORK/want.csv") | head -4)"
-  done
+  }
   ;;
 *) echo "unknown case $CASE"; exit 2 ;;
 esac
+run_all
 echo "$RUNS passed, 0 failed"

@@ -77,20 +77,28 @@ echo "   uncertified recorders on every magnav topic ($topics files) meanwhile: 
 [ "$plain" -eq 0 ] || fail "a participant without security received $plain messages"
 [ "$other" -eq 0 ] || fail "a participant certified by another CA received $other messages"
 
-# 2. Uncertified writers reach nobody.
-if "$BIN/magnav" replay --input "$WORK/pass_next.csv" --speed 0 --wait-readers 1 --wait 5 >"$WORK/plain_replay.log" 2>&1; then
-  fail "a plain replay found a reader"
-fi
+# 2. Uncertified writers reach nobody. The three checks side by side (each
+#    waits out its own time: 5 s for a reader that must not appear; the plain
+#    send, then 8 s of a new secure recorder); none of them is a reader of the
+#    others' topic, so none can change what another sees.
+"$BIN/magnav" replay --input "$WORK/pass_next.csv" --speed 0 --wait-readers 1 --wait 5 >"$WORK/plain_replay.log" 2>&1 &
+plain_rp=$!; pids+=($plain_rp)
+"$BIN/magnav" replay "${OTHER[@]}" --input "$WORK/pass_next.csv" --speed 0 --wait-readers 1 --wait 5 \
+  >"$WORK/other_replay.log" 2>&1 &
+other_rp=$!; pids+=($other_rp)
+send_then_record() {
+  "$BIN/magnav" replay --input "$WORK/pass_next.csv" --speed 20 --wait-readers 0 --settle 1 >"$WORK/plain_send.log" 2>&1 ||
+    { echo "plain replay (sending without readers): $(tail -1 "$WORK/plain_send.log")"; return 1; }
+  "$BIN/magnav" record "${TOOL[@]}" --topic dipole_fix --duration 8 --output "$WORK/fixes2.csv" >"$WORK/record2.log" 2>&1 ||
+    { echo "second secure record failed"; return 1; }
+}
+send_then_record >"$WORK/send_then_record.txt" 2>&1 &
+sr=$!; pids+=($sr)
+if wait "$plain_rp"; then fail "a plain replay found a reader"; fi
 grep -q "no reader of magnav/gradiometer appeared" "$WORK/plain_replay.log" || fail "plain replay: $(tail -1 "$WORK/plain_replay.log")"
-if "$BIN/magnav" replay "${OTHER[@]}" --input "$WORK/pass_next.csv" --speed 0 --wait-readers 1 --wait 5 \
-     >"$WORK/other_replay.log" 2>&1; then
-  fail "a replay certified by another CA found a reader"
-fi
+if wait "$other_rp"; then fail "a replay certified by another CA found a reader"; fi
 grep -q "no reader of magnav/gradiometer appeared" "$WORK/other_replay.log" || fail "other-CA replay: $(tail -1 "$WORK/other_replay.log")"
-"$BIN/magnav" replay --input "$WORK/pass_next.csv" --speed 20 --wait-readers 0 --settle 1 >"$WORK/plain_send.log" 2>&1 ||
-  fail "plain replay (sending without readers): $(tail -1 "$WORK/plain_send.log")"
-"$BIN/magnav" record "${TOOL[@]}" --topic dipole_fix --duration 8 --output "$WORK/fixes2.csv" >"$WORK/record2.log" 2>&1 ||
-  fail "second secure record failed"
+wait "$sr" || fail "$(cat "$WORK/send_then_record.txt")"
 t_last=$(col "$WORK/pass.csv" t | tail -1)
 old=$(rows "$WORK/fixes2.csv")
 new=$(col "$WORK/fixes2.csv" t | awk -v l="$t_last" '$1 > l + 1e-9' | wc -l)

@@ -32,9 +32,9 @@
  *       is, in the order taken, to the same topic on $MAGNAV_DOMAIN_ID with
  *       writer QoS QOS (default or sensor_data as above), at most RATE
  *       samples/s. Prints "ready" once each writer has matched READERS readers
- *       (default 1); ends
- *       QUIET_S seconds after the last sample (once one came), printing
- *       "relayed N samples".
+ *       (default 1); ends once one came and the input's writers have left
+ *       (`magnav replay` ended) with nothing more to take, or else QUIET_S
+ *       seconds after the last sample, printing "relayed N samples".
  *   cyclone_peer expect-fixes FILE TIMEOUT_S
  *       Subscribes magnav/dipole_fix, prints "ready" once a writer (the
  *       service) is matched, and waits for one fix per row of FILE,
@@ -326,9 +326,16 @@ static dds_entity_t waitset_for(dds_entity_t pp, dds_entity_t rd) {
 
 /* A reader that leaves the moment it has its data may not have acknowledged
  * the last samples yet, and the writer then waits for it until its lease ends
- * (magnav replay: up to 10 s). Stay half a second to answer the heartbeats. */
-static void linger_then_delete(dds_entity_t pp) {
-  dds_sleepfor(DDS_MSECS(500));
+ * (magnav replay: up to 10 s). Stay half a second to answer the heartbeats,
+ * or less when rd (a reader; 0: none) has no writer left to answer (they
+ * left: `magnav replay` ends once its readers acknowledged everything). */
+static void linger_then_delete(dds_entity_t pp, dds_entity_t rd) {
+  const dds_time_t end = dds_time() + DDS_MSECS(500);
+  while (dds_time() < end) {
+    dds_subscription_matched_status_t st;
+    if (rd > 0 && dds_get_subscription_matched_status(rd, &st) == DDS_RETCODE_OK && st.current_count == 0) break;
+    dds_sleepfor(DDS_MSECS(5));
+  }
   dds_delete(pp);
 }
 
@@ -453,7 +460,7 @@ static int expect_samples(const char *path, double timeout_s, int transient_loca
          c.unknown);
   if (first_missing < t.num_rows) printf(" (first missing: sample %zu of the file)", first_missing);
   printf("\n");
-  linger_then_delete(pp);
+  linger_then_delete(pp, rd);
   return all_once(&c, t.num_rows) ? 0 : 1;
 }
 
@@ -573,7 +580,7 @@ static int expect_fixes(const char *path, double timeout_s) {
   const tally_t c = collect(rd, ws, keys, t.num_rows, timeout_s, seen, fix_key, fix_same, &ctx);
   printf("received %zu of %zu fixes (%zu valid), %zu differ, %zu repeated, %zu unknown\n", c.received, t.num_rows,
          ctx.valid, c.differ, c.repeated, c.unknown);
-  linger_then_delete(pp);
+  linger_then_delete(pp, rd);
   return all_once(&c, t.num_rows) ? 0 : 1;
 }
 
@@ -655,7 +662,16 @@ static int relay(qos_kind_t kind, const char *topics, dds_domainid_t from, doubl
   dds_time_t start = 0, last = 0;
   void *samples[TAKE_MAX];
   dds_sample_info_t infos[TAKE_MAX];
+  int empty_after_gone = 0;
   while (!stop_requested) {
+    /* The input's writers (`magnav replay`, which ends once every sample was
+     * acknowledged) have left: what they sent is here or on its way. Looked at
+     * before taking, so a sample taken after it cannot be missed. */
+    int writers_gone = relayed > 0;
+    for (int i = 0; i < n && writers_gone; ++i) {
+      dds_subscription_matched_status_t st;
+      if (dds_get_subscription_matched_status(readers[i], &st) != DDS_RETCODE_OK || st.current_count > 0) writers_gone = 0;
+    }
     dds_waitset_wait(ws, NULL, 0, DDS_MSECS(100));
     int got_any = 0;
     for (int i = 0; i < n; ++i) {
@@ -675,12 +691,16 @@ static int relay(qos_kind_t kind, const char *topics, dds_domainid_t from, doubl
       if (got > 0) dds_return_loan(readers[i], samples, got);
     }
     if (got_any) last = dds_time();
+    /* Ends after two empty takes (>= 100 ms) once the writers left, else
+     * quiet_s after the last sample. */
+    empty_after_gone = writers_gone && !got_any ? empty_after_gone + 1 : 0;
+    if (empty_after_gone >= 2) break;
     if (relayed > 0 && !got_any && dds_time() - last > (dds_duration_t)(quiet_s * 1e9)) break;
   }
   for (int i = 0; i < n; ++i) dds_wait_for_acks(writers[i], DDS_SECS(10));
   printf("relayed %zu samples\n", relayed);
   fflush(stdout);
-  linger_then_delete(pp_out);
+  linger_then_delete(pp_out, 0);
   dds_delete(pp_in);
   return 0;
 }

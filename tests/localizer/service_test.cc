@@ -177,7 +177,7 @@ namespace {
 // `magnav localize --method ekf-bounded` row (the service's default method). With `stock_qos` ("default": Cyclone
 // DDS's RELIABLE/VOLATILE writer; "sensor_data": ROS 2's BEST_EFFORT/VOLATILE)
 // the replay goes to another domain and a Cyclone relay writes every sample
-// again with that QoS to the service's, paced (replay at 100×, ≤ 20000
+// again with that QoS to the service's, paced (replay at 200×, ≤ 20000
 // samples/s): the service (and the recorders of its input) hear only a stock
 // writer, and the result must be the same.
 void ReplayedAndRecordedRunEqualsTheOfflineCommand(const char* stock_qos) {
@@ -212,7 +212,7 @@ void ReplayedAndRecordedRunEqualsTheOfflineCommand(const char* stock_qos) {
     relay.emplace(stock_qos, "magnetometer,vessel_nav", domain, 20000.0, /*readers=*/2);
     ASSERT_TRUE(relay->ready());
     replay_env["MAGNAV_DOMAIN_ID"] = std::to_string(testing::StockRelay::InputDomain(domain));
-    replay[7] = "100";  // --speed: both streams in time order, as live
+    replay[7] = "200";  // --speed: both streams in time order, as live
     replay[9] = "1";    // --wait-readers: the relay
   }
   const auto [replay_rc, replay_out] = testing::RunCommand(replay, replay_env, 120s);

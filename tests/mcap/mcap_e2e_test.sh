@@ -37,7 +37,8 @@ fi
 # The recording: record every topic, replay the pass into an inverter.
 "$BIN/magnav" record --topic all --output "$WORK/x.mcap" >"$WORK/record.log" 2>&1 &
 rec=$!; pids+=($rec)
-"$BIN/magnav-inverter" --b0 "$B0" --stats-period 0 >"$WORK/inverter1.log" 2>&1 &
+# (its stats line every 0.1 s says when it has answered every sample)
+"$BIN/magnav-inverter" --b0 "$B0" --stats-period 0.1 >"$WORK/inverter1.log" 2>&1 &
 inv1=$!; pids+=($inv1)
 # The recorder must hear the inverter's fixes from the first: on a loaded
 # machine discovery can take longer than the whole unpaced replay, and a late
@@ -46,9 +47,11 @@ for _ in $(seq 300); do grep -q "magnav/dipole_fix: 1 writer(s) matched" "$WORK/
 grep -q "magnav/dipole_fix: 1 writer(s) matched" "$WORK/record.log" || fail "the recorder did not match the inverter's fix writer in 30 s"
 "$BIN/magnav" replay --input "$PASS" --speed 0 --wait-readers 2 --wait 20 >"$WORK/replay1.log" 2>&1 ||
   fail "replay of the pass: $(tail -1 "$WORK/replay1.log")"
-# The inverter answers an unpaced replay within a second or two: its last
-# fixes reach the recorder before the inverter and then the recorder stop.
-sleep 3
+# The inverter answers an unpaced replay within a second or two (it was a
+# fixed 3 s): once it has published a fix for every sample it stops, which
+# waits for the recorder's acknowledgment of its last fixes, then the recorder
+# stops. (At most 30 s; the counts below fail if it never got there.)
+for _ in $(seq 300); do grep -q "magnav-inverter: $N samples .*, $N fixes," "$WORK/inverter1.log" && break; sleep 0.1; done
 kill -TERM "$inv1"; wait "$inv1" 2>/dev/null || true
 kill -INT "$rec"; wait "$rec" || fail "record failed: $(tail -3 "$WORK/record.log")"
 [ -f "$WORK/x.mcap" ] || fail "no x.mcap"

@@ -93,7 +93,9 @@ struct TestPeer {
   std::vector<msg::TrackEstimate> SendAndStop(const std::vector<GradiometerSample>& samples, std::size_t expected,
                                               testing::Subprocess* service) {
     for (std::size_t i = 0; i < samples.size(); ++i) EXPECT_TRUE(writer->Write(dds::ToMsg(samples[i], i)));
-    EXPECT_TRUE(writer->WaitForAcknowledgments(30s));
+    if (writer) {  // (none once a relayed run closed its input)
+      EXPECT_TRUE(writer->WaitForAcknowledgments(30s));
+    }
     if (expected > 5) {
       EXPECT_TRUE(reader->WaitForSamples(expected - 5, 60s)) << reader->stats().samples.load();
     }
@@ -204,14 +206,24 @@ TEST_P(TrackerStockWriter, EverySampleGivesTheLibrarysEstimates) {
   testing::StockRelay relay(GetParam(), "gradiometer", domain, 2000.0);
   ASSERT_TRUE(relay.ready());
   std::vector<msg::TrackEstimate> got;
+  int rc = 0;
+  std::string relay_log;
   {
     TestPeer peer(domain, testing::StockRelay::InputDomain(domain));
     EXPECT_TRUE(peer.writer->WaitForMatched(1, 20s));
     EXPECT_TRUE(peer.reader->WaitForMatched(1, 20s));
-    got = peer.SendAndStop(file.samples, want.size(), &service);
+    for (std::size_t i = 0; i < file.samples.size(); ++i) {
+      EXPECT_TRUE(peer.writer->Write(dds::ToMsg(file.samples[i], i)));
+    }
+    EXPECT_TRUE(peer.writer->WaitForAcknowledgments(30s));  // by the relay: it may still hold the last ones
+    // The relay's input closes: it hands on what it holds and ends (tests/interop/cyclone_peer.c),
+    // so every sample has left it before the service is stopped. (Stopped while the relay still held
+    // the last sample, the service gave one estimate fewer: 1564 of 1565, on a loaded machine.)
+    peer.writer.reset();
+    peer.in_node.reset();
+    relay_log = relay.Finish(30s, &rc);
+    got = peer.SendAndStop({}, want.size(), &service);
   }
-  int rc = 0;
-  const std::string relay_log = relay.Finish(30s, &rc);
   EXPECT_EQ(rc, 0) << relay_log;
   EXPECT_NE(relay_log.find("relayed 2001 samples"), std::string::npos) << relay_log;
   const std::string log = service.ReadAll();
