@@ -9,7 +9,7 @@
 set -euo pipefail
 BIN=$1 SRC=$2
 . "$SRC/tests/support/dds_test_lib.sh"
-dds_test_setup 45
+dds_test_setup
 PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
 # The database in memory (/dev/shm, where there is one): every estimate is an

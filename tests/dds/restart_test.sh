@@ -56,9 +56,8 @@ set -euo pipefail
 CASE=$1 BIN=$2 SRC=$3
 RUNS=${MAGNAV_RESTART_RUNS:-2}
 PARALLEL=${MAGNAV_RESTART_PARALLEL:-2}
-DOMAIN_BASE=40 DOMAIN_PID=$$
 . "$SRC/tests/support/dds_test_lib.sh"
-dds_test_setup "$DOMAIN_BASE"
+dds_test_setup
 PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 TRUTH="$SRC/tests/data/reference/track_truth_auv.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
@@ -101,12 +100,11 @@ run_all() {
       finish_run "${running[0]}"
       running=("${running[@]:1}")
     fi
-    s=$(( (r - 1) % PARALLEL ))
     mkdir -p "$WORK/run-$r"
     find "$WORK" -maxdepth 1 -type f -exec cp {} "$WORK/run-$r/" \;
     (
       run=$r WORK="$WORK/run-$r" pids=()
-      export MAGNAV_DOMAIN_ID=$(( DOMAIN_BASE + (DOMAIN_PID + s * 150 / PARALLEL) % 150 ))
+      dds_claim_domain || exit 1  # each run its own domain, held while the run lasts
       trap 'for p in "${pids[@]}"; do kill -9 "$p" 2>/dev/null || true; done; wait 2>/dev/null || true' EXIT
       one_run
     ) >"$WORK/run-$r/run.out" 2>&1 &

@@ -3,7 +3,7 @@
 # scripts/make_security makes a field's CA, identities "service" and "tool", signed governance
 # (no unauthenticated participants, join access control, magnav/* encrypted) and permissions, and
 # security.xml (profiles magnav_secure_service / magnav_secure_tool); a second run makes the same
-# for ANOTHER CA. Loopback only, domain from the pid.
+# for ANOTHER CA. Loopback only, on a domain of its own (dds_claim_domain).
 #   1. secure magnav-inverter (service), secure `magnav record --topic dipole_fix` (tool) and a
 #      secure replay (tool) of 300 samples of the AUV fluxgate pass: every sample gets its fix,
 #      the valid fixes equal `magnav invert`'s. Meanwhile a plain recorder (magnav_loopback) and
@@ -21,7 +21,7 @@ set -euo pipefail
 BIN=$1 SRC=$2
 command -v openssl >/dev/null || { echo "openssl not installed: skipped"; exit 77; }
 . "$SRC/tests/support/dds_test_lib.sh"
-dds_test_setup 40
+dds_test_setup
 FAIL_LOG_LINES=5
 t_start=$(date +%s.%N)
 FULL="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"

@@ -34,7 +34,7 @@ if [ -z "$PEER" ] || [ ! -x "$PEER" ]; then
 fi
 export CYCLONEDDS_URI="file://$SRC/config/cyclonedds_loopback.xml"
 . "$SRC/tests/support/dds_test_lib.sh"
-dds_test_setup 30
+dds_test_setup
 PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
 

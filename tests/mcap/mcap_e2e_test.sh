@@ -18,7 +18,7 @@
 set -euo pipefail
 CASE=$1 BIN=$2 SRC=$3 VENV=$4
 . "$SRC/tests/support/dds_test_lib.sh"
-dds_test_setup 50
+dds_test_setup
 PASS="$SRC/tests/data/reference/track_pass_auv_1sensor_fluxgate.csv"
 B0=$(sed -n 's/^# B0_T: *//p' "$PASS" | tr -d ' ')
 N=$(grep -c '^[0-9]' "$PASS")

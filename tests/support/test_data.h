@@ -11,8 +11,11 @@ namespace magnav::testing {
 std::string TestDataDir();
 // Path of a reference file, e.g. ReferencePath("dipole_cases.csv").
 std::string ReferencePath(const std::string& name);
-// DDS domain id of this test process (10 + pid % 200), as Fast DDS's blackbox
-// tests derive theirs: concurrent test processes rarely share a domain.
+// DDS domain id of this test process: an even domain in [10, 228] claimed
+// with a lock file for the process's lifetime (its odd successor comes with
+// it, for a relay's input), shared with the test scripts' dds_test_setup
+// (tests/support/dds_test_lib.sh): concurrent test processes never share one.
+// Throws when all 110 are held.
 int TestDomainId();
 
 // A fresh temporary directory for one test (removed by the OS on reboot).
