@@ -108,6 +108,8 @@ const char* MapFixStatusName(dds::msg::MapFixStatus s) {
       return "lost";
     case dds::msg::MAP_FIX_STATUS_OFF_MAP:
       return "off_map";
+    case dds::msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE:
+      return "partly_observable";
     default:
       return "";
   }

@@ -22,6 +22,7 @@ MapFixRecord ToRecord(const mapmatch::StepDiagnostics& d, mapmatch::ParticleFilt
   r.cov_ne_m2 << cov[0], cov[1], cov[2], cov[3];
   r.status = d.lost                                         ? MapFixStatus::kLost
              : d.update == mapmatch::StepUpdate::kAllOffMap ? MapFixStatus::kOffMap
+             : d.partly_observable                          ? MapFixStatus::kPartlyObservable
                                                             : MapFixStatus::kOk;
   return r;
 }

@@ -42,6 +42,16 @@ int main(int argc, char** argv) {
   app.add_option("--vehicle-id", opt.vehicle_id, "VesselNav vessel_id followed (and MapFix vehicle_id)");
   app.add_option("--sensor-id", opt.sensor_id, "MagnetometerSample sensor_id used");
   magnav::cli::AddParticleFilterOptions(app, &f);
+  app.add_option("--min-observability", opt.observability.min_information_ratio,
+                 "a fix whose map information along the least observed direction is below this fraction of the INS "
+                 "prior's there (the filter's prior square and drift, or --ins-start-sd/--ins-drift-sd) is published "
+                 "with status PARTLY_OBSERVABLE and its covariance raised along that direction to what the map and "
+                 "the prior can know (as `magnav match` at a path's end); lost and off_map take precedence; 0 = never");
+  app.add_option("--ins-start-sd", opt.observability.prior.start_sd_deg,
+                 "the prior on the INS error at the first step, 1 sigma per axis (deg); both 0: the filter's own "
+                 "(--prior-half-width / sqrt(3), --drift-sigma)");
+  app.add_option("--ins-drift-sd", opt.observability.prior.drift_sd_deg,
+                 "the INS error's random walk per step, 1 sigma per axis (deg)");
   app.add_option("--stats-period", stats_period_s, "log throughput every N seconds (0 = never)");
   magnav::cli::AddDdsOptions(app, &dds_args);
   if (const int code = magnav::cli::ParseCommandLine(app, argc, argv); code >= 0) return code;

@@ -7,6 +7,7 @@
 #include "magnav/core/error.h"
 #include "magnav/core/option_check.h"
 #include "magnav/core/units.h"
+#include "magnav/mapmatch/match.h"
 
 namespace magnav::mapmatch {
 
@@ -16,6 +17,7 @@ bool MatcherNodeOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(reference_field_nT)) {
     return Fail(error, "reference_field_nT (the map's reference field, nT) must be given, finite and > 0");
   }
+  if (!observability.IsValid(error)) return false;
   return filter.IsValid(error);
 }
 
@@ -25,11 +27,16 @@ const MatcherNodeOptions& Checked(const MatcherNodeOptions& o) {
   if (!o.IsValid(&why)) throw InputError("matcher options: " + why);
   return o;
 }
+
+InsErrorPrior PriorOf(const MatcherNodeOptions& o) {
+  return o.observability.prior.given() ? o.observability.prior : ParticleFilterInsPrior(o.filter);
+}
 }  // namespace
 
 MatcherNode::MatcherNode(dds::Node& node, const GeoGrid& grid, std::size_t layer, const MatcherNodeOptions& options)
     : options_(Checked(options)),
       filter_(MakeParticleFilter(options.kind, grid, layer, options.filter)),
+      observe_(grid, layer, PriorOf(options_), options_.observability),
       schedule_(options.fix_every_m, options.filter.max_step_deg) {
   repeats_.SetLogName("magnav-matcher: magnav/magnetometer sensor");
   writer_ = node.CreateWriter<dds::msg::MapFix>();
@@ -129,10 +136,23 @@ void MatcherNode::Drain() {
     const auto [lat, lon] = nav->second;
     navs_.erase(navs_.begin(), nav);  // keep the one used
     const StepDiagnostics& d = filter_->Step(lat, lon, anomaly);
+    observe_.Step(d.lat_deg, d.lon_deg, anomaly);
     stepped_ = true;
     last_step_ns_ = stamp;
     ++steps_;
-    if (schedule_.Step(lat, lon)) writer_->Write(ToMsg(d, options_.kind, options_.vehicle_id, stamp));
+    if (schedule_.Step(lat, lon)) {
+      StepDiagnostics fix = d;
+      fix.partly_observable = observe_.partly_observable();
+      if (fix.partly_observable) {
+        Cov2 c{fix.cov_lat_lat, fix.cov_lat_lon, fix.cov_lon_lon};  // deg², floored before ToMsg's m² north/east
+        if (observe_.Floor(&c)) {
+          fix.cov_lat_lat = c.lat_lat;
+          fix.cov_lat_lon = c.lat_lon;
+          fix.cov_lon_lon = c.lon_lon;
+        }
+      }
+      writer_->Write(ToMsg(fix, options_.kind, options_.vehicle_id, stamp));
+    }
   }
 }
 

@@ -31,6 +31,7 @@
 #include "magnav/dds/stamp_guard.h"
 #include "magnav/mapmatch/fix_schedule.h"
 #include "magnav/mapmatch/geo_grid.h"
+#include "magnav/mapmatch/observability.h"
 #include "magnav/mapmatch/particle_filter.h"
 
 namespace magnav::mapmatch {
@@ -48,6 +49,11 @@ struct MatcherNodeOptions {
   // (memory bound: a matcher whose sensor never sends must not grow); beyond
   // it the oldest is dropped, counted and warned about once.
   std::size_t max_buffered = 10000;
+  // "Partly observable" at each fix (observability.h, StepObservability; the
+  // review `magnav match` makes at a path's end): the prior not given = the
+  // filter's own (ParticleFilterInsPrior: its prior square and drift);
+  // min_information_ratio 1 by default, 0 = never.
+  ObservabilityOptions observability;
 
   bool IsValid(std::string* error) const;
 };
@@ -60,7 +66,10 @@ using dds::InsNavMsg;
 
 // The fix (dds/convert_mapmatch.h, magnav::dds_mapmatch): method METHOD_PF / METHOD_AFPF, method_name
 // "pf"/"afpf", score = ESS, covariance (north, east) m², status LOST while the filter's lost-track detector
-// is raised (StepDiagnostics::lost), OFF_MAP when every particle was off the map at this step, else OK.
+// is raised (StepDiagnostics::lost), OFF_MAP when every particle was off the map at this step, else
+// PARTLY_OBSERVABLE when the map knows less than the prior along its least observed direction at this step
+// (MatcherNodeOptions::observability; the published covariance then raised along that direction to what the
+// map and the prior can know, FloorAlongLeastKnown in deg² before the conversion to m² north/east), else OK.
 using dds::ToMsg;
 
 class MatcherNode {
@@ -97,6 +106,7 @@ class MatcherNode {
   MatcherNodeOptions options_;
   mutable std::mutex mu_;
   std::unique_ptr<SequentialMatcher> filter_;
+  StepObservability observe_;  // mu_ held
   FixSchedule schedule_;
   std::map<std::uint64_t, std::pair<double, double>> navs_;  // stamp -> INS lat, lon
   std::map<std::uint64_t, double> pending_;                  // stamp -> anomaly, nT

@@ -279,14 +279,19 @@ void ReviewResult(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
   }
 }
 
+InsErrorPrior ParticleFilterInsPrior(const ParticleFilterOptions& options) {
+  InsErrorPrior p;
+  p.start_sd_deg = options.prior_half_width_deg / std::sqrt(3.0);
+  p.drift_sd_deg = options.drift_sigma_deg;
+  return p;
+}
+
 InsErrorPrior ResolvedInsPrior(Method method, const GeoGrid& grid, const MatchPath& path, const MatchOptions& options) {
   if (options.observability.prior.given()) return options.observability.prior;
-  InsErrorPrior p;
   if (method == Method::kPf || method == Method::kAfpf) {  // the filters' own prior and motion model
-    p.start_sd_deg = options.particle_filter.prior_half_width_deg / std::sqrt(3.0);
-    p.drift_sd_deg = options.particle_filter.drift_sigma_deg;
-    return p;
+    return ParticleFilterInsPrior(options.particle_filter);
   }
+  InsErrorPrior p;
   p.start_sd_deg = PlausibleCorrectionDeg(method, grid, path, options) / 3.0;
   return p;
 }

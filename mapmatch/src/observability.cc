@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 
 #include "magnav/core/csv.h"
+#include "magnav/core/error.h"
 
 namespace magnav::mapmatch {
 namespace {
@@ -96,6 +97,83 @@ double MatchedResidualRms(const GeoGrid& grid, std::size_t layer, const MatchPat
   return std::sqrt(ss / std::max(n - 2, 1));
 }
 
+double MapInformation::weak_bearing_deg() const {
+  double b = std::atan2(weak_lon, weak_lat) * 180.0 / std::numbers::pi;
+  b = std::fmod(b + 360.0, 180.0);
+  return b >= 180.0 ? 0.0 : b;
+}
+
+ObservabilityFilter::ObservabilityFilter(const InsErrorPrior& prior) : prior_(prior) {
+  prior_var_ = prior.start_sd_deg * prior.start_sd_deg;
+  p_ = {prior_var_, 0.0, prior_var_};
+}
+
+void ObservabilityFilter::Predict() {
+  const double q = prior_.drift_sd_deg * prior_.drift_sd_deg;
+  prior_var_ += q;
+  p_.lat_lat += q;
+  p_.lon_lon += q;
+}
+
+void ObservabilityFilter::Update(double dvalue_dlat_nT_per_deg, double dvalue_dlon_nT_per_deg, double sigma_nT) {
+  const Eigen::Vector2d g(dvalue_dlat_nT_per_deg, dvalue_dlon_nT_per_deg);
+  const Eigen::Matrix2d p = ToMatrix(p_);
+  const Eigen::Vector2d pg = p * g;
+  const double innov = g.dot(pg) + sigma_nT * sigma_nT;
+  if (!(innov > 0.0) || !std::isfinite(innov)) return;
+  p_ = ToCov(Symmetric(p - pg * pg.transpose() / innov));
+  ++updates_;
+}
+
+MapInformation ObservabilityFilter::Information() const {
+  MapInformation m;
+  if (!(prior_var_ > 0.0)) return m;
+  m.prior_info = 1.0 / prior_var_;
+  const Eigen::Matrix2d info = Symmetric(PseudoInverse(ToMatrix(p_)) - m.prior_info * Eigen::Matrix2d::Identity());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(info);
+  m.map_info_weak = std::max(es.eigenvalues()(0), 0.0);
+  m.map_info_strong = std::max(es.eigenvalues()(1), 0.0);
+  m.weak_lat = es.eigenvectors()(0, 0);
+  m.weak_lon = es.eigenvectors()(1, 0);
+  m.valid = true;
+  return m;
+}
+
+StepObservability::StepObservability(const GeoGrid& grid, std::size_t layer, const InsErrorPrior& prior,
+                                     const ObservabilityOptions& options)
+    : grid_(grid), layer_(layer), options_(options), filter_(prior) {
+  std::string error;
+  if (!options.IsValid(&error)) throw InputError(error);
+  if (!prior.IsValid(&error)) throw InputError(error);
+}
+
+double StepObservability::noise_sd_nT() const {
+  if (residuals_ == 0) return options_.min_noise_sd_nT;
+  const double rms = std::sqrt(residual_ss_ / std::max(residuals_ - 2, 1));
+  return rms >= options_.min_noise_sd_nT ? rms : options_.min_noise_sd_nT;
+}
+
+void StepObservability::Step(double lat_deg, double lon_deg, double measured_nT) {
+  if (started_) filter_.Predict();
+  started_ = true;
+  if (!std::isfinite(measured_nT) || !std::isfinite(lat_deg) || !std::isfinite(lon_deg)) return;
+  const auto s = grid_.Sample(layer_, lat_deg, lon_deg);
+  if (!s) return;
+  const double r = s->value_nT - measured_nT;
+  residual_ss_ += r * r;
+  ++residuals_;
+  filter_.Update(s->dvalue_dlat_nT_per_deg, s->dvalue_dlon_nT_per_deg, noise_sd_nT());
+}
+
+bool StepObservability::partly_observable() const {
+  const MapInformation m = filter_.Information();
+  return m.valid && m.ratio_weak() < options_.min_information_ratio;
+}
+
+bool StepObservability::Floor(Cov2* c) const {
+  return partly_observable() && FloorAlongLeastKnown(filter_.covariance(), c);
+}
+
 PathObservability ObservePath(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                               const std::vector<double>& lat_deg, const std::vector<double>& lon_deg,
                               const InsErrorPrior& prior, double noise_sd_nT) {
@@ -106,22 +184,18 @@ PathObservability ObservePath(const GeoGrid& grid, std::size_t layer, const Matc
   const double prior_end = s0 + q * static_cast<double>(n > 0 ? n - 1 : 0);
   o.noise_sd_nT = noise_sd_nT;
   if (n == 0 || !(prior_end > 0.0) || !(noise_sd_nT > 0.0)) return o;
-  const double r = noise_sd_nT * noise_sd_nT;
   std::vector<Eigen::Matrix2d> pred(n), filt(n);
-  Eigen::Matrix2d p = s0 * Eigen::Matrix2d::Identity();
+  ObservabilityFilter f(prior);
   for (std::size_t i = 0; i < n; ++i) {
-    if (i > 0) p += q * Eigen::Matrix2d::Identity();
-    pred[i] = p;
+    if (i > 0) f.Predict();
+    pred[i] = ToMatrix(f.covariance());
     if (std::isfinite(path.measured_nT[i])) {
       if (const auto s = grid.Sample(layer, lat_deg[i], lon_deg[i])) {
-        const Eigen::Vector2d g(s->dvalue_dlat_nT_per_deg, s->dvalue_dlon_nT_per_deg);
-        const Eigen::Vector2d pg = p * g;
-        const double innov = g.dot(pg) + r;
-        p = Symmetric(p - pg * pg.transpose() / innov);
+        f.Update(s->dvalue_dlat_nT_per_deg, s->dvalue_dlon_nT_per_deg, noise_sd_nT);
         ++o.points;
       }
     }
-    filt[i] = p;
+    filt[i] = ToMatrix(f.covariance());
   }
   // Rauch–Tung–Striebel: P_s,i = P_i + C (P_s,i+1 − P_pred,i+1) Cᵀ, C = P_i P_pred,i+1⁻¹.
   std::vector<Eigen::Matrix2d> smooth(n);
@@ -137,13 +211,12 @@ PathObservability ObservePath(const GeoGrid& grid, std::size_t layer, const Matc
     o.smoothed[i] = ToCov(smooth[i]);
   }
   // The map's information at the end: the posterior's less the prior's.
-  o.prior_info = 1.0 / prior_end;
-  const Eigen::Matrix2d info = Symmetric(PseudoInverse(filt[n - 1]) - o.prior_info * Eigen::Matrix2d::Identity());
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(info);
-  o.map_info_weak = std::max(es.eigenvalues()(0), 0.0);
-  o.map_info_strong = std::max(es.eigenvalues()(1), 0.0);
-  o.weak_lat = es.eigenvectors()(0, 0);
-  o.weak_lon = es.eigenvectors()(1, 0);
+  const MapInformation m = f.Information();
+  o.prior_info = m.prior_info;
+  o.map_info_weak = m.map_info_weak;
+  o.map_info_strong = m.map_info_strong;
+  o.weak_lat = m.weak_lat;
+  o.weak_lon = m.weak_lon;
   o.valid = true;
   return o;
 }

@@ -207,7 +207,7 @@ TEST(DdsConvert, EveryEnumValueRoundTripsAndUnknownOnesAreCarried) {
     ExpectRoundTrip(MapFixMsg(f, method, msg::MAP_FIX_STATUS_OK));
     EXPECT_EQ(static_cast<std::uint32_t>(RecordOf(Fix(f, method)).method), v);
   }
-  for (std::uint32_t v = 0; v <= msg::MAP_FIX_STATUS_OFF_MAP + 1; ++v) {
+  for (std::uint32_t v = 0; v <= msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE + 1; ++v) {
     const auto status = static_cast<msg::MapFixStatus>(v);
     const msg::MapFix m = MapFixMsg(f, msg::METHOD_PF, status);
     ExpectRoundTrip(m);
@@ -353,6 +353,12 @@ TEST(DdsConvert, MatcherStepOnTheWire) {
   EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).method(), msg::METHOD_AFPF);
   d.lost = true;  // lost outranks off the map
   EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_LOST);
+  d.partly_observable = true;  // and partly observable
+  EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_LOST);
+  d.lost = false;  // off the map outranks partly observable
+  EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_OFF_MAP);
+  d.update = mapmatch::StepUpdate::kUpdated;
+  EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
 }
 
 }  // namespace

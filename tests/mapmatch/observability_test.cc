@@ -157,5 +157,80 @@ TEST(Observability, AMapWithFeaturesInEveryDirectionKeepsConverged) {
   EXPECT_EQ(claimed.observability.find("covariance raised"), std::string::npos) << claimed.observability;
 }
 
+TEST(Observability, TheStepFilterIsObservePathsFilteredPass) {
+  // One implementation: the causal filter, stepped by hand over the path,
+  // gives ObservePath's filtered covariance at every point and its ratio.
+  const GeoGrid g = PlaneMap();
+  const Generated p = MakePath(g);
+  const InsErrorPrior prior{0.02, kDrift};
+  const PathObservability o = ObservePath(g, 0, p.path, p.true_lat, p.true_lon, prior, 0.5);
+  ASSERT_TRUE(o.valid);
+  ObservabilityFilter f(prior);
+  for (int i = 0; i < kPoints; ++i) {
+    if (i > 0) f.Predict();
+    const auto s = g.Sample(0, p.true_lat[i], p.true_lon[i]);
+    ASSERT_TRUE(s);
+    f.Update(s->dvalue_dlat_nT_per_deg, s->dvalue_dlon_nT_per_deg, 0.5);
+    const Cov2 c = f.covariance();
+    EXPECT_EQ(c.lat_lat, o.filtered[i].lat_lat) << i;
+    EXPECT_EQ(c.lat_lon, o.filtered[i].lat_lon) << i;
+    EXPECT_EQ(c.lon_lon, o.filtered[i].lon_lon) << i;
+  }
+  EXPECT_EQ(f.updates(), kPoints);
+  EXPECT_DOUBLE_EQ(f.prior_variance_deg2(), 0.02 * 0.02 + kPriorEnd);
+  const MapInformation m = f.Information();
+  EXPECT_EQ(m.ratio_weak(), o.ratio_weak());
+  EXPECT_EQ(m.ratio_strong(), o.ratio_strong());
+  EXPECT_EQ(m.weak_bearing_deg(), o.weak_bearing_deg());
+}
+
+TEST(Observability, LiveStepsOnAPlaneArePartlyObservableAndFloorAlongTheIsoLine) {
+  // What magnav-matcher does at each fix: the same review, causally. On the
+  // plane the ratio is 0 from the first reading; a tiny covariance is raised
+  // along the iso-line to the prior's there (nothing is known along it) and
+  // stays small across it.
+  const GeoGrid g = PlaneMap();
+  const Generated p = MakePath(g);
+  const MatchOptions mo = Options();
+  StepObservability live(g, 0, mo.observability.prior, mo.observability);
+  EXPECT_FALSE(live.partly_observable());  // no reading yet: a start_sd of 0 has no prior variance
+  for (int i = 0; i < kPoints; ++i) {
+    live.Step(p.true_lat[i], p.true_lon[i], p.path.measured_nT[i]);
+    if (i == 0) continue;
+    ASSERT_TRUE(live.partly_observable()) << i;
+    EXPECT_LT(live.Information().ratio_weak(), 1e-6) << i;
+  }
+  EXPECT_GE(live.noise_sd_nT(), mo.observability.min_noise_sd_nT);
+  EXPECT_LT(live.noise_sd_nT(), 1.0);  // the readings' 0.5 nT noise
+  Cov2 c{1e-12, 0.0, 1e-12};
+  EXPECT_TRUE(live.Floor(&c));
+  EXPECT_GE(AlongIso(c.lat_lat, c.lat_lon, c.lon_lon), kPriorEnd * (1.0 - 1e-9));
+  const double across = c.lat_lat + c.lon_lon - AlongIso(c.lat_lat, c.lat_lon, c.lon_lon);
+  EXPECT_LT(across, 1e-9);
+  // The threshold 0 = never.
+  ObservabilityOptions never = mo.observability;
+  never.min_information_ratio = 0.0;
+  StepObservability off(g, 0, never.prior, never);
+  for (int i = 0; i < kPoints; ++i) off.Step(p.true_lat[i], p.true_lon[i], p.path.measured_nT[i]);
+  Cov2 d{1e-12, 0.0, 1e-12};
+  EXPECT_FALSE(off.partly_observable());
+  EXPECT_FALSE(off.Floor(&d));
+}
+
+TEST(Observability, LiveStepsOnARoughMapAreObservable) {
+  const GeoGrid g = GeoGrid::FromFunction({0.0, 0.005, 801}, {0.0, 0.005, 801}, "F_nT", [](double lat, double lon) {
+    return 300.0 * std::sin(lat / 0.03) * std::cos(lon / 0.04) + 150.0 * std::sin((lat + lon) / 0.02);
+  });
+  const Generated p = MakePath(g);
+  const MatchOptions mo = Options();
+  StepObservability live(g, 0, mo.observability.prior, mo.observability);
+  for (int i = 0; i < kPoints; ++i) live.Step(p.true_lat[i], p.true_lon[i], p.path.measured_nT[i]);
+  EXPECT_FALSE(live.partly_observable());
+  EXPECT_GT(live.Information().ratio_weak(), 10.0);
+  Cov2 c{1e-12, 0.0, 1e-12};
+  EXPECT_FALSE(live.Floor(&c));
+  EXPECT_EQ(c.lat_lat, 1e-12);
+}
+
 }  // namespace
 }  // namespace magnav::mapmatch

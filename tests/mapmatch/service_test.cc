@@ -9,6 +9,8 @@
 #include <atomic>
 #include <cmath>
 #include <functional>
+#include <mutex>
+#include <vector>
 #include <thread>
 
 #include <optional>
@@ -17,6 +19,7 @@
 
 #include "magnav/core/csv.h"
 #include "magnav/mapmatch/fix_schedule.h"
+#include "magnav/mapmatch/match.h"
 #include "magnav/mapmatch/particle_filter.h"
 #include "matcher_node.h"
 #include "stock_relay.h"
@@ -128,7 +131,7 @@ void ReplayedRunsFixesEqualTheOfflineFilters(const char* stock_qos) {
 }
 
 // The appended MapFix fields: the method values for pf / afpf and the status from the step's
-// diagnostics (lost outranks off the map).
+// diagnostics (lost outranks off the map, which outranks partly observable).
 TEST(MatcherService, FixCarriesItsMethodAndStatus) {
   StepDiagnostics d;
   d.lat_deg = 45.0;
@@ -142,6 +145,10 @@ TEST(MatcherService, FixCarriesItsMethodAndStatus) {
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_LOST);
   d.update = StepUpdate::kUpdated;
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_LOST);
+  d.partly_observable = true;
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_LOST);
+  d.lost = false;
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
   // A default-constructed message (a publisher older than the field) says "unknown".
   EXPECT_EQ(dds::msg::MapFix().status(), dds::msg::MAP_FIX_STATUS_UNKNOWN);
 }
@@ -211,6 +218,69 @@ TEST(MatcherService, TheDoorIgnoresSkipsAndCounts) {
   EXPECT_EQ(c.bad_measurements, 1);
   EXPECT_EQ(c.updates, 2);
   EXPECT_EQ(matcher.published(), 3u);
+}
+
+// Issue 23 item 5, live: on a plane-gradient map (a main-field map at its
+// extreme) the map observes nothing along its iso-lines, so every fix says
+// PARTLY_OBSERVABLE and its covariance along the iso-line is not below the
+// prior's there (start_sd² + drift_sd² per step; the wire's m² north/east
+// turned back to deg²). On the crustal map the replay test above keeps every
+// fix "ok" with the filter's own covariance.
+TEST(MatcherService, APlaneMapPublishesPartlyObservableAndThePriorAlongItsIsoLine) {
+  dds::NodeOptions no;
+  no.name = "matcher_observe_test";
+  no.domain_id = testing::TestDomainId();
+  constexpr double kGlat = 400.0, kGlon = 200.0;  // nT/deg
+  const GeoGrid g = GeoGrid::FromFunction({44.5, 0.01, 101}, {9.5, 0.01, 101}, "anomaly_nT",
+                                          [&](double lat, double lon) { return kGlat * (lat - 45.0) + kGlon * (lon - 10.0); });
+  MatcherNodeOptions o;
+  o.kind = ParticleFilterKind::kPf;
+  o.filter.num_particles = 300;
+  o.fix_every_m = 0.0;  // a fix every step
+  o.reference_field_nT = kReferenceField_nT;
+  dds::Node service_node(no), peer(no);
+  MatcherNode matcher(service_node, g, 0, o);
+  std::mutex mu;
+  std::vector<msg::MapFix> fixes;
+  auto reader = peer.CreateReader<msg::MapFix>([&](const msg::MapFix& m, const auto&) {
+    std::lock_guard<std::mutex> lk(mu);
+    fixes.push_back(m);
+  });
+  auto navs = peer.CreateWriter<msg::VesselNav>();
+  auto samples = peer.CreateWriter<msg::MagnetometerSample>();
+  ASSERT_TRUE(navs->WaitForMatched(1, 20s));
+  ASSERT_TRUE(samples->WaitForMatched(1, 20s));
+  ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+  constexpr int kSteps = 20;
+  const std::uint64_t s = 1000000000ULL;
+  for (int k = 0; k < kSteps; ++k) {  // north-east at 0.0005° a step, the INS on the truth
+    const double lat = 45.0 + 0.0005 * k, lon = 10.0 + 0.0005 * k;
+    ASSERT_TRUE(navs->Write(InsNavMsg(0, (k + 1) * s, lat, lon)));
+    ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, (k + 1) * s, k, g.Sample(0, lat, lon)->value_nT, kReferenceField_nT)));
+  }
+  for (int i = 0; i < 400; ++i) {
+    {
+      std::lock_guard<std::mutex> lk(mu);
+      if (fixes.size() >= static_cast<std::size_t>(kSteps) - 1) break;  // the last waits for a later vessel_nav
+    }
+    std::this_thread::sleep_for(25ms);
+  }
+  std::lock_guard<std::mutex> lk(mu);
+  ASSERT_GE(fixes.size(), static_cast<std::size_t>(kSteps) - 1);
+  const double iso_lat = -kGlon / std::hypot(kGlat, kGlon), iso_lon = kGlat / std::hypot(kGlat, kGlon);
+  const InsErrorPrior prior = ParticleFilterInsPrior(o.filter);
+  for (std::size_t k = 1; k < fixes.size(); ++k) {  // the first reading alone observes one direction at any map
+    SCOPED_TRACE(k);
+    const msg::MapFix& m = fixes[k];
+    EXPECT_EQ(m.status(), msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+    const double mn = MetresPerDegreeLat(m.lat_deg()), me = MetresPerDegreeLon(m.lat_deg());
+    const double cll = m.covariance()[0] / (mn * mn), clo = m.covariance()[1] / (mn * me),
+                 coo = m.covariance()[3] / (me * me);
+    const double along = cll * iso_lat * iso_lat + 2.0 * clo * iso_lat * iso_lon + coo * iso_lon * iso_lon;
+    const double prior_var = prior.start_sd_deg * prior.start_sd_deg +
+                             prior.drift_sd_deg * prior.drift_sd_deg * static_cast<double>(k);
+    EXPECT_GE(along, prior_var * (1.0 - 1e-6)) << along << " deg² against the prior's " << prior_var;
+  }
 }
 
 // A matcher told to follow a sensor that never sends (issue 22 item 5): the

@@ -86,6 +86,9 @@ void RequirePathNearMap(Method method, const GeoGrid& grid, const MatchPath& pat
 // drift_sd = drift_sigma_deg), for the others a constant offset with start_sd
 // = PlausibleCorrectionDeg / 3.
 InsErrorPrior ResolvedInsPrior(Method method, const GeoGrid& grid, const MatchPath& path, const MatchOptions& options);
+// pf and afpf's own prior on the INS error (what ResolvedInsPrior gives them;
+// magnav-matcher's): start_sd = prior_half_width / sqrt(3), drift_sd = drift_sigma_deg.
+InsErrorPrior ParticleFilterInsPrior(const ParticleFilterOptions& options);
 
 // Runs one method over the path (steps: pf, afpf's per-step diagnostics).
 // At the door: RequirePathNearMap. Then the status is reviewed (ReviewResult)

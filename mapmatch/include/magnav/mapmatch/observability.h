@@ -83,6 +83,78 @@ struct PathObservability {
   std::string Summary() const;
 };
 
+// The map's information at one point of a path against the prior's there
+// (what PathObservability reports at the path's end).
+struct MapInformation {
+  bool valid = false;                     // false: no prior variance (start and drift both 0)
+  double weak_lat = 1.0, weak_lon = 0.0;  // least informed direction of the map (unit, (lat, lon))
+  double map_info_weak = 0.0;             // 1/deg², >= 0
+  double map_info_strong = 0.0;           // 1/deg², along the perpendicular
+  double prior_info = 0.0;                // 1/deg², the prior's there (isotropic)
+  double ratio_weak() const { return prior_info > 0.0 ? map_info_weak / prior_info : 0.0; }
+  double ratio_strong() const { return prior_info > 0.0 ? map_info_strong / prior_info : 0.0; }
+  double weak_bearing_deg() const;  // [0, 180)
+};
+
+// The Kalman filter of the INS error above, one step at a time (causal: what
+// a live matcher can know at each step; ObservePath's filtered pass runs it).
+// Start: P = start_sd² I. Per path step after the first: Predict() adds
+// drift_sd² I; then Update(g, σ) for a reading with map gradient g (nT/deg,
+// (d/dlat, d/dlon) at the matched position) and noise σ (nT, > 0).
+class ObservabilityFilter {
+ public:
+  explicit ObservabilityFilter(const InsErrorPrior& prior);
+  void Predict();
+  void Update(double dvalue_dlat_nT_per_deg, double dvalue_dlon_nT_per_deg, double sigma_nT);
+  Cov2 covariance() const { return p_; }             // deg², prior + readings so far
+  double prior_variance_deg2() const { return prior_var_; }  // the prior alone's, per axis
+  int updates() const { return updates_; }
+  // The map's information now (posterior information less the prior's) along
+  // its least informed direction, against the prior's.
+  MapInformation Information() const;
+
+ private:
+  InsErrorPrior prior_;
+  Cov2 p_;
+  double prior_var_ = 0.0;
+  int updates_ = 0;
+};
+
+// The review Match makes at a path's end (ReviewObservability, match.h), made
+// live at every step of a sequential matcher (magnav-matcher): an
+// ObservabilityFilter fed, at each step, the map gradient at the step's
+// matched position when its reading is finite and that position is on the
+// map, with σ = the rms of map − reading at the matched positions so far (2
+// degrees of freedom counted, as MatchedResidualRms; at least
+// min_noise_sd_nT). Match's σ is the whole path's rms, so on one path the two
+// differ by the σ of the early steps only. Partly observable: the map's
+// information along its least informed direction is below
+// min_information_ratio of the prior's (a plane gradient gives exactly 0
+// along its iso-lines); then Floor raises a covariance (deg²) along the
+// filter's least known direction to the filter's variance there.
+class StepObservability {
+ public:
+  StepObservability(const GeoGrid& grid, std::size_t layer, const InsErrorPrior& prior,
+                    const ObservabilityOptions& options);
+  // One path step: the matched position (deg) after it and the reading (nT; NaN = none).
+  void Step(double lat_deg, double lon_deg, double measured_nT);
+  MapInformation Information() const { return filter_.Information(); }
+  Cov2 covariance() const { return filter_.covariance(); }  // deg², what the map and the prior can know
+  double noise_sd_nT() const;                                 // σ of the next update
+  bool partly_observable() const;
+  // When partly observable: FloorAlongLeastKnown(covariance(), c); returns true when it raised c.
+  bool Floor(Cov2* c) const;
+
+ private:
+  const GeoGrid& grid_;
+  std::size_t layer_;
+  ObservabilityOptions options_;
+  ObservabilityFilter filter_;
+  bool started_ = false;
+  double residual_ss_ = 0.0;
+  int residuals_ = 0;
+};
+
 // The observability of the INS error along the matched positions (lat, lon)
 // of `path` (gradients sampled there; points off the map or with a non-finite
 // reading carry no reading). noise_sd_nT: σ of the readings.

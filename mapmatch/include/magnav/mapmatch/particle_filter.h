@@ -348,6 +348,10 @@ struct StepDiagnostics {
   bool ins_jump = false;
   StepUpdate update = StepUpdate::kUpdated;
   bool lost = false;
+  // The map knows less than the INS prior along its least observed direction
+  // at this step (StepObservability, observability.h; set by magnav-matcher,
+  // which then floors cov_* there; the filters and Match leave it false).
+  bool partly_observable = false;
 };
 
 struct FilterCounters {
