@@ -47,8 +47,9 @@ std::string Significant(double v) {
 }  // namespace
 
 bool InsErrorPrior::IsValid(std::string* error) const {
-  if (!FiniteNonNegative(start_sd_deg) || !FiniteNonNegative(drift_sd_deg)) {
-    if (error) *error = "INS error prior: start_sd_deg and drift_sd_deg must be finite and >= 0";
+  if (!FiniteNonNegative(start_sd_deg) || !FiniteNonNegative(drift_sd_deg) || start_sd_deg > kMaxSdDeg ||
+      drift_sd_deg > kMaxSdDeg) {
+    if (error) *error = "INS error prior: start_sd_deg and drift_sd_deg must be in [0, 90] deg";
     return false;
   }
   return true;

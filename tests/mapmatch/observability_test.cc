@@ -4,6 +4,7 @@
 // covariance along the iso-line below the prior's there, nor say "converged".
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -230,6 +231,23 @@ TEST(Observability, LiveStepsOnARoughMapAreObservable) {
   Cov2 c{1e-12, 0.0, 1e-12};
   EXPECT_FALSE(live.Floor(&c));
   EXPECT_EQ(c.lat_lat, 1e-12);
+}
+
+TEST(Observability, APriorBeyondNinetyDegreesOrNotFiniteIsRefused) {
+  std::string why;
+  InsErrorPrior p;
+  EXPECT_TRUE(p.IsValid(&why)) << why;
+  p.drift_sd_deg = InsErrorPrior::kMaxSdDeg;
+  EXPECT_TRUE(p.IsValid(&why)) << why;
+  for (const double bad : {-1.0, 90.5, 1e308, std::nan("")}) {
+    p = InsErrorPrior{};
+    p.drift_sd_deg = bad;
+    EXPECT_FALSE(p.IsValid(&why)) << bad;
+    p = InsErrorPrior{};
+    p.start_sd_deg = bad;
+    EXPECT_FALSE(p.IsValid(&why)) << bad;
+    EXPECT_NE(why.find("start_sd_deg"), std::string::npos);
+  }
 }
 
 }  // namespace

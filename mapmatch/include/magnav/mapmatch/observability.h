@@ -41,6 +41,9 @@ struct InsErrorPrior {
   double start_sd_deg = 0.0;  // at the path's first point
   double drift_sd_deg = 0.0;  // random walk per path step (0 = one constant offset)
   bool given() const { return start_sd_deg > 0.0 || drift_sd_deg > 0.0; }
+  // At most 90 deg each (a σ beyond a quarter turn of latitude is no prior:
+  // --ins-drift-sd 1e308 overflowed the filter's variance to inf).
+  static constexpr double kMaxSdDeg = 90.0;
   bool IsValid(std::string* error) const;  // finite, >= 0
 };
 
