@@ -8,6 +8,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/gradiometer.h"
 #include "magnav/core/units.h"
+#include "magnav/tracker/multi_tracker.h"
 
 namespace magnav::tools {
 namespace {
@@ -115,14 +116,14 @@ const char* MapFixStatusName(dds::msg::MapFixStatus s) {
   }
 }
 
-// TrackEstimate.state as written in the CSV (the words of `magnav track`'s
-// state column; "" = unknown: a publisher older than the field).
+// TrackEstimate.state as written in the CSV: `magnav track`'s words
+// (tracker::TrackStateName); "" = unknown (a publisher older than the field).
 const char* TrackStateName(dds::msg::TrackState s) {
   switch (s) {
     case dds::msg::TRACK_STATE_CONFIRMED:
-      return "confirmed";
+      return tracker::TrackStateName(tracker::TrackState::kConfirmed);
     case dds::msg::TRACK_STATE_COASTING:
-      return "coasting";
+      return tracker::TrackStateName(tracker::TrackState::kCoasting);
     default:
       return "";
   }
