@@ -83,7 +83,13 @@ PathCovariance FastMsdCovariance(const std::vector<double>& g_lat, const std::ve
 //    R_i = σ² + m_i + v_i, m_i = BilinearErrorBound(H_i, steps)², the
 //    classical bound of the bilinear interpolant's error over the point's
 //    cell from the grid's second differences (fast_msd.cc). EM's σ², τ² are
-//    estimated without it (the residuals are what they are).
+//    estimated without it (the residuals are what they are). The same
+//    expression is the second-order term over half a cell, ½δᵀHδ, which the
+//    linearisation at a position known to a fraction of a cell misses (the
+//    bilinear gradient jumps at cell edges): on the generated paths the
+//    term's gain is measured to come from that too (readings from the
+//    bilinear map itself calibrate no better; docs/ACCURACY.md, "Fast MSD:
+//    the map's own error in the covariance").
 //  - Never wider than the prior: with prior_var_deg2 > 0 (fast_msd.cc: the
 //    coarse search window's, w²/3 per axis for a uniform ±w) a point's
 //    covariance whose larger eigenvalue exceeds it has its eigenvalues

@@ -37,7 +37,7 @@ double Nees(const MatchResult& r, std::size_t p, double lat, double lon) {
 
 // Documented (docs/ACCURACY.md): ANEES over seeds 3201-3206, 2 dof.
 constexpr double kDocumentedFinal = 3.03;
-constexpr double kDocumentedPoints = 2.79;
+constexpr double kDocumentedPoints = 2.78;  // 2.79 before the map-error term
 
 TEST(FastMsdTrust, CovarianceIsCalibratedOnTheCalibrationSeeds) {
   const std::string dir = testing::TempDir();
