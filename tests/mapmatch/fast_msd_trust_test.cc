@@ -85,6 +85,9 @@ TEST(FastMsdTrust, CovarianceIsCalibratedOnTheCalibrationSeeds) {
 // error bound in the reading variance (5.32) and is inside with it (3.79, the
 // documented figure; the σ-doubled and halved covariances leave it). The
 // final point is not asserted: it fails either way (4.16 with, 4.22 without).
+// It asserts the term's effect, not its cause: with readings from the
+// bilinear map itself (no interpolation error) the term helps as much
+// (5.87 -> 4.20, scripts/fastmsd_lownoise_diagnosis; the docs say why).
 constexpr double kDocumentedHalfNtPoints = 3.79;
 constexpr double kDocumentedHalfNtPointsWithout = 5.32;
 
