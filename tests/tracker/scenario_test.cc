@@ -98,9 +98,42 @@ TEST(HarbourScenario, BatchStartsOneTrackPerVesselAbreast) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
     EXPECT_GE(s.coverage[v], 0.9) << "vessel " << v + 1;  // the target; measured 1.00 / 1.00
   }
-  // m; measured 0.0355 / 0.0469 (0.0324 / 0.0396 with the later start and coverage 0.784).
-  EXPECT_LE(s.rms[0], 1.5 * 0.0355);
-  EXPECT_LE(s.rms[1], 1.5 * 0.0469);
+  // m; measured 0.0386 / 0.0522 (0.0324 / 0.0396 with the later start and coverage 0.784).
+  EXPECT_LE(s.rms[0], 1.5 * 0.0386);
+  EXPECT_LE(s.rms[1], 1.5 * 0.0522);
+}
+
+// The fresh held-out abreast pair (heldout_abreast/abreast_20.toml: 20 m
+// apart, 9 m and 11 m either side of the middle sensor row; committed
+// before it was run), held to the targets. Its window figures were
+// measured blind; the batch's partner rule (TrackRecord::partner_id) was
+// made after its batch had been seen failing there (coverage 0.89 / 0.94,
+// RMS 1.02 m, 10 % false rows), so the batch figure is not blind.
+FieldScenario FreshAbreast(const std::string& name) {
+  return cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/heldout_abreast/" + name +
+                               ".toml");
+}
+
+TEST(HarbourScenario, WindowTracksTheFreshAbreastPair) {
+  const auto s = ScoreWindow(FreshAbreast("abreast_20"), "fresh abreast 20 m");
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // measured 0.889 / 0.899
+    EXPECT_LE(s.rms[v], 0.3) << "vessel " << v + 1;       // m, measured 0.203 / 0.177
+  }
+}
+
+TEST(HarbourScenario, BatchTracksTheFreshAbreastPair) {
+  const auto s = ScoreBatch(FreshAbreast("abreast_20"), "fresh abreast 20 m");
+  // Measured 0 false rows (220, 7.8 %, on main; 274, 10 %, without the partner rule).
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.9) << "vessel " << v + 1;  // measured 1.00 / 1.00
+  }
+  EXPECT_LE(s.rms[0], 1.5 * 0.0359);  // m, measured 0.0359 (0.758 on main)
+  EXPECT_LE(s.rms[1], 1.5 * 0.0586);  // m, measured 0.0586
 }
 }  // namespace
 }  // namespace magnav::tracker

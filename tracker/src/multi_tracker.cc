@@ -112,6 +112,8 @@ struct Track {
   std::uint64_t pair = 0;
   double refit_t_s = 0.0;
   double pair_start_t_s = 0.0;
+  // The pair's key, kept after the refit (TrackRecord::partner_id).
+  std::uint64_t started_with = 0;
 };
 
 double HorizontalSigma(const EpochEstimate& e) {
@@ -191,6 +193,11 @@ struct MultiTracker::Impl {
     TrackRecord r;
     r.track_id = tr.id;
     r.t_start_s = t_s;
+    for (const Track& other : tracks) {
+      if (&other == &tr || tr.started_with == 0 || other.started_with != tr.started_with || other.id == 0) continue;
+      r.partner_id = other.id;
+      records[other.id - 1].partner_id = tr.id;
+    }
     r.t_end_s = t_s;
     r.t_last_detection_s = tr.life.t_last_detection_s();
     records.push_back(r);
@@ -433,12 +440,14 @@ struct MultiTracker::Impl {
       // Once the first has started, its field is out of the buffer.
       const bool first = StartTrack(t, pair[0], &pair[1]);
       const bool second = StartTrack(t, pair[1], first ? nullptr : &pair[0]);
-      if (first && second && mg().pair_refit_s > 0.0) {
+      if (first && second) {
         const std::uint64_t key = next_pair++;
         for (std::size_t k = tracks.size() - 2; k < tracks.size(); ++k) {
           tracks[k].pair = key;
+          tracks[k].started_with = key;
           tracks[k].pair_start_t_s = t;
           tracks[k].refit_t_s = t + mg().pair_refit_s;
+          if (!(mg().pair_refit_s > 0.0)) tracks[k].pair = 0;
         }
       }
     }
@@ -814,6 +823,7 @@ std::string MultiTracker::SaveState() const {
     w.U64(tr.pair);
     w.F64(tr.refit_t_s);
     w.F64(tr.pair_start_t_s);
+    w.U64(tr.started_with);
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -824,6 +834,7 @@ std::string MultiTracker::SaveState() const {
     w.I64(r.num_estimates);
     w.Matrix(r.m_B_Am2);
     w.Matrix(r.cov_m_B);
+    w.U32(r.partner_id);
   }
   w.U32(m.next_id);
   w.U64(m.events.size());
@@ -894,6 +905,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.pair = r.U64();
     tr.refit_t_s = r.F64();
     tr.pair_start_t_s = r.F64();
+    tr.started_with = r.U64();
     m.tracks.push_back(std::move(tr));
   }
   m.records.resize(r.Count(internal::kMaxStateCount));
@@ -905,6 +917,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     rec.num_estimates = static_cast<int>(r.I64());
     rec.m_B_Am2 = internal::GetMatrix(r, 3, 1);
     rec.cov_m_B = internal::GetMatrix(r, 3, 3);
+    rec.partner_id = r.U32();
   }
   m.next_id = r.U32();
   for (const Track& tr : m.tracks) {

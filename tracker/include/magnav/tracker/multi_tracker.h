@@ -229,6 +229,11 @@ struct TrackRecord {
   int num_estimates = 0;
   Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
   Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();
+  // The track started together with this one by the two-dipole start
+  // (InitializePair; both confirmed), 0 = none: a second vessel abreast,
+  // whose field SolveBatchMulti removes from this track's samples also
+  // before and after its own span.
+  std::uint32_t partner_id = 0;
 };
 
 struct MultiSummary {
@@ -313,7 +318,10 @@ struct MultiTrackEstimate {
 // Every vessel of a pass: the window tracker finds the tracks, then each is
 // refined by SolveBatch over its own samples (its sensors, over its span
 // grown to every epoch where it is seen — batch_extension_step_s — the other
-// tracks' fields removed), for batch_rounds rounds or more while a span grows. A track whose refinement fails keeps its window
+// tracks' fields removed within their spans, its partner's — the other
+// vessel of a pair started abreast, TrackRecord::partner_id — also outside
+// its span, in the problem and in the span's growth test), for batch_rounds
+// rounds or more while a span grows. A track whose refinement fails keeps its window
 // estimates (its summary says so). Tracks in track_id order; none if no
 // vessel was found. `progress`, if given, is called from the calling thread
 // after every epoch of the window pass ("finding tracks", epochs done, of
