@@ -65,6 +65,7 @@
 #include <vector>
 
 #include "magnav/tracker/background.h"
+#include "magnav/tracker/cluster_background.h"
 #include "magnav/tracker/options.h"
 #include "magnav/tracker/tracker.h"
 
@@ -166,6 +167,12 @@ struct MultiTrackerOptions {
   // with the tracks (background.h); the B0 given to the tracker is its
   // start. Off (background.enabled = false): the fixed B0 everywhere.
   BackgroundOptions background;
+  // Window and batch: each sensor's B0 offset estimated jointly with the
+  // tracks that see it (cluster_background.h), one offset step per
+  // window solve interval (window) and per refinement round (batch). Off
+  // (cluster_background.enabled = false): the fixed B0. Not together with
+  // `background` (one background model at a time).
+  ClusterBackgroundOptions cluster_background;
 
   bool IsValid(std::string* error) const;
 };

@@ -1,0 +1,139 @@
+// Per-sensor background offsets estimated with the tracks of a cluster
+// (issue 24 items 1 and 3): each sensor's B0 is the fixed B0 plus an offset
+// b_s(t) (world NED, T; 3 parameters per sensor and epoch), estimated
+// together with the tracks that see that sensor, so that a near vessel's B
+// is explained by its track's dipole model and what is slow at a sensor (a
+// far ship's B, tens of nT per minute; a sensor's drift) by the offset.
+//
+// The joint problem, per cluster (tracks coupled through the sensors in
+// their windows, TrackClusters; clusters that share no sensor are
+// independent):
+//   min Σ_samples ‖W(z − Σ_tracks h(x_track) − [b_s(t); 0])‖²
+//     + Σ_s ‖b_s(t_first)‖²/σ_0² + Σ_s Σ_k ‖b_s(t_k+1) − b_s(t_k)‖²/(q·Δt)
+// (σ_0 = prior_sigma_T about B0, q = walk_T_per_sqrt_s², a random walk
+// between epochs). It is solved by blocks (Gauss–Seidel): given the tracks,
+// the offsets are linear and separate per sensor — each sensor's series is
+// the exact minimiser of its part, a Kalman (RTS) smoother over the residual
+// B = sample − B0 − Σ tracks' predicted B (SmoothOffsets); given the
+// offsets, each track's window (or batch) solve takes them in its
+// measurement model (WindowTracker::SetBackgroundOffsets; the batch: the
+// samples minus the offsets). The window tracker does one offset step per
+// window solve interval, warm-started from the tracks' previous solve (the
+// windows overlap), the batch one per refinement round. A sample whose
+// residual tensor (whitened, ‖·‖²/9) exceeds tensor_gate carries a source
+// no track explains (an untracked near vessel, a track's model error near
+// its vessel): it does not enter its sensor's offset, which random-walks
+// through it.
+//
+// Measured (docs/ACCURACY.md, "Background in the cluster solve"): what the
+// offset absorbs of a near vessel and of a far ship, the scenario scores,
+// and the cost against cluster size (docs/BENCHMARKS.md).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "magnav/core/gradiometer.h"
+#include "magnav/core/motion.h"
+#include "magnav/tracker/options.h"
+#include "magnav/tracker/tracker.h"
+
+namespace magnav {
+class StateWriter;
+class StateReader;
+}  // namespace magnav
+
+namespace magnav::tracker {
+
+struct ClusterBackgroundOptions {
+  // Off (the default): the fixed B0 (docs/ACCURACY.md says why).
+  bool enabled = false;
+  // Zero-mean prior of each offset about B0 at the start of the span it is
+  // estimated over (T, 1 σ per axis): wide, so the level comes from the
+  // data (a drift of 4 nT/min is 20 nT after 5 min; a far ship's B is tens
+  // of nT).
+  double prior_sigma_T = 100e-9;
+  // Random walk of the offset between epochs (T per √s, per axis): follows
+  // a far ship's tens of nT per minute, not a near vessel's hundreds of nT
+  // within seconds (docs/ACCURACY.md, the dynamics table).
+  double walk_T_per_sqrt_s = 0.2e-9;
+  // A sample whose residual tensor (sample minus every track's predicted
+  // tensor, whitened with σ_T and the tracks' model error, ‖·‖²/9) exceeds
+  // this does not enter its sensor's offset.
+  double tensor_gate = 4.0;
+
+  bool IsValid(std::string* error) const;
+};
+
+// One sensor's residual B at one epoch: the sample minus B0 minus every
+// track's predicted B (world NED, T), with its variance per axis (T²).
+struct OffsetSample {
+  double t_s = 0.0;
+  Eigen::Vector3d r_W = Eigen::Vector3d::Zero();
+  double var_T2 = 0.0;
+};
+// The offset's smoothed estimate at a sample's time.
+struct OffsetEstimate {
+  double t_s = 0.0;
+  Eigen::Vector3d b_W = Eigen::Vector3d::Zero();
+  double var_T2 = 0.0;
+};
+// The minimiser of one sensor's part of the joint cost given the tracks:
+// a random-walk Kalman filter from N(0, prior_sigma_T²) at the first sample
+// and the Rauch–Tung–Striebel pass back. `series` in time order; one
+// estimate per sample.
+std::vector<OffsetEstimate> SmoothOffsets(const std::vector<OffsetSample>& series,
+                                          const ClusterBackgroundOptions& options);
+
+// Connected components of tracks coupled by a shared sensor: `sensors[i]`
+// lists track i's sensors (any order). Each cluster is its tracks'
+// indices, ascending; clusters ordered by their first track.
+std::vector<std::vector<std::size_t>> TrackClusters(const std::vector<std::vector<std::uint32_t>>& sensors);
+
+// Every sensor's offset series: zero for a sensor not estimated, the first
+// estimate before the series, the newest after it (held), else the latest
+// estimate at or before t_s.
+class SensorOffsets {
+ public:
+  void Set(std::uint32_t sensor_id, std::vector<OffsetEstimate> series);
+  void Clear() { series_.clear(); }
+  Eigen::Vector3d At(std::uint32_t sensor_id, double t_s) const;
+  bool Has(std::uint32_t sensor_id) const { return series_.count(sensor_id) != 0; }
+  std::size_t num_sensors() const { return series_.size(); }
+  void SaveState(StateWriter& w) const;
+  void RestoreState(StateReader& r);
+
+ private:
+  std::map<std::uint32_t, std::vector<OffsetEstimate>> series_;
+};
+
+// A track as the offset step sees it: its state at a time (nullopt: no
+// state then, its field is left out), its body moment and its sensors.
+struct ClusterTrack {
+  std::function<std::optional<CtState<double>>(double t_s)> state_at;
+  Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
+  std::vector<std::uint32_t> sensors;
+};
+
+// What one offset step did (for the cost table).
+struct ClusterStepStats {
+  std::vector<int> cluster_tracks;   // tracks per cluster
+  std::vector<int> cluster_sensors;  // sensors per cluster
+  int num_samples_used = 0;
+  int num_samples_gated = 0;  // residual tensor above tensor_gate
+};
+
+// The offset step: every sensor of every track (`tracks[i].sensors`) gets
+// the smoothed series of its residual B over `epochs` (time order), the
+// fields of every track with a state at that time removed. Sensors of no
+// track are not set. Replaces `offsets`' series of those sensors.
+ClusterStepStats EstimateClusterOffsets(const std::vector<const Epoch*>& epochs, const std::vector<ClusterTrack>& tracks,
+                                        const Eigen::Vector3d& B0_W, const TrackerOptions& track_options,
+                                        const ClusterBackgroundOptions& options, SensorOffsets* offsets);
+
+}  // namespace magnav::tracker

@@ -1,0 +1,183 @@
+#include "magnav/tracker/cluster_background.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <set>
+
+#include "magnav/core/checkpoint.h"
+#include "magnav/core/option_check.h"
+#include "magnav/tracker/initialize.h"
+#include "magnav/tracker/multi_tracker.h"
+#include "state_io.h"
+
+namespace magnav::tracker {
+
+bool ClusterBackgroundOptions::IsValid(std::string* error) const {
+  if (!PositiveFinite(prior_sigma_T)) return Fail(error, "cluster background prior sigma must be > 0");
+  if (!PositiveFinite(walk_T_per_sqrt_s)) return Fail(error, "cluster background walk must be > 0");
+  if (!PositiveFinite(tensor_gate)) return Fail(error, "cluster background tensor gate must be > 0");
+  return true;
+}
+
+std::vector<OffsetEstimate> SmoothOffsets(const std::vector<OffsetSample>& series,
+                                          const ClusterBackgroundOptions& options) {
+  const std::size_t n = series.size();
+  std::vector<OffsetEstimate> out(n);
+  if (n == 0) return out;
+  // Forward: filtered (x_f, P_f) and predicted (P_p) at each sample; the
+  // three axes share the scalar variances.
+  std::vector<Eigen::Vector3d> xf(n);
+  std::vector<double> Pf(n), Pp(n);
+  const double q = options.walk_T_per_sqrt_s * options.walk_T_per_sqrt_s;
+  Eigen::Vector3d x = Eigen::Vector3d::Zero();
+  double P = options.prior_sigma_T * options.prior_sigma_T;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k > 0) P += q * std::max(series[k].t_s - series[k - 1].t_s, 0.0);
+    Pp[k] = P;
+    const double R = series[k].var_T2;
+    if (std::isfinite(R) && R > 0.0 && series[k].r_W.allFinite()) {
+      const double K = P / (P + R);
+      x += K * (series[k].r_W - x);
+      P *= 1.0 - K;
+    }
+    xf[k] = x;
+    Pf[k] = P;
+  }
+  // Backward (RTS; F = 1).
+  out[n - 1] = {series[n - 1].t_s, xf[n - 1], Pf[n - 1]};
+  for (std::size_t k = n - 1; k-- > 0;) {
+    const double C = Pf[k] / Pp[k + 1];
+    out[k].t_s = series[k].t_s;
+    out[k].b_W = xf[k] + C * (out[k + 1].b_W - xf[k]);
+    out[k].var_T2 = Pf[k] + C * C * (out[k + 1].var_T2 - Pp[k + 1]);
+  }
+  return out;
+}
+
+std::vector<std::vector<std::size_t>> TrackClusters(const std::vector<std::vector<std::uint32_t>>& sensors) {
+  const std::size_t n = sensors.size();
+  std::vector<std::size_t> parent(n);
+  std::iota(parent.begin(), parent.end(), std::size_t{0});
+  const auto find = [&](std::size_t i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  std::map<std::uint32_t, std::size_t> owner;  // a sensor's first track
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::uint32_t s : sensors[i]) {
+      const auto [it, fresh] = owner.emplace(s, i);
+      if (!fresh) {
+        const std::size_t a = find(i), b = find(it->second);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
+    }
+  }
+  std::map<std::size_t, std::vector<std::size_t>> by_root;
+  for (std::size_t i = 0; i < n; ++i) by_root[find(i)].push_back(i);
+  std::vector<std::vector<std::size_t>> out;
+  for (auto& [root, members] : by_root) out.push_back(std::move(members));
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.front() < b.front(); });
+  return out;
+}
+
+void SensorOffsets::Set(std::uint32_t sensor_id, std::vector<OffsetEstimate> series) {
+  if (series.empty()) {
+    series_.erase(sensor_id);
+  } else {
+    series_[sensor_id] = std::move(series);
+  }
+}
+
+Eigen::Vector3d SensorOffsets::At(std::uint32_t sensor_id, double t_s) const {
+  const auto it = series_.find(sensor_id);
+  if (it == series_.end()) return Eigen::Vector3d::Zero();
+  const std::vector<OffsetEstimate>& s = it->second;
+  const auto after = std::upper_bound(s.begin(), s.end(), t_s,
+                                      [](double t, const OffsetEstimate& e) { return t < e.t_s; });
+  return after == s.begin() ? s.front().b_W : std::prev(after)->b_W;
+}
+
+void SensorOffsets::SaveState(StateWriter& w) const {
+  w.U64(series_.size());
+  for (const auto& [id, s] : series_) {
+    w.U32(id);
+    w.U64(s.size());
+    for (const OffsetEstimate& e : s) {
+      w.F64(e.t_s);
+      w.Matrix(e.b_W);
+      w.F64(e.var_T2);
+    }
+  }
+}
+
+void SensorOffsets::RestoreState(StateReader& r) {
+  std::map<std::uint32_t, std::vector<OffsetEstimate>> series;
+  for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
+    const std::uint32_t id = r.U32();
+    std::vector<OffsetEstimate>& s = series[id];
+    for (std::size_t k = r.Count(internal::kMaxStateCount); k > 0; --k) {
+      OffsetEstimate e;
+      e.t_s = r.F64();
+      e.b_W = internal::GetMatrix(r, 3, 1);
+      e.var_T2 = r.F64();
+      s.push_back(e);
+    }
+  }
+  series_ = std::move(series);
+}
+
+ClusterStepStats EstimateClusterOffsets(const std::vector<const Epoch*>& epochs, const std::vector<ClusterTrack>& tracks,
+                                        const Eigen::Vector3d& B0_W, const TrackerOptions& track_options,
+                                        const ClusterBackgroundOptions& options, SensorOffsets* offsets) {
+  ClusterStepStats stats;
+  std::vector<std::vector<std::uint32_t>> sensors(tracks.size());
+  std::set<std::uint32_t> wanted;
+  for (std::size_t i = 0; i < tracks.size(); ++i) {
+    sensors[i] = tracks[i].sensors;
+    wanted.insert(sensors[i].begin(), sensors[i].end());
+  }
+  for (const auto& c : TrackClusters(sensors)) {
+    std::set<std::uint32_t> s;
+    for (std::size_t i : c) s.insert(sensors[i].begin(), sensors[i].end());
+    stats.cluster_tracks.push_back(static_cast<int>(c.size()));
+    stats.cluster_sensors.push_back(static_cast<int>(s.size()));
+  }
+  if (wanted.empty()) return stats;
+  const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+  std::map<std::uint32_t, std::vector<OffsetSample>> series;
+  std::vector<std::optional<CtState<double>>> at(tracks.size());
+  for (const Epoch* e : epochs) {
+    bool any = false;
+    for (const auto& smp : e->samples) any = any || wanted.count(smp.sensor_id) != 0;
+    if (!any) continue;
+    for (std::size_t i = 0; i < tracks.size(); ++i) at[i] = tracks[i].state_at(e->t_s);
+    for (const auto& smp : e->samples) {
+      if (wanted.count(smp.sensor_id) == 0) continue;
+      Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
+      for (std::size_t i = 0; i < tracks.size(); ++i) {
+        if (!at[i]) continue;
+        Eigen::Vector3d B;
+        Eigen::Matrix3d T;
+        PredictedField(*at[i], tracks[i].m_B_Am2, smp.p_SinW, &B, &T);
+        B_tracks += B;
+        T_tracks += T;
+      }
+      const double sb = SigmaB(smp, track_options), st = SigmaT(smp, track_options);
+      const double st2 = st * st + rel * rel * T_tracks.squaredNorm() / 9.0;
+      if ((smp.T - T_tracks).squaredNorm() / st2 / 9.0 > options.tensor_gate) {
+        ++stats.num_samples_gated;
+        series[smp.sensor_id].push_back({e->t_s, Eigen::Vector3d::Zero(), 0.0});  // no measurement
+        continue;
+      }
+      ++stats.num_samples_used;
+      const double var = sb * sb + rel * rel * B_tracks.squaredNorm() / 3.0;
+      series[smp.sensor_id].push_back({e->t_s, smp.B - B0_W - B_tracks, var});
+    }
+  }
+  for (auto& [id, s] : series) offsets->Set(id, SmoothOffsets(s, options));
+  return stats;
+}
+
+}  // namespace magnav::tracker
