@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <random>
 #include <set>
@@ -162,7 +163,7 @@ TEST(ClusterBackground, VesselOverADriftingSensorWindow) {
   EXPECT_EQ(s_on.false_rows, 0u);
   EXPECT_EQ(s_on.ids[0], 1u);
   EXPECT_GE(s_on.coverage[0], 0.85);  // measured 0.896 (fixed B0: 0.843)
-  EXPECT_LE(s_on.rms[0], 0.17);       // measured 0.085 m
+  EXPECT_LE(s_on.rms[0], 0.25);       // measured 0.14 m
   EXPECT_GE(s_off.rms[0], 0.25);      // measured 0.50 m: the drift's bias
 }
 
@@ -180,7 +181,7 @@ TEST(ClusterBackground, VesselOverADriftingSensorBatch) {
   EXPECT_EQ(s_on.false_rows, 0u);
   EXPECT_EQ(s_on.ids[0], 1u);
   EXPECT_GE(s_on.coverage[0], 0.95);  // measured 1.000 (fixed B0: 1.000)
-  EXPECT_LE(s_on.rms[0], 0.10);       // measured 0.051 m
+  EXPECT_LE(s_on.rms[0], 0.085);      // measured 0.044 m
   EXPECT_GE(s_off.rms[0], 0.18);      // measured 0.35 m: the drift's bias
 }
 
@@ -193,13 +194,23 @@ TEST(ClusterBackground, OptionsAreChecked) {
   EXPECT_FALSE(o.IsValid(&why));
   o.background.enabled = false;
   for (double* v : {&o.cluster_background.prior_sigma_T, &o.cluster_background.walk_T_per_sqrt_s,
-                    &o.cluster_background.tensor_gate}) {
+                    &o.cluster_background.tensor_gate, &o.cluster_background.track_field_share,
+                    &o.cluster_background.prior_rate_sigma_T_per_s}) {
     const double keep = *v;
     for (double bad : {0.0, -1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
       *v = bad;
       EXPECT_FALSE(o.IsValid(&why)) << bad;
     }
     *v = keep;
+  }
+  for (double* v : {&o.cluster_background.occupied_tensor_snr, &o.cluster_background.rate_walk_T_per_s_per_sqrt_s}) {
+    *v = 0.0;
+    EXPECT_TRUE(o.IsValid(&why)) << why;
+    for (double bad : {-1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
+      *v = bad;
+      EXPECT_FALSE(o.IsValid(&why)) << bad;
+    }
+    *v = 0.0;
   }
 }
 

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+
+#include <Eigen/LU>
 #include <numeric>
 #include <set>
 
@@ -16,41 +18,76 @@ namespace magnav::tracker {
 bool ClusterBackgroundOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(prior_sigma_T)) return Fail(error, "cluster background prior sigma must be > 0");
   if (!PositiveFinite(walk_T_per_sqrt_s)) return Fail(error, "cluster background walk must be > 0");
+  if (!(rate_walk_T_per_s_per_sqrt_s >= 0.0) || !std::isfinite(rate_walk_T_per_s_per_sqrt_s)) {
+    return Fail(error, "cluster background rate walk must be finite and >= 0");
+  }
+  if (!PositiveFinite(prior_rate_sigma_T_per_s)) return Fail(error, "cluster background rate prior sigma must be > 0");
   if (!PositiveFinite(tensor_gate)) return Fail(error, "cluster background tensor gate must be > 0");
+  if (!PositiveFinite(track_field_share)) return Fail(error, "cluster background track field share must be > 0");
+  if (!(occupied_tensor_snr >= 0.0) || !std::isfinite(occupied_tensor_snr)) {
+    return Fail(error, "cluster background occupied tensor SNR must be finite and >= 0");
+  }
   return true;
 }
 
 std::vector<OffsetEstimate> SmoothOffsets(const std::vector<OffsetSample>& series,
-                                          const ClusterBackgroundOptions& options) {
+                                          const ClusterBackgroundOptions& options, const Eigen::Vector3d& prior_mean_W) {
   const std::size_t n = series.size();
   std::vector<OffsetEstimate> out(n);
   if (n == 0) return out;
-  // Forward: filtered (x_f, P_f) and predicted (P_p) at each sample; the
-  // three axes share the scalar variances.
-  std::vector<Eigen::Vector3d> xf(n);
-  std::vector<double> Pf(n), Pp(n);
-  const double q = options.walk_T_per_sqrt_s * options.walk_T_per_sqrt_s;
-  Eigen::Vector3d x = Eigen::Vector3d::Zero();
-  double P = options.prior_sigma_T * options.prior_sigma_T;
+  // State per axis [b, ḃ] (the three axes share the 2×2 covariance): a level
+  // random walk q_l and, if rate_walk > 0, a white acceleration q_a.
+  // Without a rate walk the rate stays zero (a pure level walk).
+  using M2 = Eigen::Matrix2d;
+  using X = Eigen::Matrix<double, 3, 2>;  // columns: level, rate
+  const double ql = options.walk_T_per_sqrt_s * options.walk_T_per_sqrt_s;
+  const double qa = options.rate_walk_T_per_s_per_sqrt_s * options.rate_walk_T_per_s_per_sqrt_s;
+  const bool with_rate = qa > 0.0;
+  std::vector<X> xf(n), xp(n);
+  std::vector<M2> Pf(n), Pp(n), F(n);
+  X x = X::Zero();
+  x.col(0) = prior_mean_W;
+  M2 P = M2::Zero();
+  P(0, 0) = options.prior_sigma_T * options.prior_sigma_T;
+  P(1, 1) = with_rate ? options.prior_rate_sigma_T_per_s * options.prior_rate_sigma_T_per_s : 0.0;
   for (std::size_t k = 0; k < n; ++k) {
-    if (k > 0) P += q * std::max(series[k].t_s - series[k - 1].t_s, 0.0);
+    const double dt = k > 0 ? std::max(series[k].t_s - series[k - 1].t_s, 0.0) : 0.0;
+    M2 Fk = M2::Identity();
+    Fk(0, 1) = with_rate ? dt : 0.0;
+    M2 Q;
+    Q << qa * dt * dt * dt / 3.0 + ql * dt, qa * dt * dt / 2.0, qa * dt * dt / 2.0, qa * dt;
+    if (k > 0) {
+      x = x * Fk.transpose();
+      P = Fk * P * Fk.transpose() + Q;
+    }
+    F[k] = Fk;
+    xp[k] = x;
     Pp[k] = P;
     const double R = series[k].var_T2;
     if (std::isfinite(R) && R > 0.0 && series[k].r_W.allFinite()) {
-      const double K = P / (P + R);
-      x += K * (series[k].r_W - x);
-      P *= 1.0 - K;
+      const double S = P(0, 0) + R;
+      const Eigen::Vector2d K = P.col(0) / S;
+      x += (series[k].r_W - x.col(0)) * K.transpose();
+      P -= K * K.transpose() * S;
+      P = 0.5 * (P + P.transpose());
     }
     xf[k] = x;
     Pf[k] = P;
   }
-  // Backward (RTS; F = 1).
-  out[n - 1] = {series[n - 1].t_s, xf[n - 1], Pf[n - 1]};
+  // Backward (RTS): C_k = P_f,k F_{k+1}ᵀ P_p,k+1⁻¹.
+  X xs = xf[n - 1];
+  M2 Ps = Pf[n - 1];
+  out[n - 1] = {series[n - 1].t_s, xs.col(0), Ps(0, 0)};
   for (std::size_t k = n - 1; k-- > 0;) {
-    const double C = Pf[k] / Pp[k + 1];
-    out[k].t_s = series[k].t_s;
-    out[k].b_W = xf[k] + C * (out[k + 1].b_W - xf[k]);
-    out[k].var_T2 = Pf[k] + C * C * (out[k + 1].var_T2 - Pp[k + 1]);
+    M2 C = M2::Zero();
+    if (with_rate) {
+      C = Pf[k] * F[k + 1].transpose() * Pp[k + 1].inverse();
+    } else if (Pp[k + 1](0, 0) > 0.0) {
+      C(0, 0) = Pf[k](0, 0) / Pp[k + 1](0, 0);
+    }
+    xs = xf[k] + (xs - xp[k + 1]) * C.transpose();
+    Ps = Pf[k] + C * (Ps - Pp[k + 1]) * C.transpose();
+    out[k] = {series[k].t_s, xs.col(0), Ps(0, 0)};
   }
   return out;
 }
@@ -129,7 +166,8 @@ void SensorOffsets::RestoreState(StateReader& r) {
 
 ClusterStepStats EstimateClusterOffsets(const std::vector<const Epoch*>& epochs, const std::vector<ClusterTrack>& tracks,
                                         const Eigen::Vector3d& B0_W, const TrackerOptions& track_options,
-                                        const ClusterBackgroundOptions& options, SensorOffsets* offsets) {
+                                        const ClusterBackgroundOptions& options, const SensorOffsets* prior,
+                                        SensorOffsets* offsets) {
   ClusterStepStats stats;
   std::vector<std::vector<std::uint32_t>> sensors(tracks.size());
   std::set<std::uint32_t> wanted;
@@ -165,6 +203,11 @@ ClusterStepStats EstimateClusterOffsets(const std::vector<const Epoch*>& epochs,
         T_tracks += T;
       }
       const double sb = SigmaB(smp, track_options), st = SigmaT(smp, track_options);
+      if (options.occupied_tensor_snr > 0.0 && T_tracks.norm() >= options.occupied_tensor_snr * st) {
+        ++stats.num_samples_occupied;
+        series[smp.sensor_id].push_back({e->t_s, Eigen::Vector3d::Zero(), 0.0});  // no measurement
+        continue;
+      }
       const double st2 = st * st + rel * rel * T_tracks.squaredNorm() / 9.0;
       if ((smp.T - T_tracks).squaredNorm() / st2 / 9.0 > options.tensor_gate) {
         ++stats.num_samples_gated;
@@ -172,11 +215,16 @@ ClusterStepStats EstimateClusterOffsets(const std::vector<const Epoch*>& epochs,
         continue;
       }
       ++stats.num_samples_used;
-      const double var = sb * sb + rel * rel * B_tracks.squaredNorm() / 3.0;
+      const double share = options.track_field_share;
+      const double var = sb * sb + share * share * B_tracks.squaredNorm() / 3.0;
       series[smp.sensor_id].push_back({e->t_s, smp.B - B0_W - B_tracks, var});
     }
   }
-  for (auto& [id, s] : series) offsets->Set(id, SmoothOffsets(s, options));
+  for (auto& [id, s] : series) {
+    const Eigen::Vector3d mean =
+        prior != nullptr && prior->Has(id) ? prior->At(id, s.front().t_s) : Eigen::Vector3d::Zero();
+    offsets->Set(id, SmoothOffsets(s, options, mean));
+  }
   return stats;
 }
 

@@ -50,8 +50,10 @@ bool WindowClusterBackground::StepIfDue(double t_s, const std::vector<WindowTrac
   }
   std::vector<const Epoch*> epochs;
   for (const Epoch& e : raw_) epochs.push_back(&e);
+  const SensorOffsets previous = offsets_;
   offsets_.Clear();
-  last_step_stats_ = EstimateClusterOffsets(epochs, tracks, B0_W_, topt, options_.cluster_background, &offsets_);
+  last_step_stats_ =
+      EstimateClusterOffsets(epochs, tracks, B0_W_, topt, options_.cluster_background, &previous, &offsets_);
   const WindowTracker::BackgroundOffsetFn fn = Fn();
   for (WindowTracker* engine : engines) engine->SetBackgroundOffsets(fn);
   return true;

@@ -278,7 +278,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       }
       std::vector<const Epoch*> all;
       for (const Epoch& e : epochs) all.push_back(&e);
-      EstimateClusterOffsets(all, ct, B0_W, topt, options.cluster_background, &offsets);
+      EstimateClusterOffsets(all, ct, B0_W, topt, options.cluster_background, nullptr, &offsets);
     }
     for (std::size_t i = 0; i < result.size(); ++i) {
       if (progress) {

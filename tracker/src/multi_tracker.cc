@@ -293,7 +293,14 @@ struct MultiTracker::Impl {
       cluster.AddRaw(raw);
       std::vector<WindowTracker*> engines;
       for (Track& tr : tracks) engines.push_back(tr.engine.get());
-      cluster.StepIfDue(raw.t_s, engines);
+      if (cluster.StepIfDue(raw.t_s, engines)) {
+        ++summary.num_cluster_steps;
+        for (int k : cluster.last_step().cluster_tracks) {
+          ++summary.num_clusters;
+          summary.num_cluster_tracks += k;
+          summary.max_cluster_tracks = std::max(summary.max_cluster_tracks, k);
+        }
+      }
     }
     const Epoch e = WithoutBackground(raw);
     const double t = e.t_s;
@@ -745,7 +752,8 @@ std::string MultiTracker::SaveState() const {
   }
   const MultiSummary& sm = m.summary;
   for (int v : {sm.num_epochs, sm.num_rejected_samples, sm.num_tentative_dropped, sm.num_starts_refused,
-                sm.num_confirmed, sm.num_ended}) {
+                sm.num_confirmed, sm.num_ended, sm.num_cluster_steps, sm.num_clusters, sm.num_cluster_tracks,
+                sm.max_cluster_tracks}) {
     w.I64(v);
   }
   internal::PutDeque(w, m.buffer);
@@ -826,7 +834,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
   }
   MultiSummary& sm = m.summary;
   for (int* v : {&sm.num_epochs, &sm.num_rejected_samples, &sm.num_tentative_dropped, &sm.num_starts_refused,
-                 &sm.num_confirmed, &sm.num_ended}) {
+                 &sm.num_confirmed, &sm.num_ended, &sm.num_cluster_steps, &sm.num_clusters, &sm.num_cluster_tracks,
+                 &sm.max_cluster_tracks}) {
     *v = static_cast<int>(r.I64());
   }
   internal::GetDeque(r, &m.buffer);

@@ -114,7 +114,9 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
         o.background.rate_walk_T_per_s_per_sqrt_s, o.background.level_walk_T_per_sqrt_s,
         o.background.initial_sigma_T, o.background.initial_rate_sigma_T_per_s, o.background.gate_chi2,
         o.background.occupied_tensor_chi2, o.background.occupied_average_s, o.cluster_background.prior_sigma_T,
-        o.cluster_background.walk_T_per_sqrt_s, o.cluster_background.tensor_gate}) {
+        o.cluster_background.walk_T_per_sqrt_s, o.cluster_background.tensor_gate,
+        o.cluster_background.track_field_share, o.cluster_background.occupied_tensor_snr,
+        o.cluster_background.rate_walk_T_per_s_per_sqrt_s, o.cluster_background.prior_rate_sigma_T_per_s}) {
     w.F64(d);
   }
   for (std::int64_t n :

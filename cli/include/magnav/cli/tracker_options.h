@@ -118,6 +118,16 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--cbg-tensor-gate", c.tensor_gate,
                  "cluster background: a sample whose residual tensor (whitened, |.|^2/9) exceeds this is not used")
       ->capture_default_str();
+  app.add_option("--cbg-field-share", c.track_field_share,
+                 "cluster background: the tracks' predicted B taken as uncertain by this share of its norm")
+      ->capture_default_str();
+  app.add_option("--cbg-rate-walk", c.rate_walk_T_per_s_per_sqrt_s,
+                 "cluster background: random walk of each offset's rate, T/s/sqrt(s) (0 = a level walk alone)")
+      ->capture_default_str();
+  app.add_option("--cbg-occupied-snr", c.occupied_tensor_snr,
+                 "cluster background: a sample where the tracks' predicted tensor SNR is at least this does not enter "
+                 "the offset (0 = every sample)")
+      ->capture_default_str();
 }
 
 // The options the flags give. Throws InputError naming the flag for a bad

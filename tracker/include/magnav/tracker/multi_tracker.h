@@ -230,6 +230,12 @@ struct MultiSummary {
   int num_starts_refused = 0;     // initialisations too close to a live track
   int num_confirmed = 0;
   int num_ended = 0;
+  // Cluster background (cluster_background.h): offset steps made, clusters
+  // solved over them, their tracks in all, the largest cluster's tracks.
+  int num_cluster_steps = 0;
+  int num_clusters = 0;
+  int num_cluster_tracks = 0;
+  int max_cluster_tracks = 0;
   std::string BriefReport() const;
 };
 
