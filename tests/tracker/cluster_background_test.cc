@@ -201,6 +201,8 @@ TEST(ClusterBackground, OptionsAreChecked) {
       *v = bad;
       EXPECT_FALSE(o.IsValid(&why)) << bad;
     }
+    *v = 1e308;  // a variance that overflows
+    EXPECT_EQ(o.IsValid(&why), v == &o.cluster_background.tensor_gate) << why;
     *v = keep;
   }
   for (double* v : {&o.cluster_background.occupied_tensor_snr, &o.cluster_background.rate_walk_T_per_s_per_sqrt_s}) {
@@ -210,6 +212,8 @@ TEST(ClusterBackground, OptionsAreChecked) {
       *v = bad;
       EXPECT_FALSE(o.IsValid(&why)) << bad;
     }
+    *v = 1e308;
+    EXPECT_EQ(o.IsValid(&why), v == &o.cluster_background.occupied_tensor_snr) << why;
     *v = 0.0;
   }
 }

@@ -16,14 +16,17 @@
 namespace magnav::tracker {
 
 bool ClusterBackgroundOptions::IsValid(std::string* error) const {
-  if (!PositiveFinite(prior_sigma_T)) return Fail(error, "cluster background prior sigma must be > 0");
-  if (!PositiveFinite(walk_T_per_sqrt_s)) return Fail(error, "cluster background walk must be > 0");
-  if (!(rate_walk_T_per_s_per_sqrt_s >= 0.0) || !std::isfinite(rate_walk_T_per_s_per_sqrt_s)) {
-    return Fail(error, "cluster background rate walk must be finite and >= 0");
+  // Upper bounds: their squares are variances (1e308 would overflow them to
+  // inf and the smoother to NaN); 1 T is the door's B limit (core/limits.h).
+  const auto in = [](double x, double hi) { return std::isfinite(x) && x > 0.0 && x <= hi; };
+  if (!in(prior_sigma_T, 1.0)) return Fail(error, "cluster background prior sigma must be in (0, 1] T");
+  if (!in(walk_T_per_sqrt_s, 1.0)) return Fail(error, "cluster background walk must be in (0, 1] T/sqrt(s)");
+  if (!(rate_walk_T_per_s_per_sqrt_s >= 0.0 && rate_walk_T_per_s_per_sqrt_s <= 1.0)) {
+    return Fail(error, "cluster background rate walk must be in [0, 1] T/s/sqrt(s)");
   }
-  if (!PositiveFinite(prior_rate_sigma_T_per_s)) return Fail(error, "cluster background rate prior sigma must be > 0");
+  if (!in(prior_rate_sigma_T_per_s, 1.0)) return Fail(error, "cluster background rate prior sigma must be in (0, 1] T/s");
   if (!PositiveFinite(tensor_gate)) return Fail(error, "cluster background tensor gate must be > 0");
-  if (!PositiveFinite(track_field_share)) return Fail(error, "cluster background track field share must be > 0");
+  if (!in(track_field_share, 100.0)) return Fail(error, "cluster background track field share must be in (0, 100]");
   if (!(occupied_tensor_snr >= 0.0) || !std::isfinite(occupied_tensor_snr)) {
     return Fail(error, "cluster background occupied tensor SNR must be finite and >= 0");
   }
