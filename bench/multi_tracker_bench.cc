@@ -101,7 +101,9 @@ double ForwardModelSeconds(const FieldScenario& sc, const SimulatedField& f) {
 }
 
 // Args: grid side N, vessels V, window solve interval (ms; 0 = every epoch;
-// the multi-tracker's default is 500), layout (0 apart, 1 pairs abreast).
+// the multi-tracker's default is 500), layout (0 apart, 1 pairs abreast),
+// cluster background (0 off, the default; 1 on: cluster_background.h, with
+// the mean and largest number of tracks per cluster of its offset steps).
 void BM_MultiTrackerField(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));
   const int vessels = static_cast<int>(state.range(1));
@@ -112,7 +114,9 @@ void BM_MultiTrackerField(benchmark::State& state) {
   const SimulatedField& f = Field(n, vessels, duration_s, layout);
   magnav::tracker::MultiTrackerOptions opt;
   opt.track.window_solve_interval_s = solve_interval_s;
+  opt.cluster_background.enabled = state.range(4) != 0;
   int tracks = 0;
+  magnav::tracker::MultiSummary summary;
   double cpu_s = 0.0;
   std::vector<magnav::tracker::TrackOutput> rows;
   for (auto _ : state) {
@@ -125,6 +129,12 @@ void BM_MultiTrackerField(benchmark::State& state) {
     for (auto& o : tracker.Flush()) rows.push_back(std::move(o));
     cpu_s = static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC;
     tracks = tracker.summary().num_confirmed;
+    summary = tracker.summary();
+  }
+  if (opt.cluster_background.enabled) {
+    state.counters["cluster_tracks_mean"] =
+        summary.num_clusters > 0 ? static_cast<double>(summary.num_cluster_tracks) / summary.num_clusters : 0.0;
+    state.counters["cluster_tracks_max"] = summary.max_cluster_tracks;
   }
   // Accuracy alongside (untimed): each row against the nearest vessel.
   double sum_sq = 0.0;
@@ -169,18 +179,25 @@ void BM_MultiTrackerField(benchmark::State& state) {
   state.counters["ratio_to_forward_model"] = cpu_s / ForwardModelSeconds(sc, f);
 }
 BENCHMARK(BM_MultiTrackerField)
-    ->ArgNames({"grid", "vessels", "solve_ms", "abreast"})
-    ->Args({3, 1, 0, 0})
-    ->Args({3, 3, 0, 0})
-    ->Args({5, 3, 0, 0})
-    ->Args({10, 1, 0, 0})
-    ->Args({10, 3, 0, 0})
-    ->Args({10, 10, 0, 0})
-    ->Args({10, 10, 500, 0})
-    ->Args({10, 10, 1000, 0})
-    ->Args({10, 10, 500, 1})
-    ->Args({10, 2, 500, 1})
-    ->Args({3, 2, 500, 1})
+    ->ArgNames({"grid", "vessels", "solve_ms", "abreast", "cluster_bg"})
+    ->Args({3, 1, 0, 0, 0})
+    ->Args({3, 3, 0, 0, 0})
+    ->Args({5, 3, 0, 0, 0})
+    ->Args({10, 1, 0, 0, 0})
+    ->Args({10, 3, 0, 0, 0})
+    ->Args({10, 10, 0, 0, 0})
+    ->Args({10, 10, 500, 0, 0})
+    ->Args({10, 10, 1000, 0, 0})
+    ->Args({10, 10, 500, 1, 0})
+    ->Args({10, 2, 500, 1, 0})
+    ->Args({3, 2, 500, 1, 0})
+    // Cost against cluster size (cluster background on; the same rows off above).
+    ->Args({10, 1, 500, 0, 1})
+    ->Args({10, 10, 500, 0, 1})
+    ->Args({10, 2, 500, 1, 1})
+    ->Args({10, 10, 500, 1, 1})
+    ->Args({3, 2, 500, 1, 1})
+    ->Args({10, 1, 500, 0, 0})
     ->Iterations(1)
     ->Unit(benchmark::kSecond)
     ->UseRealTime();

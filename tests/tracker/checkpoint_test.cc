@@ -278,6 +278,48 @@ TEST(TrackerCheckpoint, ServicePassRestoredGoesOnBitForBit) {
     if (HasFailure()) break;
   }
 }
+// With the cluster background on (cluster_background.h), its raw span and
+// offsets are in the checkpoint and the restored windows take the offsets
+// again: restored, the tracker gives the same estimates, bit for bit.
+TEST(TrackerCheckpoint, ClusterBackgroundIsInTheCheckpoint) {
+  const FieldScenario sc = testing::TwoVesselScenario();
+  const SimulatedField f = SimulateField(sc);
+  MultiTrackerOptions options;
+  options.cluster_background.enabled = true;
+  MultiTracker a(sc.B0, options);
+  std::vector<TrackOutput> whole;
+  std::string payload;
+  std::size_t cut = 0, before = 0, end = 0;
+  const double t0 = f.samples.front().t_s;
+  for (std::size_t i = 0; i < f.samples.size() && f.samples[i].t_s < t0 + 70.0; ++i) {
+    if (payload.empty() && f.samples[i].t_s > t0 + 50.0 && f.samples[i].t_s != f.samples[i - 1].t_s) {
+      payload = a.SaveState();
+      cut = i;
+      before = whole.size();
+    }
+    for (auto& o : a.AddSample(f.samples[i])) whole.push_back(o);
+    end = i + 1;
+  }
+  ASSERT_FALSE(payload.empty());
+  ASSERT_GT(a.num_live_tracks(), 0);
+  MultiTracker b(sc.B0, options);
+  b.RestoreState(payload);
+  std::vector<TrackOutput> after;
+  for (std::size_t i = cut; i < end; ++i) {
+    for (auto& o : b.AddSample(f.samples[i])) after.push_back(o);
+  }
+  ASSERT_EQ(after.size(), whole.size() - before);
+  ASSERT_GT(after.size(), 0u);
+  for (std::size_t k = 0; k < after.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after[k], whole[before + k]);
+    if (HasFailure()) break;
+  }
+  // Made without it: refused (other options).
+  MultiTracker c(sc.B0, MultiTrackerOptions{});
+  EXPECT_THROW(c.RestoreState(payload), CheckpointError);
+}
+
 // With the per-sensor background on (background.h), its filters are in the
 // checkpoint: restored, the tracker gives the same estimates and the same
 // background at every sensor, bit for bit.

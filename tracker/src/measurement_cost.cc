@@ -25,7 +25,8 @@ SqrtInfo8 MeasurementSqrtInfo(double sigma_B, double sigma_T, bool trace_free) {
 MeasurementCost::MeasurementCost(const GradiometerSample& sample, const Eigen::Vector3d& B0_W,
                                  const SqrtInfo8& sqrt_info, double moment_scale_Am2)
     : p_SinW_(sample.p_SinW), sqrt_info_(sqrt_info), moment_scale_(moment_scale_Am2) {
-  z_.head<3>() = sample.B - B0_W;
+  B_minus_B0_ = sample.B - B0_W;
+  z_.head<3>() = B_minus_B0_;
   z_.tail<5>() = PackTensor5(sample.T);
 }
 

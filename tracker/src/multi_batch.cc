@@ -4,9 +4,11 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <set>
 
 #include "magnav/core/error.h"
 #include "magnav/tracker/association.h"
+#include "magnav/tracker/cluster_background.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/multi_tracker.h"
 #include "other_fields.h"
@@ -268,6 +270,40 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       now[i].epochs = result[i].track.epochs;
       now[i].m_B = result[i].track.m_B_Am2;
     }
+    // Cluster background (cluster_background.h): the offset step given the
+    // tracks as they are now (each within its span), over the whole pass.
+    SensorOffsets offsets;
+    if (options.cluster_background.enabled) {
+      std::vector<ClusterTrack> ct(result.size());
+      std::vector<std::set<std::uint32_t>> seen(result.size());
+      for (const Epoch& e : epochs) {
+        for (std::size_t i = 0; i < result.size(); ++i) {
+          if (e.t_s < spans[i].first || e.t_s > spans[i].second) continue;
+          const auto s_i = now[i].At(e.t_s, max_gap);
+          if (!s_i) continue;
+          for (const auto& smp : e.samples) {
+            Eigen::Vector3d B;
+            Eigen::Matrix3d T;
+            PredictedField(*s_i, now[i].m_B, smp.p_SinW, &B, &T);
+            const double sb = SigmaB(smp, topt), st = SigmaT(smp, topt);
+            if (std::sqrt(B.squaredNorm() / (sb * sb) + T.squaredNorm() / (st * st)) >= gate) seen[i].insert(smp.sensor_id);
+          }
+        }
+      }
+      for (std::size_t i = 0; i < result.size(); ++i) {
+        ct[i].m_B_Am2 = now[i].m_B;
+        ct[i].sensors.assign(seen[i].begin(), seen[i].end());
+        const TrackPath* path = &now[i];
+        const std::pair<double, double> span = spans[i];
+        ct[i].state_at = [path, span, max_gap](double t) -> std::optional<CtState<double>> {
+          if (t < span.first || t > span.second) return std::nullopt;
+          return path->At(t, max_gap);
+        };
+      }
+      std::vector<const Epoch*> all;
+      for (const Epoch& e : epochs) all.push_back(&e);
+      EstimateClusterOffsets(all, ct, B0_W, topt, options.cluster_background, nullptr, &offsets);
+    }
     for (std::size_t i = 0; i < result.size(); ++i) {
       if (progress) {
         progress("refining track " + std::to_string(result[i].track_id) + ", round " + std::to_string(round + 1) +
@@ -295,6 +331,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
         for (std::size_t j = 0; j < e.samples.size(); ++j) {
           GradiometerSample s0 = e.samples[j];
           if (CheckSample(s0) != SampleDefect::kNone) continue;
+          if (options.cluster_background.enabled) s0.B -= offsets.At(s0.sensor_id, e.t_s);
           if (options.background.enabled) {
             const BackgroundEstimate& bg = background[&e - epochs.data()][j];
             s0.sigma_B = std::hypot(SigmaB(s0, topt), bg.sigma_T);

@@ -1,4 +1,5 @@
 #include "magnav/tracker/multi_tracker.h"
+#include "cluster_window.h"
 #include "state_io.h"
 
 #include <Eigen/Eigenvalues>
@@ -55,6 +56,10 @@ MultiTrackerOptions::MultiTrackerOptions() {
 bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (!track.IsValid(error) || !management.IsValid(error)) return false;
   if (!background.IsValid(error)) return false;
+  if (!cluster_background.IsValid(error)) return false;
+  if (background.enabled && cluster_background.enabled) {
+    return Fail(error, "the per-sensor background filter and the cluster background are exclusive");
+  }
   if (batch_rounds < 1) return Fail(error, "batch_rounds must be >= 1");
   if (!PositiveFinite(batch_gate_snr)) return Fail(error, "batch_gate_snr must be > 0");
   if (!PositiveFinite(batch_extension_step_s)) return Fail(error, "batch_extension_step_s must be > 0");
@@ -131,6 +136,7 @@ struct MultiTracker::Impl {
   Eigen::Vector3d B0_W;
   MultiTrackerOptions options;
   SensorBackgrounds background{Eigen::Vector3d::Zero(), BackgroundOptions{}};
+  internal::WindowClusterBackground cluster{Eigen::Vector3d::Zero(), MultiTrackerOptions{}};
   const TrackManagementOptions& mg() const { return options.management; }
   std::vector<Track> tracks;  // live (confirmed and tentative)
   std::vector<TrackRecord> records;  // confirmed, by id - 1
@@ -241,6 +247,7 @@ struct MultiTracker::Impl {
   // The epoch with every sample's B corrected by its sensor's background
   // prior (its deviation from B0), the prior's variance added to σ_B².
   Epoch WithoutBackground(const Epoch& raw) const {
+    if (cluster.enabled()) return cluster.Corrected(raw);
     Epoch e = raw;
     if (!options.background.enabled) return e;
     for (GradiometerSample& s : e.samples) {
@@ -297,6 +304,21 @@ struct MultiTracker::Impl {
   std::vector<TrackOutput> Process(const Epoch& raw) {
     ++summary.num_epochs;
     std::vector<TrackOutput> out;
+    if (cluster.enabled()) {
+      // The offset step of the cluster background (cluster_background.h)
+      // before this epoch's samples are corrected by it.
+      cluster.AddRaw(raw);
+      std::vector<WindowTracker*> engines;
+      for (Track& tr : tracks) engines.push_back(tr.engine.get());
+      if (cluster.StepIfDue(raw.t_s, engines)) {
+        ++summary.num_cluster_steps;
+        for (int k : cluster.last_step().cluster_tracks) {
+          ++summary.num_clusters;
+          summary.num_cluster_tracks += k;
+          summary.max_cluster_tracks = std::max(summary.max_cluster_tracks, k);
+        }
+      }
+    }
     const Epoch e = WithoutBackground(raw);
     const double t = e.t_s;
     const std::size_t n = e.samples.size();
@@ -329,6 +351,12 @@ struct MultiTracker::Impl {
       const bool outbid = tr.id == 0 && evidence.outbid[i];
       tr.life.OnAssociation(t, a.detected && !outbid, a.missed, had_samples);
       tr.verdicts.emplace_back(t, a.detected && !outbid);
+      if (cluster.enabled()) {
+        Epoch mine = a.mine;
+        cluster.PutBack(&mine);  // the window adds the offsets in its model
+        Collect(tr, tr.engine->AddEpoch(mine), &out);
+        continue;
+      }
       Collect(tr, tr.engine->AddEpoch(a.mine), &out);
     }
     // Track status: confirmation and end rules (track_life_cycle.h).
@@ -584,6 +612,10 @@ struct MultiTracker::Impl {
     }
     if (mine.empty()) return false;
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
+    if (cluster.enabled()) {
+      for (Epoch& k : mine) cluster.PutBack(&k);
+      tr.engine->SetBackgroundOffsets(cluster.Fn());
+    }
     const std::vector<EpochEstimate> first = tr.engine->Start(*init, mine);
     if (!first.empty()) {
       tr.has_newest = true;
@@ -677,6 +709,7 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   impl_->B0_W = B0_W;
   impl_->options = options;
   impl_->background = SensorBackgrounds(B0_W, options.background);
+  impl_->cluster = internal::WindowClusterBackground(B0_W, options);
 }
 
 MultiTracker::~MultiTracker() = default;
@@ -846,7 +879,8 @@ std::string MultiTracker::SaveState() const {
   }
   const MultiSummary& sm = m.summary;
   for (int v : {sm.num_epochs, sm.num_rejected_samples, sm.num_tentative_dropped, sm.num_starts_refused,
-                sm.num_confirmed, sm.num_ended}) {
+                sm.num_confirmed, sm.num_ended, sm.num_cluster_steps, sm.num_clusters, sm.num_cluster_tracks,
+                sm.max_cluster_tracks}) {
     w.I64(v);
   }
   internal::PutDeque(w, m.buffer);
@@ -859,6 +893,7 @@ std::string MultiTracker::SaveState() const {
   internal::Put(w, m.pending);
   w.F64(m.last_t);
   m.background.SaveState(w);
+  if (m.cluster.enabled()) m.cluster.SaveState(w);
   return w.bytes();
 }
 
@@ -933,7 +968,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
   }
   MultiSummary& sm = m.summary;
   for (int* v : {&sm.num_epochs, &sm.num_rejected_samples, &sm.num_tentative_dropped, &sm.num_starts_refused,
-                 &sm.num_confirmed, &sm.num_ended}) {
+                 &sm.num_confirmed, &sm.num_ended, &sm.num_cluster_steps, &sm.num_clusters, &sm.num_cluster_tracks,
+                 &sm.max_cluster_tracks}) {
     *v = static_cast<int>(r.I64());
   }
   internal::GetDeque(r, &m.buffer);
@@ -947,6 +983,13 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.last_t = r.F64();
   m.background = SensorBackgrounds(m.B0_W, m.options.background);
   m.background.RestoreState(r);
+  m.cluster = internal::WindowClusterBackground(m.B0_W, m.options);
+  if (m.cluster.enabled()) {
+    m.cluster.RestoreState(r);
+    // The windows' offsets are not in their checkpoint: set again, as the
+    // saved tracker's last offset step set them.
+    for (Track& tr : m.tracks) tr.engine->SetBackgroundOffsets(m.cluster.Fn());
+  }
   if (!r.at_end()) throw CheckpointError("corrupt: bytes after the tracker state");
   impl_ = std::move(fresh);
 }

@@ -113,7 +113,10 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
         g.evidence_min_tensor_snr, g.pair_refit_s, o.batch_gate_snr, o.batch_extension_step_s,
         o.background.rate_walk_T_per_s_per_sqrt_s, o.background.level_walk_T_per_sqrt_s,
         o.background.initial_sigma_T, o.background.initial_rate_sigma_T_per_s, o.background.gate_chi2,
-        o.background.occupied_tensor_chi2, o.background.occupied_average_s}) {
+        o.background.occupied_tensor_chi2, o.background.occupied_average_s, o.cluster_background.prior_sigma_T,
+        o.cluster_background.walk_T_per_sqrt_s, o.cluster_background.tensor_gate,
+        o.cluster_background.track_field_share, o.cluster_background.occupied_tensor_snr,
+        o.cluster_background.rate_walk_T_per_s_per_sqrt_s, o.cluster_background.prior_rate_sigma_T_per_s}) {
     w.F64(d);
   }
   for (std::int64_t n :
@@ -124,7 +127,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
         static_cast<std::int64_t>(t.window_solver), static_cast<std::int64_t>(t.compute_covariance),
         static_cast<std::int64_t>(t.covariance_method), static_cast<std::int64_t>(g.confirm_m),
         static_cast<std::int64_t>(g.confirm_n), static_cast<std::int64_t>(o.batch_rounds),
-        static_cast<std::int64_t>(o.background.enabled)}) {
+        static_cast<std::int64_t>(o.background.enabled), static_cast<std::int64_t>(o.cluster_background.enabled)}) {
     w.I64(n);
   }
   return w.bytes();

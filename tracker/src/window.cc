@@ -73,6 +73,16 @@ struct WindowTracker::Impl {
   internal::ChainFactorization chain;
   bool chain_ok = false;
   bool chain_fresh = false;
+  // Per-sensor background offsets added to B0 (SetBackgroundOffsets).
+  WindowTracker::BackgroundOffsetFn offsets;
+
+  void ApplyOffsets(WindowEpoch& w) const {
+    if (!offsets) return;
+    for (std::size_t i = 0; i < w.measurements.size(); ++i) {
+      auto* cost = static_cast<MeasurementCost*>(w.measurements[i].cost.get());
+      cost->SetBackgroundOffset(offsets(w.epoch.samples[i].sensor_id, w.epoch.t_s));
+    }
+  }
 
   void Append(const Epoch& e, const StateVector& x0) {
     if (!window.empty()) {
@@ -92,6 +102,7 @@ struct WindowTracker::Impl {
     internal::AddMeasurementFactors(e, B0_W, options, moment_scale, w.x.data(), moment.data(),
                                     &w.measurements);
     for (auto& f : w.measurements) f.loss = meas_loss.get();
+    ApplyOffsets(w);
   }
 
   // Local system over [front state, second state, moment] from the factors of
@@ -612,6 +623,33 @@ void WindowTracker::RestoreState(StateReader& r) {
   if (r.U8() != 0 && !m.window.empty()) m.chain_fresh = internal::FactorizeChain(m.Chain(), &m.chain);
   if (m.initialized && m.window.empty()) throw CheckpointError("corrupt: a track without a window");
   impl_ = std::move(fresh);
+}
+
+void WindowTracker::SetBackgroundOffsets(BackgroundOffsetFn offset) {
+  Impl& m = *impl_;
+  m.offsets = std::move(offset);
+  for (WindowEpoch& w : m.window) {
+    if (m.offsets) {
+      m.ApplyOffsets(w);
+    } else {
+      for (auto& f : w.measurements) static_cast<MeasurementCost*>(f.cost.get())->SetBackgroundOffset(Eigen::Vector3d::Zero());
+    }
+  }
+  m.chain_fresh = false;  // the factorisation was of the old measurements
+}
+
+std::vector<WindowTracker::WindowEpochView> WindowTracker::WindowView() const {
+  std::vector<WindowEpochView> out;
+  if (!impl_->initialized) return out;
+  out.reserve(impl_->window.size());
+  for (const WindowEpoch& w : impl_->window) {
+    WindowEpochView v;
+    v.t_s = w.epoch.t_s;
+    v.state = {w.x(0), w.x(1), w.x(2), w.x(3), w.x(4), w.x(5)};
+    for (const auto& smp : w.epoch.samples) v.sensor_ids.push_back(smp.sensor_id);
+    out.push_back(std::move(v));
+  }
+  return out;
 }
 
 bool WindowTracker::initialized() const { return impl_->initialized; }

@@ -22,6 +22,7 @@ struct TrackerFlags {
   std::string turn_loss = tracker::LossTypeName(tracker::ProcessNoise{}.turn_rate_loss);
   std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
   std::string background = tracker::BackgroundOptions{}.enabled ? "on" : "off";
+  std::string cluster_background = tracker::ClusterBackgroundOptions{}.enabled ? "on" : "off";
 };
 
 // `fixes_help` says where this program's single-sample fixes come from.
@@ -104,6 +105,29 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--bg-gate", b.gate_chi2,
                  "background: a residual B with chi-square (3 axes) above this is down-weighted to it")
       ->capture_default_str();
+  tracker::ClusterBackgroundOptions& c = f->options.cluster_background;
+  app.add_option("--cluster-background", f->cluster_background,
+                 "each sensor's B0 offset estimated jointly with the tracks that see it, per window solve and batch "
+                 "round (on), or the fixed B0 (off); not with --background on")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--cbg-prior-sigma", c.prior_sigma_T, "cluster background: zero-mean prior of each offset, T")
+      ->capture_default_str();
+  app.add_option("--cbg-walk", c.walk_T_per_sqrt_s, "cluster background: random walk of each offset, T/sqrt(s)")
+      ->capture_default_str();
+  app.add_option("--cbg-tensor-gate", c.tensor_gate,
+                 "cluster background: a sample whose residual tensor (whitened, |.|^2/9) exceeds this is not used")
+      ->capture_default_str();
+  app.add_option("--cbg-field-share", c.track_field_share,
+                 "cluster background: the tracks' predicted B taken as uncertain by this share of its norm")
+      ->capture_default_str();
+  app.add_option("--cbg-rate-walk", c.rate_walk_T_per_s_per_sqrt_s,
+                 "cluster background: random walk of each offset's rate, T/s/sqrt(s) (0 = a level walk alone)")
+      ->capture_default_str();
+  app.add_option("--cbg-occupied-snr", c.occupied_tensor_snr,
+                 "cluster background: a sample where the tracks' predicted tensor SNR is at least this does not enter "
+                 "the offset (0 = every sample)")
+      ->capture_default_str();
 }
 
 // The options the flags give. Throws InputError naming the flag for a bad
@@ -120,6 +144,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
     throw InputError("--init-from: expected auto, dipole_fix or samples, got '" + f.init_from + "'");
   }
   o.background.enabled = f.background == "on";
+  o.cluster_background.enabled = f.cluster_background == "on";
   std::string why;
   if (!o.IsValid(&why)) throw InputError("tracker options: " + why);
   return o;

@@ -3,7 +3,7 @@
 // container (header, checksum, field writer/reader, atomic write) is
 // core/checkpoint.h's; this is the tracker's kind of it:
 //
-//   magic "MAGNAVTC", format version 2 (kTrackerCheckpointVersion), payload
+//   magic "MAGNAVTC", format version 3 (kTrackerCheckpointVersion), payload
 //   written by the service node: its stream position and counters around
 //   MultiTracker::SaveState (configuration, tracks, records, initiator).
 #pragma once
@@ -19,7 +19,10 @@ namespace magnav::tracker {
 // Version 2 (2026-11-26): each live track also carries the associator's
 // verdicts of the epochs its engine has not estimated yet (the rows'
 // TrackState); a version-1 file is refused ("format version 1").
-inline constexpr std::uint32_t kTrackerCheckpointVersion = 2;
+// Version 3 (2026-11-26): the cluster background (cluster_background.h):
+// its options in the configuration, its raw span and offsets, and the
+// summary's cluster counters; a version-2 file is refused.
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 3;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 
 // Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).

@@ -41,9 +41,13 @@ class MeasurementCost final : public ceres::SizedCostFunction<8, 6, 3> {
   MeasurementCost(const GradiometerSample& sample, const Eigen::Vector3d& B0_W, const SqrtInfo8& sqrt_info,
                   double moment_scale_Am2);
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+  // The sensor's background offset (world NED, T) added to B0 in this
+  // factor's B (cluster_background.h); zero at construction.
+  void SetBackgroundOffset(const Eigen::Vector3d& offset_W) { z_.head<3>() = B_minus_B0_ - offset_W; }
 
  private:
   Eigen::Vector3d p_SinW_;
+  Eigen::Vector3d B_minus_B0_;
   Measurement8 z_;
   SqrtInfo8 sqrt_info_;
   double moment_scale_;

@@ -68,6 +68,7 @@
 #include <vector>
 
 #include "magnav/tracker/background.h"
+#include "magnav/tracker/cluster_background.h"
 #include "magnav/tracker/options.h"
 #include "magnav/tracker/tracker.h"
 
@@ -181,6 +182,12 @@ struct MultiTrackerOptions {
   // with the tracks (background.h); the B0 given to the tracker is its
   // start. Off (background.enabled = false): the fixed B0 everywhere.
   BackgroundOptions background;
+  // Window and batch: each sensor's B0 offset estimated jointly with the
+  // tracks that see it (cluster_background.h), one offset step per
+  // window solve interval (window) and per refinement round (batch). Off
+  // (cluster_background.enabled = false): the fixed B0. Not together with
+  // `background` (one background model at a time).
+  ClusterBackgroundOptions cluster_background;
 
   bool IsValid(std::string* error) const;
 };
@@ -243,6 +250,12 @@ struct MultiSummary {
   int num_starts_refused = 0;     // initialisations too close to a live track
   int num_confirmed = 0;
   int num_ended = 0;
+  // Cluster background (cluster_background.h): offset steps made, clusters
+  // solved over them, their tracks in all, the largest cluster's tracks.
+  int num_cluster_steps = 0;
+  int num_clusters = 0;
+  int num_cluster_tracks = 0;
+  int max_cluster_tracks = 0;
   std::string BriefReport() const;
 };
 

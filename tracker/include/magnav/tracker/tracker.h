@@ -19,6 +19,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -127,6 +128,22 @@ class WindowTracker {
   std::optional<CtState<double>> PredictState(double t_s) const;
   // Time of the newest epoch in the window (−inf before a track exists).
   double last_epoch_time() const;
+  // Per-sensor background offsets (cluster_background.h): offset(sensor_id,
+  // t_s), world NED in T, is added to B0 in the measurement model of every
+  // sample in the window now and of every sample appended later, until the
+  // next call (an empty function: B0 alone, the default). The next window
+  // solve uses them. Not in the checkpoint: whoever sets them sets them
+  // again after RestoreState (MultiTracker does).
+  using BackgroundOffsetFn = std::function<Eigen::Vector3d(std::uint32_t sensor_id, double t_s)>;
+  void SetBackgroundOffsets(BackgroundOffsetFn offset);
+  // The window's epochs, oldest first: time, state and the sensors of its
+  // samples (empty before a track exists).
+  struct WindowEpochView {
+    double t_s = 0.0;
+    CtState<double> state{};
+    std::vector<std::uint32_t> sensor_ids;
+  };
+  std::vector<WindowEpochView> WindowView() const;
   // Hands the initialiser a fix computed elsewhere (every fix magnav-inverter
   // publishes, rejected ones included: with InitSource::kAuto the first fix,
   // valid or not, makes the initialiser try the fixes handed in first), used
