@@ -232,6 +232,30 @@ BENCHMARK(BM_PfStep)->Arg(3000)->Unit(benchmark::kMicrosecond);
 void BM_AfpfStep(benchmark::State& state) { FilterStep(state, ParticleFilterKind::kAfpf); }
 BENCHMARK(BM_AfpfStep)->Arg(3000)->Unit(benchmark::kMicrosecond);
 
+// The same step with K independent sub-clouds (ParticleFilterOptions::subclouds, each 3000 particles,
+// re-seeding on): Arg = K; K = 1 is BM_PfStep's filter. The cost ratio to BM_PfStep is K by design.
+void SubCloudStep(benchmark::State& state, ParticleFilterKind kind) {
+  ParticleFilterOptions o;
+  o.subclouds = static_cast<int>(state.range(0));
+  o.subcloud_reseed_nats = 10.0;
+  const MatchPath& p = CrustalPath();
+  auto f = MakeParticleFilter(kind, Crustal(), 0, o);
+  std::size_t k = 0;
+  for (; k < 75; ++k) f->Step(p.lat_deg[k], p.lon_deg[k], p.measured_nT[k]);
+  double particles = 0.0, steps = 0.0;
+  for (auto _ : state) {
+    const StepDiagnostics& d = f->Step(p.lat_deg[k], p.lon_deg[k], p.measured_nT[k]);
+    particles += d.particles;
+    steps += 1.0;
+    if (++k == p.size()) k = 75;
+  }
+  state.counters["particles"] = particles / steps;
+}
+void BM_PfStepSubClouds(benchmark::State& state) { SubCloudStep(state, ParticleFilterKind::kPf); }
+BENCHMARK(BM_PfStepSubClouds)->Arg(1)->Arg(3)->Unit(benchmark::kMicrosecond);
+void BM_AfpfStepSubClouds(benchmark::State& state) { SubCloudStep(state, ParticleFilterKind::kAfpf); }
+BENCHMARK(BM_AfpfStepSubClouds)->Arg(1)->Arg(3)->Unit(benchmark::kMicrosecond);
+
 // The AFPF's first step at the default cap (30000 particles over the ±0.15°
 // prior, fission of all of them): the most expensive step of a run.
 void BM_AfpfFirstStep(benchmark::State& state) {

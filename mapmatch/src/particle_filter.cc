@@ -81,6 +81,13 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(bias_drift_sigma_nT) && bias_drift_sigma_nT >= 0.0)) {
     return Fail(error, "bias_drift_sigma_nT must be finite and >= 0");
   }
+  if (subclouds < 1 || subclouds > 64) return Fail(error, "subclouds must be in [1, 64] (1 = off)");
+  if (!PositiveFinite(subcloud_chi2)) return Fail(error, "subcloud_chi2 must be finite and > 0");
+  if (subcloud_hold < 1) return Fail(error, "subcloud_hold must be >= 1");
+  if (subcloud_window < 1) return Fail(error, "subcloud_window must be >= 1");
+  if (!(std::isfinite(subcloud_reseed_nats) && subcloud_reseed_nats >= 0.0)) {
+    return Fail(error, "subcloud_reseed_nats must be finite and >= 0 (0 = off)");
+  }
   return true;
 }
 
@@ -311,6 +318,7 @@ void Filter::Update(double z, StepDiagnostics* d) {
 
 std::unique_ptr<SequentialMatcher> MakeParticleFilter(ParticleFilterKind kind, const GeoGrid& grid,
                                                       std::size_t layer, const ParticleFilterOptions& options) {
+  if (options.subclouds > 1) return internal::MakeSubClouds(kind, grid, layer, options);
   return std::make_unique<internal::Filter>(kind, grid, layer, options);
 }
 

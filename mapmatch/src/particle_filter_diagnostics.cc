@@ -246,7 +246,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                                                                      : options.bias_test_chi2) > 0.0
                               ? ", or the innovation-bias test"
                               : "") +
-                         (options.track_check_window > 0 ? ", or the track check" : "") + ")";
+                         (options.track_check_window > 0 ? ", or the track check" : "") +
+                         (options.subclouds > 1 ? ", or the sub-clouds disagree" : "") + ")";
   } else if (unsettled) {
     r.reason = "lost at k = " + std::to_string(last_lost) + (options.reinitialize_when_lost ? ", re-initialised" : "") +
                ", not settled by the end (fewer than " + std::to_string(settle) + " steps since)";
@@ -270,7 +271,10 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
             ", lost steps " + std::to_string(c.lost_steps) + ", bias-test alarms " +
             std::to_string(c.bias_test_failures) +
             ", reinitialisations " + std::to_string(c.reinitialisations) +
-            (kind == ParticleFilterKind::kPf ? ", tempered updates " + std::to_string(c.tempered_updates) : "");
+            (kind == ParticleFilterKind::kPf ? ", tempered updates " + std::to_string(c.tempered_updates) : "") +
+            (options.subclouds > 1 ? ", sub-clouds " + std::to_string(options.subclouds) + ", re-seeded " +
+                                         std::to_string(c.subcloud_reseeds)
+                                   : "");
   return r;
 }
 

@@ -11,12 +11,16 @@
 //                                   adaptive count
 //   particle_filter_diagnostics.cc  estimate, ESS, lost-track detection,
 //                                   the run's status (MatchParticleFilter)
+//   particle_filter_subclouds.cc    K independent sub-clouds pooled, their
+//                                   disagreement test (MakeSubClouds)
 // Units and frames as in particle_filter.h (deg, nT, deg²).
 #pragma once
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <deque>
+#include <memory>
 #include <random>
 #include <string>
 #include <utility>
@@ -46,6 +50,8 @@ class Filter final : public SequentialMatcher {
   const FilterCounters& counters() const override { return counters_; }
   const StepDiagnostics& last() const override { return last_; }
   ParticleFilterKind kind() const override { return kind_; }
+  // Sub-clouds (particle_filter_subclouds.cc): a copy of a filter re-seeded from another takes a fresh seed.
+  void ReseedRandom(std::uint64_t seed) { rng_.seed(seed); }
 
  private:
   const char* Name() const { return ParticleFilterKindName(kind_); }
@@ -114,5 +120,9 @@ class Filter final : public SequentialMatcher {
   FilterCounters counters_;
   StepDiagnostics last_;
 };
+
+// particle_filter_subclouds.cc: K = options.subclouds independent filters pooled (particle_filter.h).
+std::unique_ptr<SequentialMatcher> MakeSubClouds(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
+                                                 const ParticleFilterOptions& options);
 
 }  // namespace magnav::mapmatch::internal

@@ -61,6 +61,18 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   opt("--lost-covariance-is-prior", &f->lost_covariance_is_prior,
       "pf, afpf: while lost publish at least the prior square's covariance (1) or the cloud's (0)");
+  opt("--subclouds", &f->subclouds,
+      "pf, afpf: run K independent sub-clouds (each with --particles: K times the cost), publish the pooled cloud "
+      "and flag lost when their means disagree (--subcloud-chi2); 1 = off");
+  opt("--subcloud-chi2", &f->subcloud_chi2,
+      "pf, afpf with --subclouds > 1: lost when two sub-cloud means differ by more than this (chi-square, 2 dof, "
+      "against their summed covariances) for --subcloud-hold steps");
+  opt("--subcloud-hold", &f->subcloud_hold, "pf, afpf with --subclouds > 1: steps the disagreement must last");
+  opt("--subcloud-window", &f->subcloud_window,
+      "pf, afpf with --subclouds > 1: updates in each sub-cloud's summed log evidence (re-seeding)");
+  opt("--subcloud-reseed", &f->subcloud_reseed_nats,
+      "pf, afpf with --subclouds > 1: while they disagree, copy the best sub-cloud over one whose windowed log "
+      "evidence is lower by more than this (nats); 0 = off");
   app.add_flag("--estimate-bias", f->estimate_bias, "pf, afpf: a map bias per particle (reading - bias vs the map)");
   opt("--bias-prior-sigma", &f->bias_prior_sigma_nT, "pf, afpf with --estimate-bias: prior sigma of the bias, nT");
   opt("--bias-drift-sigma", &f->bias_drift_sigma_nT, "pf, afpf with --estimate-bias: random walk of the bias per step, nT");

@@ -272,6 +272,45 @@ struct ParticleFilterOptions {
   // (h = prior_half_width_deg), not the cloud's: a cloud collapsed on a wrong
   // place says nothing of the error (issue 25 item 4; docs/ACCURACY.md).
   bool lost_covariance_is_prior = true;
+  // Independent sub-clouds (a fourth lost-track detector, and the covariance
+  // of an ambiguous cloud; issue 25 items 3, 4; particle_filter_subclouds.cc).
+  // subclouds = K > 1 runs K filters of the same kind side by side, each with
+  // num_particles (and max_particles) of its own — the cost is K times one
+  // filter's — its own seed, resampling, σ and detectors, on the same map and
+  // readings. (Splitting num_particles K ways was measured first: 1000-particle
+  // sub-clouds collapse on wrong basins far more often than one of 3000.)
+  // Published: the pooled cloud (every sub-cloud weighted 1/K), i.e. the mean
+  // of the sub-cloud means and the mixture covariance (the mean
+  // within-sub-cloud covariance plus the spread of the means). A wrong-basin
+  // collapse is a random event per sub-cloud, so sub-clouds that sample the
+  // same posterior agree and one that collapsed elsewhere does not: the
+  // filter is lost while some pair's means differ beyond their combined
+  // covariance,
+  //   D = max over pairs (m_i − m_j)ᵀ (C_i + C_j)⁻¹ (m_i − m_j) > subcloud_chi2
+  // (χ²(2): 13.8 is p = 0.001 for two independent Gaussian estimates), for
+  // subcloud_hold steps in a row; or when any sub-cloud's own rules say so.
+  // The disagreement flags and does not re-spread (like the bias test).
+  // Re-seeding (subcloud_reseed_nats > 0; 0 = off): while they disagree, a sub-cloud
+  // whose summed log evidence over the last subcloud_window updates,
+  // Σ log Σ_i w_i N(z; m(x_i), σ²), is below the best one's by more than
+  // subcloud_reseed_nats is replaced by a copy of the best (with a fresh
+  // seed): the data prefer the best one's basin by that likelihood ratio.
+  // Hold 8 and re-seeding at 3 nats: chosen on the tuning paths 301–340 of
+  // tests/data/generated/pf_paths.csv (PF, K = 3): with hold 3 and 10 nats
+  // the sub-clouds' transient disagreements during acquisition (4–29 steps,
+  // until the evidence separates them) flagged 15 of 60 clean runs (25 %);
+  // 5 nats / hold 3: 8 of 49, 5 / 6: 6 of 49, 3 / 8: 1 of 49; with 3 / 8 the
+  // out-scored sub-cloud is usually re-seeded before the flag, and the flag
+  // is left to disagreements the data do not settle.
+  // subclouds 1 = off (one filter, the default: K sub-clouds cost ≈ K times
+  // one filter, and on the tuning runs they remove the acquisition losses
+  // rather than flag them, leaving the kidnaps to the other rules;
+  // docs/ACCURACY.md, "Lost-track detection, fourth round").
+  int subclouds = 1;
+  double subcloud_chi2 = 13.8;
+  int subcloud_hold = 8;
+  int subcloud_window = 10;
+  double subcloud_reseed_nats = 3.0;
   // AFPF: λ (the paper: 0.001) and μ, the parents' sampling variance per axis
   // (the paper: 1.6454e-4 deg²).
   double fission_lambda = 0.001;
@@ -344,6 +383,10 @@ struct StepDiagnostics {
   double innovation_bias_chi2 = 0.0;  // the innovation-bias test's statistic B (0: window not full)
   bool reacquiring = false;           // lost only because a re-initialised cloud has not settled yet
   bool track_check_failed = false;   // the track check made this step lost
+  // subclouds > 1: the largest pairwise disagreement D of the sub-cloud means (0: one cloud),
+  // and whether it is above subcloud_chi2 at this step (lost once held subcloud_hold steps).
+  double subcloud_chi2 = 0.0;
+  bool subclouds_disagree = false;
   bool resampled = false;
   bool ins_jump = false;
   StepUpdate update = StepUpdate::kUpdated;
@@ -358,6 +401,7 @@ struct FilterCounters {
   int steps = 0, updates = 0, bad_measurements = 0, all_off_map = 0, ins_jumps = 0, resamples = 0,
       lost_steps = 0, reinitialisations = 0, tempered_updates = 0, outliers = 0, track_check_failures = 0,
       bias_test_failures = 0;
+  int subcloud_reseeds = 0;  // subclouds > 1: sub-clouds replaced by a copy of the best (subcloud_reseed_nats)
 };
 
 // The common interface of the PF and the AFPF.
