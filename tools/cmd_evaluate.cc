@@ -11,6 +11,8 @@
 #include <set>
 #include <string>
 
+#include <Eigen/Cholesky>
+
 #include "association.h"
 #include "commands.h"
 #include "magnav/core/csv.h"
@@ -42,7 +44,43 @@ Xyz PositionColumns(const CsvTable& t) {
   return {t.column("x"), t.column("y"), t.column("z")};
 }
 
-// Mean NEES (3 dof, diagonal σ) of the scored rows per regime (issue 24
+// The 3-D position covariance of an estimate row, for its NEES eᵀ P⁻¹ e:
+// the full 3×3 from sigma_x..z and cov_xy, cov_xz, cov_yz when the file has
+// those columns and the row fills them (magnav track, magnav invert, a
+// recorded track or dipole_fix topic), the diagonal of sigma_x..z otherwise.
+class PositionCovariance {
+ public:
+  explicit PositionCovariance(const CsvTable& est) : est_(est) {
+    if (est.has_column("sigma_x")) sigma_ = Xyz{est.column("sigma_x"), est.column("sigma_y"), est.column("sigma_z")};
+    if (sigma_ && est.has_column("cov_xy") && est.has_column("cov_xz") && est.has_column("cov_yz")) {
+      cov_ = Xyz{est.column("cov_xy"), est.column("cov_xz"), est.column("cov_yz")};
+    }
+  }
+  bool has_sigma() const { return sigma_.has_value(); }
+  // "full 3x3 covariance" or "diagonal sigmas", as the NEES lines say.
+  const char* kind() const { return cov_ ? "full 3x3 covariance" : "diagonal sigmas"; }
+  // NEES of error e at row i; nullopt when the row has no usable covariance
+  // (a σ not > 0, or a full P that is not positive definite).
+  std::optional<double> Nees(std::size_t i, const Eigen::Vector3d& e) const {
+    if (!sigma_) return std::nullopt;
+    const Eigen::Vector3d s(est_.number(i, sigma_->x), est_.number(i, sigma_->y), est_.number(i, sigma_->z));
+    if (!(s.array() > 0).all()) return std::nullopt;
+    if (!cov_ || est_.text(i, cov_->x).empty()) return (e.array() / s.array()).square().sum();
+    Eigen::Matrix3d P = s.array().square().matrix().asDiagonal();
+    P(0, 1) = P(1, 0) = est_.number(i, cov_->x);
+    P(0, 2) = P(2, 0) = est_.number(i, cov_->y);
+    P(1, 2) = P(2, 1) = est_.number(i, cov_->z);
+    const Eigen::LLT<Eigen::Matrix3d> llt(P);
+    if (llt.info() != Eigen::Success) return std::nullopt;
+    return e.dot(llt.solve(e));
+  }
+
+ private:
+  const CsvTable& est_;
+  std::optional<Xyz> sigma_, cov_;
+};
+
+// Mean NEES (3 dof, PositionCovariance) of the scored rows per regime (issue 24
 // item 6): "coasting" = a track row whose `state` is coasting (magnav track:
 // not detected at that epoch); every other row "inside" (its true position
 // within --reach of a sensor, horizontally) or "outside"; without sensor
@@ -51,22 +89,19 @@ Xyz PositionColumns(const CsvTable& t) {
 class RegimeNees {
  public:
   RegimeNees(const EvaluateArgs& a, const CsvTable& est, const std::vector<Eigen::Vector3d>& sensors)
-      : est_(est), sensors_(sensors), reach_m_(a.reach_m), state_(est.find_column("state")) {
-    if (est.has_column("sigma_x")) sigma_ = Xyz{est.column("sigma_x"), est.column("sigma_y"), est.column("sigma_z")};
-  }
+      : est_(est), cov_(est), sensors_(sensors), reach_m_(a.reach_m), state_(est.find_column("state")) {}
   // Row i of the estimate, error e against the true position p_true.
   void Add(std::size_t i, const Eigen::Vector3d& e, const Eigen::Vector3d& p_true) {
-    if (!sigma_) return;
-    const Eigen::Vector3d s(est_.number(i, sigma_->x), est_.number(i, sigma_->y), est_.number(i, sigma_->z));
-    if (!(s.array() > 0).all()) return;
+    const std::optional<double> nees = cov_.Nees(i, e);
+    if (!nees) return;
     Sum& r = sums_[Regime(i, p_true)];
-    r.nees += (e.array() / s.array()).square().sum();
+    r.nees += *nees;
     r.error_sq += e.squaredNorm();
     ++r.n;
   }
   void Print() const {
-    if (!sigma_) return;
-    std::printf("mean NEES per regime (diagonal sigmas, 3 dof; %s):\n",
+    if (!cov_.has_sigma()) return;
+    std::printf("mean NEES per regime (%s, 3 dof; %s):\n", cov_.kind(),
                 !state_ ? "no state column: no coasting rows"
                         : "coasting: state = coasting, the others by the true position");
     for (const char* name : {"inside", "outside", "not coasting", "coasting"}) {
@@ -98,10 +133,10 @@ class RegimeNees {
     return best <= reach_m_ ? "inside" : "outside";
   }
   const CsvTable& est_;
+  PositionCovariance cov_;
   const std::vector<Eigen::Vector3d>& sensors_;
   double reach_m_;
   std::optional<std::size_t> state_;
-  std::optional<Xyz> sigma_;
   std::map<std::string, Sum> sums_;
 };
 
@@ -459,8 +494,7 @@ void Run(const EvaluateArgs& a) {
   const std::size_t te = est.column("t"), tt = truth.column("t");
   // A row marked not valid (fixes) or not usable (tracks) is not scored.
   const auto valid_col = est.has_column("valid") ? est.find_column("valid") : est.find_column("usable");
-  const bool has_sigma = est.has_column("sigma_x");
-  const Xyz ps = has_sigma ? Xyz{est.column("sigma_x"), est.column("sigma_y"), est.column("sigma_z")} : Xyz{0, 0, 0};
+  const PositionCovariance cov(est);
   // Truth by time, in ns to match exactly.
   std::map<long long, std::size_t> truth_at;
   for (std::size_t i = 0; i < truth.num_rows(); ++i) truth_at[std::llround(truth.number(i, tt) * 1e9)] = i;
@@ -496,12 +530,9 @@ void Run(const EvaluateArgs& a) {
     max_err = std::max(max_err, e.norm());
     ++used;
     regimes.Add(i, e, p_true);
-    if (has_sigma) {
-      const Eigen::Vector3d s(est.number(i, ps.x), est.number(i, ps.y), est.number(i, ps.z));
-      if ((s.array() > 0).all()) {
-        sum_nees += (e.array() / s.array()).square().sum();
-        ++nees_n;
-      }
+    if (const std::optional<double> nees = cov.Nees(i, e)) {
+      sum_nees += *nees;
+      ++nees_n;
     }
   }
   std::printf("rows %zu: used %zu, invalid %zu, no truth at that time %zu, beyond range %zu\n", rows, used, invalid,
@@ -509,7 +540,7 @@ void Run(const EvaluateArgs& a) {
   if (used == 0) throw InputError(a.estimate + ": no estimate row could be compared with " + a.truth);
   std::printf("position error: RMS %.4g m, max %.4g m\n", std::sqrt(sum_sq / used), max_err);
   if (nees_n > 0) {
-    std::printf("mean NEES (diagonal sigmas, 3 dof): %.3g over %zu epochs\n", sum_nees / nees_n, nees_n);
+    std::printf("mean NEES (%s, 3 dof): %.3g over %zu epochs\n", cov.kind(), sum_nees / nees_n, nees_n);
   }
   regimes.Print();
 }
@@ -521,8 +552,10 @@ One-vessel truth (t,x,y,z), estimate = fixes (magnav invert) or a track:
     within --max-range); invalid: valid = 0 or usable = 0; no truth at that time;
     beyond range: the true position farther than --max-range (horizontal) from every sensor.
   position error RMS / max: sqrt(mean |p - p_true|^2) and the largest |p - p_true| over used rows, m.
-  mean NEES (diagonal sigmas, 3 dof): mean over used rows with sigma_x..z > 0 of
-    sum_i (e_i / sigma_i)^2; 3 when the sigmas are honest.
+  mean NEES (full 3x3 covariance | diagonal sigmas, 3 dof): mean over used rows with sigma_x..z > 0
+    of e' P^-1 e, P the full 3x3 from sigma_x..z and cov_xy, cov_xz, cov_yz when the file has them
+    (magnav track, magnav invert, a recorded track topic; rows whose P is not positive definite left
+    out), else diag(sigma_x^2, sigma_y^2, sigma_z^2); 3 when the covariance is honest.
   mean NEES per regime (also for a multi-vessel truth, over the rows scored): coasting = rows whose
     state column (magnav track) says coasting (the track not detected at that epoch); the other rows
     inside = the true position within --reach (15 m) of a sensor horizontally (--pass or --sensors),

@@ -112,12 +112,14 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
   params.push_back({"frame",
                     "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "
                     "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
-                    "unknown; track_id: one per vessel, never reused; state: confirmed (the track detected at "
-                    "this epoch) or coasting (not detected: predicted, corrected at most by samples too weak for "
-                    "a detection)"});
+                    "unknown; cov_xy, cov_xz, cov_yz: the position covariance's off-diagonal terms (m^2; with "
+                    "sigma_x..z the full 3x3), empty if unknown; track_id: one per vessel, never reused; state: "
+                    "confirmed (the track detected at this epoch) or coasting (not detected: predicted, corrected "
+                    "at most by samples too weak for a detection)"});
   params.push_back({"summary", summary});
   CsvWriter w(path,
-              {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z", "state"},
+              {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z", "state", "cov_xy",
+               "cov_xz", "cov_yz"},
               params);
   for (const auto& r : rows) {
     const auto& e = r.e;
@@ -130,6 +132,9 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
       row.push_back(e.has_covariance ? FormatNumber(std::sqrt(std::max(e.cov_state(i, i), 0.0))) : "");
     }
     row.push_back(tracker::TrackStateName(r.state));
+    for (const auto& [i, j] : {std::pair{0, 1}, std::pair{0, 2}, std::pair{1, 2}}) {
+      row.push_back(e.has_covariance ? FormatNumber(e.cov_state(i, j)) : "");
+    }
     w.WriteRow(row);
   }
   w.Close();
@@ -245,7 +250,8 @@ void AddTrackCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("track", "Track every dipole (vessel) of a gradiometer pass or field");
   cmd->add_option("--input", args->input, "pass file: t,sensor_id,sensor_x..z,B_x..B_z,T00..T22")->required();
   cmd->add_option("--output", args->output,
-                  "track file: t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state (confirmed|coasting)")
+                  "track file: t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state (confirmed|coasting),"
+                  "cov_xy,cov_xz,cov_yz (m^2)")
       ->required();
   AddVec3Option(*cmd, "--b0", &args->b0, "background field B0 in tesla, NED (default: the file's '# B0_T:')");
   cmd->add_option("--mode", args->mode, "batch (whole pass) or window (fixed-lag, causal)")

@@ -155,6 +155,27 @@ TEST(EvaluateCli, MeanNeesPerRegimeOfATrackFile) {
   EXPECT_NE(out.find("column 'state': expected confirmed or coasting, got 'lost'"), std::string::npos) << out;
 }
 
+// With magnav track's cov_xy, cov_xz, cov_yz the NEES uses the full 3x3: sigma 0.1 m on every axis
+// and cov_xy = 0.006 m^2, so the x-y block is [0.01 0.006; 0.006 0.01] (det 6.4e-5). e = (0.1, 0.1, 0):
+// NEES 8e-5 / 6.4e-5 = 1.25 (diagonal sigmas: 2); e = (0.2, 0, 0): 4e-4 / 6.4e-5 = 6.25 (diagonal: 4);
+// a row with its cov_* empty uses the diagonal, e = (0, 0, 0.1): 1; a row whose P is not positive
+// definite (cov_xy 0.02 > 0.1 x 0.1) is left out. Mean (1.25 + 6.25 + 1) / 3 = 2.83.
+TEST(EvaluateCli, FullCovarianceNeesOfATrackFile) {
+  const std::string dir = testing::TempDir();
+  std::ofstream(dir + "/truth.csv") << "t,x,y,z\n0,5,0,-5\n1,6,0,-5\n2,7,0,-5\n3,8,0,-5\n";
+  std::ofstream(dir + "/cov.csv")
+      << "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state,cov_xy,cov_xz,cov_yz\n"
+      << "0,1,5.1,0.1,-5,1,0,0,0.1,0.1,0.1,confirmed,0.006,0,0\n"
+      << "1,1,6.2,0,-5,1,0,0,0.1,0.1,0.1,confirmed,0.006,0,0\n"
+      << "2,1,7,0,-4.9,1,0,0,0.1,0.1,0.1,confirmed,,,\n"
+      << "3,1,8.1,0,-5,1,0,0,0.1,0.1,0.1,confirmed,0.02,0,0\n";
+  const auto [rc, out] = Evaluate({"--estimate", dir + "/cov.csv", "--truth", dir + "/truth.csv", "--sensors", "0,0,0"});
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("mean NEES (full 3x3 covariance, 3 dof): 2.83 over 3 epochs"), std::string::npos) << out;
+  EXPECT_NE(out.find("mean NEES per regime (full 3x3 covariance, 3 dof;"), std::string::npos) << out;
+  EXPECT_NE(out.find("regime inside: 2.83 over 3 rows"), std::string::npos) << out;
+}
+
 TEST(EvaluateCli, HelpDefinesEveryFigure) {
   const auto [rc, out] = Evaluate({"--help"});
   ASSERT_EQ(rc, 0) << out;

@@ -73,8 +73,9 @@ TEST(TrackCli, BatchFileEqualsTheLibraryAndCarriesTheMoment) {
   }
   const TrackEstimate& lib = tracks[0].track;
   const CsvTable t = CsvTable::Read(dir + "/track.csv");
-  const std::vector<std::string> header = {"t",  "track_id", "x",       "y",       "z",      "vx",
-                                           "vy", "heading",  "sigma_x", "sigma_y", "sigma_z", "state"};
+  const std::vector<std::string> header = {"t",       "track_id", "x",       "y",     "z",      "vx",
+                                           "vy",      "heading",  "sigma_x", "sigma_y", "sigma_z", "state",
+                                           "cov_xy",  "cov_xz",   "cov_yz"};
   ASSERT_EQ(t.header(), header);
   ASSERT_EQ(t.num_rows(), rows.size());
   ASSERT_GT(t.num_rows(), 1000u);  // the part of the 200 s pass where the vessel is seen
@@ -90,6 +91,9 @@ TEST(TrackCli, BatchFileEqualsTheLibraryAndCarriesTheMoment) {
     EXPECT_EQ(t.number(k, t.column("heading")), e.heading_rad);
     EXPECT_EQ(t.number(k, t.column("sigma_z")), std::sqrt(e.cov_state(2, 2)));
     EXPECT_EQ(t.text(k, t.column("state")), TrackStateName(states[k]));
+    EXPECT_EQ(t.number(k, t.column("cov_xy")), e.cov_state(0, 1));
+    EXPECT_EQ(t.number(k, t.column("cov_xz")), e.cov_state(0, 2));
+    EXPECT_EQ(t.number(k, t.column("cov_yz")), e.cov_state(1, 2));
   }
   EXPECT_EQ(t.params().at("track_moment_body_Am2").substr(0, 3), "1, ");
   const auto m = t.param_vec3("moment_body_Am2");
@@ -263,7 +267,7 @@ TEST(TrackCli, NothingToTrackGivesAnEmptyTrackFileAndExitZero) {
     ASSERT_EQ(rc, 0) << mode << ": " << out;
     EXPECT_NE(out.find("no track: too few strong single-sample fixes to initialise"), std::string::npos) << out;
     const EmptyTrackFile t = ReadEmptyTrackFile(o);
-    EXPECT_EQ(t.header, "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state") << mode;
+    EXPECT_EQ(t.header, "t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state,cov_xy,cov_xz,cov_yz") << mode;
     EXPECT_EQ(t.data_lines, 0) << mode;
     EXPECT_EQ(t.params.at("mode"), mode);
     EXPECT_EQ(t.params.at("summary").rfind("no track: too few strong single-sample fixes to initialise", 0), 0u)

@@ -137,6 +137,26 @@ TEST(KinematicCost, AnalyticJacobiansAgreeWithNumericDifferentiation) {
   }
 }
 
+// The depth's own random walk (ProcessNoise::depth_m_per_sqrt_s): z is
+// whitened by σ_depth √dt, x and y by σ_p √dt; the 4-argument form uses σ_p
+// for all three.
+TEST(KinematicCost, DepthHasItsOwnSigma) {
+  const double dt = 0.25;
+  Eigen::Matrix<double, 6, 1> s0, s1;
+  s0 << 0.0, 0.0, -5.0, 0.0, 0.3, 0.0;  // at rest: the prediction is s0
+  s1 = s0;
+  s1.head<3>() += Eigen::Vector3d(0.01, 0.02, 0.003);
+  const double* params[] = {s0.data(), s1.data()};
+  Eigen::Matrix<double, 5, 1> e, e4;
+  ASSERT_TRUE(KinematicCost(dt, 0.01, 0.005, 0.002, 0.0003).Evaluate(params, e.data(), nullptr));
+  ASSERT_TRUE(KinematicCost(dt, 0.01, 0.005, 0.002).Evaluate(params, e4.data(), nullptr));
+  EXPECT_NEAR(e(0), 0.01 / (0.01 * 0.5), 1e-12);
+  EXPECT_NEAR(e(1), 0.02 / (0.01 * 0.5), 1e-12);
+  EXPECT_NEAR(e(2), 0.003 / (0.0003 * 0.5), 1e-9);
+  EXPECT_NEAR(e4(2), 0.003 / (0.01 * 0.5), 1e-12);
+  EXPECT_TRUE(e.tail<2>() == e4.tail<2>());
+}
+
 TEST(PriorCost, ResidualAndJacobian) {
   Eigen::Matrix<double, 9, 9> L = Eigen::Matrix<double, 9, 9>::Identity() * 2.0;
   L(0, 7) = 0.5;
@@ -187,6 +207,10 @@ TEST(Options, DefaultsAreValidAndBadValuesAreNamed) {
   o.process.turn_rate_radps_per_sqrt_s = 0.0;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("turn_rate"), std::string::npos);
+  o = TrackerOptions{};
+  o.process.depth_m_per_sqrt_s = 0.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("depth_m_per_sqrt_s"), std::string::npos);
   o = TrackerOptions{};
   o.window_s = -1.0;
   EXPECT_FALSE(o.IsValid(&why));

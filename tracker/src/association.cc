@@ -90,7 +90,7 @@ TrackGate PredictGate(const CtState<double>& predicted, double t_s, const EpochE
   const Eigen::Matrix<double, 6, 6> F = CoordinatedTurnJacobian(x, dt);
   const ProcessNoise& q = options.track.process;
   Eigen::Matrix<double, 6, 1> w;
-  w << q.position_m_per_sqrt_s, q.position_m_per_sqrt_s, q.position_m_per_sqrt_s, q.speed_mps_per_sqrt_s,
+  w << q.position_m_per_sqrt_s, q.position_m_per_sqrt_s, q.depth_m_per_sqrt_s, q.speed_mps_per_sqrt_s,
       q.heading_rad_per_sqrt_s, q.window_turn_rate_radps_per_sqrt_s;
   const StateCovariance P =
       F * newest->cov_state * F.transpose() + Eigen::Matrix<double, 6, 1>(w.array().square() * std::abs(dt)).asDiagonal().toDenseMatrix();

@@ -35,7 +35,7 @@ void AddProcessFactors(double dt_s, const ProcessNoise& q, const ceres::LossFunc
   Factor kin;
   kin.kind = Factor::Kind::kKinematic;
   kin.cost = std::make_unique<KinematicCost>(dt_s, q.position_m_per_sqrt_s, q.speed_mps_per_sqrt_s,
-                                             q.heading_rad_per_sqrt_s);
+                                             q.heading_rad_per_sqrt_s, q.depth_m_per_sqrt_s);
   kin.blocks = {s0, s1};
   out->push_back(std::move(kin));
   Factor turn;

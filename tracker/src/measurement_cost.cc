@@ -62,10 +62,11 @@ bool MeasurementCost::Evaluate(double const* const* parameters, double* residual
   return true;
 }
 
-KinematicCost::KinematicCost(double dt_s, double sigma_p, double sigma_v, double sigma_h) : dt_(dt_s) {
+KinematicCost::KinematicCost(double dt_s, double sigma_p, double sigma_v, double sigma_h, double sigma_depth)
+    : dt_(dt_s) {
   const double root_dt = std::sqrt(dt_s);
-  w_ << 1.0 / (sigma_p * root_dt), 1.0 / (sigma_p * root_dt), 1.0 / (sigma_p * root_dt), 1.0 / (sigma_v * root_dt),
-      1.0 / (sigma_h * root_dt);
+  w_ << 1.0 / (sigma_p * root_dt), 1.0 / (sigma_p * root_dt), 1.0 / (sigma_depth * root_dt),
+      1.0 / (sigma_v * root_dt), 1.0 / (sigma_h * root_dt);
 }
 
 bool KinematicCost::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {

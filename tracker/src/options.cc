@@ -34,6 +34,7 @@ const char* InitSourceName(InitSource source) {
 
 bool ProcessNoise::IsValid(std::string* error) const {
   if (!PositiveFinite(position_m_per_sqrt_s)) return Fail(error, "process.position_m_per_sqrt_s must be > 0");
+  if (!PositiveFinite(depth_m_per_sqrt_s)) return Fail(error, "process.depth_m_per_sqrt_s must be > 0");
   if (!PositiveFinite(speed_mps_per_sqrt_s)) return Fail(error, "process.speed_mps_per_sqrt_s must be > 0");
   if (!PositiveFinite(heading_rad_per_sqrt_s))
     return Fail(error, "process.heading_rad_per_sqrt_s must be > 0");

@@ -103,6 +103,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   const TrackManagementOptions& g = o.management;
   for (double d :
        {t.default_sigma_B_T, t.default_sigma_T_Tpm, t.measurement_loss_scale_sigma, q.position_m_per_sqrt_s,
+        q.depth_m_per_sqrt_s,
         q.speed_mps_per_sqrt_s, q.heading_rad_per_sqrt_s, q.turn_rate_radps_per_sqrt_s, q.turn_rate_loss_scale_sigma,
         q.turn_rate_warmup_radps_per_sqrt_s, q.window_turn_rate_radps_per_sqrt_s, i.min_tensor_snr, i.min_span_s,
         i.span_s, i.outlier_threshold_mad, i.cluster_gate_m, i.max_dipole_misfit, t.epoch_tolerance_s, t.function_tolerance,

@@ -38,8 +38,9 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
       ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
   app.add_option("--loss-scale", t.measurement_loss_scale_sigma, "robust loss scale, in sigmas of the sample residual")
       ->capture_default_str();
-  app.add_option("--q-position", t.process.position_m_per_sqrt_s, "position random walk, m/sqrt(s)")
+  app.add_option("--q-position", t.process.position_m_per_sqrt_s, "horizontal (x, y) position random walk, m/sqrt(s)")
       ->capture_default_str();
+  app.add_option("--q-depth", t.process.depth_m_per_sqrt_s, "depth (z) random walk, m/sqrt(s)")->capture_default_str();
   app.add_option("--q-speed", t.process.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)")->capture_default_str();
   app.add_option("--q-heading", t.process.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)")
       ->capture_default_str();

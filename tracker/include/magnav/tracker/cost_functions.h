@@ -61,7 +61,8 @@ class MeasurementCost final : public ceres::SizedCostFunction<8, 6, 3> {
 //   x̂_{k+1} = PropagateCoordinatedTurn(x_k, dt)
 //   e = [(p_{k+1} − p̂)/σ_p, (v_{k+1} − v_k)/σ_v, (h_{k+1} − ĥ)/σ_h] / √dt
 //
-// (5 residuals; σ in units per √s.) The turn rate has its own residual so it
+// (5 residuals; σ in units per √s; KinematicCost may give z its own σ,
+// ProcessNoise::depth_m_per_sqrt_s.) The turn rate has its own residual so it
 // can carry its own robust loss.
 struct KinematicResidual {
   KinematicResidual(double dt_s, double sigma_p, double sigma_v, double sigma_h)
@@ -92,7 +93,11 @@ struct KinematicResidual {
 
 class KinematicCost final : public ceres::SizedCostFunction<5, 6, 6> {
  public:
-  KinematicCost(double dt_s, double sigma_p, double sigma_v, double sigma_h);
+  // σ_p for x and y, sigma_depth for z.
+  KinematicCost(double dt_s, double sigma_p, double sigma_v, double sigma_h, double sigma_depth);
+  // The same σ_p for z.
+  KinematicCost(double dt_s, double sigma_p, double sigma_v, double sigma_h)
+      : KinematicCost(dt_s, sigma_p, sigma_v, sigma_h, sigma_p) {}
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
 
  private:
