@@ -19,6 +19,11 @@ namespace {
 // Segments shorter than this many epochs are not fitted (a change point
 // needs evidence on both sides).
 constexpr int kMinTurnSegmentEpochs = 10;
+// A turn-rate restart is kept only if it lowers the cost (½ Σ ρ, in σ²) by
+// at least this: a likelihood ratio of e. Less is the same minimum reached
+// again within the solver's tolerance (the reference AUV SQUID pass: its
+// moment moved by 1.5e-6 relative), not a better turn.
+constexpr double kMinTurnRestartGain = 1.0;
 
 // The least-squares fit of w by a piecewise-constant sequence with exactly
 // `change_points` change points (segments of at least
@@ -217,7 +222,8 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
     }
   }
   // Restarts from the estimate with a piecewise-constant turn rate
-  // (TrackerOptions::batch_turn_change_points), each kept if it ends lower.
+  // (TrackerOptions::batch_turn_change_points), each kept if it ends lower
+  // by kMinTurnRestartGain.
   if (options.batch_turn_change_points > 0 && r_final_pass && pr.last.IsSolutionUsable()) {
     const auto cost_now = [&] { return internal::TotalCost(build(false).groups, options.num_threads); };
     double cost = cost_now();
@@ -235,7 +241,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
       pr.solve_time_s += r.solve_time_s;
       const double cost_r = cost_now();
       ++sum.num_turn_restarts;
-      if (r.reached_final_pass && r.last.IsSolutionUsable() && cost_r < cost) {
+      if (r.reached_final_pass && r.last.IsSolutionUsable() && cost_r < cost - kMinTurnRestartGain) {
         cost = cost_r;
         pr.last = r.last;
         pr.final_loss = std::move(r.final_loss);

@@ -148,7 +148,8 @@ struct TrackerOptions {
   // restarted from its own estimate with ω_k replaced by its least-squares
   // piecewise-constant fit with 1, ..., batch_turn_change_points change
   // points (positions, speeds, headings and the moment kept); a restart is
-  // kept only if it ends at a lower cost of the same problem. 0 = none.
+  // kept only if it ends at a cost of the same problem lower by at least 1
+  // (½ Σ ρ, in σ²). 0 = none.
   int batch_turn_change_points = 2;
   static constexpr int kMaxBatchTurnChangePoints = 4;
 
