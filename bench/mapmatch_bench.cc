@@ -75,6 +75,19 @@ void BM_FastMsd200(benchmark::State& state) {
 }
 BENCHMARK(BM_FastMsd200)->Unit(benchmark::kMicrosecond);
 
+// The same without the map's interpolation error bound in the covariance
+// (FastMsdOptions::map_error_in_covariance off): the cost of that term, in the same run.
+void BM_FastMsd200NoMapError(benchmark::State& state) {
+  const MatchPath p = SyntheticCrustalPath(200);
+  FastMsdOptions o;
+  o.map_error_in_covariance = false;
+  for (auto _ : state) {
+    const MatchResult r = MatchFastMsd(Crustal(), 0, p, o);
+    benchmark::DoNotOptimize(r.lat_deg.data());
+  }
+}
+BENCHMARK(BM_FastMsd200NoMapError)->Unit(benchmark::kMicrosecond);
+
 // The same with the paper's Jacobi sweeps (the same fixed point).
 void BM_FastMsd200Jacobi(benchmark::State& state) {
   const MatchPath p = SyntheticCrustalPath(200);

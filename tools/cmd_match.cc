@@ -24,6 +24,7 @@ struct MatchArgs {
   std::string solver = "direct";
   std::string diagnostics;  // pf, afpf: per-step CSV
   bool icp_3d = false;
+  bool no_map_error = false;
   double outlier_sigmas = 5.0;
   double search_window_deg = 0.0;  // 0 = not given
   mapmatch::MatchOptions options;
@@ -80,6 +81,7 @@ void RunMatch(MatchArgs a) {
   a.options.correlation.search_window_deg = a.search_window_deg;
   a.options.fast_msd.search_window_deg = a.search_window_deg;  // 0: no coarse stage
   a.options.icp.planar_motion = !a.icp_3d;
+  a.options.fast_msd.map_error_in_covariance = !a.no_map_error;
   a.options.fast_msd.solver = a.solver == "direct" ? mapmatch::FastMsdSolver::kDirect : mapmatch::FastMsdSolver::kJacobi;
   // NGDC-style whitespace text ("lon lat value") by its extension, else CSV.
   const mapmatch::GeoGrid grid = mapmatch::ReadGeoGridFile(a.map, {a.value_column});
@@ -211,6 +213,10 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--ambiguity-ratio", o.fast_msd.ambiguity_ratio,
                   "fast-msd with --search-window: not converged ('ambiguous') when the coarse MSD surface's second "
                   "minimum is below this times the best; 0 = no check");
+  cmd->add_flag("--no-map-error", args->no_map_error,
+               "fast-msd: leave the map's bilinear interpolation error bound (from the grid's second "
+               "differences) out of the covariance's reading variance (sigma^2 alone); positions are the "
+               "same either way");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "

@@ -299,11 +299,21 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
   // Covariance (fast_msd_covariance.h): the final λ smoother's error covariance, its noise and INS-drift
   // scales estimated from the path, with the map's curvature at each point.
   {
-    std::vector<double> e_lat(n), e_lon(n), h_ll(n, 0.0), h_ln(n, 0.0), h_nn(n, 0.0);
+    std::vector<double> e_lat(n), e_lon(n), h_ll(n, 0.0), h_ln(n, 0.0), h_nn(n, 0.0), map_var;
+    double map_var_sum = 0.0;
+    if (options.map_error_in_covariance) map_var.assign(n, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
       e_lat[i] = r.lat_deg[i] - start_lat[i];
       e_lon[i] = r.lon_deg[i] - start_lon[i];
-      if (final_lin.data[i]) MapHessian(grid, layer, r.lat_deg[i], r.lon_deg[i], &h_ll[i], &h_ln[i], &h_nn[i]);
+      if (!final_lin.data[i]) continue;
+      MapHessian(grid, layer, r.lat_deg[i], r.lon_deg[i], &h_ll[i], &h_ln[i], &h_nn[i]);
+      if (options.map_error_in_covariance) {
+        Eigen::Matrix2d H;
+        H << h_ll[i], h_ln[i], h_ln[i], h_nn[i];
+        const double b = internal::BilinearErrorBound(H, grid.lat().step_deg, grid.lon().step_deg);
+        map_var[i] = b * b;
+        map_var_sum += b * b;
+      }
     }
     // The prior the method starts from: the coarse search's ±window, uniform (w²/3 per axis); none
     // without a coarse stage.
@@ -312,13 +322,17 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
                                  : 0.0;
     const internal::ErrorCovariance c =
         internal::FastMsdErrorCovariance(final_lin.g_lat, final_lin.g_lon, final_lin.resid, final_lin.data, e_lat,
-                                         e_lon, h_ll, h_ln, h_nn, options.lambda_nT2_per_deg2, 6, prior_var);
+                                         e_lon, h_ll, h_ln, h_nn, options.lambda_nT2_per_deg2, 6, prior_var,
+                                         map_var);
     r.cov_lat_lat = c.lat_lat;
     r.cov_lat_lon = c.lat_lon;
     r.cov_lon_lon = c.lon_lon;
     r.notes += std::string(r.notes.empty() ? "" : "; ") + "covariance: residual sigma " +
                FormatNumber(std::sqrt(c.s2_nT2)) + " nT, INS drift " + FormatNumber(std::sqrt(c.tau2_deg2)) +
                " deg per point, " + FormatNumber(c.edf) + " effective parameters";
+    if (options.map_error_in_covariance && on > 0) {
+      r.notes += ", map interpolation error bound " + FormatNumber(std::sqrt(map_var_sum / on)) + " nT rms";
+    }
     // Points whose linearisation could not carry the map's curvature (fast_msd_covariance.h).
     if (c.curvature_limited_points > 0) {
       r.notes += "; curvature-limited points: " + std::to_string(c.curvature_limited_points);

@@ -131,6 +131,11 @@ double CurvatureSecondMoment(const Eigen::Matrix2d& hessian, const Eigen::Matrix
          0.25 * hc.trace() * hc.trace();
 }
 
+double BilinearErrorBound(const Eigen::Matrix2d& hessian, double step_lat_deg, double step_lon_deg) {
+  return 0.125 * (step_lat_deg * step_lat_deg * std::abs(hessian(0, 0)) +
+                  step_lon_deg * step_lon_deg * std::abs(hessian(1, 1)));
+}
+
 bool CurvatureUpdateContracts(double v, double next, double last_change, double s2) {
   if (!std::isfinite(next)) return false;
   const double change = std::abs(next - v);
@@ -148,7 +153,8 @@ namespace {
 std::vector<M2> SmootherErrorCovariance(const std::vector<V2>& g, const std::vector<double>& omega, double h,
                                         double s2, double tau2, const std::vector<double>& h_ll,
                                         const std::vector<double>& h_ln, const std::vector<double>& h_nn,
-                                        int curvature_iterations, std::vector<char>* limited) {
+                                        int curvature_iterations, const std::vector<double>& map_var,
+                                        std::vector<char>* limited) {
   const std::size_t n = g.size();
   const auto degree = [n](std::size_t i) { return (i == 0 || i + 1 == n) ? 1.0 : 2.0; };  // the path graph's
   const double kt2 = h * h * tau2;                                                          // (λ/2)² τ²
@@ -165,8 +171,8 @@ std::vector<M2> SmootherErrorCovariance(const std::vector<V2>& g, const std::vec
   std::vector<M2> cov;
   for (int pass = 0;; ++pass) {
     for (std::size_t i = 0; i < n; ++i) {
-      a.diag[i] =
-          kt2 * degree(i) * M2::Identity() + omega[i] * omega[i] * (s2 + v[i]) * g[i] * g[i].transpose();
+      a.diag[i] = kt2 * degree(i) * M2::Identity() +
+                  omega[i] * omega[i] * (s2 + map_var[i] + v[i]) * g[i] * g[i].transpose();
     }
     cov = SandwichDiagonalBlocks(m, a);
     if (pass + 1 >= curvature_iterations) return cov;
@@ -251,7 +257,8 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
                                        const std::vector<double>& e_lat, const std::vector<double>& e_lon,
                                        const std::vector<double>& h_ll, const std::vector<double>& h_ln,
                                        const std::vector<double>& h_nn, double lambda,
-                                       int curvature_iterations, double prior_var_deg2) {
+                                       int curvature_iterations, double prior_var_deg2,
+                                       const std::vector<double>& map_var_nT2) {
   const std::size_t n = g_lat.size();
   ErrorCovariance out;
   out.lat_lat.assign(n, std::numeric_limits<double>::infinity());
@@ -282,8 +289,13 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
   out.s2_nT2 = s2;
   out.tau2_deg2 = tau2;
   out.edf = laplace.edf;
+  // The map's representation error per reading (nT²); none without a data term or when not given.
+  std::vector<double> map_var(n, 0.0);
+  for (std::size_t i = 0; i < n && map_var_nT2.size() == n; ++i) {
+    if (data[i] && std::isfinite(map_var_nT2[i]) && map_var_nT2[i] > 0.0) map_var[i] = map_var_nT2[i];
+  }
   std::vector<M2> cov = SmootherErrorCovariance(g, w, h, s2, tau2, h_ll, h_ln, h_nn, curvature_iterations,
-                                                &out.curvature_limited);
+                                                map_var, &out.curvature_limited);
   for (std::size_t i = 0; i < n; ++i) {
     out.curvature_limited_points += out.curvature_limited[i] ? 1 : 0;
     cov[i] = 0.5 * (cov[i] + cov[i].transpose());

@@ -73,6 +73,23 @@ PathCovariance FastMsdCovariance(const std::vector<double>& g_lat, const std::ve
 //    variance over the point's neighbourhood (the map is not an input here;
 //    the prior cap below bounds the result instead).
 //    Points without a data term are never flagged (v does not enter).
+//  - The map's representation error (map_var_nT2, per point, nT²; empty =
+//    none): the matcher reads the field between the grid's nodes by bilinear
+//    interpolation, which misses the field's curvature inside a cell. That
+//    error is not reading noise and is not in σ² (the rounds bend the path to
+//    follow it, so the residuals do not show it: on the tuning paths at
+//    0.5 nT the truth misfits the bilinear map by ≈ 1.5 σ² per point while
+//    the fit's residuals are below σ²). It enters R beside σ²:
+//    R_i = σ² + m_i + v_i, m_i = BilinearErrorBound(H_i, steps)², the
+//    classical bound of the bilinear interpolant's error over the point's
+//    cell from the grid's second differences (fast_msd.cc). EM's σ², τ² are
+//    estimated without it (the residuals are what they are). The same
+//    expression is the second-order term over half a cell, ½δᵀHδ, which the
+//    linearisation at a position known to a fraction of a cell misses (the
+//    bilinear gradient jumps at cell edges): on the generated paths the
+//    term's gain is measured to come from that too (readings from the
+//    bilinear map itself calibrate no better; docs/ACCURACY.md, "Fast MSD:
+//    the map's own error in the covariance").
 //  - Never wider than the prior: with prior_var_deg2 > 0 (fast_msd.cc: the
 //    coarse search window's, w²/3 per axis for a uniform ±w) a point's
 //    covariance whose larger eigenvalue exceeds it has its eigenvalues
@@ -101,7 +118,16 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
                                        const std::vector<double>& e_lat, const std::vector<double>& e_lon,
                                        const std::vector<double>& h_ll, const std::vector<double>& h_ln,
                                        const std::vector<double>& h_nn, double lambda,
-                                       int curvature_iterations = 6, double prior_var_deg2 = 0.0);
+                                       int curvature_iterations = 6, double prior_var_deg2 = 0.0,
+                                       const std::vector<double>& map_var_nT2 = {});
+
+// The bound of bilinear interpolation's error over a grid cell (nT) for the
+// field's Hessian H (nT/deg²) and the grid steps (deg):
+//   |f − I f| ≤ (Δlat²/8) |∂²f/∂lat²| + (Δlon²/8) |∂²f/∂lon²|
+// (the 1-D linear interpolant's bound h²/8 |f''| along each axis of the
+// tensor product; the bilinear interpolant reproduces the cross term lat·lon
+// exactly, so ∂²f/∂lat∂lon does not enter). Leading order in the steps.
+double BilinearErrorBound(const Eigen::Matrix2d& hessian, double step_lat_deg, double step_lon_deg);
 
 // The curvature term's second moment v = ½ tr((H C)²) + ¼ tr(H C)² (nT²) for
 // the map's Hessian H (nT/deg²) and a position covariance C (deg²).

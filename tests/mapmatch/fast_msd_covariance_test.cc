@@ -74,8 +74,10 @@ TEST(FastMsdCovariance, NoDataTermIsInfinite) {
 }
 
 // The error covariance (FastMsdErrorCovariance) is the dense sandwich
-// M⁻¹ (σ² Gᵀ W R W G + (λ/2)² τ² L) M⁻¹ with its own σ², τ² and no curvature.
-TEST(FastMsdCovariance, ErrorCovarianceIsTheDenseSandwich) {
+// M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹ with its own σ², τ² and no curvature,
+// R = diag(σ² + m_i) with m the map's representation error per reading (nT²;
+// none when map_var is empty).
+void ExpectDenseSandwich(bool with_map_error) {
   std::mt19937 rng(11);
   std::normal_distribution<double> gd(0.0, 2e4), res(0.0, 0.5), e(0.0, 1e-3);
   const std::size_t n = 9;
@@ -84,7 +86,13 @@ TEST(FastMsdCovariance, ErrorCovarianceIsTheDenseSandwich) {
   std::vector<char> data(n, 1);
   data[4] = 0;  // a point without a data term
   for (std::size_t i = 0; i < n; ++i) gl[i] = gd(rng), gn[i] = gd(rng), r[i] = res(rng), el[i] = e(rng), en[i] = e(rng);
-  const internal::ErrorCovariance c = internal::FastMsdErrorCovariance(gl, gn, r, data, el, en, zero, zero, zero, lambda);
+  std::vector<double> map_var;
+  if (with_map_error) {
+    std::uniform_real_distribution<double> mv(0.0, 0.5);  // up to twice the readings' 0.25 nT²
+    for (std::size_t i = 0; i < n; ++i) map_var.push_back(mv(rng));
+  }
+  const internal::ErrorCovariance c =
+      internal::FastMsdErrorCovariance(gl, gn, r, data, el, en, zero, zero, zero, lambda, 6, 0.0, map_var);
   ASSERT_GT(c.s2_nT2, 0.0);
   ASSERT_GT(c.tau2_deg2, 0.0);
   Eigen::MatrixXd M = Eigen::MatrixXd::Zero(2 * n, 2 * n), A = Eigen::MatrixXd::Zero(2 * n, 2 * n);
@@ -92,7 +100,8 @@ TEST(FastMsdCovariance, ErrorCovarianceIsTheDenseSandwich) {
     const double w = !data[i] ? 0.0 : (i == 0 || i == n - 1) ? 0.5 : 1.0;
     const Eigen::Vector2d g(gl[i], gn[i]);
     M.block<2, 2>(2 * i, 2 * i) += w * g * g.transpose();
-    A.block<2, 2>(2 * i, 2 * i) += c.s2_nT2 * w * w * g * g.transpose();
+    const double reading_var = c.s2_nT2 + (with_map_error ? map_var[i] : 0.0);
+    A.block<2, 2>(2 * i, 2 * i) += reading_var * w * w * g * g.transpose();
     if (i + 1 < n) {
       for (int k = 0; k < 2; ++k) {
         for (auto [m, f] : {std::pair{&M, h}, std::pair{&A, h * h * c.tau2_deg2}}) {
@@ -110,6 +119,60 @@ TEST(FastMsdCovariance, ErrorCovarianceIsTheDenseSandwich) {
     EXPECT_NEAR(c.lat_lat[i], C(2 * i, 2 * i), 1e-6 * C(2 * i, 2 * i)) << i;
     EXPECT_NEAR(c.lat_lon[i], C(2 * i, 2 * i + 1), 1e-6 * std::sqrt(C(2 * i, 2 * i) * C(2 * i + 1, 2 * i + 1))) << i;
     EXPECT_NEAR(c.lon_lon[i], C(2 * i + 1, 2 * i + 1), 1e-6 * C(2 * i + 1, 2 * i + 1)) << i;
+  }
+}
+
+TEST(FastMsdCovariance, ErrorCovarianceIsTheDenseSandwich) { ExpectDenseSandwich(false); }
+
+// The map's representation error enters each reading's variance beside σ²
+// (and σ², τ² are the same as without it: the EM does not see it).
+TEST(FastMsdCovariance, MapErrorIsInTheReadingVariance) {
+  ExpectDenseSandwich(true);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> gd(0.0, 2e4), res(0.0, 0.5), e(0.0, 1e-3);
+  const std::size_t n = 30;
+  std::vector<double> gl(n), gn(n), r(n), el(n), en(n), zero(n, 0.0), map_var(n, 0.25);
+  for (std::size_t i = 0; i < n; ++i) {
+    gl[i] = gd(rng), gn[i] = gd(rng), r[i] = res(rng), el[i] = e(rng), en[i] = e(rng);
+  }
+  const std::vector<char> data(n, 1);
+  const internal::ErrorCovariance a =
+      internal::FastMsdErrorCovariance(gl, gn, r, data, el, en, zero, zero, zero, 1e7);
+  const internal::ErrorCovariance b =
+      internal::FastMsdErrorCovariance(gl, gn, r, data, el, en, zero, zero, zero, 1e7, 6, 0.0, map_var);
+  EXPECT_EQ(a.s2_nT2, b.s2_nT2);
+  EXPECT_EQ(a.tau2_deg2, b.tau2_deg2);
+  for (std::size_t i = 0; i < n; ++i) {
+    EXPECT_GT(b.lat_lat[i] + b.lon_lon[i], a.lat_lat[i] + a.lon_lon[i]) << i;
+  }
+}
+
+// The bilinear interpolant's error bound: (Δlat²/8)|H_ll| + (Δlon²/8)|H_nn|, the cross term left out
+// (bilinear reproduces lat·lon), and it bounds the error of a quadratic's interpolant over a cell.
+TEST(FastMsdCovariance, BilinearErrorBound) {
+  Eigen::Matrix2d H;
+  H << -4e5, 7e5, 7e5, 2e5;  // nT/deg²
+  EXPECT_NEAR(internal::BilinearErrorBound(H, 0.001, 0.002), (1e-6 * 4e5 + 4e-6 * 2e5) / 8.0, 1e-15);
+  // f = ½ xᵀ H x on the cell [0, 0.001] × [0, 0.002]: the bound holds at every point and is reached at the
+  // centre when both curvatures have the same sign.
+  const auto f = [](const Eigen::Matrix2d& h, double x, double y) {
+    return 0.5 * (h(0, 0) * x * x + 2.0 * h(0, 1) * x * y + h(1, 1) * y * y);
+  };
+  for (const Eigen::Matrix2d& h : {H, Eigen::Matrix2d(Eigen::Vector2d(3e5, 5e5).asDiagonal())}) {
+    const double dx = 0.001, dy = 0.002, bound = internal::BilinearErrorBound(h, dx, dy);
+    double worst = 0.0;
+    for (int a = 0; a <= 10; ++a) {
+      for (int b = 0; b <= 10; ++b) {
+        const double s = a / 10.0, t = b / 10.0;
+        const double bil = (1 - s) * (1 - t) * f(h, 0, 0) + s * (1 - t) * f(h, dx, 0) +
+                           (1 - s) * t * f(h, 0, dy) + s * t * f(h, dx, dy);
+        worst = std::max(worst, std::abs(f(h, s * dx, t * dy) - bil));
+      }
+    }
+    EXPECT_LE(worst, bound * (1.0 + 1e-12));
+    if (h(0, 1) == 0.0) {
+      EXPECT_NEAR(worst, bound, 1e-12 * bound);
+    }
   }
 }
 

@@ -6,6 +6,9 @@
 //    before any tuning) the ANEES of the published covariance is inside
 //    [0.5, 2] × dof, for the final point and over every point — and the same
 //    fixes with every σ doubled or halved are not;
+//  - on the 20 tuning paths at 0.5 nT the every-point ANEES is inside the
+//    interval with the map's interpolation error in the covariance and
+//    outside without it;
 //  - a map with two equally good places for the path (periodic) gives
 //    "ambiguous", never "converged", with a covariance that covers the other
 //    place; a map without gives "converged".
@@ -34,7 +37,7 @@ double Nees(const MatchResult& r, std::size_t p, double lat, double lon) {
 
 // Documented (docs/ACCURACY.md): ANEES over seeds 3201-3206, 2 dof.
 constexpr double kDocumentedFinal = 3.03;
-constexpr double kDocumentedPoints = 2.79;
+constexpr double kDocumentedPoints = 2.78;  // 2.79 before the map-error term
 
 TEST(FastMsdTrust, CovarianceIsCalibratedOnTheCalibrationSeeds) {
   const std::string dir = testing::TempDir();
@@ -73,6 +76,62 @@ TEST(FastMsdTrust, CovarianceIsCalibratedOnTheCalibrationSeeds) {
   }
   EXPECT_NEAR(final_anees, kDocumentedFinal, 0.01);
   EXPECT_NEAR(points_anees, kDocumentedPoints, 0.01);
+}
+
+// The map's own error in the covariance (docs/ACCURACY.md, "Fast MSD: the
+// map's own error in the covariance"): on the 20 tuning paths 501-520 at
+// 0.5 nT (readings from the bicubic field, the matcher's map bilinear) the
+// every-point ANEES leaves [0.5, 2] × dof without the map's interpolation
+// error bound in the reading variance (5.32) and is inside with it (3.79, the
+// documented figure; the σ-doubled and halved covariances leave it). The
+// final point is not asserted: it fails either way (4.16 with, 4.22 without).
+// It asserts the term's effect, not its cause: with readings from the
+// bilinear map itself (no interpolation error) the term helps as much
+// (5.87 -> 4.20, scripts/fastmsd_lownoise_diagnosis; the docs say why).
+constexpr double kDocumentedHalfNtPoints = 3.79;
+constexpr double kDocumentedHalfNtPointsWithout = 5.32;
+
+TEST(FastMsdTrust, MapErrorTermCalibratesTheTuningPathsAtHalfANanotesla) {
+  const std::string dir = testing::TempDir() + "/fastmsd_map_error";
+  const std::string script = testing::TestDataDir() + "/../../scripts/heldout_mappaths";
+  const auto [code, out] =
+      testing::RunCommand({script, dir, "20", "0.1", "0.5", "501"}, {}, std::chrono::seconds(120));
+  ASSERT_EQ(code, 0) << out;
+  const GeoGrid grid =
+      ReadGeoGridCsv(testing::TestDataDir() + "/reference/map_crustal_anomaly.csv", {"anomaly_nT"});
+  double with_sum = 0.0, without_sum = 0.0;
+  int points = 0;
+  for (int seed = 501; seed <= 520; ++seed) {
+    const std::string file = dir + "/heldout_" + std::to_string(seed) + "_noise0p5.csv";
+    const MatchPath path = ReadMatchPath(file, "meas_nT");
+    MatchOptions o;
+    o.fast_msd.search_window_deg = 0.15;
+    const MatchResult with = Match(Method::kFastMsd, grid, 0, path, o);
+    o.fast_msd.map_error_in_covariance = false;
+    const MatchResult without = Match(Method::kFastMsd, grid, 0, path, o);
+    const CsvTable t = CsvTable::Read(file);
+    ASSERT_EQ(with.cov_lat_lat.size(), t.num_rows());
+    for (std::size_t i = 0; i < t.num_rows(); ++i) {
+      // The term changes the covariance only.
+      ASSERT_EQ(with.lat_deg[i], without.lat_deg[i]);
+      ASSERT_EQ(with.lon_deg[i], without.lon_deg[i]);
+      const double lat = t.number(i, t.column("true_lat")), lon = t.number(i, t.column("true_lon"));
+      with_sum += Nees(with, i, lat, lon);
+      without_sum += Nees(without, i, lat, lon);
+      ++points;
+    }
+  }
+  const double with_anees = with_sum / points, without_anees = without_sum / points;
+  std::printf("fast-msd, tuning paths 501-520 at 0.5 nT: ANEES every point %.3f with the map error, "
+              "%.3f without\n",
+              with_anees, without_anees);
+  EXPECT_GE(with_anees, 0.5 * 2);
+  EXPECT_LE(with_anees, 2.0 * 2);
+  EXPECT_LT(with_anees / 4.0, 0.5 * 2);  // σ × 2
+  EXPECT_GT(with_anees * 4.0, 2.0 * 2);  // σ / 2
+  EXPECT_GT(without_anees, 2.0 * 2);
+  EXPECT_NEAR(with_anees, kDocumentedHalfNtPoints, 0.01);
+  EXPECT_NEAR(without_anees, kDocumentedHalfNtPointsWithout, 0.01);
 }
 
 // A path on a map that repeats itself every 0.02° in latitude (and not in

@@ -5,6 +5,7 @@
 // the file says, the noise has the model's spread, and the committed
 // harbour-like scenarios are of the kind their names claim.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -156,16 +157,22 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
                InputError);
 }
 
-// The committed scenarios (tests/data/generated/scenarios/{heldout,tuning})
-// are of the kind their names say.
+// The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
+// and heldout_abreast/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   const std::string dir = testing::TestDataDir() + "/generated/scenarios/";
+  // (set, file, kind): the two sets of every kind, and the fresh abreast pair.
+  std::vector<std::array<std::string, 3>> files;
   for (const char* set : {"heldout", "tuning"}) {
-    for (const char* kind : {"abreast", "crossing", "overtaking", "far_ship", "drift"}) {
-      SCOPED_TRACE(std::string(set) + "/" + kind);
-      const FieldScenario sc = cli::ReadScenarioFile(dir + set + "/" + kind + ".toml");
+    for (const char* kind : {"abreast", "crossing", "overtaking", "far_ship", "drift"}) files.push_back({set, kind, kind});
+  }
+  for (const char* name : {"abreast_20", "abreast_36"}) files.push_back({"heldout_abreast", name, "abreast"});
+  for (const auto& [set, file, kind] : files) {
+    {
+      SCOPED_TRACE(set + "/" + file);
+      const FieldScenario sc = cli::ReadScenarioFile(dir + set + "/" + file + ".toml");
       EXPECT_EQ(sc.sigma_B, 1e-9);
       EXPECT_EQ(sc.sensors.size(), 9u);
       FieldScenario clean = sc;

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "magnav/cli/scenario_file.h"
 #include "magnav/core/checkpoint.h"
 #include "magnav/core/gradiometer.h"
 #include "magnav/core/simulate.h"
@@ -125,6 +126,49 @@ TEST(TrackerCheckpoint, RestoredTrackerGoesOnBitForBit) {
   EXPECT_EQ(t.summary().num_epochs, fx.summary.num_epochs);
   EXPECT_EQ(t.summary().num_confirmed, fx.summary.num_confirmed);
   EXPECT_EQ(t.summary().num_tentative_dropped, fx.summary.num_tentative_dropped);
+}
+
+// Two vessels abreast (held-out abreast): a checkpoint taken after the
+// two-dipole start has confirmed both tracks and before their pair refit
+// (TrackManagementOptions::pair_refit_s, 5 s after the start) holds the
+// recent epochs and the pending refit; the restored tracker refits the pair
+// and goes on bit for bit.
+TEST(TrackerCheckpoint, PairRestoredBeforeItsRefitGoesOnBitForBit) {
+  const FieldScenario sc =
+      cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/abreast.toml");
+  const SimulatedField f = SimulateField(sc);
+  const MultiTrackerOptions options;
+  MultiTracker t(sc.B0, options);
+  Outputs whole;
+  std::size_t cut = 0, outputs_before_cut = 0;
+  double t_confirmed = -1.0;
+  std::string payload;
+  for (std::size_t i = 0; i < f.samples.size(); ++i) {
+    const bool boundary = i > 0 && f.samples[i].t_s != f.samples[i - 1].t_s;
+    if (t_confirmed < 0.0 && t.summary().num_confirmed == 2) t_confirmed = f.samples[i].t_s;
+    if (cut == 0 && boundary && t_confirmed > 0.0 && f.samples[i].t_s > t_confirmed + 1.0) {
+      cut = i;
+      payload = t.SaveState();
+      outputs_before_cut = whole.out.size();
+    }
+    Take(t, t.AddSample(f.samples[i]), &whole);
+  }
+  Take(t, t.Flush(), &whole);
+  ASSERT_GT(cut, 0u) << "the pair was never confirmed";
+  MultiTracker restored(sc.B0, options);
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload)));
+  EXPECT_EQ(restored.num_live_tracks(), 2);
+  Outputs after;
+  for (std::size_t i = cut; i < f.samples.size(); ++i) Take(restored, restored.AddSample(f.samples[i]), &after);
+  Take(restored, restored.Flush(), &after);
+  std::printf("pair confirmed at %.1f s, checkpoint at %.1f s: the %zu outputs after it compared\n", t_confirmed,
+              f.samples[cut].t_s, after.out.size());
+  ASSERT_EQ(after.out.size(), whole.out.size() - outputs_before_cut);
+  for (std::size_t k = 0; k < after.out.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after.out[k], whole.out[outputs_before_cut + k]);
+    if (HasFailure()) break;
+  }
 }
 
 // RestoreState(DecodeTrackerCheckpoint(file)) into a new tracker with `options`:

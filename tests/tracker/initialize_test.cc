@@ -531,6 +531,33 @@ TEST(InitializeTrack, PairOfDipolesStartsBothVesselsAbreast) {
   EXPECT_TRUE(InitializePair(epochs, sc.B0, opt, 8.0).empty());
 }
 
+// The pair refit (RefitPair): started from two tracks each 1.5 m off its
+// vessel sideways, 1 m along and 10 % too fast (a poor early start), the
+// joint fit over the pass puts both lines back on their vessels, in the
+// order given; two tracks on one vessel, or the gate off, give nothing.
+TEST(InitializeTrack, RefitPairPutsAPoorStartBackOnItsVessels) {
+  const FieldScenario sc = AbreastOverOneSensor(true);
+  const SimulatedField f = SimulateField(sc);
+  TrackerOptions opt = PairOptions();
+  const std::vector<Epoch> epochs = GroupEpochs(f.samples, opt.epoch_tolerance_s);
+  const std::size_t k = f.truth[0].size() / 4;  // the tracks' time: early in the pass
+  std::vector<InitialTrack> poor(2);
+  for (std::size_t v = 0; v < 2; ++v) {
+    const VesselTruth& t = f.truth[v].at(k);
+    poor[v].t_ref_s = t.t_s;
+    poor[v].state = CtState<double>{t.p_VinW.x() + 1.0, t.p_VinW.y() + (v == 0 ? 1.5 : -1.5), t.p_VinW.z(),
+                                    1.1 * t.v_VinW.head<2>().norm(), std::atan2(t.v_VinW.y(), t.v_VinW.x()), 0.0};
+  }
+  ExpectPairOnVessels12(RefitPair(epochs, sc.B0, opt, poor[0], poor[1], 8.0), sc, f);
+  const std::vector<InitialTrack> swapped = RefitPair(epochs, sc.B0, opt, poor[1], poor[0], 8.0);
+  ASSERT_EQ(swapped.size(), 2u);
+  EXPECT_GT(swapped[0].state.y, swapped[1].state.y);  // vessel 2 (y = +8 m) first, as given
+  // Both tracks on vessel 1: the fit cannot split them 8 m apart with a misfit of 0.05.
+  EXPECT_TRUE(RefitPair(epochs, sc.B0, opt, poor[0], poor[0], 8.0).empty());
+  opt.init.max_dipole_misfit = 0.0;
+  EXPECT_TRUE(RefitPair(epochs, sc.B0, opt, poor[0], poor[1], 8.0).empty());
+}
+
 // Two pairs abreast at once, 80 m apart, each over its own sensor (as the
 // pairs of bench_multi_tracker's abreast layout): the pair start fits the
 // pair around the strongest mixed sample only; with every sample of the span

@@ -4,8 +4,8 @@
 // 8.5 m), held to the issue 24 targets (coverage >= 0.8 window / 0.9 batch,
 // one id per vessel, <= 5 % false rows) and to 1.5x its measured RMS
 // (docs/ACCURACY.md, "Harbour-like scenarios"); and the held-out abreast
-// pair (below). The other kinds fail the targets today (that table); they
-// are not asserted here.
+// pair (below), held to the same targets. The other kinds fail the targets
+// today (that table); they are not asserted here.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -71,18 +71,24 @@ TEST(HarbourScenario, BatchTracksTheHeldOutCrossing) {
 // (heldout/abreast.toml): only that column sees them, each of its samples is
 // the sum of both. Before the dipole misfit gate and the two-dipole start
 // (InitOptions::max_dipole_misfit, InitializePair) no vessel got a track and
-// every row was false (docs/ACCURACY.md, "Harbour-like scenarios").
+// every row was false (docs/ACCURACY.md, "Harbour-like scenarios"); with them
+// the pair started at 55 s, 9 s after the vessels came within reach
+// (coverage 0.784 window and batch, below the issue's 0.8 / 0.9). With the
+// approach starts and the pair refit (TrackManagementOptions::pair_refit_s)
+// it starts at 51 s and meets the issue's targets (docs/ACCURACY.md,
+// "Abreast from when they come within reach"). This file was looked at for
+// that change (no longer blind); heldout_abreast/ is the fresh check.
 TEST(HarbourScenario, WindowStartsOneTrackPerVesselAbreast) {
   const auto s = ScoreWindow(HeldOut("abreast"), "held-out abreast");
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
-    // Below the issue's 0.8: the pair starts at 55 s, 9.8 s after the vessels
-    // reach the first sensor (docs/ACCURACY.md). A 2x regression (0.39) fails.
-    EXPECT_GE(s.coverage[v], 0.65) << "vessel " << v + 1;  // measured 0.784 / 0.784
+    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the issue's target; measured 0.873 / 0.873
   }
-  EXPECT_LE(s.rms[0], 1.5 * 0.0557);  // m, measured 0.0557
-  EXPECT_LE(s.rms[1], 1.5 * 0.0471);  // m, measured 0.0471
+  // m, measured 0.107 / 0.0761 (0.0557 / 0.0471 with the later start, 0.238 /
+  // 0.224 with the approach starts but no refit); the issue's target is 0.3.
+  EXPECT_LE(s.rms[0], 1.5 * 0.107);
+  EXPECT_LE(s.rms[1], 1.5 * 0.0761);
 }
 
 TEST(HarbourScenario, BatchStartsOneTrackPerVesselAbreast) {
@@ -90,13 +96,44 @@ TEST(HarbourScenario, BatchStartsOneTrackPerVesselAbreast) {
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
-    // Below the issue's 0.9: measured 0.896 / 0.896 before the batch over all
-    // the evidence, 0.784 / 0.784 (the window's) after it (docs/ACCURACY.md).
-    EXPECT_GE(s.coverage[v], 0.75) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.9) << "vessel " << v + 1;  // the issue's target; measured 1.00 / 1.00
   }
-  // m; measured 0.0299 / 0.0370 before the batch over all the evidence, 0.0324 / 0.0396 after it.
-  EXPECT_LE(s.rms[0], 1.5 * 0.0299);
-  EXPECT_LE(s.rms[1], 1.5 * 0.0370);
+  // m; measured 0.0386 / 0.0522 (0.0324 / 0.0396 with the later start and coverage 0.784).
+  EXPECT_LE(s.rms[0], 1.5 * 0.0386);
+  EXPECT_LE(s.rms[1], 1.5 * 0.0522);
+}
+
+// The fresh held-out abreast pair (heldout_abreast/abreast_20.toml: 20 m
+// apart, 9 m and 11 m either side of the middle sensor row; committed
+// before it was run), held to the issue's targets. Its window figures were
+// measured blind; the batch's partner rule (TrackRecord::partner_id) was
+// made after its batch had been seen failing there (coverage 0.89 / 0.94,
+// RMS 1.02 m, 10 % false rows), so the batch figure is not blind.
+FieldScenario FreshAbreast(const std::string& name) {
+  return cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/heldout_abreast/" + name +
+                               ".toml");
+}
+
+TEST(HarbourScenario, WindowTracksTheFreshAbreastPair) {
+  const auto s = ScoreWindow(FreshAbreast("abreast_20"), "fresh abreast 20 m");
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // measured 0.889 / 0.899
+    EXPECT_LE(s.rms[v], 0.3) << "vessel " << v + 1;       // m, measured 0.203 / 0.177
+  }
+}
+
+TEST(HarbourScenario, BatchTracksTheFreshAbreastPair) {
+  const auto s = ScoreBatch(FreshAbreast("abreast_20"), "fresh abreast 20 m");
+  // Measured 0 false rows (220, 7.8 %, on main; 274, 10 %, without the partner rule).
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.9) << "vessel " << v + 1;  // measured 1.00 / 1.00
+  }
+  EXPECT_LE(s.rms[0], 1.5 * 0.0359);  // m, measured 0.0359 (0.758 on main)
+  EXPECT_LE(s.rms[1], 1.5 * 0.0586);  // m, measured 0.0586
 }
 }  // namespace
 }  // namespace magnav::tracker

@@ -10,6 +10,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/dipole.h"
 #include "magnav/core/frames.h"
+#include "magnav/core/motion.h"
 #include "magnav/core/tensor.h"
 #include "magnav/inversion/analytic.h"
 #include "magnav/inversion/fix_line.h"
@@ -362,6 +363,10 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
 
 namespace {
 
+// A pair's samples: those of sensors within this many cluster gates
+// (horizontally) of its line(s) (see InitializePair).
+constexpr double kPairReachGates = 3.0;
+
 // Two straight-line dipoles: per line x0, y0, z, vx, vy at t_ref.
 using PairParams = Eigen::Matrix<double, 10, 1>;
 
@@ -454,6 +459,41 @@ double FitPair(const std::vector<PairSample>& samples, PairParams* x, Eigen::Mat
   return cost;
 }
 
+// The pair fit's two tracks if it passes InitializePair's gates (misfit,
+// separation, each dipole strong on its own); empty otherwise.
+std::vector<InitialTrack> PairTracks(const std::vector<PairSample>& samples, double signal, double cost,
+                                     const PairParams& best_x, const Eigen::Matrix<double, 6, 1>& best_m,
+                                     double t_ref, double t_min, double t_max, const TrackerOptions& options,
+                                     double min_separation_m) {
+  const InitOptions& io = options.init;
+  if (!(std::sqrt(cost / signal) <= io.max_dipole_misfit)) return {};
+  const Eigen::Vector2d a = best_x.segment<2>(0), b = best_x.segment<2>(5);
+  if ((a - b).norm() < min_separation_m) return {};
+  // Each dipole strong on its own somewhere (not a small correction).
+  for (int k = 0; k < 2; ++k) {
+    double max_snr = 0.0;
+    for (const PairSample& s : samples) {
+      Eigen::Vector3d B;
+      Eigen::Matrix3d T;
+      DipoleBT(s.p_S - PairPosition(best_x, k, s.dt), best_m.segment<3>(3 * k), &B, &T);
+      max_snr = std::max(max_snr, T.norm() / s.st);
+    }
+    if (!(max_snr >= io.min_tensor_snr)) return {};
+  }
+  std::vector<InitialTrack> out(2);
+  for (int k = 0; k < 2; ++k) {
+    InitialTrack& init = out[k];
+    const auto q = best_x.segment<5>(5 * k);
+    init.t_ref_s = t_ref;
+    init.t_first_s = t_min;
+    init.t_last_s = t_max;
+    const double heading = std::atan2(q(4), q(3));
+    init.state = CtState<double>{q(0), q(1), q(2), std::hypot(q(3), q(4)), heading, 0.0};
+    init.m_B_Am2 = HeadingRotation(heading).transpose() * best_m.segment<3>(3 * k);
+  }
+  return out;
+}
+
 }  // namespace
 
 std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
@@ -486,7 +526,6 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
   // ghost line (the pair's vessels are within a few metres of it, a sensor
   // that sees either strongly within ~20 m of them), so that another pair
   // elsewhere in the field does not enter the fit.
-  constexpr double kPairReachGates = 3.0;
   const double reach_m = kPairReachGates * io.cluster_gate_m;
   std::vector<DipoleFix> ghost_fixes;
   for (const Mixed& x : mixed) {
@@ -520,18 +559,37 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
   for (const PairSample& s : samples) {
     signal += s.dB.squaredNorm() / (s.sb * s.sb) + s.T.squaredNorm() / (s.st * s.st);
   }
-  // Starts: the ghost line split sideways.
+  // Starts: the ghost line split sideways by 4, 8, 12 and 16 m. On the
+  // approach, where essentially one sensor sees the pair, the ghost line's
+  // velocity and depth are themselves wrong (on held-out abreast it ran
+  // backwards at up to 2 m/s, at or below the sensor plane) and no split of
+  // it converges (the fit runs off); so also from that line with its
+  // velocity reversed, and at rest, flown kPairStartHeightM or more above
+  // the peak sensor, split by 8, 16 and 24 m.
   const Eigen::Vector2d v = ghost.v;
   const double speed = v.norm();
   const Eigen::Vector2d side = speed > 1e-6 ? Eigen::Vector2d(-v.y(), v.x()) / speed : Eigen::Vector2d(0.0, 1.0);
+  struct Start {
+    double split_m;
+    Eigen::Vector2d v;
+    double z;
+  };
+  constexpr double kPairStartHeightM = 3.0;
+  const double z_sensor = peak->p_S.z();
+  const double z_above = z_sensor - std::max(std::abs(ghost.p_ref.z() - z_sensor), kPairStartHeightM);
+  std::vector<Start> starts;
+  for (double d : {4.0, 8.0, 12.0, 16.0}) starts.push_back({d, v, ghost.p_ref.z()});
+  for (const Eigen::Vector2d& w : {Eigen::Vector2d(-v), Eigen::Vector2d(Eigen::Vector2d::Zero())}) {
+    for (double d : {8.0, 16.0, 24.0}) starts.push_back({d, w, z_above});
+  }
   double best = std::numeric_limits<double>::infinity();
   PairParams best_x = PairParams::Zero();
   Eigen::Matrix<double, 6, 1> best_m = Eigen::Matrix<double, 6, 1>::Zero();
-  for (double d : {4.0, 8.0, 12.0, 16.0}) {
+  for (const Start& st : starts) {
     PairParams x;
     for (int k = 0; k < 2; ++k) {
-      const Eigen::Vector2d p = ghost.p_ref.head<2>() + (k == 0 ? -0.5 : 0.5) * d * side;
-      x.segment<5>(5 * k) << p.x(), p.y(), ghost.p_ref.z(), v.x(), v.y();
+      const Eigen::Vector2d p = ghost.p_ref.head<2>() + (k == 0 ? -0.5 : 0.5) * st.split_m * side;
+      x.segment<5>(5 * k) << p.x(), p.y(), st.z, st.v.x(), st.v.y();
     }
     Eigen::Matrix<double, 6, 1> m;
     const double cost = FitPair(samples, &x, &m);
@@ -541,32 +599,50 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
       best_m = m;
     }
   }
-  if (!(std::sqrt(best / signal) <= io.max_dipole_misfit)) return {};
-  const Eigen::Vector2d a = best_x.segment<2>(0), b = best_x.segment<2>(5);
-  if ((a - b).norm() < min_separation_m) return {};
-  // Each dipole strong on its own somewhere (not a small correction).
-  for (int k = 0; k < 2; ++k) {
-    double max_snr = 0.0;
-    for (const PairSample& s : samples) {
-      Eigen::Vector3d B;
-      Eigen::Matrix3d T;
-      DipoleBT(s.p_S - PairPosition(best_x, k, s.dt), best_m.segment<3>(3 * k), &B, &T);
-      max_snr = std::max(max_snr, T.norm() / s.st);
-    }
-    if (!(max_snr >= io.min_tensor_snr)) return {};
-  }
-  std::vector<InitialTrack> out(2);
-  for (int k = 0; k < 2; ++k) {
-    InitialTrack& init = out[k];
-    const auto q = best_x.segment<5>(5 * k);
-    init.t_ref_s = ghost.t_ref;
-    init.t_first_s = t_min;
-    init.t_last_s = t_max;
-    const double heading = std::atan2(q(4), q(3));
-    init.state = CtState<double>{q(0), q(1), q(2), std::hypot(q(3), q(4)), heading, 0.0};
-    init.m_B_Am2 = HeadingRotation(heading).transpose() * best_m.segment<3>(3 * k);
-  }
-  if (out[1].state.y < out[0].state.y) std::swap(out[0], out[1]);
+  std::vector<InitialTrack> out = PairTracks(samples, signal, best, best_x, best_m, ghost.t_ref, t_min, t_max,
+                                             options, min_separation_m);
+  if (out.size() == 2 && out[1].state.y < out[0].state.y) std::swap(out[0], out[1]);
   return out;
+}
+
+std::vector<InitialTrack> RefitPair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                    const TrackerOptions& options, const InitialTrack& a, const InitialTrack& b,
+                                    double min_separation_m) {
+  const InitOptions& io = options.init;
+  if (!(io.max_dipole_misfit > 0.0) || epochs.empty()) return {};
+  const double t_ref = 0.5 * (epochs.front().t_s + epochs.back().t_s);
+  const CtState<double> sa = PropagateCoordinatedTurn(a.state, t_ref - a.t_ref_s);
+  const CtState<double> sb = PropagateCoordinatedTurn(b.state, t_ref - b.t_ref_s);
+  PairParams x;
+  int k = 0;
+  for (const CtState<double>& q : {sa, sb}) {
+    x.segment<5>(5 * k++) << q.x, q.y, q.z, q.v * std::cos(q.heading), q.v * std::sin(q.heading);
+  }
+  // The strong samples within the pair's reach (as InitializePair's, from
+  // the two lines instead of the ghost line).
+  const double reach_m = kPairReachGates * io.cluster_gate_m;
+  std::vector<PairSample> samples;
+  double t_min = 1e300, t_max = -1e300;
+  for (const Epoch& e : epochs) {
+    const double dt = e.t_s - t_ref;
+    for (const GradiometerSample& s : e.samples) {
+      if (!(Snr(s, options) >= io.min_tensor_snr)) continue;
+      if (io.cluster_gate_m > 0.0 && (s.p_SinW - PairPosition(x, 0, dt)).head<2>().norm() > reach_m &&
+          (s.p_SinW - PairPosition(x, 1, dt)).head<2>().norm() > reach_m) {
+        continue;
+      }
+      samples.push_back({dt, s.p_SinW, s.B - B0_W, s.T, SigmaB(s, options), SigmaT(s, options)});
+      t_min = std::min(t_min, e.t_s);
+      t_max = std::max(t_max, e.t_s);
+    }
+  }
+  if (static_cast<int>(samples.size()) < io.min_fixes || t_max - t_min < io.min_span_s) return {};
+  double signal = 0.0;
+  for (const PairSample& s : samples) {
+    signal += s.dB.squaredNorm() / (s.sb * s.sb) + s.T.squaredNorm() / (s.st * s.st);
+  }
+  Eigen::Matrix<double, 6, 1> m;
+  const double cost = FitPair(samples, &x, &m);
+  return PairTracks(samples, signal, cost, x, m, t_ref, t_min, t_max, options, min_separation_m);
 }
 }  // namespace magnav::tracker

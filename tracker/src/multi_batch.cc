@@ -51,15 +51,19 @@ struct TrackPath {
 // another track, within its span, is seen as well is that track's, so that
 // a vessel followed by two tracks in turn, or a second vessel near, is not
 // taken into this track's problem by an extrapolation.
+// A partner (TrackRecord::partner_id: the other vessel of a pair started
+// abreast) is not such a track: its tensor, propagated past its span too, is
+// taken out of the measured one instead (PartnerTensor).
 struct Others {
   const std::vector<TrackPath>* paths = nullptr;
   const std::vector<std::pair<double, double>>* spans = nullptr;
   std::size_t self = 0;
   double max_gap_s = 0.0;
+  std::size_t partner = std::numeric_limits<std::size_t>::max();  // none
 
   bool SeenAt(double t_s, const GradiometerSample& g, double gate, const TrackerOptions& topt) const {
     for (std::size_t k = 0; k < paths->size(); ++k) {
-      if (k == self || t_s < (*spans)[k].first || t_s > (*spans)[k].second) continue;
+      if (k == self || k == partner || t_s < (*spans)[k].first || t_s > (*spans)[k].second) continue;
       const auto s = (*paths)[k].At(t_s, max_gap_s);
       if (!s) continue;
       Eigen::Vector3d B;
@@ -68,6 +72,16 @@ struct Others {
       if (T.norm() >= gate * SigmaT(g, topt)) return true;
     }
     return false;
+  }
+
+  // The partner's predicted tensor at the sample (zero if none).
+  Eigen::Matrix3d PartnerTensor(double t_s, const GradiometerSample& g) const {
+    Eigen::Vector3d B = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+    if (partner >= paths->size()) return T;
+    const auto s = (*paths)[partner].At(t_s, max_gap_s);
+    if (s) PredictedField(*s, (*paths)[partner].m_B, g.p_SinW, &B, &T);
+    return T;
   }
 };
 
@@ -88,7 +102,8 @@ Seen TensorSeen(const Epoch& e, const CtState<double>& s, const Eigen::Vector3d&
     PredictedField(s, m_B, g.p_SinW, &B, &T);
     const double st = SigmaT(g, topt);
     if (T.norm() >= gate * st && !others.SeenAt(e.t_s, g, gate, topt)) {
-      seen.inner += (g.T.array() * T.array()).sum() / (st * st);
+      const Eigen::Matrix3d measured = g.T - others.PartnerTensor(e.t_s, g);
+      seen.inner += (measured.array() * T.array()).sum() / (st * st);
       seen.energy += T.squaredNorm() / (st * st);
     }
   }
@@ -207,6 +222,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   std::vector<bool> grow_end;        // unusable and duplicate tracks keep their end
   std::vector<double> b_only_until;  // past this, the extension: tensor only
   std::vector<double> end_limit;     // a missed track's span ends by this
+  std::vector<std::uint32_t> partner_id;
   for (const TrackRecord& r : finder.Tracks()) {
     auto it = paths.find(r.track_id);
     if (it == paths.end() || it->second.epochs.empty()) continue;
@@ -225,7 +241,15 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     grow_end.push_back(r.end_reason != "unusable" && r.end_reason != "duplicate");
     b_only_until.push_back(cut ? r.t_last_detection_s : std::numeric_limits<double>::infinity());
     end_limit.push_back(cut ? r.t_last_detection_s + kMissedExtensionS : std::numeric_limits<double>::infinity());
+    partner_id.push_back(r.partner_id);
     result.push_back(std::move(m));
+  }
+  // Each track's partner (index into result; none: result.size()).
+  std::vector<std::size_t> partner(result.size(), result.size());
+  for (std::size_t i = 0; i < result.size(); ++i) {
+    for (std::size_t k = 0; k < result.size(); ++k) {
+      if (k != i && partner_id[i] != 0 && result[k].track_id == partner_id[i]) partner[i] = k;
+    }
   }
   // 2. Rounds of refinement, each track over its own samples with the other
   // tracks' fields (from the previous round) removed; after each, the spans
@@ -261,8 +285,11 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
         std::vector<std::optional<CtState<double>>> others(result.size());
         for (std::size_t k = 0; k < result.size(); ++k) {
           // Another track's field only within its own span: before its
-          // vessel came its extrapolation is no field at all.
-          if (k != i && e.t_s >= spans[k].first && e.t_s <= spans[k].second) others[k] = now[k].At(e.t_s, max_gap);
+          // vessel came its extrapolation is no field at all. The partner's
+          // (the other vessel abreast) also outside it: they came together.
+          if (k != i && ((e.t_s >= spans[k].first && e.t_s <= spans[k].second) || k == partner[i])) {
+            others[k] = now[k].At(e.t_s, max_gap);
+          }
         }
         Epoch k_epoch{e.t_s, {}};
         for (std::size_t j = 0; j < e.samples.size(); ++j) {
@@ -320,7 +347,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     }
     // In track order, each against the others' spans as grown so far.
     for (std::size_t i = 0; i < result.size(); ++i) {
-      const Others others{&refined, &spans, i, max_gap};
+      const Others others{&refined, &spans, i, max_gap, partner[i] < result.size() ? partner[i] : std::numeric_limits<std::size_t>::max()};
       if (ExtendSpan(epochs, refined[i], seen_gate, step, grow_end[i], topt, others, &spans[i])) grew = true;
       spans[i].second = std::min(spans[i].second, end_limit[i]);
     }

@@ -42,6 +42,7 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
   if (!(evidence_min_tensor_snr >= 0.0) || !std::isfinite(evidence_min_tensor_snr)) {
     return Fail(error, "evidence_min_tensor_snr must be finite and >= 0");
   }
+  if (!(pair_refit_s >= 0.0) || !std::isfinite(pair_refit_s)) return Fail(error, "pair_refit_s must be finite and >= 0");
   return true;
 }
 
@@ -106,6 +107,13 @@ struct Track {
   // The associator's verdict (detected or not) of each epoch whose estimate
   // its engine has not given yet, in time order: the estimates' states.
   std::deque<std::pair<double, bool>> verdicts;
+  // Started with a partner by the two-dipole start: the pair's key (shared
+  // by both, 0 = none) and when to refit it (pair_refit_s).
+  std::uint64_t pair = 0;
+  double refit_t_s = 0.0;
+  double pair_start_t_s = 0.0;
+  // The pair's key, kept after the refit (TrackRecord::partner_id).
+  std::uint64_t started_with = 0;
 };
 
 double HorizontalSigma(const EpochEstimate& e) {
@@ -133,6 +141,10 @@ struct MultiTracker::Impl {
   std::deque<Epoch> buffer;
   std::deque<DipoleFix> fixes;
   bool any_fix = false;
+  // The last window_s of epochs as the tracks get them (background prior
+  // removed, no track's field removed): what a pair refit is solved on.
+  std::deque<Epoch> recent;
+  std::uint64_t next_pair = 1;
   double last_init_t = -std::numeric_limits<double>::infinity();
   // Sample stream.
   bool has_pending = false;
@@ -181,6 +193,11 @@ struct MultiTracker::Impl {
     TrackRecord r;
     r.track_id = tr.id;
     r.t_start_s = t_s;
+    for (const Track& other : tracks) {
+      if (&other == &tr || tr.started_with == 0 || other.started_with != tr.started_with || other.id == 0) continue;
+      r.partner_id = other.id;
+      records[other.id - 1].partner_id = tr.id;
+    }
     r.t_end_s = t_s;
     r.t_last_detection_s = tr.life.t_last_detection_s();
     records.push_back(r);
@@ -380,6 +397,11 @@ struct MultiTracker::Impl {
     buffer.push_back(std::move(residual));
     const double span = options.track.window_s + options.track.epoch_tolerance_s;
     while (t - buffer.front().t_s > span) buffer.pop_front();
+    if (mg().pair_refit_s > 0.0) {
+      recent.push_back(e);
+      while (t - recent.front().t_s > span) recent.pop_front();
+      RefitPairs(t, &out);
+    }
     while (!fixes.empty() && fixes.front().t_s < buffer.front().t_s - options.track.epoch_tolerance_s) {
       fixes.pop_front();
     }
@@ -417,8 +439,108 @@ struct MultiTracker::Impl {
     if (pair.size() == 2 && !near_a_track) {
       // Once the first has started, its field is out of the buffer.
       const bool first = StartTrack(t, pair[0], &pair[1]);
-      StartTrack(t, pair[1], first ? nullptr : &pair[0]);
+      const bool second = StartTrack(t, pair[1], first ? nullptr : &pair[0]);
+      if (first && second) {
+        const std::uint64_t key = next_pair++;
+        for (std::size_t k = tracks.size() - 2; k < tracks.size(); ++k) {
+          tracks[k].pair = key;
+          tracks[k].started_with = key;
+          tracks[k].pair_start_t_s = t;
+          tracks[k].refit_t_s = t + mg().pair_refit_s;
+          if (!(mg().pair_refit_s > 0.0)) tracks[k].pair = 0;
+        }
+      }
     }
+  }
+
+  // The recent epochs with the fields of every live track but `keep_a` and
+  // `keep_b` removed (their states predicted to each epoch).
+  std::vector<Epoch> RecentWithout(std::size_t keep_a, std::size_t keep_b) const {
+    std::vector<Epoch> out(recent.begin(), recent.end());
+    for (std::size_t k = 0; k < tracks.size(); ++k) {
+      if (k == keep_a || k == keep_b || tracks[k].ended) continue;
+      Track other;
+      other.m_B = tracks[k].engine->m_B_Am2();
+      if (!other.m_B.allFinite()) continue;
+      for (Epoch& e : out) {
+        const auto p = tracks[k].engine->PredictState(e.t_s);
+        if (!p) continue;
+        other.pred = *p;
+        for (GradiometerSample& s : e.samples) {
+          const FieldPrediction f = Predict(other, s);
+          s.B -= f.B;
+          s.T -= f.T;
+        }
+      }
+    }
+    return out;
+  }
+
+  // Pairs due for their refit (TrackManagementOptions::pair_refit_s).
+  void RefitPairs(double t, std::vector<TrackOutput>* out) {
+    const double tol = options.track.epoch_tolerance_s;
+    for (std::size_t i = 0; i < tracks.size(); ++i) {
+      Track& a = tracks[i];
+      if (a.pair == 0 || t < a.refit_t_s - tol) continue;
+      std::size_t j = tracks.size();
+      for (std::size_t k = 0; k < tracks.size(); ++k) {
+        if (k != i && tracks[k].pair == a.pair && !tracks[k].ended) j = k;
+      }
+      if (a.ended || j == tracks.size() || t > a.pair_start_t_s + mg().pair_refit_s + options.track.window_s) {
+        a.pair = 0;  // its partner is gone, or too late: no refit
+        continue;
+      }
+      Track& b = tracks[j];
+      if (a.id == 0 || b.id == 0) continue;  // both confirmed first
+      a.refit_t_s = b.refit_t_s = t + mg().init_interval_s;
+      const std::vector<Epoch> epochs = RecentWithout(i, j);
+      InitialTrack now_a, now_b;
+      const auto pa = a.engine->PredictState(t);
+      const auto pb = b.engine->PredictState(t);
+      if (!pa || !pb) continue;
+      now_a.t_ref_s = now_b.t_ref_s = t;
+      now_a.state = *pa;
+      now_b.state = *pb;
+      const std::vector<InitialTrack> refit =
+          RefitPair(epochs, B0_W, options.track, now_a, now_b, mg().min_separation_m);
+      if (refit.size() != 2) continue;
+      Restart(a, refit[0], refit[1], epochs, out);
+      Restart(b, refit[1], refit[0], epochs, out);
+      a.pair = b.pair = 0;
+    }
+  }
+
+  // A confirmed track's engine started again from `init` on `epochs` (its
+  // sensors, gated by init's line and moment, without `partner`'s field);
+  // what its former engine had not solved yet is output first.
+  void Restart(Track& tr, const InitialTrack& init, const InitialTrack& partner, const std::vector<Epoch>& epochs,
+               std::vector<TrackOutput>* out) {
+    std::vector<Epoch> mine;
+    for (const Epoch& b : epochs) {
+      Track probe, other;
+      probe.pred = PropagateCoordinatedTurn(init.state, b.t_s - init.t_ref_s);
+      probe.m_B = init.m_B_Am2;
+      other.pred = PropagateCoordinatedTurn(partner.state, b.t_s - partner.t_ref_s);
+      other.m_B = partner.m_B_Am2;
+      Epoch k{b.t_s, {}};
+      for (const auto& s : b.samples) {
+        if (!(Predict(probe, s).snr >= mg().gate_snr)) continue;
+        k.samples.push_back(s);
+        const FieldPrediction po = Predict(other, s);
+        k.samples.back().B -= po.B;
+        k.samples.back().T -= po.T;
+      }
+      if (!k.samples.empty() || !mine.empty()) mine.push_back(std::move(k));
+    }
+    if (mine.empty()) return;
+    auto engine = std::make_unique<WindowTracker>(B0_W, options.track);
+    const std::vector<EpochEstimate> first = engine->Start(init, mine);
+    if (first.empty() || !first.back().usable) return;
+    Collect(tr, tr.engine->Flush(), out);
+    tr.engine = std::move(engine);
+    tr.has_newest = true;
+    tr.newest = first.back();
+    tr.m_B = tr.engine->m_B_Am2();
   }
 
   // Starts a tentative track from `init` on the buffer (minus `partner`'s
@@ -698,6 +820,10 @@ std::string MultiTracker::SaveState() const {
       w.F64(t_s);
       w.U8(detected ? 1 : 0);
     }
+    w.U64(tr.pair);
+    w.F64(tr.refit_t_s);
+    w.F64(tr.pair_start_t_s);
+    w.U64(tr.started_with);
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -708,6 +834,7 @@ std::string MultiTracker::SaveState() const {
     w.I64(r.num_estimates);
     w.Matrix(r.m_B_Am2);
     w.Matrix(r.cov_m_B);
+    w.U32(r.partner_id);
   }
   w.U32(m.next_id);
   w.U64(m.events.size());
@@ -724,6 +851,8 @@ std::string MultiTracker::SaveState() const {
   }
   internal::PutDeque(w, m.buffer);
   internal::PutDeque(w, m.fixes);
+  internal::PutDeque(w, m.recent);
+  w.U64(m.next_pair);
   w.U8(m.any_fix ? 1 : 0);
   w.F64(m.last_init_t);
   w.U8(m.has_pending ? 1 : 0);
@@ -773,6 +902,10 @@ void MultiTracker::RestoreState(const std::string& payload) {
       const double t_s = r.F64();
       tr.verdicts.emplace_back(t_s, r.U8() != 0);
     }
+    tr.pair = r.U64();
+    tr.refit_t_s = r.F64();
+    tr.pair_start_t_s = r.F64();
+    tr.started_with = r.U64();
     m.tracks.push_back(std::move(tr));
   }
   m.records.resize(r.Count(internal::kMaxStateCount));
@@ -784,6 +917,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     rec.num_estimates = static_cast<int>(r.I64());
     rec.m_B_Am2 = internal::GetMatrix(r, 3, 1);
     rec.cov_m_B = internal::GetMatrix(r, 3, 3);
+    rec.partner_id = r.U32();
   }
   m.next_id = r.U32();
   for (const Track& tr : m.tracks) {
@@ -804,6 +938,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
   }
   internal::GetDeque(r, &m.buffer);
   internal::GetDeque(r, &m.fixes);
+  internal::GetDeque(r, &m.recent);
+  m.next_pair = r.U64();
   m.any_fix = r.U8() != 0;
   m.last_init_t = r.F64();
   m.has_pending = r.U8() != 0;

@@ -86,6 +86,21 @@ struct FastMsdOptions {
   // correlation (correlation.h). Counted in MatchResult::points_outlier.
   // 0 = off (every point's squared residual counts, as in the paper).
   double outlier_sigmas = 5.0;
+  // Covariance: the map's representation error in each reading's variance
+  // (issue 25 item 4). The matcher reads the field between the grid's nodes
+  // bilinearly; the field's curvature inside a cell is an error of the map,
+  // not of the reading, and the rounds bend the path to follow it (the
+  // residuals do not show it). With this on, each point's reading variance
+  // in the covariance is σ² + b², b = (Δlat²/8)|∂²m/∂lat²| + (Δlon²/8)|∂²m/∂lon²|
+  // the bilinear interpolant's error bound over the point's cell from the
+  // grid's second differences at its nearest node (nT; no constant chosen).
+  // It is also the size of the linearisation's error over half a cell (the
+  // bilinear gradient jumps at cell edges), which on generated paths is where
+  // its gain comes from (docs/ACCURACY.md, "Fast MSD: the map's own error in
+  // the covariance": 0.5 nT every-point ANEES 5.32 -> 3.79 on the tuning
+  // paths; the wrong-basin stretches it does not reach).
+  // Changes the covariance only, never the positions. false = σ² alone.
+  bool map_error_in_covariance = true;
 
   bool IsValid(std::string* error) const;
 };
@@ -101,7 +116,8 @@ struct FastMsdOptions {
 // estimated from the path (EM on the linearised model), not tied together by
 // λ: M⁻¹ (Gᵀ W R W G + (λ/2)² τ² L) M⁻¹, M = Gᵀ W G + (λ/2) L, with R = σ²
 // plus the second moment of the map's second-order term over the position error
-// (the grid's curvature). Where that term's passes do not contract the point
+// (the grid's curvature) and the map's bilinear interpolation error bound
+// (map_error_in_covariance). Where that term's passes do not contract the point
 // keeps its last contracting pass's term (notes: "curvature-limited points:
 // K"); with a coarse stage no point's covariance is wider than the search
 // window's uniform prior (w²/3 per axis; notes say at how many points it was

@@ -81,7 +81,10 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
 // min_tensor_snr · σ_T, B and T whitened by the sample's σ): Gauss–Newton
 // on the two lines (position, horizontal velocity; the moments by linear
 // least squares at each step), started from the line through the mixed
-// samples' own fixes split sideways by 4, 8, 12 and 16 m. Returned (two
+// samples' own fixes split sideways by 4, 8, 12 and 16 m, and from that line
+// with its velocity reversed and at rest, at least 3 m above the strongest
+// mixed sample's sensor, split by 8, 16 and 24 m (on the approach the ghost
+// line's own velocity and depth are wrong). Returned (two
 // tracks, ordered by their y at t_ref) only if the pair explains the
 // samples as a single dipole explains a clean one (√(Σr²/Σm²) ≤
 // max_dipole_misfit), the two lines are at least `min_separation_m` apart
@@ -91,6 +94,21 @@ std::optional<InitialTrack> InitializeTrack(const std::vector<Epoch>& epochs, co
 // empty (no single-sample fix went into them).
 std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                          const TrackerOptions& options, double min_separation_m);
+
+// The same two-dipole fit refitted once the pair is tracked (issue 24): a
+// pair started on the approach, where essentially one sensor sees both
+// vessels, carries that start's error (its moment, and the partner's field
+// it was started without) through its whole track. This fits the two
+// straight-line dipoles again, started from the tracks `a` and `b` (their
+// states propagated to the middle of `epochs`, their moments ignored:
+// solved linearly), to every strong sample of `epochs` within three
+// cluster gates (horizontally) of either line; `epochs` are the samples with
+// every other track's field removed. The same gates as InitializePair's;
+// the result in the order a, b, with t_ref the middle of the epochs. Empty
+// if a gate fails.
+std::vector<InitialTrack> RefitPair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                    const TrackerOptions& options, const InitialTrack& a, const InitialTrack& b,
+                                    double min_separation_m);
 
 // Why InitializeTrack gave no track, for a user: `have_external_fixes` as
 // its external_fixes != nullptr.

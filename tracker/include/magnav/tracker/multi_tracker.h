@@ -45,7 +45,10 @@
 //     started. New tracks are tentative until confirm_m of their first
 //     confirm_n epochs are detections (M-of-N); a tentative track that cannot
 //     reach that is dropped. Only confirmed tracks get a track_id (1, 2, …;
-//     never reused) and produce estimates.
+//     never reused) and produce estimates. Two vessels started together by
+//     the two-dipole start (InitializePair) are refitted together once,
+//     pair_refit_s later (RefitPair), and their engines started again from
+//     that refit (TrackManagementOptions::pair_refit_s).
 //  Background (background.h): before step 2 every sample's B is corrected by
 //     its sensor's background prior (its deviation from B0; its variance
 //     added to σ_B²), and after step 3 each sensor's background takes the
@@ -111,6 +114,18 @@ struct TrackManagementOptions {
   // sensor's tensor cannot explain its fix).
   double evidence_gate_chi2 = 16.27;
   double evidence_min_tensor_snr = 3.0;
+  // A pair started together by the two-dipole start (InitializePair) is
+  // refitted pair_refit_s (s) after its start, once the pair is better
+  // observed: the two-dipole fit again (RefitPair) on the last window_s of
+  // samples with every other track's field removed, started from the two
+  // tracks; if it passes InitializePair's gates, both tracks' engines are
+  // started again from it on those samples, each without the other's
+  // refitted field. So the early start's moment, and the partner's field it
+  // was started without, do not bias the whole track (docs/ACCURACY.md,
+  // "Abreast from when they come within reach"). Tried while both are
+  // confirmed, then once per init_interval_s until it passes or window_s
+  // has gone by. 0 = off.
+  double pair_refit_s = 5.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -214,6 +229,11 @@ struct TrackRecord {
   int num_estimates = 0;
   Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
   Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();
+  // The track started together with this one by the two-dipole start
+  // (InitializePair; both confirmed), 0 = none: a second vessel abreast,
+  // whose field SolveBatchMulti removes from this track's samples also
+  // before and after its own span.
+  std::uint32_t partner_id = 0;
 };
 
 struct MultiSummary {
@@ -298,7 +318,10 @@ struct MultiTrackEstimate {
 // Every vessel of a pass: the window tracker finds the tracks, then each is
 // refined by SolveBatch over its own samples (its sensors, over its span
 // grown to every epoch where it is seen — batch_extension_step_s — the other
-// tracks' fields removed), for batch_rounds rounds or more while a span grows. A track whose refinement fails keeps its window
+// tracks' fields removed within their spans, its partner's — the other
+// vessel of a pair started abreast, TrackRecord::partner_id — also outside
+// its span, in the problem and in the span's growth test), for batch_rounds
+// rounds or more while a span grows. A track whose refinement fails keeps its window
 // estimates (its summary says so). Tracks in track_id order; none if no
 // vessel was found. `progress`, if given, is called from the calling thread
 // after every epoch of the window pass ("finding tracks", epochs done, of
