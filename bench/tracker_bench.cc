@@ -67,7 +67,8 @@ BENCHMARK(BM_WindowUpdatePerEpoch)->Arg(1)->Arg(4)->Unit(benchmark::kMicrosecond
 // pass (2001 epochs). Args: vessel (0 = ship, 1 = AUV: its turn is found
 // later, more iterations), sensors, solver (0 = the default chain
 // Levenberg-Marquardt, 1 = Ceres SPARSE_NORMAL_CHOLESKY on the same
-// problems), threads.
+// problems), threads, no_restarts (1 = batch_turn_change_points 0: the
+// solve without its piecewise-constant turn-rate restarts, for their cost).
 void BM_BatchSolve200s(benchmark::State& state) {
   const std::string vessel = state.range(0) == 0 ? "ship" : "auv";
   const Pass& pass = LoadPass(PassName(state.range(1), vessel));
@@ -75,6 +76,7 @@ void BM_BatchSolve200s(benchmark::State& state) {
   opt.batch_solver = state.range(2) == 0 ? magnav::tracker::TrackerOptions::BatchSolver::kChainLevenbergMarquardt
                                          : magnav::tracker::TrackerOptions::BatchSolver::kCeres;
   opt.num_threads = static_cast<int>(state.range(3));
+  if (state.range(4) != 0) opt.batch_turn_change_points = 0;
   int iterations = 0;
   for (auto _ : state) {
     const auto est = magnav::tracker::SolveBatch(pass.epochs, pass.B0, opt);
@@ -86,14 +88,17 @@ void BM_BatchSolve200s(benchmark::State& state) {
   state.counters["epochs"] = static_cast<double>(pass.epochs.size());
   state.counters["iterations"] = iterations;
   state.counters["threads"] = static_cast<double>(opt.num_threads);
+  state.counters["change_points"] = opt.batch_turn_change_points;
 }
 BENCHMARK(BM_BatchSolve200s)
-    ->ArgNames({"auv", "sensors", "ceres", "threads"})
-    ->ArgsProduct({{0, 1}, {1, 4}, {0}, {1, 2}})
-    ->Args({0, 1, 1, 1})
-    ->Args({0, 4, 1, 1})
-    ->Args({1, 1, 1, 1})
-    ->Args({1, 4, 1, 1})
+    ->ArgNames({"auv", "sensors", "ceres", "threads", "no_restarts"})
+    ->ArgsProduct({{0, 1}, {1, 4}, {0}, {1, 2}, {0}})
+    ->Args({0, 1, 1, 1, 0})
+    ->Args({0, 4, 1, 1, 0})
+    ->Args({1, 1, 1, 1, 0})
+    ->Args({1, 4, 1, 1, 0})
+    ->Args({0, 1, 0, 1, 1})
+    ->Args({1, 1, 0, 1, 1})
     ->Unit(benchmark::kMillisecond)
     ->MinTime(2.0)
     ->UseRealTime();

@@ -275,6 +275,11 @@ void AddTrackCommand(CLI::App& app) {
                   "batch: each round grows a track's span by at most this much per side, over the epochs where its "
                   "predicted tensor SNR reaches --batch-gate-snr, s")
       ->capture_default_str();
+  cmd->add_option("--batch-turn-change-points", args->flags.options.track.batch_turn_change_points,
+                  "batch: restarts from the estimate with its turn rate made piecewise constant with 1..this many "
+                  "change points, each kept if it ends at a lower cost (0 = none, at most " +
+                      std::to_string(tracker::TrackerOptions::kMaxBatchTurnChangePoints) + ")")
+      ->capture_default_str();
   cmd->callback([args] { RunTrack(*args); });
 }
 

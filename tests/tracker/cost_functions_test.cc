@@ -215,6 +215,14 @@ TEST(Options, DefaultsAreValidAndBadValuesAreNamed) {
   o.window_s = -1.0;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("window_s"), std::string::npos);
+  for (int n : {-1, TrackerOptions::kMaxBatchTurnChangePoints + 1}) {
+    o = TrackerOptions{};
+    o.batch_turn_change_points = n;
+    EXPECT_FALSE(o.IsValid(&why)) << n;
+    EXPECT_NE(why.find("batch_turn_change_points"), std::string::npos);
+  }
+  o.batch_turn_change_points = 0;
+  EXPECT_TRUE(o.IsValid(&why)) << why;
   LossType t;
   EXPECT_TRUE(ParseLossType("cauchy", &t));
   EXPECT_EQ(t, LossType::kCauchy);

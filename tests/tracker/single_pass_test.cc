@@ -94,17 +94,21 @@ PassScenario Scenario(const PassRow& r, bool fluxgate, std::uint64_t seed) {
 struct PassScores {
   testing::TrackMetrics batch, single, window;
   std::size_t batch_tracks = 0;
+  int turn_restarts_kept = 0;  // of the batch's last solve of its (first) track
 };
 
-PassScores RunPass(const PassRow& r, bool fluxgate, bool with_single) {
+PassScores RunPass(const PassRow& r, bool fluxgate, bool with_single, bool with_window = true,
+                   int turn_change_points = TrackerOptions{}.batch_turn_change_points) {
   const PassScenario sc = Scenario(r, fluxgate, r.seed);
   const SimulatedPass sim = SimulatePass(sc);
   const testing::TruthTrack truth = testing::TruthOf(sim);
-  const MultiTrackerOptions opt;
+  MultiTrackerOptions opt;
+  opt.track.batch_turn_change_points = turn_change_points;
   const auto epochs = GroupEpochs(sim.samples, opt.track.epoch_tolerance_s);
   PassScores s;
   const auto tracks = SolveBatchMulti(epochs, sc.B0, opt);
   s.batch_tracks = tracks.size();
+  if (!tracks.empty()) s.turn_restarts_kept = tracks.front().track.summary.num_turn_restarts_kept;
   std::vector<EpochEstimate> rows;
   for (const auto& t : tracks) rows.insert(rows.end(), t.track.epochs.begin(), t.track.epochs.end());
   s.batch = testing::ScoreTrack(rows, sim.samples, truth);
@@ -112,6 +116,7 @@ PassScores RunPass(const PassRow& r, bool fluxgate, bool with_single) {
     const TrackEstimate single = SolveBatch(epochs, sc.B0, opt.track);
     s.single = testing::ScoreTrack(single.epochs, sim.samples, truth);
   }
+  if (!with_window) return s;
   MultiTracker window(sc.B0, opt);
   std::vector<EpochEstimate> w;
   const auto take = [&](const std::vector<TrackOutput>& out) {
@@ -125,6 +130,7 @@ PassScores RunPass(const PassRow& r, bool fluxgate, bool with_single) {
 
 void Print(const PassRow& r, bool fluxgate, const PassScores& s) {
   const auto row = [&](const char* mode, const testing::TrackMetrics& m) {
+    if (m.n == 0) return;  // not run
     std::cout << "| " << r.name << " | " << r.closest_3d << " | " << (fluxgate ? "fluxgate" : "squid") << " | "
               << mode << " | " << m.rms << " | " << m.max << " | " << m.nees << " | " << m.n << " |\n";
   };
@@ -176,6 +182,30 @@ TEST(SinglePass, BatchUsesEveryEpochWhereTheVesselIsSeen) {
     EXPECT_LE(s.window.rms, d.fluxgate ? 0.3 : 0.01) << what << " window";
     ExpectFigures(s.batch, d.batch, what + " batch");
     ExpectFigures(s.window, d.window, what + " window");
+  }
+}
+
+// The batch keeps a turn that starts near the closest approach once the
+// data grow weak (docs/ACCURACY.md, "The batch keeps the turn"): without the
+// piecewise-constant turn-rate restarts (batch_turn_change_points = 0) the
+// solve stops at a slow drift of too small a turn (t3 0.864 m, h7 0.976 m,
+// mean NEES 38 / 85), a local minimum of higher cost. t3 is a tuning row, h7
+// held out. Batch only (the window does not use the restarts). ~3 s.
+TEST(SinglePass, BatchKeepsTheTurnOnceTheDataGrowWeak) {
+  const std::vector<std::pair<const char*, Figures>> doc = {
+      {"t3", {0.136, 0.382, 1.56, 387}},
+      {"h7", {0.190, 0.445, 2.35, 500}},
+  };
+  const auto rows = LoadPasses();
+  for (const auto& [name, d] : doc) {
+    const PassRow& r = Find(rows, name);
+    const std::string what = std::string(name) + " fluxgate batch";
+    const PassScores s = RunPass(r, true, false, false);
+    Print(r, true, s);
+    EXPECT_EQ(s.batch_tracks, 1u) << what;
+    EXPECT_GE(s.turn_restarts_kept, 1) << what << ": the estimate came from a restart";
+    EXPECT_LE(s.batch.rms, 0.2) << what;
+    ExpectFigures(s.batch, d, what);
   }
 }
 

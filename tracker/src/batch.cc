@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include "factors.h"
 #include "magnav/core/error.h"
@@ -12,6 +13,63 @@
 #include "magnav/tracker/tracker.h"
 
 namespace magnav::tracker {
+
+namespace {
+
+// Segments shorter than this many epochs are not fitted (a change point
+// needs evidence on both sides).
+constexpr int kMinTurnSegmentEpochs = 10;
+// A turn-rate restart is kept only if it lowers the cost (½ Σ ρ, in σ²) by
+// at least this: a likelihood ratio of e. Less is the same minimum reached
+// again within the solver's tolerance (the reference AUV SQUID pass: its
+// moment moved by 1.5e-6 relative), not a better turn.
+constexpr double kMinTurnRestartGain = 1.0;
+
+// The least-squares fit of w by a piecewise-constant sequence with exactly
+// `change_points` change points (segments of at least
+// kMinTurnSegmentEpochs), by dynamic programming over prefix sums; empty if
+// w is too short.
+std::vector<double> PiecewiseConstantFit(const std::vector<double>& w, int change_points) {
+  const int n = static_cast<int>(w.size());
+  const int segments = change_points + 1;
+  if (n < segments * kMinTurnSegmentEpochs) return {};
+  std::vector<double> s1(n + 1, 0.0), s2(n + 1, 0.0);
+  for (int i = 0; i < n; ++i) {
+    s1[i + 1] = s1[i] + w[i];
+    s2[i + 1] = s2[i] + w[i] * w[i];
+  }
+  const auto sse = [&](int i, int j) {  // segment [i, j)
+    const double m = (s1[j] - s1[i]) / (j - i);
+    return std::max(0.0, s2[j] - s2[i] - m * (s1[j] - s1[i]));
+  };
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  // best[c][j]: the first j values in c + 1 segments; from[c][j] the start of the last.
+  std::vector<std::vector<double>> best(segments, std::vector<double>(n + 1, kInf));
+  std::vector<std::vector<int>> from(segments, std::vector<int>(n + 1, 0));
+  for (int j = kMinTurnSegmentEpochs; j <= n; ++j) best[0][j] = sse(0, j);
+  for (int c = 1; c < segments; ++c) {
+    for (int j = (c + 1) * kMinTurnSegmentEpochs; j <= n; ++j) {
+      for (int i = c * kMinTurnSegmentEpochs; i + kMinTurnSegmentEpochs <= j; ++i) {
+        const double v = best[c - 1][i] + sse(i, j);
+        if (v < best[c][j]) {
+          best[c][j] = v;
+          from[c][j] = i;
+        }
+      }
+    }
+  }
+  std::vector<double> fit(n);
+  int j = n;
+  for (int c = segments - 1; c >= 0; --c) {
+    const int i = c == 0 ? 0 : from[c][j];
+    const double m = (s1[j] - s1[i]) / (j - i);
+    for (int k = i; k < j; ++k) fit[k] = m;
+    j = i;
+  }
+  return fit;
+}
+
+}  // namespace
 
 TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
                          const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
@@ -161,6 +219,38 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
     for (std::size_t k = i0; k < old0; ++k) {
       const CtState<double> s = PropagateCoordinatedTurn(state_of(old0), epochs[k].t_s - epochs[old0].t_s);
       x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
+    }
+  }
+  // Restarts from the estimate with a piecewise-constant turn rate
+  // (TrackerOptions::batch_turn_change_points), each kept if it ends lower
+  // by kMinTurnRestartGain.
+  if (options.batch_turn_change_points > 0 && r_final_pass && pr.last.IsSolutionUsable()) {
+    const auto cost_now = [&] { return internal::TotalCost(build(false).groups, options.num_threads); };
+    double cost = cost_now();
+    for (int cps = 1; cps <= options.batch_turn_change_points; ++cps) {
+      std::vector<double> w;
+      for (std::size_t k = i0; k <= i1; ++k) w.push_back(x[k](5));
+      const std::vector<double> fit = PiecewiseConstantFit(w, cps);
+      if (fit.empty()) break;
+      const std::vector<StateVector> x_kept = x;
+      const Eigen::Vector3d moment_kept = moment;
+      for (std::size_t k = i0; k <= i1; ++k) x[k](5) = fit[k - i0];
+      internal::PassResult r = internal::SolveWithContinuation(options, options.max_num_iterations, false,
+                                                               measurements, false, build);
+      pr.iterations += r.iterations;
+      pr.solve_time_s += r.solve_time_s;
+      const double cost_r = cost_now();
+      ++sum.num_turn_restarts;
+      if (r.reached_final_pass && r.last.IsSolutionUsable() && cost_r < cost - kMinTurnRestartGain) {
+        cost = cost_r;
+        pr.last = r.last;
+        pr.final_loss = std::move(r.final_loss);
+        ++sum.num_turn_restarts_kept;
+      } else {
+        x = x_kept;
+        moment = moment_kept;
+        for (internal::Factor* f : measurements) f->loss = pr.final_loss.get();
+      }
     }
   }
   const ceres::Solver::Summary& cs = pr.last;

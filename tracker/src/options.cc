@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <sstream>
+#include <string>
 
 #include "magnav/core/option_check.h"
 
@@ -90,6 +91,9 @@ bool TrackerOptions::IsValid(std::string* error) const {
   if (num_threads < 1) return Fail(error, "num_threads must be >= 1");
   if (!(batch_growth_factor > 1.0) || !std::isfinite(batch_growth_factor)) {
     return Fail(error, "batch_growth_factor must be > 1");
+  }
+  if (batch_turn_change_points < 0 || batch_turn_change_points > kMaxBatchTurnChangePoints) {
+    return Fail(error, "batch_turn_change_points must be in [0, " + std::to_string(kMaxBatchTurnChangePoints) + "]");
   }
   if (!PositiveFinite(window_s)) return Fail(error, "window_s must be > 0");
   if (!(window_solve_interval_s >= 0.0) || !(window_solve_interval_s < window_s)) {

@@ -153,6 +153,16 @@ struct TrackerOptions {
   // spans grown by this factor (new epochs predicted from the span's ends)
   // until every epoch is included; > 1.
   double batch_growth_factor = 3.0;
+  // Batch: the turn-rate model (a random walk with a robust jump) has local
+  // minima where a turn of steps in ω is followed as a slow drift of too
+  // small a turn once the data grow weak. After the solve the batch is
+  // restarted from its own estimate with ω_k replaced by its least-squares
+  // piecewise-constant fit with 1, ..., batch_turn_change_points change
+  // points (positions, speeds, headings and the moment kept); a restart is
+  // kept only if it ends at a cost of the same problem lower by at least 1
+  // (½ Σ ρ, in σ²). 0 = none.
+  int batch_turn_change_points = 2;
+  static constexpr int kMaxBatchTurnChangePoints = 4;
 
   // Sliding window: fixed lag (s) and iterations per new epoch.
   double window_s = 20.0;
@@ -209,6 +219,10 @@ struct Summary {
   // Window: factors left out of a marginalisation because they could not be
   // evaluated at the estimate (non-finite), since the tracker was made.
   int num_dropped_factors = 0;
+  // Batch: restarts from a piecewise-constant turn rate tried, and kept
+  // because they ended at a lower cost (TrackerOptions::batch_turn_change_points).
+  int num_turn_restarts = 0;
+  int num_turn_restarts_kept = 0;
   std::string message;  // Ceres termination message or failure reason
 
   std::string BriefReport() const;
