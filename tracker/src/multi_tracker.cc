@@ -463,6 +463,7 @@ struct MultiTracker::Impl {
           tracks[k].started_with = key;
           tracks[k].pair_start_t_s = t;
           tracks[k].refit_t_s = t + mg().pair_refit_s;
+          SetPairExcess(tracks[k], pair[k + 2 - tracks.size()]);
           // Until the refit, or until its deadline (RefitPairs).
           tracks[k].pair_excess_until_s =
               t + (mg().pair_refit_s > 0.0 ? mg().pair_refit_s : 0.0) + options.track.window_s;
@@ -470,6 +471,19 @@ struct MultiTracker::Impl {
         }
       }
     }
+  }
+
+  // A pair start's covariance excess (Track::pair_excess) from its start.
+  static void SetPairExcess(Track& tr, const InitialTrack& init) {
+    if (!init.has_pair_covariance) return;
+    const StateCovariance excess = init.cov_state - init.cov_state_given_partner;
+    const Eigen::SelfAdjointEigenSolver<StateCovariance> es(0.5 * (excess + excess.transpose()));
+    // Positive semi-definite in exact arithmetic (a marginal is never
+    // smaller than a conditional); rounding below zero is dropped.
+    tr.pair_excess = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() * es.eigenvectors().transpose();
+    tr.has_pair_excess = tr.pair_excess.allFinite();
+    tr.pair_start_state = init.state;
+    tr.pair_start_ref_s = init.t_ref_s;
   }
 
   // The recent epochs with the fields of every live track but `keep_a` and
@@ -610,16 +624,6 @@ struct MultiTracker::Impl {
     if (!first.empty()) {
       tr.has_newest = true;
       tr.newest = first.back();
-    }
-    if (partner != nullptr && init->has_pair_covariance) {
-      const StateCovariance excess = init->cov_state - init->cov_state_given_partner;
-      const Eigen::SelfAdjointEigenSolver<StateCovariance> es(0.5 * (excess + excess.transpose()));
-      // Positive semi-definite in exact arithmetic (a marginal is never
-      // smaller than a conditional); rounding below zero is dropped.
-      tr.pair_excess = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() * es.eigenvectors().transpose();
-      tr.has_pair_excess = tr.pair_excess.allFinite();
-      tr.pair_start_state = init->state;
-      tr.pair_start_ref_s = init->t_ref_s;
     }
     tr.origin = init->fixes.empty() ? std::string("from a two-dipole fit to samples no single dipole explains")
                                     : "from " + std::to_string(init->fixes.size()) +
