@@ -483,8 +483,8 @@ Eigen::VectorXd PairResidualAt(const PairParams& x, const Eigen::Matrix<double, 
 // of the inverse of its own 8 × 8 (line and moment) block. Mapped to
 // [x y z v h ω] at t_ref. False if the information is singular or a line
 // is at rest (heading undefined).
-bool PairCovariances(const std::vector<PairSample>& samples, const PairParams& x, const Eigen::Matrix<double, 6, 1>& m,
-                     std::vector<InitialTrack>* out) {
+bool PairCovariances(const std::vector<PairSample>& samples, const PairParams& x,
+                     const Eigen::Matrix<double, 6, 1>& m, std::vector<InitialTrack>* out) {
   const Eigen::VectorXd r = PairResidualAt(x, m, samples);
   Eigen::MatrixXd J(r.size(), 16);
   for (int j = 0; j < 10; ++j) {

@@ -240,7 +240,8 @@ struct MultiTracker::Impl {
     const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
     for (std::size_t k = 0; k < est.size(); ++k) {
       EpochEstimate e = est[k];
-      if (tr.has_pair_excess && e.has_covariance && e.t_s <= tr.pair_excess_until_s + options.track.epoch_tolerance_s) {
+      if (tr.has_pair_excess && e.has_covariance &&
+          e.t_s <= tr.pair_excess_until_s + options.track.epoch_tolerance_s) {
         const Eigen::Matrix<double, 6, 6> F =
             CoordinatedTurnJacobian(tr.pair_start_state, e.t_s - tr.pair_start_ref_s);
         e.cov_state += F * tr.pair_excess * F.transpose();
@@ -480,7 +481,8 @@ struct MultiTracker::Impl {
     const Eigen::SelfAdjointEigenSolver<StateCovariance> es(0.5 * (excess + excess.transpose()));
     // Positive semi-definite in exact arithmetic (a marginal is never
     // smaller than a conditional); rounding below zero is dropped.
-    tr.pair_excess = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() * es.eigenvectors().transpose();
+    tr.pair_excess =
+        es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() * es.eigenvectors().transpose();
     tr.has_pair_excess = tr.pair_excess.allFinite();
     tr.pair_start_state = init.state;
     tr.pair_start_ref_s = init.t_ref_s;
