@@ -8,7 +8,12 @@
 // today (that table); they are not asserted here.
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <cstdio>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "magnav/cli/scenario_file.h"
 #include "magnav/core/simulate.h"
@@ -26,11 +31,62 @@ FieldScenario HeldOutCrossing() { return HeldOut("crossing"); }
 
 // The field scores (track_metrics.h) of the window tracker (as magnav-tracker)
 // and of the batch (as `magnav track`) on a scenario, printed under `name`.
-magnav::testing::FieldScores ScoreWindow(const FieldScenario& sc, const std::string& name) {
+// The mean position NEES (eᵀP⁻¹e, 3 dof, the rows' full 3 × 3 covariance)
+// per vessel over each track's first `span_s` of rows — a pair start's rows
+// before its refit (pair_refit_s = 5 s). Each track goes to the vessel
+// nearest its first row; NaN for a vessel without rows.
+std::vector<double> EarlyNees(const SimulatedField& f, double rate_hz, const magnav::testing::TrackRows& rows,
+                              double span_s) {
+  std::map<std::uint32_t, double> first;
+  for (const auto& [id, e] : rows) {
+    if (e.usable && e.has_covariance && !first.count(id)) first[id] = e.t_s;
+  }
+  const auto truth_at = [&](std::size_t v, double t) -> const VesselTruth* {
+    const long long k = std::llround(t * rate_hz);
+    for (const auto& q : f.truth[v]) {
+      if (std::llround(q.t_s * rate_hz) == k) return &q;
+    }
+    return nullptr;
+  };
+  std::vector<double> sum(f.truth.size(), 0.0), n(f.truth.size(), 0.0);
+  for (const auto& [id, e] : rows) {
+    if (!e.usable || !e.has_covariance || e.t_s > first[id] + span_s) continue;
+    std::size_t best_v = f.truth.size();
+    double best = 5.0;
+    for (std::size_t v = 0; v < f.truth.size(); ++v) {
+      const VesselTruth* q = truth_at(v, e.t_s);
+      if (q != nullptr && (e.p_VinW - q->p_VinW).norm() <= best) {
+        best = (e.p_VinW - q->p_VinW).norm();
+        best_v = v;
+      }
+    }
+    if (best_v == f.truth.size()) continue;
+    const Eigen::Vector3d err = e.p_VinW - truth_at(best_v, e.t_s)->p_VinW;
+    const Eigen::Matrix3d P = e.cov_state.topLeftCorner<3, 3>();
+    sum[best_v] += err.dot(P.ldlt().solve(err));
+    n[best_v] += 1.0;
+  }
+  std::vector<double> out;
+  for (std::size_t v = 0; v < sum.size(); ++v) out.push_back(n[v] > 0 ? sum[v] / n[v] : std::nan(""));
+  return out;
+}
+
+// χ²(3) 0.99 quantile.
+constexpr double kChi2Dof3P99 = 11.345;
+
+magnav::testing::FieldScores ScoreWindow(const FieldScenario& sc, const std::string& name,
+                                         std::vector<double>* early_nees = nullptr) {
   const SimulatedField f = SimulateField(sc);
   MultiTracker tracker(sc.B0, MultiTrackerOptions{});
-  const auto s = magnav::testing::ScoreField(sc, f, magnav::testing::WindowRows(&tracker, f.samples));
+  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
+  const auto s = magnav::testing::ScoreField(sc, f, rows);
   magnav::testing::PrintFieldScores((name + ", window").c_str(), s);
+  if (early_nees != nullptr) {
+    *early_nees = EarlyNees(f, sc.rate_hz, rows, 5.0);
+    std::printf("%s, window: mean position NEES over each track's first 5 s:", name.c_str());
+    for (double x : *early_nees) std::printf(" %.2f", x);
+    std::printf("\n");
+  }
   return s;
 }
 magnav::testing::FieldScores ScoreBatch(const FieldScenario& sc, const std::string& name) {
@@ -79,11 +135,17 @@ TEST(HarbourScenario, BatchTracksTheHeldOutCrossing) {
 // "Abreast from when they come within reach"). This file was looked at for
 // that change (no longer blind); heldout_abreast/ is the fresh check.
 TEST(HarbourScenario, WindowStartsOneTrackPerVesselAbreast) {
-  const auto s = ScoreWindow(HeldOut("abreast"), "held-out abreast");
+  std::vector<double> early;
+  const auto s = ScoreWindow(HeldOut("abreast"), "held-out abreast", &early);
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
     EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the target; measured 0.873 / 0.873
+    // The pair start's rows before its refit: their σ covers their error
+    // (the joint fit's marginal: InitialTrack::cov_state). Mean position
+    // NEES measured 2.03 / 0.55 (70.1 / 19.8 with the σ given the partner's
+    // start, before 2026-11-26's pair-sigma change).
+    EXPECT_LE(early[v], kChi2Dof3P99) << "vessel " << v + 1;
   }
   // m, measured 0.107 / 0.0761 (0.0557 / 0.0471 with the later start, 0.238 /
   // 0.224 with the approach starts but no refit); the target is 0.3.
@@ -115,13 +177,20 @@ FieldScenario FreshAbreast(const std::string& name) {
 }
 
 TEST(HarbourScenario, WindowTracksTheFreshAbreastPair) {
-  const auto s = ScoreWindow(FreshAbreast("abreast_20"), "fresh abreast 20 m");
+  std::vector<double> early;
+  const auto s = ScoreWindow(FreshAbreast("abreast_20"), "fresh abreast 20 m", &early);
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
     EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // measured 0.889 / 0.899
     EXPECT_LE(s.rms[v], 0.3) << "vessel " << v + 1;       // m, measured 0.203 / 0.177
   }
+  // As above: measured 16.4 / 8.41 (240 / 269 with the σ given the
+  // partner's start). Vessel 1 is still above χ²(3)'s 0.99 quantile (11.3):
+  // its start is 0.5 m off, more than the fit's noise explains (not fixed;
+  // docs/ACCURACY.md). Held to its figure with the usual margin.
+  EXPECT_LE(early[0], 1.5 * 16.4);
+  EXPECT_LE(early[1], kChi2Dof3P99);
 }
 
 TEST(HarbourScenario, BatchTracksTheFreshAbreastPair) {

@@ -1,7 +1,9 @@
 #include "magnav/tracker/initialize.h"
 
 
+#include <Eigen/LU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -459,6 +461,77 @@ double FitPair(const std::vector<PairSample>& samples, PairParams* x, Eigen::Mat
   return cost;
 }
 
+// The whitened residual of the pair at line parameters x and world moments
+// m (the moments held, not projected out).
+Eigen::VectorXd PairResidualAt(const PairParams& x, const Eigen::Matrix<double, 6, 1>& m,
+                               const std::vector<PairSample>& samples) {
+  Eigen::VectorXd r(12 * samples.size());
+  Eigen::Matrix<double, 12, 6> A;
+  Eigen::Matrix<double, 12, 1> z;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    PairRows(x, samples[i], &A, &z);
+    r.segment<12>(12 * static_cast<Eigen::Index>(i)) = z - A * m;
+  }
+  return r;
+}
+
+// Each line's state covariance from the joint fit (InitialTrack::cov_state
+// and cov_state_given_partner): Gauss–Newton information JᵀJ over all 16
+// parameters [line a (x0 y0 z vx vy), line b, m_a (world), m_b] at the
+// solution, line Jacobian by forward differences, moment columns exact.
+// Marginal: the line's block of (JᵀJ)⁻¹; given the partner: the line's block
+// of the inverse of its own 8 × 8 (line and moment) block. Mapped to
+// [x y z v h ω] at t_ref. False if the information is singular or a line
+// is at rest (heading undefined).
+bool PairCovariances(const std::vector<PairSample>& samples, const PairParams& x,
+                     const Eigen::Matrix<double, 6, 1>& m, std::vector<InitialTrack>* out) {
+  const Eigen::VectorXd r = PairResidualAt(x, m, samples);
+  Eigen::MatrixXd J(r.size(), 16);
+  for (int j = 0; j < 10; ++j) {
+    PairParams xp = x;
+    const double h = (j % 5 >= 3) ? 1e-4 : 1e-3;
+    xp(j) += h;
+    J.col(j) = (PairResidualAt(xp, m, samples) - r) / h;
+  }
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    Eigen::Matrix<double, 12, 6> A;
+    Eigen::Matrix<double, 12, 1> z;
+    PairRows(x, samples[i], &A, &z);
+    J.block<12, 6>(12 * static_cast<Eigen::Index>(i), 10) = -A;
+  }
+  const Eigen::Matrix<double, 16, 16> H = J.transpose() * J;
+  const Eigen::FullPivLU<Eigen::Matrix<double, 16, 16>> lu(H);
+  if (!lu.isInvertible()) return false;
+  const Eigen::Matrix<double, 16, 16> P = lu.inverse();
+  for (int k = 0; k < 2; ++k) {
+    const int o = 5 * k, mo = 10 + 3 * k;
+    const Eigen::Vector2d v = x.segment<2>(o + 3);
+    const double speed = v.norm();
+    if (!(speed > 1e-3)) return false;
+    std::array<int, 8> own{o, o + 1, o + 2, o + 3, o + 4, mo, mo + 1, mo + 2};
+    Eigen::Matrix<double, 8, 8> Hk;
+    for (int a = 0; a < 8; ++a) {
+      for (int b = 0; b < 8; ++b) Hk(a, b) = H(own[a], own[b]);
+    }
+    const Eigen::FullPivLU<Eigen::Matrix<double, 8, 8>> luk(Hk);
+    if (!luk.isInvertible()) return false;
+    const Eigen::Matrix<double, 5, 5> given = luk.inverse().topLeftCorner<5, 5>();
+    const Eigen::Matrix<double, 5, 5> marginal = P.block<5, 5>(o, o);
+    // [x y z v h ω] from [x0 y0 z vx vy].
+    Eigen::Matrix<double, 6, 5> G = Eigen::Matrix<double, 6, 5>::Zero();
+    G.topLeftCorner<3, 3>().setIdentity();
+    G(3, 3) = v.x() / speed;
+    G(3, 4) = v.y() / speed;
+    G(4, 3) = -v.y() / (speed * speed);
+    G(4, 4) = v.x() / (speed * speed);
+    InitialTrack& init = (*out)[static_cast<std::size_t>(k)];
+    init.cov_state = G * marginal * G.transpose();
+    init.cov_state_given_partner = G * given * G.transpose();
+    init.has_pair_covariance = init.cov_state.allFinite() && init.cov_state_given_partner.allFinite();
+  }
+  return true;
+}
+
 // The pair fit's two tracks if it passes InitializePair's gates (misfit,
 // separation, each dipole strong on its own); empty otherwise.
 std::vector<InitialTrack> PairTracks(const std::vector<PairSample>& samples, double signal, double cost,
@@ -490,6 +563,9 @@ std::vector<InitialTrack> PairTracks(const std::vector<PairSample>& samples, dou
     const double heading = std::atan2(q(4), q(3));
     init.state = CtState<double>{q(0), q(1), q(2), std::hypot(q(3), q(4)), heading, 0.0};
     init.m_B_Am2 = HeadingRotation(heading).transpose() * best_m.segment<3>(3 * k);
+  }
+  if (!PairCovariances(samples, best_x, best_m, &out)) {
+    for (InitialTrack& init : out) init.has_pair_covariance = false;
   }
   return out;
 }

@@ -119,6 +119,17 @@ struct Track {
   double pair_start_t_s = 0.0;
   // The pair's key, kept after the refit (TrackRecord::partner_id).
   std::uint64_t started_with = 0;
+  // A pair start's rows until its refit (or window_s after the start without
+  // one): the engine solves this track on the samples minus the partner's
+  // field, so its covariance is conditional on the partner's start; what the
+  // partner's uncertainty adds (InitialTrack::cov_state −
+  // cov_state_given_partner, at the start's state `pair_start_state`,
+  // propagated along it) is added to the rows' covariance.
+  bool has_pair_excess = false;
+  CtState<double> pair_start_state{};
+  double pair_start_ref_s = 0.0;
+  StateCovariance pair_excess = StateCovariance::Zero();
+  double pair_excess_until_s = 0.0;
 };
 
 double HorizontalSigma(const EpochEstimate& e) {
@@ -234,7 +245,13 @@ struct MultiTracker::Impl {
     const Eigen::Vector3d m = tr.engine->m_B_Am2();
     const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
     for (std::size_t k = 0; k < est.size(); ++k) {
-      const EpochEstimate& e = est[k];
+      EpochEstimate e = est[k];
+      if (tr.has_pair_excess && e.has_covariance &&
+          e.t_s <= tr.pair_excess_until_s + options.track.epoch_tolerance_s) {
+        const Eigen::Matrix<double, 6, 6> F =
+            CoordinatedTurnJacobian(tr.pair_start_state, e.t_s - tr.pair_start_ref_s);
+        e.cov_state += F * tr.pair_excess * F.transpose();
+      }
       out->push_back({tr.id, e, states[k], m, Pm});
       r.t_end_s = e.t_s;
       ++r.num_estimates;
@@ -475,10 +492,28 @@ struct MultiTracker::Impl {
           tracks[k].started_with = key;
           tracks[k].pair_start_t_s = t;
           tracks[k].refit_t_s = t + mg().pair_refit_s;
+          SetPairExcess(tracks[k], pair[k + 2 - tracks.size()]);
+          // Until the refit, or until its deadline (RefitPairs).
+          tracks[k].pair_excess_until_s =
+              t + (mg().pair_refit_s > 0.0 ? mg().pair_refit_s : 0.0) + options.track.window_s;
           if (!(mg().pair_refit_s > 0.0)) tracks[k].pair = 0;
         }
       }
     }
+  }
+
+  // A pair start's covariance excess (Track::pair_excess) from its start.
+  static void SetPairExcess(Track& tr, const InitialTrack& init) {
+    if (!init.has_pair_covariance) return;
+    const StateCovariance excess = init.cov_state - init.cov_state_given_partner;
+    const Eigen::SelfAdjointEigenSolver<StateCovariance> es(0.5 * (excess + excess.transpose()));
+    // Positive semi-definite in exact arithmetic (a marginal is never
+    // smaller than a conditional); rounding below zero is dropped.
+    tr.pair_excess =
+        es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() * es.eigenvectors().transpose();
+    tr.has_pair_excess = tr.pair_excess.allFinite();
+    tr.pair_start_state = init.state;
+    tr.pair_start_ref_s = init.t_ref_s;
   }
 
   // The recent epochs with the fields of every live track but `keep_a` and
@@ -534,6 +569,9 @@ struct MultiTracker::Impl {
       if (refit.size() != 2) continue;
       Restart(a, refit[0], refit[1], epochs, out);
       Restart(b, refit[1], refit[0], epochs, out);
+      // The refitted engines' rows: the start's excess no longer applies.
+      a.pair_excess_until_s = std::min(a.pair_excess_until_s, t);
+      b.pair_excess_until_s = std::min(b.pair_excess_until_s, t);
       a.pair = b.pair = 0;
     }
   }
@@ -857,6 +895,11 @@ std::string MultiTracker::SaveState() const {
     w.F64(tr.refit_t_s);
     w.F64(tr.pair_start_t_s);
     w.U64(tr.started_with);
+    w.U8(tr.has_pair_excess ? 1 : 0);
+    PutState(w, tr.pair_start_state);
+    w.F64(tr.pair_start_ref_s);
+    w.Matrix(tr.pair_excess);
+    w.F64(tr.pair_excess_until_s);
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -941,6 +984,11 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.refit_t_s = r.F64();
     tr.pair_start_t_s = r.F64();
     tr.started_with = r.U64();
+    tr.has_pair_excess = r.U8() != 0;
+    tr.pair_start_state = GetState(r);
+    tr.pair_start_ref_s = r.F64();
+    tr.pair_excess = internal::GetMatrix(r, 6, 6);
+    tr.pair_excess_until_s = r.F64();
     m.tracks.push_back(std::move(tr));
   }
   m.records.resize(r.Count(internal::kMaxStateCount));

@@ -38,6 +38,19 @@ struct InitialTrack {
   Eigen::Vector3d m_B_Am2 = Eigen::Vector3d::Zero();
   std::vector<DipoleFix> fixes;  // inliers used
   bool from_external_fixes = false;  // fixes handed in, not the tracker's own
+  // Pair starts only (InitializePair, RefitPair): the covariance of `state`
+  // (order [x y z v h ω], m, m/s, rad; ω's row and column 0: the line has no
+  // turn) from the joint two-dipole fit at its solution (Gauss–Newton
+  // information of the whitened samples, so σ_B, σ_T as the samples'):
+  // `cov_state` with the partner's line and moment marginalised (what this
+  // track's start is known to), `cov_state_given_partner` with them held
+  // at the fit's values (what a track started on the samples minus the
+  // partner's field would claim). Both with this track's own moment
+  // marginalised. The difference is what the two fields' overlap at the
+  // shared sensors costs.
+  bool has_pair_covariance = false;
+  StateCovariance cov_state = StateCovariance::Zero();
+  StateCovariance cov_state_given_partner = StateCovariance::Zero();
 };
 
 // The tracker's own fix of one sample (taken at t_s): TED+EGT as
