@@ -209,11 +209,9 @@ BENCHMARK(BM_PointQuery)->Unit(benchmark::kMicrosecond);
 // in steady state: the filter first runs the reference path's first 75 points
 // (converged), then the timed steps cycle over points 75..149 (the wrap is one
 // INS jump per 75 steps). PF: 3000 particles (Arg); AFPF: at its adaptive
-// count (3000 once converged, the `particles` counter).
-void FilterStep(benchmark::State& state, ParticleFilterKind kind) {
-  ParticleFilterOptions o;
-  o.num_particles = static_cast<int>(state.range(0));
-  o.max_particles = std::max(o.max_particles, o.num_particles);
+// count (3000 once converged, the `particles` counter). TimeSteps is that
+// timed part, shared by the filter benchmarks below.
+void TimeSteps(benchmark::State& state, ParticleFilterKind kind, const ParticleFilterOptions& o) {
   const MatchPath& p = CrustalPath();
   auto f = MakeParticleFilter(kind, Crustal(), 0, o);
   std::size_t k = 0;
@@ -227,6 +225,12 @@ void FilterStep(benchmark::State& state, ParticleFilterKind kind) {
   }
   state.counters["particles"] = particles / steps;
 }
+void FilterStep(benchmark::State& state, ParticleFilterKind kind) {
+  ParticleFilterOptions o;
+  o.num_particles = static_cast<int>(state.range(0));
+  o.max_particles = std::max(o.max_particles, o.num_particles);
+  TimeSteps(state, kind, o);
+}
 void BM_PfStep(benchmark::State& state) { FilterStep(state, ParticleFilterKind::kPf); }
 BENCHMARK(BM_PfStep)->Arg(3000)->Unit(benchmark::kMicrosecond);
 void BM_AfpfStep(benchmark::State& state) { FilterStep(state, ParticleFilterKind::kAfpf); }
@@ -238,18 +242,7 @@ void SubCloudStep(benchmark::State& state, ParticleFilterKind kind) {
   ParticleFilterOptions o;
   o.subclouds = static_cast<int>(state.range(0));
   o.subcloud_reseed_nats = 10.0;
-  const MatchPath& p = CrustalPath();
-  auto f = MakeParticleFilter(kind, Crustal(), 0, o);
-  std::size_t k = 0;
-  for (; k < 75; ++k) f->Step(p.lat_deg[k], p.lon_deg[k], p.measured_nT[k]);
-  double particles = 0.0, steps = 0.0;
-  for (auto _ : state) {
-    const StepDiagnostics& d = f->Step(p.lat_deg[k], p.lon_deg[k], p.measured_nT[k]);
-    particles += d.particles;
-    steps += 1.0;
-    if (++k == p.size()) k = 75;
-  }
-  state.counters["particles"] = particles / steps;
+  TimeSteps(state, kind, o);
 }
 void BM_PfStepSubClouds(benchmark::State& state) { SubCloudStep(state, ParticleFilterKind::kPf); }
 BENCHMARK(BM_PfStepSubClouds)->Arg(1)->Arg(3)->Unit(benchmark::kMicrosecond);

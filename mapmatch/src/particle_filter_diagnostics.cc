@@ -40,17 +40,21 @@ void Filter::Estimate(StepDiagnostics* d) {
   d->cov_lat_lon = cln;
   d->cov_lon_lon = cnn;
   d->unique_particles = unique_;
-  // Occupied map cells (cells outside the map counted too).
-  cells_.resize(p_.size());
-  const double la0 = grid_.lat().first_deg, lo0 = grid_.lon().first_deg;
-  const double ila = 1.0 / grid_.lat().step_deg, ilo = 1.0 / grid_.lon().step_deg;
-  for (std::size_t i = 0; i < p_.size(); ++i) {
-    const auto a = static_cast<long long>(std::floor((p_[i].lat_deg - la0) * ila));
-    const auto b = static_cast<long long>(std::floor((p_[i].lon_deg - lo0) * ilo));
-    cells_[i] = a * 1000003LL + b;
+  d->occupied_cells = OccupiedCells(grid_, p_, &cells_);
+}
+
+int OccupiedCells(const GeoGrid& grid, const std::vector<Particle>& particles, std::vector<long long>* scratch) {
+  std::vector<long long>& cells = *scratch;
+  cells.resize(particles.size());
+  const double la0 = grid.lat().first_deg, lo0 = grid.lon().first_deg;
+  const double ila = 1.0 / grid.lat().step_deg, ilo = 1.0 / grid.lon().step_deg;
+  for (std::size_t i = 0; i < particles.size(); ++i) {
+    const auto a = static_cast<long long>(std::floor((particles[i].lat_deg - la0) * ila));
+    const auto b = static_cast<long long>(std::floor((particles[i].lon_deg - lo0) * ilo));
+    cells[i] = a * 1000003LL + b;
   }
-  std::sort(cells_.begin(), cells_.end());
-  d->occupied_cells = static_cast<int>(std::unique(cells_.begin(), cells_.end()) - cells_.begin());
+  std::sort(cells.begin(), cells.end());
+  return static_cast<int>(std::unique(cells.begin(), cells.end()) - cells.begin());
 }
 
 double Filter::Ess() const {

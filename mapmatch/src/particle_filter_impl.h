@@ -121,6 +121,10 @@ class Filter final : public SequentialMatcher {
   StepDiagnostics last_;
 };
 
+// How many map cells the particles occupy (cells outside the map counted too); `scratch` is reused storage.
+// particle_filter_diagnostics.cc.
+int OccupiedCells(const GeoGrid& grid, const std::vector<Particle>& particles, std::vector<long long>* scratch);
+
 // particle_filter_subclouds.cc: K = options.subclouds independent filters pooled (particle_filter.h).
 std::unique_ptr<SequentialMatcher> MakeSubClouds(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
                                                  const ParticleFilterOptions& options);

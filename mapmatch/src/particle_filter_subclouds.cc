@@ -194,16 +194,7 @@ void SubClouds::Pool(StepDiagnostics* d) {
   }
   d->particles = static_cast<int>(pooled_.size());
   // Occupied map cells of the pooled cloud (as Filter::Estimate counts them).
-  cells_.resize(pooled_.size());
-  const double la0 = grid_.lat().first_deg, lo0 = grid_.lon().first_deg;
-  const double ila = 1.0 / grid_.lat().step_deg, ilo = 1.0 / grid_.lon().step_deg;
-  for (std::size_t i = 0; i < pooled_.size(); ++i) {
-    const auto a = static_cast<long long>(std::floor((pooled_[i].lat_deg - la0) * ila));
-    const auto b = static_cast<long long>(std::floor((pooled_[i].lon_deg - lo0) * ilo));
-    cells_[i] = a * 1000003LL + b;
-  }
-  std::sort(cells_.begin(), cells_.end());
-  d->occupied_cells = static_cast<int>(std::unique(cells_.begin(), cells_.end()) - cells_.begin());
+  d->occupied_cells = OccupiedCells(grid_, pooled_, &cells_);
 }
 
 }  // namespace

@@ -278,6 +278,42 @@ TEST(TrackerCheckpoint, ServicePassRestoredGoesOnBitForBit) {
     if (HasFailure()) break;
   }
 }
+// Runs `whole_run` over the first 70 s of `f`, saves it at the
+// first new epoch after 50 s, restores the payload into a fresh tracker
+// (`*restored`) and runs it over the rest: its estimates must be those of the
+// tracker that was never stopped, bit for bit. Returns the time of the last
+// sample (both trackers are there).
+double SaveAtFiftySecondsAndRestore(const SimulatedField& f, MultiTracker* whole_run, MultiTracker* restored) {
+  std::vector<TrackOutput> whole;
+  std::string payload;
+  std::size_t cut = 0, before = 0, end = 0;
+  const double t0 = f.samples.front().t_s;
+  for (std::size_t i = 0; i < f.samples.size() && f.samples[i].t_s < t0 + 70.0; ++i) {
+    if (payload.empty() && f.samples[i].t_s > t0 + 50.0 && f.samples[i].t_s != f.samples[i - 1].t_s) {
+      payload = whole_run->SaveState();
+      cut = i;
+      before = whole.size();
+    }
+    for (auto& o : whole_run->AddSample(f.samples[i])) whole.push_back(o);
+    end = i + 1;
+  }
+  EXPECT_FALSE(payload.empty());
+  EXPECT_GT(whole_run->num_live_tracks(), 0);
+  restored->RestoreState(payload);
+  std::vector<TrackOutput> after;
+  for (std::size_t i = cut; i < end; ++i) {
+    for (auto& o : restored->AddSample(f.samples[i])) after.push_back(o);
+  }
+  EXPECT_EQ(after.size(), whole.size() - before);
+  EXPECT_GT(after.size(), 0u);
+  for (std::size_t k = 0; k < after.size() && before + k < whole.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after[k], whole[before + k]);
+    if (::testing::Test::HasFailure()) break;
+  }
+  return f.samples[end - 1].t_s;
+}
+
 // With the cluster background on (cluster_background.h), its raw span and
 // offsets are in the checkpoint and the restored windows take the offsets
 // again: restored, the tracker gives the same estimates, bit for bit.
@@ -286,38 +322,11 @@ TEST(TrackerCheckpoint, ClusterBackgroundIsInTheCheckpoint) {
   const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions options;
   options.cluster_background.enabled = true;
-  MultiTracker a(sc.B0, options);
-  std::vector<TrackOutput> whole;
-  std::string payload;
-  std::size_t cut = 0, before = 0, end = 0;
-  const double t0 = f.samples.front().t_s;
-  for (std::size_t i = 0; i < f.samples.size() && f.samples[i].t_s < t0 + 70.0; ++i) {
-    if (payload.empty() && f.samples[i].t_s > t0 + 50.0 && f.samples[i].t_s != f.samples[i - 1].t_s) {
-      payload = a.SaveState();
-      cut = i;
-      before = whole.size();
-    }
-    for (auto& o : a.AddSample(f.samples[i])) whole.push_back(o);
-    end = i + 1;
-  }
-  ASSERT_FALSE(payload.empty());
-  ASSERT_GT(a.num_live_tracks(), 0);
-  MultiTracker b(sc.B0, options);
-  b.RestoreState(payload);
-  std::vector<TrackOutput> after;
-  for (std::size_t i = cut; i < end; ++i) {
-    for (auto& o : b.AddSample(f.samples[i])) after.push_back(o);
-  }
-  ASSERT_EQ(after.size(), whole.size() - before);
-  ASSERT_GT(after.size(), 0u);
-  for (std::size_t k = 0; k < after.size(); ++k) {
-    SCOPED_TRACE(k);
-    ExpectSame(after[k], whole[before + k]);
-    if (HasFailure()) break;
-  }
+  MultiTracker a(sc.B0, options), b(sc.B0, options);
+  SaveAtFiftySecondsAndRestore(f, &a, &b);
   // Made without it: refused (other options).
   MultiTracker c(sc.B0, MultiTrackerOptions{});
-  EXPECT_THROW(c.RestoreState(payload), CheckpointError);
+  EXPECT_THROW(c.RestoreState(a.SaveState()), CheckpointError);
 }
 
 // With the per-sensor background on (background.h), its filters are in the
@@ -328,34 +337,8 @@ TEST(TrackerCheckpoint, BackgroundIsInTheCheckpoint) {
   const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions options;
   options.background.enabled = true;
-  MultiTracker a(sc.B0, options);
-  std::vector<TrackOutput> whole;
-  std::string payload;
-  std::size_t cut = 0, before = 0, end = 0;
-  const double t0 = f.samples.front().t_s;
-  for (std::size_t i = 0; i < f.samples.size() && f.samples[i].t_s < t0 + 70.0; ++i) {
-    if (payload.empty() && f.samples[i].t_s > t0 + 50.0 && f.samples[i].t_s != f.samples[i - 1].t_s) {
-      payload = a.SaveState();
-      cut = i;
-      before = whole.size();
-    }
-    for (auto& o : a.AddSample(f.samples[i])) whole.push_back(o);
-    end = i + 1;
-  }
-  ASSERT_FALSE(payload.empty());
-  MultiTracker b(sc.B0, options);
-  b.RestoreState(payload);
-  std::vector<TrackOutput> after;
-  for (std::size_t i = cut; i < end; ++i) {
-    for (auto& o : b.AddSample(f.samples[i])) after.push_back(o);
-  }
-  ASSERT_EQ(after.size(), whole.size() - before);
-  for (std::size_t k = 0; k < after.size(); ++k) {
-    SCOPED_TRACE(k);
-    ExpectSame(after[k], whole[before + k]);
-    if (HasFailure()) break;
-  }
-  const double t = f.samples[end - 1].t_s;
+  MultiTracker a(sc.B0, options), b(sc.B0, options);
+  const double t = SaveAtFiftySecondsAndRestore(f, &a, &b);
   for (std::uint32_t id = 0; id < sc.sensors.size(); ++id) {
     const BackgroundEstimate x = a.Background(id, t), y = b.Background(id, t);
     EXPECT_TRUE((x.B_W.array() == y.B_W.array()).all()) << id;

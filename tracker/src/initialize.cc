@@ -380,6 +380,15 @@ struct PairSample {
   double sb = 1.0, st = 1.0;
 };
 
+// The samples' whitened energy, Σ ‖ΔB‖²/σ_B² + ‖T‖²/σ_T²: what a fit's misfit is relative to.
+double PairSignal(const std::vector<PairSample>& samples) {
+  double signal = 0.0;
+  for (const PairSample& s : samples) {
+    signal += s.dB.squaredNorm() / (s.sb * s.sb) + s.T.squaredNorm() / (s.st * s.st);
+  }
+  return signal;
+}
+
 Eigen::Vector3d PairPosition(const PairParams& x, int k, double dt) {
   const int o = 5 * k;
   return {x(o) + x(o + 3) * dt, x(o + 1) + x(o + 4) * dt, x(o + 2)};
@@ -631,10 +640,7 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
     }
   }
   if (static_cast<int>(samples.size()) < io.min_fixes || t_max - t_min < io.min_span_s) return {};
-  double signal = 0.0;
-  for (const PairSample& s : samples) {
-    signal += s.dB.squaredNorm() / (s.sb * s.sb) + s.T.squaredNorm() / (s.st * s.st);
-  }
+  const double signal = PairSignal(samples);
   // Starts: the ghost line split sideways by 4, 8, 12 and 16 m. On the
   // approach, where essentially one sensor sees the pair, the ghost line's
   // velocity and depth are themselves wrong (on held-out abreast it ran
@@ -713,10 +719,7 @@ std::vector<InitialTrack> RefitPair(const std::vector<Epoch>& epochs, const Eige
     }
   }
   if (static_cast<int>(samples.size()) < io.min_fixes || t_max - t_min < io.min_span_s) return {};
-  double signal = 0.0;
-  for (const PairSample& s : samples) {
-    signal += s.dB.squaredNorm() / (s.sb * s.sb) + s.T.squaredNorm() / (s.st * s.st);
-  }
+  const double signal = PairSignal(samples);
   Eigen::Matrix<double, 6, 1> m;
   const double cost = FitPair(samples, &x, &m);
   return PairTracks(samples, signal, cost, x, m, t_ref, t_min, t_max, options, min_separation_m);
