@@ -4,7 +4,8 @@
 # a pass and stops; it is started again with no data coming; a recorder started
 # after that gets the last 10 estimates of the first process, equal to what that
 # process published. Without the durable profile the same recorder gets none
-# (TRANSIENT_LOCAL history dies with its process). Loopback only.
+# (TRANSIENT_LOCAL history dies with its process). The live recording's
+# `state` column says confirmed or coasting on every row. Loopback only.
 # Usage: durable_test.sh BIN_DIR SOURCE_DIR
 set -euo pipefail
 BIN=$1 SRC=$2
@@ -49,6 +50,19 @@ echo "durable: the first process published $(tcol "$WORK/live.csv" | wc -l) esti
 [ -n "$want" ] && [ "$got" = "$want" ] || { echo "FAIL: expected the last 10 estimates, t = $want"; cat "$WORK"/*.log | tail -20; exit 1; }
 cmp -s <(grep -v '^#' "$WORK/live.csv" | tail -10 | sort) <(grep -v '^#' "$WORK/late.csv" | tail -n +2 | sort) \
   || { echo "FAIL: the late estimates differ from those published"; exit 1; }
+
+# The recorder's `state` column (TrackEstimate.state, magnav track's words):
+# every live estimate says confirmed or coasting, both occur (the track coasts
+# on its misses before it ends), and the words are the ones of the wire.
+states=$(awk -F, '/^#/ { next } !h { for (i = 1; i <= NF; ++i) if ($i == "state") c = i; h = 1; next }
+                  { print (c ? $c : "no-column") }' "$WORK/live.csv" | sort | uniq -c | tr -s ' ' | tr '\n' ';')
+echo "recorded states: $states"
+grep -q "no-column" <<<"$states" && { echo "FAIL: the recorded track CSV has no state column"; exit 1; }
+[ -z "$(awk -F, '/^#/ { next } !h { for (i = 1; i <= NF; ++i) if ($i == "state") c = i; h = 1; next }
+               $c != "confirmed" && $c != "coasting" { print NR ": " $c }' "$WORK/live.csv")" ] ||
+  { echo "FAIL: a recorded estimate whose state is neither confirmed nor coasting: $states"; exit 1; }
+grep -q " confirmed" <<<"$states" && grep -q " coasting" <<<"$states" ||
+  { echo "FAIL: expected both confirmed and coasting estimates: $states"; exit 1; }
 
 run
 n=$(tcol "$WORK/late.csv" | wc -l)
