@@ -29,31 +29,16 @@
 #include "magnav/core/csv.h"
 #include "magnav/mapmatch/particle_filter.h"
 #include "subprocess.h"
+#include "crustal_path_run.h"
 #include "test_data.h"
 
 namespace magnav::mapmatch {
 namespace {
 
-const GeoGrid& Map() {
-  static const GeoGrid g = ReadGeoGridCsv(testing::ReferencePath("map_crustal_anomaly.csv"), {"anomaly_nT"});
-  return g;
-}
-
-struct PathRun {
-  MatchPath path;
-  std::vector<double> true_lat, true_lon;
-};
-
-PathRun Load(const std::string& file) {
-  PathRun r;
-  r.path = ReadMatchPath(file, "meas_nT");
-  const CsvTable t = CsvTable::Read(file);
-  for (std::size_t i = 0; i < t.num_rows(); ++i) {
-    r.true_lat.push_back(t.number(i, t.column("true_lat")));
-    r.true_lon.push_back(t.number(i, t.column("true_lon")));
-  }
-  return r;
-}
+using testing_paths::LoadPathRun;
+using testing_paths::PathRun;
+const GeoGrid& Map() { return testing_paths::CrustalMap(); }
+PathRun Load(const std::string& file) { return LoadPathRun(file); }
 
 // Generated path `number` (scripts/heldout_mappaths: seed = path number, 0.01° offset).
 PathRun Generated(int number, const std::string& noise, const std::string& tag) {
