@@ -40,6 +40,8 @@ const char* UpdateName(mapmatch::StepUpdate u) {
       return "all_off_map";
     case mapmatch::StepUpdate::kOutlier:
       return "outlier";
+    case mapmatch::StepUpdate::kSpaced:
+      return "spaced";
   }
   return "?";
 }

@@ -12,6 +12,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
 #include "magnav/core/option_check.h"
+#include "magnav/mapmatch/fix_schedule.h"
 #include "particle_filter_impl.h"
 
 namespace magnav::mapmatch {
@@ -20,11 +21,20 @@ const char* ParticleFilterKindName(ParticleFilterKind kind) {
   return kind == ParticleFilterKind::kPf ? "pf" : "afpf";
 }
 
+double DriftSigmaPerStep(const ParticleFilterOptions& o, double mean_step_m) {
+  if (!(o.drift_step_m > 0.0) || !(mean_step_m >= 0.0) || mean_step_m >= o.drift_step_m) return o.drift_sigma_deg;
+  return o.drift_sigma_deg * std::sqrt(std::max(mean_step_m, 1.0) / o.drift_step_m);
+}
+
 bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (num_particles < 1) return Fail(error, "num_particles must be >= 1");
   if (!PositiveFinite(measurement_sigma_nT)) return Fail(error, "measurement_sigma_nT must be finite and > 0");
   if (!(std::isfinite(drift_sigma_deg) && drift_sigma_deg >= 0.0)) {
     return Fail(error, "drift_sigma_deg must be finite and >= 0");
+  }
+  if (!(std::isfinite(drift_step_m) && drift_step_m >= 0.0)) return Fail(error, "drift_step_m must be finite and >= 0");
+  if (!(std::isfinite(min_update_spacing_m) && min_update_spacing_m >= 0.0)) {
+    return Fail(error, "min_update_spacing_m must be finite and >= 0");
   }
   if (!PositiveFinite(prior_half_width_deg)) return Fail(error, "prior_half_width_deg must be finite and > 0");
   if (!(resample_ess_fraction >= 0.0 && resample_ess_fraction <= 1.0)) {
@@ -104,10 +114,19 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
     prev_lat_ = ins_lat;
     prev_lon_ = ins_lon;
     initialised_ = true;
+    Update(measured_nT, &d);
   } else {
     d.ins_jump = Predict(ins_lat, ins_lon);
+    if (o_.min_update_spacing_m > 0.0 && std::isfinite(measured_nT) && std::isfinite(ins_lat) &&
+        std::isfinite(ins_lon) &&
+        std::hypot((ins_lat - update_lat_) * MetresPerDegreeLat(ins_lat),
+                   (ins_lon - update_lon_) * MetresPerDegreeLon(ins_lat)) < o_.min_update_spacing_m) {
+      SkipUpdate(StepUpdate::kSpaced, &d);
+      ++counters_.spaced;
+    } else {
+      Update(measured_nT, &d);
+    }
   }
-  Update(measured_nT, &d);
   Estimate(&d);
   if (o_.track_check_window > 0) CheckTrack(ins_lat, ins_lon, measured_nT, &d);
   if (kind_ == ParticleFilterKind::kAfpf) AdaptCount(d);
@@ -180,8 +199,12 @@ bool Filter::Predict(double lat, double lon) {
   if (jump) {
     dlat = dlon = 0.0;
     ++counters_.ins_jumps;
+  } else {  // the INS step's length (m): its running mean gives the drift per step
+    const double step_m = std::hypot(dlat * MetresPerDegreeLat(prev_lat_), dlon * MetresPerDegreeLon(prev_lat_));
+    mean_step_m_ = mean_step_m_ < 0.0 ? step_m : mean_step_m_ + kStepMeanGain * (step_m - mean_step_m_);
   }
-  std::normal_distribution<double> n(0.0, o_.drift_sigma_deg);
+  drift_sd_deg_ = DriftSigmaPerStep(o_, mean_step_m_);
+  std::normal_distribution<double> n(0.0, drift_sd_deg_);
   for (Particle& q : p_) {
     q.lat_deg += dlat + n(rng_);
     q.lon_deg += dlon + n(rng_);
@@ -207,16 +230,24 @@ void Filter::Normalise() {
   }
 }
 
+// A step without a reading: the weights as they are.
+void Filter::SkipUpdate(StepUpdate why, StepDiagnostics* d) {
+  bias_failed_ = false;
+  unique_ = static_cast<int>(p_.size());
+  d->update = why;
+  d->ess = Ess();
+  d->lost = Lost();
+}
+
 void Filter::Update(double z, StepDiagnostics* d) {
   bias_failed_ = false;
   unique_ = static_cast<int>(p_.size());
   if (!std::isfinite(z)) {
-    d->update = StepUpdate::kBadMeasurement;
+    SkipUpdate(StepUpdate::kBadMeasurement, d);
     ++counters_.bad_measurements;
-    d->ess = Ess();
-    d->lost = Lost();
     return;
   }
+  update_lat_ = prev_lat_, update_lon_ = prev_lon_;  // the next reading used is this far away (min_update_spacing_m)
   const std::size_t n = p_.size();
   loglik_.resize(n);
   bool any_on = false;

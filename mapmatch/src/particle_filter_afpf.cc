@@ -26,8 +26,8 @@ void Filter::Fission(double z) {
     }
   }
   std::normal_distribution<double> unit(0.0, 1.0);
-  const double penalty = o_.fission_motion_penalty && o_.drift_sigma_deg > 0.0
-                             ? 0.5 / (o_.drift_sigma_deg * o_.drift_sigma_deg)
+  const double penalty = o_.fission_motion_penalty && drift_sd_deg_ > 0.0
+                             ? 0.5 / (drift_sd_deg_ * drift_sd_deg_)
                              : 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const double wi = p_[i].weight;

@@ -42,6 +42,7 @@ class Filter final : public SequentialMatcher {
     inv_two_var_ = 1.0 / (2.0 * o.measurement_sigma_nT * o.measurement_sigma_nT);
     off_map_loglik_ = -0.5 * o.off_map_sigmas * o.off_map_sigmas;
     adaptive_ = kind == ParticleFilterKind::kPf ? o.adaptive_sigma : o.afpf_sigma_factor > 0.0;
+    drift_sd_deg_ = o.drift_sigma_deg;
   }
 
 
@@ -61,6 +62,7 @@ class Filter final : public SequentialMatcher {
   bool Predict(double lat, double lon);
   void Normalise();
   void Update(double z, StepDiagnostics* d);
+  void SkipUpdate(StepUpdate why, StepDiagnostics* d);
 
   // particle_filter_likelihood.cc: the measurement model.
   double LogLik(double lat, double lon, double z, double bias_var, bool* on_map, double* residual = nullptr) const;
@@ -98,6 +100,12 @@ class Filter final : public SequentialMatcher {
   bool initialised_ = false;
   int consecutive_outliers_ = 0;  // readings skipped in a row by the outlier gate
   double prev_lat_ = 0.0, prev_lon_ = 0.0;
+  // The INS steps' running mean length (m; exponential, gain kStepMeanGain ≈ 20 steps; < 0 before the
+  // first step) and the drift per step it gives (DriftSigmaPerStep).
+  static constexpr double kStepMeanGain = 0.05;
+  double mean_step_m_ = -1.0;
+  double drift_sd_deg_ = 0.0;
+  double update_lat_ = 0.0, update_lon_ = 0.0;  // INS position of the last reading used (min_update_spacing_m)
   std::vector<Particle> p_;
   std::vector<double> logw_, loglik_;
   std::vector<double> resid_;  // estimate_bias: each particle's residual z − b − m(x) (NaN off the map)

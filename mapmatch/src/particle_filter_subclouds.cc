@@ -108,6 +108,7 @@ const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double me
   const FilterCounters& c0 = subs_.front()->counters();
   counters_.steps = c0.steps, counters_.updates = c0.updates, counters_.bad_measurements = c0.bad_measurements;
   counters_.all_off_map = c0.all_off_map, counters_.ins_jumps = c0.ins_jumps, counters_.outliers = c0.outliers;
+  counters_.spaced = c0.spaced;
   counters_.resamples = counters_.reinitialisations = counters_.tempered_updates = 0;
   counters_.track_check_failures = counters_.bias_test_failures = 0;
   for (const auto& f : subs_) {

@@ -30,7 +30,14 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "afpf: likelihood sigma = this x the innovations' sigma (last --sigma-window updates), in "
       "[--sigma, --afpf-max-sigma]; 0 = fixed at --sigma");
   opt("--afpf-max-sigma", &f->afpf_max_sigma_nT, "afpf: largest (and starting) adaptive likelihood sigma, nT");
-  opt("--drift-sigma", &f->drift_sigma_deg, "pf, afpf: INS drift noise per step and axis, deg");
+  opt("--drift-sigma", &f->drift_sigma_deg,
+      "pf, afpf: INS drift noise per step and axis, deg, for steps of at least --drift-step");
+  opt("--min-update-spacing", &f->min_update_spacing_m,
+      "pf, afpf: use a reading only once the INS has moved this far (m) since the last one used (readings a few "
+      "metres apart repeat one another on a map of ~100 m cells); 0 = every reading");
+  opt("--drift-step", &f->drift_step_m,
+      "pf, afpf: while the INS steps are shorter than this on average (m), the drift per step is "
+      "--drift-sigma x sqrt(mean step / this), a random walk in distance; 0 = --drift-sigma per step whatever its length");
   opt("--prior-half-width", &f->prior_half_width_deg,
       "pf, afpf: uniform prior square around the first INS point (clipped to the map), deg");
   opt("--resample-ess", &f->resample_ess_fraction, "pf: resample when ESS < this fraction of N");

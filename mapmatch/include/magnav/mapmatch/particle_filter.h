@@ -174,6 +174,32 @@ struct ParticleFilterOptions {
   // Drift noise per step, per axis (deg). Default: the reference paths'
   // INS drift (a U(±0.0005°) step per axis, σ = 0.00029°), README §4b.
   double drift_sigma_deg = 0.0003;
+  // The step length (m) drift_sigma_deg is for, at least. An INS drifts with
+  // the distance it travels, not with how often it reports: while the INS
+  // steps are shorter than this on average, the drift per step is
+  // drift_sigma_deg · √(L̄ / drift_step_m), a random walk in distance, with L̄
+  // the INS steps' running mean length (m; exponential, 20 steps; at least
+  // 1 m, so a vessel at rest keeps some spread); longer steps keep
+  // drift_sigma_deg. Default 50 m: the reference paths' steps are 45–154 m
+  // (L̄ never below 80 m), so they are unchanged; a vessel reporting every
+  // 2 m gets 0.14 × drift_sigma_deg. Without it the soak's 2 m path
+  // (bench/soak.sh) put the AFPF 9 km off with σ 60 m (docs/ACCURACY.md,
+  // "Dense readings"). 0 = drift_sigma_deg per step whatever its length.
+  double drift_step_m = 50.0;
+  // A reading is used only once the INS position is at least this far (m,
+  // straight line) from where the last reading used was taken; the readings
+  // in between are left out
+  // (StepUpdate::kSpaced, counted in FilterCounters::spaced) while the
+  // particles still move with every INS step. Readings a few metres apart
+  // on a map of ~100 m cells repeat one another: updating at each of them
+  // sharpens the weights on the reading's iso-line long before the track
+  // has shown where along it, and the cloud collapses on a wrong place (the
+  // soak's 2 m path: the AFPF 9 km off with σ 60 m even with the drift per
+  // distance; decimated to ~25–50 m it tracks, 70–250 m against the INS's
+  // 1.1 km). Default 25 m, a quarter of the crustal map's cell: the
+  // reference and generated paths' steps (≥ 45 m) all update, unchanged.
+  // 0 = every reading.
+  double min_update_spacing_m = 25.0;
   // Half-width of the uniform prior square around the first INS position (deg).
   // Default 0.15°: covers the 0.1°-offset reference paths (≈ 11 km).
   double prior_half_width_deg = 0.15;
@@ -345,6 +371,11 @@ struct ParticleFilterOptions {
   bool IsValid(std::string* error) const;
 };
 
+// The drift per step and axis (deg) for INS steps of running mean length mean_step_m (m; < 0: not
+// known yet, drift_sigma_deg): drift_sigma_deg · √(clamp(mean_step_m, 1, drift_step_m) / drift_step_m)
+// (ParticleFilterOptions::drift_step_m; 0 = drift_sigma_deg).
+double DriftSigmaPerStep(const ParticleFilterOptions& options, double mean_step_m);
+
 // One particle (deg) and its normalised weight.
 struct Particle {
   double lat_deg = 0.0, lon_deg = 0.0;
@@ -356,7 +387,8 @@ struct Particle {
 // What happened to a step's measurement.
 // kOutlier: the reading was beyond outlier_sigmas of the whole cloud's
 // prediction and skipped (ParticleFilterOptions::outlier_sigmas).
-enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap, kOutlier };
+// kSpaced: the reading left out, the INS has moved less than min_update_spacing_m since the last one used.
+enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap, kOutlier, kSpaced };
 
 // Diagnostics after one step.
 struct StepDiagnostics {
@@ -402,6 +434,7 @@ struct FilterCounters {
       lost_steps = 0, reinitialisations = 0, tempered_updates = 0, outliers = 0, track_check_failures = 0,
       bias_test_failures = 0;
   int subcloud_reseeds = 0;  // subclouds > 1: sub-clouds replaced by a copy of the best (subcloud_reseed_nats)
+  int spaced = 0;            // readings left out by min_update_spacing_m
 };
 
 // The common interface of the PF and the AFPF.
