@@ -101,6 +101,19 @@ struct FastMsdOptions {
   // paths; the wrong-basin stretches it does not reach).
   // Changes the covariance only, never the positions. false = σ² alone.
   bool map_error_in_covariance = true;
+  // The other basins (issue 25 item 4; mapmatch/src/fast_msd_basins.h,
+  // docs/ACCURACY.md, "Fast MSD: the other basins in the covariance"). The
+  // linearised covariance describes the basin the rounds ended in; a stretch
+  // refined into a wrong local minimum of the map needs the others. With
+  // basin_half_width_deg > 0 the posterior over offsets from the published
+  // points (a grid of basin_step_cells × the map's step, ± the half width)
+  // under the covariance's own model (σ², τ², map-error bound; no
+  // linearisation) is computed by forward-backward along the path, and each
+  // point's covariance gets the second moment of the posterior mass outside
+  // its published basin (beyond the 99 % ellipse of the linearised one).
+  // Changes the covariance only, never the positions. 0 = off.
+  double basin_half_width_deg = 0.012;
+  double basin_step_cells = 0.25;
 
   bool IsValid(std::string* error) const;
 };
