@@ -175,7 +175,8 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
           best = std::min(best, L[s]);
         }
       }
-      for (double& x : L) x = std::exp(-0.5 * (x - best));
+      // exp(−700) ≈ 1e-304: beyond it the value is 0 for every purpose (and exp's underflow path is slow).
+      for (double& x : L) x = x - best > 1400.0 ? 0.0 : std::exp(-0.5 * (x - best));
     }
     double top = 0.0;
     std::vector<double> a(b.size());
