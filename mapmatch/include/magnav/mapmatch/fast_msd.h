@@ -134,8 +134,12 @@ struct FastMsdOptions {
 // keeps its last contracting pass's term (notes: "curvature-limited points:
 // K"); with a coarse stage no point's covariance is wider than the search
 // window's uniform prior (w²/3 per axis; notes say at how many points it was
-// capped). Widened to cover a second peak when ambiguous
-// (above). Calibration: docs/ACCURACY.md, "Trust: covariance calibration".
+// capped). Plus the other basins (basin_half_width_deg): the second moment
+// about the published point of the path's posterior mass outside each point's
+// linearised basin (mapmatch/src/fast_msd_basins.h; notes: "other basins hold
+// > 5 % of the posterior at K points"). Widened to cover a second peak when
+// ambiguous (above). Calibration: docs/ACCURACY.md, "Trust: covariance
+// calibration" and "Fast MSD: the other basins in the covariance".
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                          const FastMsdOptions& options = {});
 
