@@ -335,8 +335,15 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     // The other basins (fast_msd_basins.h): the posterior mass outside each point's published basin.
     int basin_points = 0;
     if (options.basin_half_width_deg > 0.0 && c.tau2_deg2 > 0.0 && c.curvature_limited.size() == n) {
-      const double step = options.basin_step_cells * std::min(grid.lat().step_deg, grid.lon().step_deg);
-      const int radius = std::max(1, static_cast<int>(std::ceil(options.basin_half_width_deg / step)));
+      // At most kMaxBasinRadius offsets each side (the grid's memory and time grow as its square): a wider
+      // half width for the map's step coarsens the grid instead.
+      constexpr int kMaxBasinRadius = 400;
+      double step = options.basin_step_cells * std::min(grid.lat().step_deg, grid.lon().step_deg);
+      int radius = std::max(1, static_cast<int>(std::ceil(options.basin_half_width_deg / step)));
+      if (radius > kMaxBasinRadius) {
+        radius = kMaxBasinRadius;
+        step = options.basin_half_width_deg / radius;
+      }
       std::vector<Eigen::Matrix2d> cov(n);
       for (std::size_t i = 0; i < n; ++i) cov[i] << c.lat_lat[i], c.lat_lon[i], c.lat_lon[i], c.lon_lon[i];
       const double cap = options.outlier_sigmas > 0.0 ? options.outlier_sigmas * readings.sigma

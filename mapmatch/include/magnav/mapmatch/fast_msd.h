@@ -111,7 +111,8 @@ struct FastMsdOptions {
   // linearisation) is computed by forward-backward along the path, and each
   // point's covariance gets the second moment of the posterior mass outside
   // its published basin (beyond the 99 % ellipse of the linearised one).
-  // Changes the covariance only, never the positions. 0 = off.
+  // Changes the covariance only, never the positions. 0 = off. At most 400
+  // offsets each side: a wider half width for the map's step coarsens the grid.
   double basin_half_width_deg = 0.012;
   double basin_step_cells = 0.25;
 
