@@ -88,6 +88,36 @@ void BM_FastMsd200NoMapError(benchmark::State& state) {
 }
 BENCHMARK(BM_FastMsd200NoMapError)->Unit(benchmark::kMicrosecond);
 
+// The same without the other basins in the covariance (FastMsdOptions::basin_half_width_deg 0: the
+// linearised basin only, as before 2026-11-26 12:00): the cost of the basins' forward-backward, in the same run.
+void BM_FastMsd200NoBasins(benchmark::State& state) {
+  const MatchPath p = SyntheticCrustalPath(200);
+  FastMsdOptions o;
+  o.basin_half_width_deg = 0.0;
+  for (auto _ : state) {
+    const MatchResult r = MatchFastMsd(Crustal(), 0, p, o);
+    benchmark::DoNotOptimize(r.lat_deg.data());
+  }
+}
+BENCHMARK(BM_FastMsd200NoBasins)->Unit(benchmark::kMicrosecond);
+
+// BM_FastMsd200's path with N(0, σ²) reading noise (σ = range(0) / 10 nT, seed 1): the basins'
+// posterior spreads wider with the noise than on the noise-free path, so their cost grows; with and
+// without them (range(1) = 1 / 0).
+void BM_FastMsd200Noisy(benchmark::State& state) {
+  MatchPath p = SyntheticCrustalPath(200);
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, static_cast<double>(state.range(0)) / 10.0);
+  for (double& m : p.measured_nT) m += noise(rng);
+  FastMsdOptions o;
+  if (state.range(1) == 0) o.basin_half_width_deg = 0.0;
+  for (auto _ : state) {
+    const MatchResult r = MatchFastMsd(Crustal(), 0, p, o);
+    benchmark::DoNotOptimize(r.lat_deg.data());
+  }
+}
+BENCHMARK(BM_FastMsd200Noisy)->ArgsProduct({{5, 30}, {1, 0}})->Unit(benchmark::kMicrosecond);
+
 // The same with the paper's Jacobi sweeps (the same fixed point).
 void BM_FastMsd200Jacobi(benchmark::State& state) {
   const MatchPath p = SyntheticCrustalPath(200);

@@ -220,6 +220,10 @@ void AddMatchCommand(CLI::App& app) {
                "fast-msd: leave the map's bilinear interpolation error bound (from the grid's second "
                "differences) out of the covariance's reading variance (sigma^2 alone); positions are the "
                "same either way");
+  cmd->add_option("--basin-half-width", o.fast_msd.basin_half_width_deg,
+                  "fast-msd: half width (deg) of the offset grid whose posterior (forward-backward along the path) "
+                  "adds the other basins' spread to each point's covariance; 0 = off (the linearised basin only); "
+                  "positions are the same either way");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "

@@ -10,6 +10,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/core/option_check.h"
 #include "magnav/mapmatch/correlation.h"
+#include "fast_msd_basins.h"
 #include "fast_msd_covariance.h"
 #include "match_common.h"
 
@@ -136,6 +137,10 @@ bool FastMsdOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(peak_separation_deg) && peak_separation_deg >= 0.0)) {
     return Fail(error, "peak_separation_deg must be finite and >= 0");
   }
+  if (!(std::isfinite(basin_half_width_deg) && basin_half_width_deg >= 0.0)) {
+    return Fail(error, "basin_half_width_deg must be finite and >= 0 (0 = off)");
+  }
+  if (!PositiveFinite(basin_step_cells)) return Fail(error, "basin_step_cells must be finite and > 0");
   return true;
 }
 
@@ -327,6 +332,34 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     r.cov_lat_lat = c.lat_lat;
     r.cov_lat_lon = c.lat_lon;
     r.cov_lon_lon = c.lon_lon;
+    // The other basins (fast_msd_basins.h): the posterior mass outside each point's published basin.
+    int basin_points = 0;
+    if (options.basin_half_width_deg > 0.0 && c.tau2_deg2 > 0.0 && c.curvature_limited.size() == n) {
+      // At most kMaxBasinRadius offsets each side (the grid's memory and time grow as its square): a wider
+      // half width for the map's step coarsens the grid instead.
+      constexpr int kMaxBasinRadius = 400;
+      double step = options.basin_step_cells * std::min(grid.lat().step_deg, grid.lon().step_deg);
+      int radius = std::max(1, static_cast<int>(std::ceil(options.basin_half_width_deg / step)));
+      if (radius > kMaxBasinRadius) {
+        radius = kMaxBasinRadius;
+        step = options.basin_half_width_deg / radius;
+      }
+      std::vector<Eigen::Matrix2d> cov(n);
+      for (std::size_t i = 0; i < n; ++i) cov[i] << c.lat_lat[i], c.lat_lon[i], c.lat_lon[i], c.lon_lon[i];
+      const double cap = options.outlier_sigmas > 0.0 ? options.outlier_sigmas * readings.sigma
+                                                      : std::numeric_limits<double>::infinity();
+      const internal::BasinSpread bs = internal::FastMsdBasinSpread(
+          grid, layer, r.lat_deg, r.lon_deg, path.measured_nT, final_lin.data, e_lat, e_lon, cov, c.s2_nT2,
+          map_var, c.tau2_deg2, cap, step, radius);
+      for (std::size_t i = 0; i < n; ++i) {
+        Eigen::Matrix2d m = cov[i] + bs.far_moment[i];
+        internal::CapAtPrior(&m, prior_var);
+        r.cov_lat_lat[i] = m(0, 0);
+        r.cov_lat_lon[i] = m(0, 1);
+        r.cov_lon_lon[i] = m(1, 1);
+        if (bs.far_mass[i] > 0.05) ++basin_points;
+      }
+    }
     r.notes += std::string(r.notes.empty() ? "" : "; ") + "covariance: residual sigma " +
                FormatNumber(std::sqrt(c.s2_nT2)) + " nT, INS drift " + FormatNumber(std::sqrt(c.tau2_deg2)) +
                " deg per point, " + FormatNumber(c.edf) + " effective parameters";
@@ -336,6 +369,9 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     // Points whose linearisation could not carry the map's curvature (fast_msd_covariance.h).
     if (c.curvature_limited_points > 0) {
       r.notes += "; curvature-limited points: " + std::to_string(c.curvature_limited_points);
+    }
+    if (basin_points > 0) {
+      r.notes += "; other basins hold > 5 % of the posterior at " + std::to_string(basin_points) + " points";
     }
     if (c.prior_limited_points > 0) {
       r.notes += "; covariance capped at the search window's at " + std::to_string(c.prior_limited_points) +

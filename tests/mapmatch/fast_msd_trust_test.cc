@@ -8,13 +8,17 @@
 //    fixes with every σ doubled or halved are not;
 //  - on the 20 tuning paths at 0.5 nT the every-point ANEES is inside the
 //    interval with the map's interpolation error in the covariance and
-//    outside without it;
+//    outside without it (the linearised basin's covariance);
+//  - on held-out paths with stretches in a wrong basin (605-608, 626) the
+//    every-point ANEES is inside the interval with the other basins in the
+//    covariance and far outside without them;
 //  - a map with two equally good places for the path (periodic) gives
 //    "ambiguous", never "converged", with a covariance that covers the other
 //    place; a map without gives "converged".
 #include <cmath>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -36,8 +40,9 @@ double Nees(const MatchResult& r, std::size_t p, double lat, double lon) {
 }
 
 // Documented (docs/ACCURACY.md): ANEES over seeds 3201-3206, 2 dof.
-constexpr double kDocumentedFinal = 3.03;
-constexpr double kDocumentedPoints = 2.78;  // 2.79 before the map-error term
+// With the other basins (2026-11-26 12:00); 3.03 / 2.78 before, 2.79 before the map-error term.
+constexpr double kDocumentedFinal = 2.09;
+constexpr double kDocumentedPoints = 2.09;
 
 TEST(FastMsdTrust, CovarianceIsCalibratedOnTheCalibrationSeeds) {
   const std::string dir = testing::TempDir();
@@ -106,6 +111,7 @@ TEST(FastMsdTrust, MapErrorTermCalibratesTheTuningPathsAtHalfANanotesla) {
     const MatchPath path = ReadMatchPath(file, "meas_nT");
     MatchOptions o;
     o.fast_msd.search_window_deg = 0.15;
+    o.fast_msd.basin_half_width_deg = 0.0;  // the linearised basin's covariance, where the term enters
     const MatchResult with = Match(Method::kFastMsd, grid, 0, path, o);
     o.fast_msd.map_error_in_covariance = false;
     const MatchResult without = Match(Method::kFastMsd, grid, 0, path, o);
@@ -132,6 +138,73 @@ TEST(FastMsdTrust, MapErrorTermCalibratesTheTuningPathsAtHalfANanotesla) {
   EXPECT_GT(without_anees, 2.0 * 2);
   EXPECT_NEAR(with_anees, kDocumentedHalfNtPoints, 0.01);
   EXPECT_NEAR(without_anees, kDocumentedHalfNtPointsWithout, 0.01);
+}
+
+// The other basins in the covariance (docs/ACCURACY.md, "Fast MSD: the other
+// basins in the covariance"): the held-out paths 605-608 (scripts/
+// heldout_mappaths, 0.1° offset) at 0.5 and 3 nT and 626 at 0.5 nT, whose
+// stretches were refined into a wrong local minimum of the map (605, 606, 608,
+// 626; 607 is a right path between them). With the linearised basin only
+// (basin_half_width_deg 0, main's covariance before 2026-11-26 12:00) their
+// every-point ANEES is far outside [0.5, 2] × dof (39.0: 605 at 0.5 nT alone
+// 147); with the basins' forward-backward it is inside (1.60), and the same
+// covariances with σ doubled or halved are not. The positions are the same
+// either way. Not here: 626 at 3 nT, whose stretch lies up to 0.019° off, beyond
+// the grid's ±0.012°: it is not covered (mean NEES 41.6 -> 28.5, documented as
+// what is not met).
+constexpr double kDocumentedWrongBasinsWith = 1.60;
+constexpr double kDocumentedWrongBasinsWithout = 39.0;
+
+TEST(FastMsdTrust, OtherBasinsCoverTheWrongBasinStretches) {
+  const std::string dir = testing::TempDir() + "/fastmsd_basins";
+  const std::string script = testing::TestDataDir() + "/../../scripts/heldout_mappaths";
+  for (const auto& [count, first] : {std::pair<std::string, std::string>{"4", "605"}, {"1", "626"}}) {
+    const auto [code, out] =
+        testing::RunCommand({script, dir, count, "0.1", "0.5,3", first}, {}, std::chrono::seconds(120));
+    ASSERT_EQ(code, 0) << out;
+  }
+  const GeoGrid grid =
+      ReadGeoGridCsv(testing::TestDataDir() + "/reference/map_crustal_anomaly.csv", {"anomaly_nT"});
+  double with_sum = 0.0, without_sum = 0.0;
+  int points = 0;
+  for (const int seed : {605, 606, 607, 608, 626}) {
+    for (const std::string noise : {"0p5", "3"}) {
+      if (seed == 626 && noise == "3") continue;  // beyond the grid (above)
+      const std::string file = dir + "/heldout_" + std::to_string(seed) + "_noise" + noise + ".csv";
+      const MatchPath path = ReadMatchPath(file, "meas_nT");
+      MatchOptions o;
+      o.fast_msd.search_window_deg = 0.15;
+      const MatchResult with = Match(Method::kFastMsd, grid, 0, path, o);
+      o.fast_msd.basin_half_width_deg = 0.0;
+      const MatchResult without = Match(Method::kFastMsd, grid, 0, path, o);
+      const CsvTable t = CsvTable::Read(file);
+      ASSERT_EQ(with.cov_lat_lat.size(), t.num_rows());
+      double path_with = 0.0, path_without = 0.0;
+      for (std::size_t i = 0; i < t.num_rows(); ++i) {
+        ASSERT_EQ(with.lat_deg[i], without.lat_deg[i]);
+        ASSERT_EQ(with.lon_deg[i], without.lon_deg[i]);
+        const double lat = t.number(i, t.column("true_lat")), lon = t.number(i, t.column("true_lon"));
+        path_with += Nees(with, i, lat, lon);
+        path_without += Nees(without, i, lat, lon);
+        ++points;
+      }
+      std::printf("  path %d noise %s: mean NEES %.2f with the basins, %.2f without\n", seed, noise.c_str(),
+                  path_with / t.num_rows(), path_without / t.num_rows());
+      with_sum += path_with;
+      without_sum += path_without;
+    }
+  }
+  const double with_anees = with_sum / points, without_anees = without_sum / points;
+  std::printf("fast-msd, held-out paths 605-608 at 0.5 and 3 nT, 626 at 0.5 nT: ANEES every point %.3f with the basins, "
+              "%.3f without\n",
+              with_anees, without_anees);
+  EXPECT_GE(with_anees, 0.5 * 2);
+  EXPECT_LE(with_anees, 2.0 * 2);
+  EXPECT_LT(with_anees / 4.0, 0.5 * 2);  // σ × 2
+  EXPECT_GT(with_anees * 4.0, 2.0 * 2);  // σ / 2
+  EXPECT_GT(without_anees, 2.0 * 2);
+  EXPECT_NEAR(with_anees, kDocumentedWrongBasinsWith, 0.02 * kDocumentedWrongBasinsWith);
+  EXPECT_NEAR(without_anees, kDocumentedWrongBasinsWithout, 0.02 * kDocumentedWrongBasinsWithout);
 }
 
 // A path on a map that repeats itself every 0.02° in latitude (and not in

@@ -384,6 +384,16 @@ TEST(Options, DefaultsAreValidAndBadValuesAreRefused) {
   FastMsdOptions f;
   f.lambda_nT2_per_deg2 = -1.0;
   EXPECT_FALSE(f.IsValid(&why));
+  FastMsdOptions basins;
+  basins.basin_half_width_deg = 0.0;  // off
+  EXPECT_TRUE(basins.IsValid(&why)) << why;
+  basins.basin_half_width_deg = -0.01;
+  EXPECT_FALSE(basins.IsValid(&why));
+  EXPECT_NE(why.find("basin_half_width_deg"), std::string::npos);
+  basins.basin_half_width_deg = 0.012;
+  basins.basin_step_cells = 0.0;
+  EXPECT_FALSE(basins.IsValid(&why));
+  EXPECT_NE(why.find("basin_step_cells"), std::string::npos);
   IcpOptions i;
   i.field_scale_deg_per_nT = std::nan("");
   EXPECT_FALSE(i.IsValid(&why));

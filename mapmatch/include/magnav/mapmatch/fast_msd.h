@@ -101,6 +101,20 @@ struct FastMsdOptions {
   // paths; the wrong-basin stretches it does not reach).
   // Changes the covariance only, never the positions. false = σ² alone.
   bool map_error_in_covariance = true;
+  // The other basins (issue 25 item 4; mapmatch/src/fast_msd_basins.h,
+  // docs/ACCURACY.md, "Fast MSD: the other basins in the covariance"). The
+  // linearised covariance describes the basin the rounds ended in; a stretch
+  // refined into a wrong local minimum of the map needs the others. With
+  // basin_half_width_deg > 0 the posterior over offsets from the published
+  // points (a grid of basin_step_cells × the map's step, ± the half width)
+  // under the covariance's own model (σ², τ², map-error bound; no
+  // linearisation) is computed by forward-backward along the path, and each
+  // point's covariance gets the second moment of the posterior mass outside
+  // its published basin (beyond the 99 % ellipse of the linearised one).
+  // Changes the covariance only, never the positions. 0 = off. At most 400
+  // offsets each side: a wider half width for the map's step coarsens the grid.
+  double basin_half_width_deg = 0.012;
+  double basin_step_cells = 0.25;
 
   bool IsValid(std::string* error) const;
 };
@@ -121,8 +135,12 @@ struct FastMsdOptions {
 // keeps its last contracting pass's term (notes: "curvature-limited points:
 // K"); with a coarse stage no point's covariance is wider than the search
 // window's uniform prior (w²/3 per axis; notes say at how many points it was
-// capped). Widened to cover a second peak when ambiguous
-// (above). Calibration: docs/ACCURACY.md, "Trust: covariance calibration".
+// capped). Plus the other basins (basin_half_width_deg): the second moment
+// about the published point of the path's posterior mass outside each point's
+// linearised basin (mapmatch/src/fast_msd_basins.h; notes: "other basins hold
+// > 5 % of the posterior at K points"). Widened to cover a second peak when
+// ambiguous (above). Calibration: docs/ACCURACY.md, "Trust: covariance
+// calibration" and "Fast MSD: the other basins in the covariance".
 MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath& path,
                          const FastMsdOptions& options = {});
 
