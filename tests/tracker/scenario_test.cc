@@ -236,10 +236,10 @@ TEST(HarbourScenario, WindowKeepsBothVesselsOfAnOvertaking) {
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
   for (std::size_t v = 0; v < 2; ++v) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
-    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the issue's; measured 0.932 / 0.969
+    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the issue's; measured 0.932 / 0.990
   }
-  EXPECT_LE(s.rms[0], 1.5 * 0.0888);  // m, measured 0.0888
-  EXPECT_LE(s.rms[1], 1.5 * 0.0427);  // m, measured 0.0427
+  EXPECT_LE(s.rms[0], 1.5 * 0.0632);  // m, measured 0.0632
+  EXPECT_LE(s.rms[1], 1.5 * 0.0405);  // m, measured 0.0405
 }
 
 TEST(HarbourScenario, BatchKeepsBothVesselsOfAnOvertaking) {
@@ -249,7 +249,7 @@ TEST(HarbourScenario, BatchKeepsBothVesselsOfAnOvertaking) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
     EXPECT_GE(s.coverage[v], 0.9) << "vessel " << v + 1;  // the issue's; measured 1.00 / 1.00
   }
-  EXPECT_LE(s.rms[0], 1.5 * 0.0114);  // m, measured 0.0114
+  EXPECT_LE(s.rms[0], 1.5 * 0.0115);  // m, measured 0.0115
   EXPECT_LE(s.rms[1], 1.5 * 0.0093);  // m, measured 0.0093
 }
 

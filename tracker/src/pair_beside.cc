@@ -1,5 +1,6 @@
 #include "magnav/tracker/pair_beside.h"
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 
@@ -13,6 +14,8 @@ namespace {
 
 // How far behind (or ahead) along the tracked line start 2 puts the newcomer (m).
 constexpr double kBesideAlongM = 10.0;
+// The init SNR of the beside fit (pair_beside.h).
+constexpr double kBesideMinTensorSnr = 10.0;
 
 InitialTrack Shifted(const InitialTrack& a, double along_m, double side_m, double speed_factor) {
   InitialTrack b = a;
@@ -53,8 +56,11 @@ std::vector<InitialTrack> InitializeBeside(const std::vector<Epoch>& epochs, con
     starts.push_back(Shifted(tracked, -kBesideAlongM, side, 2.0));
     starts.push_back(Shifted(tracked, kBesideAlongM, side, 0.5));
   }
+  // The fit's samples and the newcomer's strength gate at kBesideMinTensorSnr.
+  TrackerOptions weak = options;
+  weak.init.min_tensor_snr = std::min(options.init.min_tensor_snr, kBesideMinTensorSnr);
   for (const InitialTrack& b : starts) {
-    std::vector<InitialTrack> pair = RefitPair(epochs, B0_W, options, tracked, b, min_separation_m);
+    std::vector<InitialTrack> pair = RefitPair(epochs, B0_W, weak, tracked, b, min_separation_m);
     if (pair.size() == 2) return pair;
   }
   return {};

@@ -19,7 +19,13 @@
 // tracked vessel's line, the other from each of these in turn, the first
 // that passes RefitPair's gates (the pair explains the samples as one dipole
 // explains a clean one; lines ≥ min_separation_m apart; each dipole's own
-// tensor reaches the init SNR) kept:
+// tensor reaches the init SNR) kept. The init SNR here (its samples and
+// the strength gate) is 10, not the field's 20 (min of the two): what spoils
+// the track's fit first is the newcomer's B, while its tensor is still weak
+// (tuning overtaking: the slow vessel's track went poor at 35 s with the
+// fast one 27 m behind, its tensor below 20 σ at every sensor; the fit then
+// explained the samples to a misfit of 0.007, 37 m apart, and was refused
+// by the strength gate alone). Kept:
 //  1. the line InitializeTrack finds in the samples minus the track's own
 //     predicted field (the newcomer's fixes, once the track's field is out),
 //     if it is ≥ min_separation_m from the track;
