@@ -19,6 +19,7 @@
 #include "magnav/core/option_check.h"
 #include "magnav/tracker/association.h"
 #include "magnav/tracker/initialize.h"
+#include "magnav/tracker/pair_beside.h"
 #include "magnav/tracker/track_life_cycle.h"
 
 namespace magnav::tracker {
@@ -130,6 +131,10 @@ struct Track {
   double pair_start_ref_s = 0.0;
   StateCovariance pair_excess = StateCovariance::Zero();
   double pair_excess_until_s = 0.0;
+  // The last epoch the associator found its fit poor (TrackAssociation::
+  // poor_fit): a confirmed track then tries a pair start beside it
+  // (pair_beside.h).
+  double t_poor_fit = -std::numeric_limits<double>::infinity();
 };
 
 double HorizontalSigma(const EpochEstimate& e) {
@@ -367,6 +372,7 @@ struct MultiTracker::Impl {
       const bool had_samples = !a.mine.samples.empty();
       const bool outbid = tr.id == 0 && evidence.outbid[i];
       tr.life.OnAssociation(t, a.detected && !outbid, a.missed, had_samples);
+      if (a.poor_fit) tr.t_poor_fit = t;
       tr.verdicts.emplace_back(t, a.detected && !outbid);
       if (cluster.enabled()) {
         Epoch mine = a.mine;
@@ -398,6 +404,9 @@ struct MultiTracker::Impl {
       for (std::size_t k = 0; k < tracks.size() && !close; ++k) {
         const Track& old = tracks[k];
         if (k == i || old.ended || !old.has_pred) continue;
+        // Two tracks a two-dipole fit found apart are two vessels, however
+        // close they pass (an overtaking pair: 8 m).
+        if (young.started_with != 0 && old.started_with == young.started_with) continue;
         const bool older = old.id != 0 && (young.id == 0 || old.id < young.id);
         close = older && (Horizontal(old.pred) - Horizontal(young.pred)).norm() < mg().min_separation_m;
       }
@@ -452,21 +461,19 @@ struct MultiTracker::Impl {
     }
     if (t - last_init_t >= mg().init_interval_s - options.track.epoch_tolerance_s) {
       last_init_t = t;
-      TryStart(t);
+      if (!TryStart(t)) TryBeside(t, &out);
     }
     return out;
   }
 
-  // Looks for a new vessel in the buffer; starts a tentative track.
-  void TryStart(double t) {
+  // Looks for a new vessel in the buffer; starts a tentative track. True if
+  // one was started.
+  bool TryStart(double t) {
     const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
     const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
     const std::optional<InitialTrack> init =
         InitializeTrack(epochs, B0_W, options.track, any_fix ? &given : nullptr);
-    if (init) {
-      StartTrack(t, *init, nullptr);
-      return;
-    }
+    if (init) return StartTrack(t, *init, nullptr);
     // Two vessels whose sum no single dipole explains (initialize.h): each
     // starts on the samples without the other's initial field.
     const std::vector<InitialTrack> pair = InitializePair(epochs, B0_W, options.track, mg().min_separation_m);
@@ -481,24 +488,74 @@ struct MultiTracker::Impl {
       }
     }
     if (near_a_track) ++summary.num_starts_refused;
+    bool started = false;
     if (pair.size() == 2 && !near_a_track) {
       // Once the first has started, its field is out of the buffer.
       const bool first = StartTrack(t, pair[0], &pair[1]);
       const bool second = StartTrack(t, pair[1], first ? nullptr : &pair[0]);
+      started = first || second;
       if (first && second) {
-        const std::uint64_t key = next_pair++;
-        for (std::size_t k = tracks.size() - 2; k < tracks.size(); ++k) {
-          tracks[k].pair = key;
-          tracks[k].started_with = key;
-          tracks[k].pair_start_t_s = t;
-          tracks[k].refit_t_s = t + mg().pair_refit_s;
-          SetPairExcess(tracks[k], pair[k + 2 - tracks.size()]);
-          // Until the refit, or until its deadline (RefitPairs).
-          tracks[k].pair_excess_until_s =
-              t + (mg().pair_refit_s > 0.0 ? mg().pair_refit_s : 0.0) + options.track.window_s;
-          if (!(mg().pair_refit_s > 0.0)) tracks[k].pair = 0;
-        }
+        MakePair(t, tracks[tracks.size() - 2], pair[0], tracks.back(), pair[1]);
       }
+    }
+    return started;
+  }
+
+  // Two tracks started together by a two-dipole fit (`ia`, `ib` their
+  // starts): partners, refitted pair_refit_s later (RefitPairs).
+  void MakePair(double t, Track& a, const InitialTrack& ia, Track& b, const InitialTrack& ib) {
+    const std::uint64_t key = next_pair++;
+    for (auto [tr, init] : {std::pair<Track*, const InitialTrack*>{&a, &ia}, {&b, &ib}}) {
+      tr->pair = key;
+      tr->started_with = key;
+      tr->pair_start_t_s = t;
+      tr->refit_t_s = t + mg().pair_refit_s;
+      SetPairExcess(*tr, *init);
+      // Until the refit, or until its deadline (RefitPairs).
+      tr->pair_excess_until_s = t + (mg().pair_refit_s > 0.0 ? mg().pair_refit_s : 0.0) + options.track.window_s;
+      if (!(mg().pair_refit_s > 0.0)) tr->pair = 0;
+    }
+  }
+
+  // A vessel come close to a confirmed track whose fit it spoils
+  // (pair_beside.h): the two-dipole fit on the recent samples (every other
+  // track's field removed), one line started from the track. If it passes,
+  // the track's engine is started again from its line of the fit (id, life
+  // cycle and earlier rows kept, as a pair refit) and the newcomer starts as
+  // a tentative track, the two partners. One such start per call.
+  void TryBeside(double t, std::vector<TrackOutput>* out) {
+    if (!(mg().pair_refit_s > 0.0) || recent.empty()) return;  // `recent` is kept for the refits only
+    const double tol = options.track.epoch_tolerance_s;
+    for (std::size_t i = 0; i < tracks.size(); ++i) {
+      Track& a = tracks[i];
+      if (a.id == 0 || a.ended || a.pair != 0 || t - a.t_poor_fit > mg().init_interval_s + tol) continue;
+      const auto pa = a.engine->PredictState(t);
+      if (!pa || !a.engine->m_B_Am2().allFinite()) continue;
+      InitialTrack now;
+      now.t_ref_s = t;
+      now.state = *pa;
+      now.m_B_Am2 = a.engine->m_B_Am2();
+      const std::vector<Epoch> epochs = RecentWithout(i, i);
+      const std::vector<InitialTrack> pair =
+          InitializeBeside(epochs, B0_W, options.track, now, mg().min_separation_m);
+      if (pair.size() != 2) continue;
+      // The newcomer is not another live track.
+      const CtState<double> b_now = PropagateCoordinatedTurn(pair[1].state, t - pair[1].t_ref_s);
+      bool taken = false;
+      for (std::size_t k = 0; k < tracks.size(); ++k) {
+        if (k == i || tracks[k].ended) continue;
+        const auto p = tracks[k].engine->PredictState(t);
+        taken = taken || (p && (Horizontal(*p) - Horizontal(b_now)).norm() < mg().min_separation_m);
+      }
+      if (taken) {
+        ++summary.num_starts_refused;
+        continue;
+      }
+      if (!StartOn(t, pair[1], pair[0], epochs)) continue;  // (invalidates `a`)
+      Restart(tracks[i], pair[0], pair[1], epochs, out);
+      tracks.back().origin = "from a two-dipole fit beside track " + std::to_string(tracks[i].id);
+      MakePair(t, tracks[i], pair[0], tracks.back(), pair[1]);
+      return;
     }
   }
 
@@ -581,6 +638,22 @@ struct MultiTracker::Impl {
   // what its former engine had not solved yet is output first.
   void Restart(Track& tr, const InitialTrack& init, const InitialTrack& partner, const std::vector<Epoch>& epochs,
                std::vector<TrackOutput>* out) {
+    const std::vector<Epoch> mine = SamplesOf(init, partner, epochs);
+    if (mine.empty()) return;
+    auto engine = std::make_unique<WindowTracker>(B0_W, options.track);
+    const std::vector<EpochEstimate> first = engine->Start(init, mine);
+    if (first.empty() || !first.back().usable) return;
+    Collect(tr, tr.engine->Flush(), out);
+    tr.engine = std::move(engine);
+    tr.has_newest = true;
+    tr.newest = first.back();
+    tr.m_B = tr.engine->m_B_Am2();
+  }
+
+  // A start's samples in `epochs`: its sensors (gated by init's line and
+  // moment), without `partner`'s field.
+  std::vector<Epoch> SamplesOf(const InitialTrack& init, const InitialTrack& partner,
+                               const std::vector<Epoch>& epochs) const {
     std::vector<Epoch> mine;
     for (const Epoch& b : epochs) {
       Track probe, other;
@@ -598,15 +671,46 @@ struct MultiTracker::Impl {
       }
       if (!k.samples.empty() || !mine.empty()) mine.push_back(std::move(k));
     }
-    if (mine.empty()) return;
-    auto engine = std::make_unique<WindowTracker>(B0_W, options.track);
-    const std::vector<EpochEstimate> first = engine->Start(init, mine);
-    if (first.empty() || !first.back().usable) return;
-    Collect(tr, tr.engine->Flush(), out);
-    tr.engine = std::move(engine);
+    return mine;
+  }
+
+  // A tentative track started from `init` on `epochs` (SamplesOf, without
+  // `partner`'s field); its field is taken out of the initiator's buffer as
+  // StartTrack's. True if started.
+  bool StartOn(double t, const InitialTrack& init, const InitialTrack& partner, const std::vector<Epoch>& epochs) {
+    const std::vector<Epoch> mine = SamplesOf(init, partner, epochs);
+    if (mine.empty()) return false;
+    Track tr;
+    tr.life = TrackLifeCycle(t, mg());
+    tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
+    const std::vector<EpochEstimate> first = tr.engine->Start(init, mine);
+    if (first.empty() || !first.back().usable) return false;
     tr.has_newest = true;
     tr.newest = first.back();
+    TakeFromBuffer(tr);
+    fixes.clear();
+    tracks.push_back(std::move(tr));
+    return true;
+  }
+
+  // What the buffer holds of a new track's vessel is now explained: its
+  // predicted field out of every buffered sample (given back if it is
+  // dropped).
+  void TakeFromBuffer(Track& tr) {
     tr.m_B = tr.engine->m_B_Am2();
+    for (Epoch& b : buffer) {
+      const auto p = tr.engine->PredictState(b.t_s);
+      if (!p) continue;
+      tr.pred = *p;
+      for (std::size_t j = 0; j < b.samples.size(); ++j) {
+        GradiometerSample& s = b.samples[j];
+        if (s.T.isZero(0.0)) continue;  // masked
+        const FieldPrediction pr = Predict(tr, s);
+        s.B -= pr.B;
+        s.T -= pr.T;
+        tr.taken.push_back({b.t_s, j, pr.B, pr.T});
+      }
+    }
   }
 
   // Starts a tentative track from `init` on the buffer (minus `partner`'s
@@ -663,20 +767,7 @@ struct MultiTracker::Impl {
                                     : "from " + std::to_string(init->fixes.size()) +
                                           (init->from_external_fixes ? " dipole_fix fixes" : " fixes of its own TED+EGT");
     // What the buffer holds of this vessel is now explained.
-    tr.m_B = tr.engine->m_B_Am2();
-    for (Epoch& b : buffer) {
-      const auto p = tr.engine->PredictState(b.t_s);
-      if (!p) continue;
-      tr.pred = *p;
-      for (std::size_t j = 0; j < b.samples.size(); ++j) {
-        GradiometerSample& s = b.samples[j];
-        if (s.T.isZero(0.0)) continue;  // masked
-        const FieldPrediction pr = Predict(tr, s);
-        s.B -= pr.B;
-        s.T -= pr.T;
-        tr.taken.push_back({b.t_s, j, pr.B, pr.T});
-      }
-    }
+    TakeFromBuffer(tr);
     fixes.clear();
     tracks.push_back(std::move(tr));
     return true;
@@ -900,6 +991,7 @@ std::string MultiTracker::SaveState() const {
     w.F64(tr.pair_start_ref_s);
     w.Matrix(tr.pair_excess);
     w.F64(tr.pair_excess_until_s);
+    w.F64(tr.t_poor_fit);
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -989,6 +1081,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.pair_start_ref_s = r.F64();
     tr.pair_excess = internal::GetMatrix(r, 6, 6);
     tr.pair_excess_until_s = r.F64();
+    tr.t_poor_fit = r.F64();
     m.tracks.push_back(std::move(tr));
   }
   m.records.resize(r.Count(internal::kMaxStateCount));

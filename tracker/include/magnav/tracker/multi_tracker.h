@@ -48,7 +48,14 @@
 //     never reused) and produce estimates. Two vessels started together by
 //     the two-dipole start (InitializePair) are refitted together once,
 //     pair_refit_s later (RefitPair), and their engines started again from
-//     that refit (TrackManagementOptions::pair_refit_s).
+//     that refit (TrackManagementOptions::pair_refit_s). When nothing starts
+//     and a confirmed track's fit was poor within the last init_interval_s
+//     (a vessel come close to it: an overtaking), the two-dipole fit is tried
+//     beside it (pair_beside.h InitializeBeside, on the last window_s of
+//     samples with every other track's field removed): if it passes, the
+//     track's engine is started again from its line of the fit (id and
+//     earlier rows kept) and the newcomer starts tentative, the two partners
+//     as a pair start's (refitted pair_refit_s later; 0 turns this off too).
 //  Background (background.h): before step 2 every sample's B is corrected by
 //     its sensor's background prior (its deviation from B0; its variance
 //     added to σ_B²), and after step 3 each sensor's background takes the
@@ -57,7 +64,8 @@
 //     a row, or not detected for max_coast_s, or its horizontal 1-σ exceeds
 //     max_sigma_horizontal_m, or its window solve stays unusable for
 //     max_miss_s, or it runs within min_separation_m of an older track for
-//     max_miss_s (a duplicate; the younger ends).
+//     max_miss_s (a duplicate; the younger ends) — not two tracks started
+//     together by a two-dipole fit (partners), which found them apart.
 #pragma once
 
 #include <Eigen/Core>

@@ -1,0 +1,56 @@
+// A second vessel coming close to one that is already tracked (issue 24,
+// overtaking): the pair start of initialize.h for the case where one of the
+// two already has a track.
+//
+// Frames and units as initialize.h: world NED, metres, seconds, T, T/m, A·m².
+//
+// Why: while a track follows vessel A, a vessel B that comes within a few
+// metres of it over the same sensors first shows as a small part of what
+// those sensors see (its tensor 10–20 % of A's). Its single-sample fixes are
+// mixed (InitOptions::max_dipole_misfit), the residual after A's prediction
+// is masked as A's model error (TrackManagementOptions::min_new_share), and
+// the part of B's field that A's window cannot absorb makes A's fit poor:
+// A ends "missed" before B gets a track (held-out overtaking: the slow
+// vessel's track ends at 34.5 s as the fast one closes to 15 m;
+// docs/ACCURACY.md, "One vessel overtaking another").
+//
+// InitializeBeside fits two straight-line dipoles (RefitPair) to the
+// samples with every other track's field removed, one started from the
+// tracked vessel's line, the other from each of these in turn, the first
+// that passes RefitPair's gates (the pair explains the samples as one dipole
+// explains a clean one; lines ≥ min_separation_m apart; each dipole's own
+// tensor reaches the init SNR) kept. The init SNR here (its samples and
+// the strength gate) is 10, not the field's 20 (min of the two): what spoils
+// the track's fit first is the newcomer's B, while its tensor is still weak
+// (tuning overtaking: the slow vessel's track went poor at 35 s with the
+// fast one 27 m behind, its tensor below 20 σ at every sensor; the fit then
+// explained the samples to a misfit of 0.007, 37 m apart, and was refused
+// by the strength gate alone). Kept:
+//  1. the line InitializeTrack finds in the samples minus the track's own
+//     predicted field (the newcomer's fixes, once the track's field is out),
+//     if it is ≥ min_separation_m from the track;
+//  2. the track's line shifted sideways by ±min_separation_m and, along it,
+//     10 m behind at twice its speed or 10 m ahead at half its speed (a
+//     vessel overtaking it, or one it overtakes).
+// Returned: {the tracked vessel's refitted line, the newcomer's}, each with
+// the joint fit's covariances (InitialTrack::has_pair_covariance); empty if
+// no start passes.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "magnav/tracker/initialize.h"
+#include "magnav/tracker/tracker.h"
+
+namespace magnav::tracker {
+
+// `epochs`: the samples with every track's field removed but the tracked
+// vessel's; `tracked`: its line now (state at t_ref_s, moment); its own
+// predicted field at each sample is `tracked`'s (for start 1).
+std::vector<InitialTrack> InitializeBeside(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
+                                           const TrackerOptions& options, const InitialTrack& tracked,
+                                           double min_separation_m);
+
+}  // namespace magnav::tracker
