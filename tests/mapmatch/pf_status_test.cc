@@ -291,7 +291,7 @@ namespace {
 // CUSUM off (so the flags are the CUSUM's), and clean runs never flagged: the
 // reference 0.01° 3 nT, 0.1° 5 nT and 0.1° 0.5 nT paths, PF seeds 2–3
 // (CleanRunsRaiseNoAlarm runs seed 1). The rate on generated paths is
-// scripts/calibration_pf's, outside CI. ≈ 4 s CPU.
+// scripts/calibration_pf's, outside CI. ≈ 1 s CPU.
 TEST(PfStatus, TheInnovationCusumFlagsKidnapsAndNotCleanRuns) {
   int losses = 0, detected = 0, detected_off = 0;
   for (int j = 0; j < 6; ++j) {
