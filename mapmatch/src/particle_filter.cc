@@ -91,6 +91,15 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(bias_drift_sigma_nT) && bias_drift_sigma_nT >= 0.0)) {
     return Fail(error, "bias_drift_sigma_nT must be finite and >= 0");
   }
+  if (innovation_cusum_window < 1 || innovation_cusum_delay < 0) {
+    return Fail(error, "innovation_cusum_window must be >= 1 and innovation_cusum_delay >= 0");
+  }
+  if (!PositiveFinite(innovation_cusum_drift)) return Fail(error, "innovation_cusum_drift must be finite and > 0");
+  if (!PositiveFinite(innovation_cusum_cap)) return Fail(error, "innovation_cusum_cap must be finite and > 0");
+  if (!(std::isfinite(innovation_cusum_threshold) && innovation_cusum_threshold >= 0.0 &&
+        std::isfinite(afpf_innovation_cusum_threshold) && afpf_innovation_cusum_threshold >= 0.0)) {
+    return Fail(error, "innovation_cusum_threshold and afpf_innovation_cusum_threshold must be finite and >= 0 (0 = off)");
+  }
   if (subclouds < 1 || subclouds > 64) return Fail(error, "subclouds must be in [1, 64] (1 = off)");
   if (!PositiveFinite(subcloud_chi2)) return Fail(error, "subcloud_chi2 must be finite and > 0");
   if (subcloud_hold < 1) return Fail(error, "subcloud_hold must be >= 1");
@@ -127,12 +136,14 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
       Update(measured_nT, &d);
     }
   }
+  d.innovation_cusum = cusum_g_;  // held over steps without an update
   Estimate(&d);
   if (o_.track_check_window > 0) CheckTrack(ins_lat, ins_lon, measured_nT, &d);
   if (kind_ == ParticleFilterKind::kAfpf) AdaptCount(d);
   d.particles = static_cast<int>(p_.size());
   d.unique_particles = std::min(d.unique_particles, d.particles);  // after the AFPF's trim
   if (bias_failed_) ++counters_.bias_test_failures;
+  if (CusumThreshold() > 0.0 && cusum_g_ > CusumThreshold()) ++counters_.innovation_cusum_alarms;
   // A re-initialised cloud stays lost until it has settled (settled_sigma_deg), at most
   // 2 divergence windows.
   if (reacquiring_ && (std::sqrt(d.cov_lat_lat + d.cov_lon_lon) < o_.settled_sigma_deg ||
@@ -148,6 +159,8 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
       SpreadPrior(ins_lat, ins_lon);
       nis_window_.clear();
       bias_window_.clear();
+      cusum_hist_.clear();
+      cusum_g_ = 0.0;
       innov_.clear();
       track_.clear();
       track_lost_ = false;
@@ -282,6 +295,7 @@ void Filter::Update(double z, StepDiagnostics* d) {
     d->innovation_nT = mean;
     d->predicted_spread_nT = std::sqrt(std::max(r2 / w_on - mean * mean, 0.0) + pb / w_on);
     RecordInnovation(mean, d->predicted_spread_nT * d->predicted_spread_nT, d);
+    RecordCusum(mean, d->predicted_spread_nT * d->predicted_spread_nT, d);
   }
   // The outlier gate (see outlier_sigmas): a reading no particle's prediction explains is skipped.
   if (o_.outlier_sigmas > 0.0 && w_on > 0.5 && consecutive_outliers_ < o_.max_consecutive_outliers) {

@@ -63,9 +63,35 @@ double Filter::Ess() const {
   return s > 0.0 ? 1.0 / s : 0.0;
 }
 
-// Lost: the divergence rule (mean NIS over divergence_window updates) or the
-// innovation-bias test (RecordInnovation, this update).
-bool Filter::Lost() const { return bias_failed_ || Diverged(); }
+// Lost: the divergence rule (mean NIS over divergence_window updates), the
+// innovation-bias test (RecordInnovation, this update) or the innovation CUSUM
+// (RecordCusum, held until g falls back).
+bool Filter::Lost() const {
+  const double h = CusumThreshold();
+  return bias_failed_ || (h > 0.0 && cusum_g_ > h) || Diverged();
+}
+
+double Filter::CusumThreshold() const {
+  return kind_ == ParticleFilterKind::kAfpf ? o_.afpf_innovation_cusum_threshold : o_.innovation_cusum_threshold;
+}
+
+// The innovation CUSUM (innovation_cusum_*, see the header): u = min(r² / (s² + V), cap) against
+// the mean s² of r_j² − V_j over the window that ended `delay` updates ago; g ← max(0, g + u − drift).
+void Filter::RecordCusum(double r, double spread2, StepDiagnostics* d) {
+  if (CusumThreshold() == 0.0 || !std::isfinite(r)) return;
+  const std::size_t w = static_cast<std::size_t>(o_.innovation_cusum_window);
+  const std::size_t lag = static_cast<std::size_t>(o_.innovation_cusum_delay);
+  if (cusum_hist_.size() >= w + lag) {
+    double s2 = 0.0;
+    for (std::size_t j = 0; j < w; ++j) s2 += cusum_hist_[j];
+    s2 = std::max(s2 / static_cast<double>(w), 0.25);
+    const double u = std::min(r * r / (s2 + spread2), o_.innovation_cusum_cap);
+    cusum_g_ = std::max(0.0, cusum_g_ + u - o_.innovation_cusum_drift);
+  }
+  cusum_hist_.push_back(r * r - spread2);
+  if (cusum_hist_.size() > w + lag) cusum_hist_.pop_front();
+  d->innovation_cusum = cusum_g_;
+}
 
 // The divergence rule: mean NIS over the last divergence_window updates > divergence_nis.
 bool Filter::Diverged() const {
@@ -250,6 +276,10 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                                                                      : options.bias_test_chi2) > 0.0
                               ? ", or the innovation-bias test"
                               : "") +
+                         ((kind == ParticleFilterKind::kAfpf ? options.afpf_innovation_cusum_threshold
+                                                             : options.innovation_cusum_threshold) > 0.0
+                              ? ", or the innovation CUSUM"
+                              : "") +
                          (options.track_check_window > 0 ? ", or the track check" : "") +
                          (options.subclouds > 1 ? ", or the sub-clouds disagree" : "") + ")";
   } else if (unsettled) {
@@ -273,7 +303,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                  : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", lost steps " + std::to_string(c.lost_steps) + ", bias-test alarms " +
-            std::to_string(c.bias_test_failures) +
+            std::to_string(c.bias_test_failures) + ", innovation-CUSUM alarms " +
+            std::to_string(c.innovation_cusum_alarms) +
             ", reinitialisations " + std::to_string(c.reinitialisations) +
             (kind == ParticleFilterKind::kPf ? ", tempered updates " + std::to_string(c.tempered_updates) : "") +
             (options.subclouds > 1 ? ", sub-clouds " + std::to_string(options.subclouds) + ", re-seeded " +

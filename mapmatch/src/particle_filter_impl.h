@@ -88,6 +88,8 @@ class Filter final : public SequentialMatcher {
   bool Diverged() const;
   double NoiseSigma() const;
   void RecordInnovation(double r, double spread2, StepDiagnostics* d);
+  void RecordCusum(double r, double spread2, StepDiagnostics* d);
+  double CusumThreshold() const;
   void CheckTrack(double ins_lat, double ins_lon, double z, StepDiagnostics* d);
   void PublishCovariance(StepDiagnostics* d) const;
 
@@ -116,6 +118,8 @@ class Filter final : public SequentialMatcher {
   std::deque<double> nis_window_;
   std::deque<std::pair<double, double>> bias_window_;  // innovation-bias test: (r, σ_n² + V) per update
   bool bias_failed_ = false;                          // the bias test fired at this update
+  std::deque<double> cusum_hist_;  // innovation CUSUM: r² − V per update (window + delay)
+  double cusum_g_ = 0.0;           // its statistic g
   bool reacquiring_ = false;                          // re-initialised and not settled yet
   int reacquiring_steps_ = 0;                         // steps since that re-initialisation
   std::deque<std::array<double, 3>> track_;  // track check: (INS lat, lon, reading) per update

@@ -173,6 +173,7 @@ void SubClouds::Pool(StepDiagnostics* d) {
     d->likelihood_exponent = std::min(d->likelihood_exponent, s->likelihood_exponent);
     d->track_check_chi2 = std::max(d->track_check_chi2, s->track_check_chi2);
     d->innovation_bias_chi2 = std::max(d->innovation_bias_chi2, s->innovation_bias_chi2);
+    d->innovation_cusum = std::max(d->innovation_cusum, s->innovation_cusum);
     d->track_check_failed = d->track_check_failed || s->track_check_failed;
     d->resampled = d->resampled || s->resampled;
     d->unique_particles += s->unique_particles;

@@ -62,6 +62,17 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "0 = off");
   opt("--bias-test-chi2", &f->bias_test_chi2, "pf: the innovation-bias test's threshold (chi-square, 1 dof; 0 = off)");
   opt("--afpf-bias-test-chi2", &f->afpf_bias_test_chi2, "afpf: the innovation-bias test's threshold (0 = off)");
+  opt("--innovation-cusum-window", &f->innovation_cusum_window,
+      "pf, afpf: updates in the innovation CUSUM's noise reference s^2 = mean(r^2 - V)");
+  opt("--innovation-cusum-delay", &f->innovation_cusum_delay,
+      "pf, afpf: the reference window ends this many updates before the current one");
+  opt("--innovation-cusum-drift", &f->innovation_cusum_drift,
+      "pf, afpf: the CUSUM's drift: g <- max(0, g + min(r^2 / (s^2 + V), cap) - drift)");
+  opt("--innovation-cusum-cap", &f->innovation_cusum_cap, "pf, afpf: one reading's largest term in the CUSUM");
+  opt("--innovation-cusum-threshold", &f->innovation_cusum_threshold,
+      "pf: lost while the innovation CUSUM g exceeds this (0 = off)");
+  opt("--afpf-innovation-cusum-threshold", &f->afpf_innovation_cusum_threshold,
+      "afpf: lost while the innovation CUSUM g exceeds this (0 = off)");
   opt("--settled-sigma", &f->settled_sigma_deg,
       "pf, afpf: after a re-initialisation stay lost until the cloud's 1-sigma spread is below this, deg; 0 = off");
   opt("--reinitialize-when-lost", &f->reinitialize_when_lost,
