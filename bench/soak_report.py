@@ -17,7 +17,8 @@ the first and the last hour of data (the CPU time interpolated at the hour's end
 over each of those hours, their ratios, and the samples sent against those the service received.
 Writes OUT/<service>_series.csv (data hour, CPU s per
 s of data and mean RSS in MB over 10-minute windows of data) for the plot. Exit 1, naming the service,
-when a ratio exceeds LIMIT = 1.5 or a service received fewer samples than were sent.
+when a ratio exceeds LIMIT = 1.5, a service received fewer samples than were sent, or the matcher's
+filter said lost at more than LOST_STEPS_LIMIT (1 %) of its steps.
 """
 import bisect
 import csv
@@ -26,6 +27,7 @@ import re
 import sys
 
 LIMIT = 1.5
+LOST_STEPS_LIMIT = 0.01  # a matcher whose filter says lost at more than 1 % of its steps fails the soak
 SERVICES = [  # service, chain
     ('inverter', 'field'), ('tracker', 'field'), ('localizer', 'localizer'), ('matcher', 'matcher')]
 
@@ -80,7 +82,7 @@ def counts(out, hours, service):
     log = os.path.join(out, service + '.log')
     if service in ('inverter', 'tracker'):
         sent = rows(os.path.join(out, 'field_%sh.csv' % h))
-        m = last_match(log, r'stopping after (\d+) samples \((\d+) repeated, (\d+) missing\)')
+        m = last_match(log, r'stopping after (\d+) samples \((\d+) repeated, (\d+) missing')
         received = int(m.group(1)) if m else 0
         if service == 'inverter':
             f = last_match(log, r'(\d+) fixes, (\d+) lost')
@@ -162,12 +164,17 @@ def main():
         if lost > 0:
             failed.append('%s: received %d of the %d samples sent (%d lost; replay slower?)' % (service, received, sent,
                                                                                              lost))
+        steps = re.match(r'(\d+) steps, (\d+) lost steps', what) if service == 'matcher' else None
+        if steps and int(steps.group(2)) > LOST_STEPS_LIMIT * int(steps.group(1)):
+            failed.append('matcher: its filter said lost at %s of %s steps (limit %g %%): the estimates are not '
+                          'trustworthy; check them against the path\'s truth (docs/ACCURACY.md, "Dense readings")'
+                          % (steps.group(2), steps.group(1), 100 * LOST_STEPS_LIMIT))
     print('\n'.join(table))
     if failed:
         print('SOAK FAILED:\n  ' + '\n  '.join(failed))
         sys.exit(1)
     print('soak passed: every service\'s last hour within %.1fx of its first in CPU per s of data and in RSS, '
-          'nothing lost' % LIMIT)
+          'nothing lost, the matcher lost at most %g %% of its steps' % (LIMIT, 100 * LOST_STEPS_LIMIT))
 
 
 if __name__ == '__main__':
