@@ -44,6 +44,16 @@ double Nees(const MatchResult& r, std::size_t p, double lat, double lon) {
 constexpr double kDocumentedFinal = 2.09;
 constexpr double kDocumentedPoints = 2.09;
 
+// An every-point ANEES (2 dof) within [0.5, 2] × dof with the term under test, outside it with
+// every σ doubled or halved, and above it without the term.
+void ExpectCalibratedAndNotWithout(double with_anees, double without_anees) {
+  EXPECT_GE(with_anees, 0.5 * 2);
+  EXPECT_LE(with_anees, 2.0 * 2);
+  EXPECT_LT(with_anees / 4.0, 0.5 * 2);  // σ × 2
+  EXPECT_GT(with_anees * 4.0, 2.0 * 2);  // σ / 2
+  EXPECT_GT(without_anees, 2.0 * 2);
+}
+
 TEST(FastMsdTrust, CovarianceIsCalibratedOnTheCalibrationSeeds) {
   const std::string dir = testing::TempDir();
   const std::string script = testing::TestDataDir() + "/../../scripts/heldout_mappaths";
@@ -131,11 +141,7 @@ TEST(FastMsdTrust, MapErrorTermCalibratesTheTuningPathsAtHalfANanotesla) {
   std::printf("fast-msd, tuning paths 501-520 at 0.5 nT: ANEES every point %.3f with the map error, "
               "%.3f without\n",
               with_anees, without_anees);
-  EXPECT_GE(with_anees, 0.5 * 2);
-  EXPECT_LE(with_anees, 2.0 * 2);
-  EXPECT_LT(with_anees / 4.0, 0.5 * 2);  // σ × 2
-  EXPECT_GT(with_anees * 4.0, 2.0 * 2);  // σ / 2
-  EXPECT_GT(without_anees, 2.0 * 2);
+  ExpectCalibratedAndNotWithout(with_anees, without_anees);
   EXPECT_NEAR(with_anees, kDocumentedHalfNtPoints, 0.01);
   EXPECT_NEAR(without_anees, kDocumentedHalfNtPointsWithout, 0.01);
 }
@@ -198,11 +204,7 @@ TEST(FastMsdTrust, OtherBasinsCoverTheWrongBasinStretches) {
   std::printf("fast-msd, held-out paths 605-608 at 0.5 and 3 nT, 626 at 0.5 nT: ANEES every point %.3f with the basins, "
               "%.3f without\n",
               with_anees, without_anees);
-  EXPECT_GE(with_anees, 0.5 * 2);
-  EXPECT_LE(with_anees, 2.0 * 2);
-  EXPECT_LT(with_anees / 4.0, 0.5 * 2);  // σ × 2
-  EXPECT_GT(with_anees * 4.0, 2.0 * 2);  // σ / 2
-  EXPECT_GT(without_anees, 2.0 * 2);
+  ExpectCalibratedAndNotWithout(with_anees, without_anees);
   EXPECT_NEAR(with_anees, kDocumentedWrongBasinsWith, 0.02 * kDocumentedWrongBasinsWith);
   EXPECT_NEAR(without_anees, kDocumentedWrongBasinsWithout, 0.02 * kDocumentedWrongBasinsWithout);
 }
