@@ -163,6 +163,11 @@ struct TrackerOptions {
   // (½ Σ ρ, in σ²). 0 = none.
   int batch_turn_change_points = 2;
   static constexpr int kMaxBatchTurnChangePoints = 4;
+  // Batch: the covariance is that of the chosen restart (conditional on its
+  // turn-rate change points). If true, the spread of the other restarts'
+  // ends about it, weighted by exp(−Δcost) (model averaging), is added to
+  // every state's covariance; false: the conditional covariance alone.
+  bool batch_model_spread = true;
 
   // Sliding window: fixed lag (s) and iterations per new epoch.
   double window_s = 20.0;
@@ -223,6 +228,9 @@ struct Summary {
   // because they ended at a lower cost (TrackerOptions::batch_turn_change_points).
   int num_turn_restarts = 0;
   int num_turn_restarts_kept = 0;
+  // Batch: candidate ends whose spread entered the covariance with a weight
+  // > 1e-12 (TrackerOptions::batch_model_spread; the chosen one included).
+  int num_model_spread_candidates = 0;
   std::string message;  // Ceres termination message or failure reason
 
   std::string BriefReport() const;
