@@ -127,7 +127,9 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
     sum.num_samples += static_cast<int>(epochs[k].samples.size());
     if (k + 1 < epochs.size()) {
       const double dt = epochs[k + 1].t_s - epochs[k].t_s;
-      internal::AddProcessFactors(dt, options.process, turn_loss.get(), x[k].data(), x[k + 1].data(),
+      ProcessNoise q = options.process;
+      q.depth_m_per_sqrt_s = internal::DepthWalk(epochs[k], options);
+      internal::AddProcessFactors(dt, q, turn_loss.get(), x[k].data(), x[k + 1].data(),
                                   &factors[k]);
       if (options.process.turn_rate_warmup_radps_per_sqrt_s > 0.0) {
         internal::Factor w;
