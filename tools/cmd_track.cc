@@ -280,6 +280,14 @@ void AddTrackCommand(CLI::App& app) {
                   "change points, each kept if it ends at a lower cost (0 = none, at most " +
                       std::to_string(tracker::TrackerOptions::kMaxBatchTurnChangePoints) + ")")
       ->capture_default_str();
+  cmd->add_option("--batch-restart-from-window", args->flags.options.batch_restart_from_window,
+                  "batch: also restart each track's solve from the window track that found it, kept if it ends at a "
+                  "lower cost (0/1)")
+      ->capture_default_str();
+  cmd->add_option("--batch-model-spread", args->flags.options.track.batch_model_spread,
+                  "batch: add to each state's covariance the spread of the restarts' ends about the chosen one, "
+                  "weighted by exp(-cost difference) (model averaging over the turn's change points; 0/1)")
+      ->capture_default_str();
   cmd->callback([args] { RunTrack(*args); });
 }
 

@@ -212,6 +212,16 @@ TEST(Options, DefaultsAreValidAndBadValuesAreNamed) {
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("depth_m_per_sqrt_s"), std::string::npos);
   o = TrackerOptions{};
+  o.process.depth_weak_m_per_sqrt_s = 3e-4;
+  EXPECT_TRUE(o.IsValid(&why)) << why;
+  o.process.depth_weak_m_per_sqrt_s = -1e-4;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("depth_weak_m_per_sqrt_s"), std::string::npos);
+  o = TrackerOptions{};
+  o.process.depth_weak_tensor_snr = 0.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("depth_weak_tensor_snr"), std::string::npos);
+  o = TrackerOptions{};
   o.window_s = -1.0;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("window_s"), std::string::npos);

@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 
 #include "factors.h"
@@ -72,7 +73,8 @@ std::vector<double> PiecewiseConstantFit(const std::vector<double>& w, int chang
 }  // namespace
 
 TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
-                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes) {
+                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes,
+                         const std::vector<BatchStart>* starts) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
   if (!B0_W.allFinite()) throw InputError("tracker: B0 is not finite");
@@ -125,7 +127,9 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
     sum.num_samples += static_cast<int>(epochs[k].samples.size());
     if (k + 1 < epochs.size()) {
       const double dt = epochs[k + 1].t_s - epochs[k].t_s;
-      internal::AddProcessFactors(dt, options.process, turn_loss.get(), x[k].data(), x[k + 1].data(),
+      ProcessNoise q = options.process;
+      q.depth_m_per_sqrt_s = internal::DepthWalk(epochs[k], options);
+      internal::AddProcessFactors(dt, q, turn_loss.get(), x[k].data(), x[k + 1].data(),
                                   &factors[k]);
       if (options.process.turn_rate_warmup_radps_per_sqrt_s > 0.0) {
         internal::Factor w;
@@ -221,27 +225,35 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
       x[k] << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
     }
   }
-  // Restarts from the estimate with a piecewise-constant turn rate
-  // (TrackerOptions::batch_turn_change_points), each kept if it ends lower
-  // by kMinTurnRestartGain.
-  if (options.batch_turn_change_points > 0 && r_final_pass && pr.last.IsSolutionUsable()) {
+  // Restarts: from the estimate with a piecewise-constant turn rate
+  // (TrackerOptions::batch_turn_change_points), then from each of `starts`;
+  // each kept if it ends lower by kMinTurnRestartGain. Every usable end is a
+  // candidate model (its change points, its turn) for the covariance below.
+  struct Candidate {
+    double cost;
+    std::vector<StateVector> x;
+  };
+  std::vector<Candidate> candidates;
+  const bool restarting = r_final_pass && pr.last.IsSolutionUsable() &&
+                          (options.batch_turn_change_points > 0 || (starts != nullptr && !starts->empty()));
+  if (restarting) {
     const auto cost_now = [&] { return internal::TotalCost(build(false).groups, options.num_threads); };
     double cost = cost_now();
-    for (int cps = 1; cps <= options.batch_turn_change_points; ++cps) {
-      std::vector<double> w;
-      for (std::size_t k = i0; k <= i1; ++k) w.push_back(x[k](5));
-      const std::vector<double> fit = PiecewiseConstantFit(w, cps);
-      if (fit.empty()) break;
+    candidates.push_back({cost, x});
+    // Solves from x as set by `set` (which returns false if it set nothing).
+    const auto restart = [&](const std::function<bool()>& set) {
       const std::vector<StateVector> x_kept = x;
       const Eigen::Vector3d moment_kept = moment;
-      for (std::size_t k = i0; k <= i1; ++k) x[k](5) = fit[k - i0];
+      if (!set()) return;
       internal::PassResult r = internal::SolveWithContinuation(options, options.max_num_iterations, false,
                                                                measurements, false, build);
       pr.iterations += r.iterations;
       pr.solve_time_s += r.solve_time_s;
       const double cost_r = cost_now();
       ++sum.num_turn_restarts;
-      if (r.reached_final_pass && r.last.IsSolutionUsable() && cost_r < cost - kMinTurnRestartGain) {
+      const bool usable = r.reached_final_pass && r.last.IsSolutionUsable() && std::isfinite(cost_r);
+      if (usable) candidates.push_back({cost_r, x});
+      if (usable && cost_r < cost - kMinTurnRestartGain) {
         cost = cost_r;
         pr.last = r.last;
         pr.final_loss = std::move(r.final_loss);
@@ -250,6 +262,31 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
         x = x_kept;
         moment = moment_kept;
         for (internal::Factor* f : measurements) f->loss = pr.final_loss.get();
+      }
+    };
+    bool fitted = true;
+    for (int cps = 1; cps <= options.batch_turn_change_points && fitted; ++cps) {
+      restart([&] {
+        std::vector<double> w;
+        for (std::size_t k = i0; k <= i1; ++k) w.push_back(x[k](5));
+        const std::vector<double> fit = PiecewiseConstantFit(w, cps);
+        fitted = !fit.empty();
+        for (std::size_t k = i0; k < i0 + fit.size(); ++k) x[k](5) = fit[k - i0];
+        return fitted;
+      });
+    }
+    if (starts != nullptr) {
+      for (const BatchStart& start : *starts) {
+        restart([&] {
+          bool any = false;
+          for (std::size_t k = i0; k <= i1; ++k) {
+            const std::optional<CtState<double>> s = start(epochs[k].t_s);
+            if (!s) continue;
+            x[k] << s->x, s->y, s->z, s->v, s->heading, s->turn_rate;
+            any = true;
+          }
+          return any;
+        });
       }
     }
   }
@@ -300,6 +337,26 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
         Eigen::Matrix<double, 3, 3, Eigen::RowMajor> Cm;
         cov.GetCovarianceBlock(moment.data(), moment.data(), Cm.data());
         P_m = Cm;
+      }
+    }
+    if (sum.covariance_ok && options.batch_model_spread && candidates.size() > 1) {
+      // The covariance above is conditional on the chosen model (its change
+      // points, its turn). Averaged over the candidate ends with weights
+      // exp(−cost) (cost = ½ Σ ρ: a log-likelihood), the error of the chosen
+      // estimate gets Σ_i w_i (x_i − x)(x_i − x)ᵀ more.
+      double c_min = std::numeric_limits<double>::infinity();
+      for (const Candidate& c : candidates) c_min = std::min(c_min, c.cost);
+      double w_sum = 0.0;
+      for (const Candidate& c : candidates) w_sum += std::exp(-(c.cost - c_min));
+      for (const Candidate& c : candidates) {
+        const double w = std::exp(-(c.cost - c_min)) / w_sum;
+        if (!(w > 1e-12)) continue;
+        for (std::size_t k = 0; k < x.size(); ++k) {
+          StateVector d = c.x[k] - x[k];
+          d(4) = WrapAngle(d(4));
+          P[k] += w * d * d.transpose();
+        }
+        ++sum.num_model_spread_candidates;
       }
     }
     if (sum.covariance_ok) {

@@ -7,6 +7,15 @@
 
 namespace magnav::tracker::internal {
 
+double DepthWalk(const Epoch& from, const TrackerOptions& options) {
+  const ProcessNoise& q = options.process;
+  if (!(q.depth_weak_m_per_sqrt_s > 0.0)) return q.depth_m_per_sqrt_s;
+  for (const auto& s : from.samples) {
+    if (s.T.norm() >= q.depth_weak_tensor_snr * SigmaT(s, options)) return q.depth_m_per_sqrt_s;
+  }
+  return q.depth_weak_m_per_sqrt_s;
+}
+
 ceres::Problem::Options NonOwningProblemOptions() {
   ceres::Problem::Options o;
   o.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;

@@ -37,6 +37,11 @@ ceres::Problem::Options NonOwningProblemOptions();
 // Measurement factors of one epoch.
 void AddMeasurementFactors(const Epoch& epoch, const Eigen::Vector3d& B0_W, const TrackerOptions& options,
                            double moment_scale, double* state, double* moment, std::vector<Factor>* out);
+// The depth random walk from `from` to the next epoch: ProcessNoise's
+// depth_weak_m_per_sqrt_s if it is on and every measured tensor of `from` is
+// below depth_weak_tensor_snr σ_T (the depth not observed), else
+// depth_m_per_sqrt_s.
+double DepthWalk(const Epoch& from, const TrackerOptions& options);
 // Process factors (kinematic + turn rate) between two epochs.
 void AddProcessFactors(double dt_s, const ProcessNoise& q, const ceres::LossFunction* turn_loss, double* s0,
                        double* s1, std::vector<Factor>* out);

@@ -225,6 +225,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   std::vector<double> b_only_until;  // past this, the extension: tensor only
   std::vector<double> end_limit;     // a missed track's span ends by this
   std::vector<std::uint32_t> partner_id;
+  std::vector<TrackPath> window_paths;  // as the finder left them
   for (const TrackRecord& r : finder.Tracks()) {
     auto it = paths.find(r.track_id);
     if (it == paths.end() || it->second.epochs.empty()) continue;
@@ -244,6 +245,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     b_only_until.push_back(cut ? r.t_last_detection_s : std::numeric_limits<double>::infinity());
     end_limit.push_back(cut ? r.t_last_detection_s + kMissedExtensionS : std::numeric_limits<double>::infinity());
     partner_id.push_back(r.partner_id);
+    window_paths.push_back(it->second);
     result.push_back(std::move(m));
   }
   // Each track's partner (index into result; none: result.size()).
@@ -363,7 +365,12 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
         if (!k_epoch.samples.empty()) mine.push_back(std::move(k_epoch));
       }
       if (mine.empty()) continue;
-      TrackEstimate est = SolveBatch(mine, B0_W, topt, &track_fixes);
+      std::vector<BatchStart> starts;
+      if (options.batch_restart_from_window) {
+        const TrackPath* path = &window_paths[i];
+        starts.push_back([path, max_gap](double t) { return path->At(t, max_gap); });
+      }
+      TrackEstimate est = SolveBatch(mine, B0_W, topt, &track_fixes, &starts);
       const bool ok = est.summary.initialized && est.summary.usable &&
                       std::any_of(est.epochs.begin(), est.epochs.end(), [](const EpochEstimate& e) { return e.usable; });
       if (ok) {

@@ -36,6 +36,9 @@ const char* InitSourceName(InitSource source) {
 bool ProcessNoise::IsValid(std::string* error) const {
   if (!PositiveFinite(position_m_per_sqrt_s)) return Fail(error, "process.position_m_per_sqrt_s must be > 0");
   if (!PositiveFinite(depth_m_per_sqrt_s)) return Fail(error, "process.depth_m_per_sqrt_s must be > 0");
+  if (!(depth_weak_m_per_sqrt_s >= 0.0 && std::isfinite(depth_weak_m_per_sqrt_s)))
+    return Fail(error, "process.depth_weak_m_per_sqrt_s must be >= 0 (0 = off)");
+  if (!PositiveFinite(depth_weak_tensor_snr)) return Fail(error, "process.depth_weak_tensor_snr must be > 0");
   if (!PositiveFinite(speed_mps_per_sqrt_s)) return Fail(error, "process.speed_mps_per_sqrt_s must be > 0");
   if (!PositiveFinite(heading_rad_per_sqrt_s))
     return Fail(error, "process.heading_rad_per_sqrt_s must be > 0");

@@ -91,6 +91,7 @@ struct WindowTracker::Impl {
       window.back().x = x0;
       ProcessNoise q = options.process;
       q.turn_rate_radps_per_sqrt_s = q.window_turn_rate_radps_per_sqrt_s;
+      q.depth_m_per_sqrt_s = internal::DepthWalk(last.epoch, options);
       internal::AddProcessFactors(e.t_s - last.epoch.t_s, q, turn_loss.get(), last.x.data(),
                                   window.back().x.data(), &last.to_next);
     } else {

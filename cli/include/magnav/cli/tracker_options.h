@@ -41,6 +41,13 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--q-position", t.process.position_m_per_sqrt_s, "horizontal (x, y) position random walk, m/sqrt(s)")
       ->capture_default_str();
   app.add_option("--q-depth", t.process.depth_m_per_sqrt_s, "depth (z) random walk, m/sqrt(s)")->capture_default_str();
+  app.add_option("--q-depth-weak", t.process.depth_weak_m_per_sqrt_s,
+                 "depth random walk from an epoch whose measured tensors are all below --depth-weak-snr "
+                 "sigma_T, m/sqrt(s) (0 = --q-depth everywhere)")
+      ->capture_default_str();
+  app.add_option("--depth-weak-snr", t.process.depth_weak_tensor_snr,
+                 "tensor SNR below which an epoch does not observe the depth (--q-depth-weak)")
+      ->capture_default_str();
   app.add_option("--q-speed", t.process.speed_mps_per_sqrt_s, "speed random walk, m/s/sqrt(s)")->capture_default_str();
   app.add_option("--q-heading", t.process.heading_rad_per_sqrt_s, "heading random walk, rad/sqrt(s)")
       ->capture_default_str();

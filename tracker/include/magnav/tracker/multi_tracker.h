@@ -181,6 +181,12 @@ struct MultiTrackerOptions {
   // grows at most 5 s past its last detection, on its tensor alone. Both > 0.
   double batch_gate_snr = 1.0;
   double batch_extension_step_s = 20.0;
+  // Batch: each track's solve is also restarted from the window track that
+  // found it (its states at every epoch, propagated past its ends; SolveBatch's
+  // `starts`), kept if it ends at a cost lower by ≥ 1: the causal window,
+  // which re-solves its turn rate as the data come, is a start from another
+  // basin than the batch's own turn-rate restarts.
+  bool batch_restart_from_window = true;
   // Window and batch: the fields of the other tracks removed from a sample
   // are models, taken as uncertain by this share of their norm (per
   // element: the norm over √3 for B, over 3 for T), added in quadrature to

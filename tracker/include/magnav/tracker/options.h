@@ -31,8 +31,25 @@ struct ProcessNoise {
   // [1.5, 6] (but h12's coasting, 1.44), yet costs
   // the reference AUV fluxgate pass accuracy (window RMS 0.107 → 0.170 m,
   // NEES above its χ² bound) and the crossing's window an overconfident
-  // start: docs/ACCURACY.md, "Window σ when the data grow weak".
+  // start: docs/ACCURACY.md, "Window σ when the data grow weak". So this
+  // walk is used where the depth is observed, depth_weak_m_per_sqrt_s below
+  // where it is not.
   double depth_m_per_sqrt_s = 0.01;
+  // The depth walk (window and batch) from an epoch whose measured tensors are all weak
+  // (every ‖T‖/σ_T < depth_weak_tensor_snr: the depth is not observed there)
+  // to the next; 0 = depth_m_per_sqrt_s everywhere. A stiff walk only where
+  // the data cannot move the depth keeps the depth σ from growing
+  // past its error outside the reach and while coasting, and leaves the
+  // strong part of a pass (where a loose walk forgets a start's depth error)
+  // as it was (docs/ACCURACY.md, "The depth walk where the depth is not
+  // observed"). Measured from the data alone, so a checkpoint restores it.
+  // Off by default: 3e-4 keeps every reference pass figure and brings 16 of
+  // the 18 fluxgate σ cells of the held-out passes within [1.5, 6] (10 with
+  // it off), but the batch's chain solver and Ceres then differ by 0.0089 σ
+  // on the reference AUV fluxgate pass (the agreement test's bound: 0.001 σ);
+  // not analysed yet.
+  double depth_weak_m_per_sqrt_s = 0.0;
+  double depth_weak_tensor_snr = 10.0;
   // Speed random walk.
   double speed_mps_per_sqrt_s = 0.005;
   // Heading random walk added to h + ω dt.
@@ -163,6 +180,11 @@ struct TrackerOptions {
   // (½ Σ ρ, in σ²). 0 = none.
   int batch_turn_change_points = 2;
   static constexpr int kMaxBatchTurnChangePoints = 4;
+  // Batch: the covariance is that of the chosen restart (conditional on its
+  // turn-rate change points). If true, the spread of the other restarts'
+  // ends about it, weighted by exp(−Δcost) (model averaging), is added to
+  // every state's covariance; false: the conditional covariance alone.
+  bool batch_model_spread = true;
 
   // Sliding window: fixed lag (s) and iterations per new epoch.
   double window_s = 20.0;
@@ -223,6 +245,9 @@ struct Summary {
   // because they ended at a lower cost (TrackerOptions::batch_turn_change_points).
   int num_turn_restarts = 0;
   int num_turn_restarts_kept = 0;
+  // Batch: candidate ends whose spread entered the covariance with a weight
+  // > 1e-12 (TrackerOptions::batch_model_spread; the chosen one included).
+  int num_model_spread_candidates = 0;
   std::string message;  // Ceres termination message or failure reason
 
   std::string BriefReport() const;

@@ -89,9 +89,15 @@ struct InitialTrack;  // initialize.h
 // result has summary.initialized == false and no epochs. `fixes`: single-sample
 // fixes computed elsewhere (e.g. `magnav invert`'s output) for the
 // initialiser, used as options.init.source says (see InitializeTrack); nullptr
-// = none.
+// = none. `starts`: whole trajectories (the state at a time, world frame as
+// above; nullopt where a start has none) the batch is restarted from after its
+// own solve and its turn-rate restarts (TrackerOptions::batch_turn_change_points),
+// each kept by the same rule (a cost lower by ≥ 1); e.g. the window track
+// that found the vessel. nullptr = none.
+using BatchStart = std::function<std::optional<CtState<double>>(double t_s)>;
 TrackEstimate SolveBatch(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
-                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes = nullptr);
+                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes = nullptr,
+                         const std::vector<BatchStart>* starts = nullptr);
 
 // Sliding-window (fixed-lag) tracker. Not thread-safe; one track.
 class WindowTracker {
