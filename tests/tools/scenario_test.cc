@@ -158,17 +158,18 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// and heldout_abreast/) are of the kind their names say.
+// heldout_abreast/ and fresh_abreast/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   const std::string dir = testing::TestDataDir() + "/generated/scenarios/";
-  // (set, file, kind): the two sets of every kind, and the fresh abreast pair.
+  // (set, file, kind): the two sets of every kind, and the fresh abreast pairs.
   std::vector<std::array<std::string, 3>> files;
   for (const char* set : {"heldout", "tuning"}) {
     for (const char* kind : {"abreast", "crossing", "overtaking", "far_ship", "drift"}) files.push_back({set, kind, kind});
   }
   for (const char* name : {"abreast_20", "abreast_36"}) files.push_back({"heldout_abreast", name, "abreast"});
+  for (const char* name : {"abreast_28", "abreast_39"}) files.push_back({"fresh_abreast", name, "abreast"});
   for (const auto& [set, file, kind] : files) {
     {
       SCOPED_TRACE(set + "/" + file);
