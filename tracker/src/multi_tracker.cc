@@ -44,6 +44,9 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
     return Fail(error, "evidence_min_tensor_snr must be finite and >= 0");
   }
   if (!(pair_refit_s >= 0.0) || !std::isfinite(pair_refit_s)) return Fail(error, "pair_refit_s must be finite and >= 0");
+  if (!(joint_start_s >= 0.0) || !std::isfinite(joint_start_s)) {
+    return Fail(error, "joint_start_s must be finite and >= 0");
+  }
   return true;
 }
 
@@ -92,6 +95,7 @@ struct Track {
   std::uint32_t id = 0;  // 0 while tentative
   TrackLifeCycle life{0.0, TrackManagementOptions{}};  // confirmation and end rules
   std::string origin;    // what started it, for the start event
+  double t_started_s = 0.0;  // when it was started (tentative)
   // This epoch's prediction.
   bool has_pred = false;
   CtState<double> pred{};
@@ -442,28 +446,29 @@ struct MultiTracker::Impl {
     buffer.push_back(std::move(residual));
     const double span = options.track.window_s + options.track.epoch_tolerance_s;
     while (t - buffer.front().t_s > span) buffer.pop_front();
-    if (mg().pair_refit_s > 0.0) {
+    if (mg().pair_refit_s > 0.0 || mg().joint_start_s > 0.0) {
       recent.push_back(e);
       while (t - recent.front().t_s > span) recent.pop_front();
-      RefitPairs(t, &out);
+      if (mg().pair_refit_s > 0.0) RefitPairs(t, &out);
     }
     while (!fixes.empty() && fixes.front().t_s < buffer.front().t_s - options.track.epoch_tolerance_s) {
       fixes.pop_front();
     }
     if (t - last_init_t >= mg().init_interval_s - options.track.epoch_tolerance_s) {
       last_init_t = t;
-      TryStart(t);
+      TryStart(t, &out);
     }
     return out;
   }
 
   // Looks for a new vessel in the buffer; starts a tentative track.
-  void TryStart(double t) {
+  void TryStart(double t, std::vector<TrackOutput>* out) {
     const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
     const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
     const std::optional<InitialTrack> init =
         InitializeTrack(epochs, B0_W, options.track, any_fix ? &given : nullptr);
     if (init) {
+      if (StartJointly(t, *init, out)) return;
       StartTrack(t, *init, nullptr);
       return;
     }
@@ -485,21 +490,70 @@ struct MultiTracker::Impl {
       // Once the first has started, its field is out of the buffer.
       const bool first = StartTrack(t, pair[0], &pair[1]);
       const bool second = StartTrack(t, pair[1], first ? nullptr : &pair[0]);
-      if (first && second) {
-        const std::uint64_t key = next_pair++;
-        for (std::size_t k = tracks.size() - 2; k < tracks.size(); ++k) {
-          tracks[k].pair = key;
-          tracks[k].started_with = key;
-          tracks[k].pair_start_t_s = t;
-          tracks[k].refit_t_s = t + mg().pair_refit_s;
-          SetPairExcess(tracks[k], pair[k + 2 - tracks.size()]);
-          // Until the refit, or until its deadline (RefitPairs).
-          tracks[k].pair_excess_until_s =
-              t + (mg().pair_refit_s > 0.0 ? mg().pair_refit_s : 0.0) + options.track.window_s;
-          if (!(mg().pair_refit_s > 0.0)) tracks[k].pair = 0;
-        }
-      }
+      if (first && second) MakePair(t, tracks.size() - 2, pair[0], tracks.size() - 1, pair[1]);
     }
+  }
+
+  // Tracks a and b (indices) started together from the two-dipole fit
+  // `init_a`, `init_b` at t: a pair (Track::pair, started_with, the fit's
+  // covariance excess until the refit).
+  void MakePair(double t, std::size_t a, const InitialTrack& init_a, std::size_t b, const InitialTrack& init_b) {
+    const std::uint64_t key = next_pair++;
+    for (const auto& [k, init] : {std::pair<std::size_t, const InitialTrack*>{a, &init_a}, {b, &init_b}}) {
+      Track& tr = tracks[k];
+      tr.pair = key;
+      tr.started_with = key;
+      tr.pair_start_t_s = t;
+      tr.refit_t_s = t + mg().pair_refit_s;
+      SetPairExcess(tr, *init);
+      // Until the refit, or until its deadline (RefitPairs).
+      tr.pair_excess_until_s = t + (mg().pair_refit_s > 0.0 ? mg().pair_refit_s : 0.0) + options.track.window_s;
+      if (!(mg().pair_refit_s > 0.0)) tr.pair = 0;
+    }
+  }
+
+  // Whether the track `probe` (its state predicted to e.t_s) and the line
+  // `init` both reach gate_snr at one of e's sensors.
+  bool ShareASensor(const Track& probe, const InitialTrack& init, const Epoch& e) const {
+    Track line;
+    line.pred = PropagateCoordinatedTurn(init.state, e.t_s - init.t_ref_s);
+    line.m_B = init.m_B_Am2;
+    for (const GradiometerSample& s : e.samples) {
+      if (Predict(probe, s).snr >= mg().gate_snr && Predict(line, s).snr >= mg().gate_snr) return true;
+    }
+    return false;
+  }
+
+  // A single start `init` beside a young track (TrackManagementOptions::
+  // joint_start_s): both fitted jointly (RefitPair on the recent epochs
+  // without the other tracks' fields), the young track's engine started
+  // again from the fit and the new track started from it, each without the
+  // other's field; the two become a pair. False (nothing changed) if no
+  // young track shares a sensor with it or the joint fit fails its gates.
+  bool StartJointly(double t, const InitialTrack& init, std::vector<TrackOutput>* out) {
+    if (!(mg().joint_start_s > 0.0) || recent.empty()) return false;
+    const double tol = options.track.epoch_tolerance_s;
+    for (std::size_t k = 0; k < tracks.size(); ++k) {
+      Track& young = tracks[k];
+      if (young.ended || young.pair != 0 || t - young.t_started_s > mg().joint_start_s + tol) continue;
+      const auto now = young.engine->PredictState(t);
+      if (!now || !young.engine->m_B_Am2().allFinite()) continue;
+      Track probe;
+      probe.pred = *now;
+      probe.m_B = young.engine->m_B_Am2();
+      if (!ShareASensor(probe, init, recent.back())) continue;
+      InitialTrack at_t;
+      at_t.t_ref_s = t;
+      at_t.state = *now;
+      const std::vector<Epoch> epochs = RecentWithout(k, tracks.size());
+      const std::vector<InitialTrack> fit = RefitPair(epochs, B0_W, options.track, at_t, init, mg().min_separation_m);
+      if (fit.size() != 2) continue;
+      Restart(young, fit[0], fit[1], epochs, out);
+      if (!StartTrack(t, fit[1], &fit[0], &epochs)) return true;  // the young track is refitted anyway
+      MakePair(t, k, fit[0], tracks.size() - 1, fit[1]);
+      return true;
+    }
+    return false;
   }
 
   // A pair start's covariance excess (Track::pair_excess) from its start.
@@ -609,11 +663,14 @@ struct MultiTracker::Impl {
     tr.m_B = tr.engine->m_B_Am2();
   }
 
-  // Starts a tentative track from `init` on the buffer (minus `partner`'s
-  // field, if given), unless a track is already near it. True if started.
-  bool StartTrack(double t, const InitialTrack& init_track, const InitialTrack* partner) {
+  // Starts a tentative track from `init` on the buffer, or on `from` if
+  // given (the recent epochs without other tracks' fields: StartJointly),
+  // minus `partner`'s field if given, unless a track is already near it.
+  // True if started.
+  bool StartTrack(double t, const InitialTrack& init_track, const InitialTrack* partner,
+                  const std::vector<Epoch>* from = nullptr) {
     const InitialTrack* init = &init_track;
-    const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
+    const std::vector<Epoch> epochs = from != nullptr ? *from : std::vector<Epoch>(buffer.begin(), buffer.end());
     const CtState<double> now = PropagateCoordinatedTurn(init->state, t - init->t_ref_s);
     for (const Track& tr : tracks) {
       const auto p = tr.engine->PredictState(t);
@@ -626,6 +683,7 @@ struct MultiTracker::Impl {
     // initialiser's line and moment).
     Track tr;
     tr.life = TrackLifeCycle(t, mg());
+    tr.t_started_s = t;
     std::vector<Epoch> mine;
     for (const Epoch& b : epochs) {
       Track probe;
@@ -900,6 +958,7 @@ std::string MultiTracker::SaveState() const {
     w.F64(tr.pair_start_ref_s);
     w.Matrix(tr.pair_excess);
     w.F64(tr.pair_excess_until_s);
+    w.F64(tr.t_started_s);
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -989,6 +1048,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.pair_start_ref_s = r.F64();
     tr.pair_excess = internal::GetMatrix(r, 6, 6);
     tr.pair_excess_until_s = r.F64();
+    tr.t_started_s = r.F64();
     m.tracks.push_back(std::move(tr));
   }
   m.records.resize(r.Count(internal::kMaxStateCount));

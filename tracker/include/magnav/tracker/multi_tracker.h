@@ -48,7 +48,10 @@
 //     never reused) and produce estimates. Two vessels started together by
 //     the two-dipole start (InitializePair) are refitted together once,
 //     pair_refit_s later (RefitPair), and their engines started again from
-//     that refit (TrackManagementOptions::pair_refit_s).
+//     that refit (TrackManagementOptions::pair_refit_s). A single start
+//     within joint_start_s of another young track's start that shares a
+//     sensor with it is fitted jointly with it at once (RefitPair) and the
+//     two become such a pair (TrackManagementOptions::joint_start_s).
 //  Background (background.h): before step 2 every sample's B is corrected by
 //     its sensor's background prior (its deviation from B0; its variance
 //     added to σ_B²), and after step 3 each sensor's background takes the
@@ -127,6 +130,20 @@ struct TrackManagementOptions {
   // confirmed, then once per init_interval_s until it passes or window_s
   // has gone by. 0 = off.
   double pair_refit_s = 5.0;
+  // Two vessels started one by one, close in time, that share a sensor
+  // (issue 24, abreast_36): each single start is made with the other's
+  // field unexplained at the shared sensors, and its moment and line carry
+  // that through the whole track (the window's prior keeps the moment).
+  // A single start made within joint_start_s (s) of another live track's
+  // start, where both predicted signals reach gate_snr at one sensor at
+  // least, is fitted jointly with it (RefitPair on the last window_s of
+  // samples, every other track's field removed); if the fit passes
+  // InitializePair's gates, the older track's engine is started again from
+  // it and the new one is started from it, each without the other's field,
+  // and the two are then a pair as if started together (pair refit,
+  // partner, the joint fit's covariance excess). Otherwise the single start
+  // goes on alone. 0 = off.
+  double joint_start_s = 5.0;
 
   bool IsValid(std::string* error) const;
 };
