@@ -128,7 +128,9 @@ struct Track {
   // field, so its covariance is conditional on the partner's start; what the
   // partner's uncertainty adds (InitialTrack::cov_state −
   // cov_state_given_partner, at the start's state `pair_start_state`,
-  // propagated along it) is added to the rows' covariance.
+  // propagated along it) is added to the covariance of its engine's
+  // estimates as the multi-tracker takes them (Collect): the rows, the
+  // association gates (`newest`) and the end rules all use it.
   bool has_pair_excess = false;
   CtState<double> pair_start_state{};
   double pair_start_ref_s = 0.0;
@@ -231,8 +233,13 @@ struct MultiTracker::Impl {
   // did not detect the track. An epoch from before the track existed (the
   // initiator's buffer it was started on) has no verdict: confirmed, as the
   // initiator found the vessel there.
-  void Collect(Track& tr, const std::vector<EpochEstimate>& est, std::vector<TrackOutput>* out) {
-    if (est.empty()) return;
+  void Collect(Track& tr, const std::vector<EpochEstimate>& engine_est, std::vector<TrackOutput>* out) {
+    if (engine_est.empty()) return;
+    // A pair start's covariance excess (Track::pair_excess) on the engine's
+    // estimates: the association gates (via `newest`), the end rules and the
+    // rows all use the same covariance.
+    std::vector<EpochEstimate> est = engine_est;
+    for (EpochEstimate& e : est) AddPairExcess(tr, &e);
     tr.has_newest = true;
     tr.newest = est.back();
     tr.life.OnEstimate(est.back().t_s, est.back().usable, HorizontalSigma(est.back()));
@@ -249,20 +256,24 @@ struct MultiTracker::Impl {
     const Eigen::Vector3d m = tr.engine->m_B_Am2();
     const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
     for (std::size_t k = 0; k < est.size(); ++k) {
-      EpochEstimate e = est[k];
-      if (tr.has_pair_excess && e.has_covariance &&
-          e.t_s <= tr.pair_excess_until_s + options.track.epoch_tolerance_s) {
-        const Eigen::Matrix<double, 6, 6> F =
-            CoordinatedTurnJacobian(tr.pair_start_state, e.t_s - tr.pair_start_ref_s);
-        e.cov_state += F * tr.pair_excess * F.transpose();
-      }
-      out->push_back({tr.id, e, states[k], m, Pm});
-      r.t_end_s = e.t_s;
+      out->push_back({tr.id, est[k], states[k], m, Pm});
+      r.t_end_s = est[k].t_s;
       ++r.num_estimates;
     }
     r.m_B_Am2 = m;
     r.cov_m_B = Pm;
     r.t_last_detection_s = tr.life.t_last_detection_s();
+  }
+
+  // The pair start's excess, propagated along the start's line, added to
+  // the covariance of an estimate until the pair's refit (or its deadline).
+  void AddPairExcess(const Track& tr, EpochEstimate* e) const {
+    if (!tr.has_pair_excess || !e->has_covariance ||
+        e->t_s > tr.pair_excess_until_s + options.track.epoch_tolerance_s) {
+      return;
+    }
+    const Eigen::Matrix<double, 6, 6> F = CoordinatedTurnJacobian(tr.pair_start_state, e->t_s - tr.pair_start_ref_s);
+    e->cov_state += F * tr.pair_excess * F.transpose();
   }
 
   // The epoch with every sample's B corrected by its sensor's background
