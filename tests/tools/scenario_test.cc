@@ -158,12 +158,12 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_overtaking/ and fresh_farship/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_overtaking/ and fresh_farship/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   const std::string dir = testing::TestDataDir() + "/generated/scenarios/";
-  // (set, file, kind): the two sets of every kind, the fresh abreast and overtaking pairs.
+  // (set, file, kind): the two sets of every kind, the fresh abreast, overtaking, far-ship and drift files.
   std::vector<std::array<std::string, 3>> files;
   for (const char* set : {"heldout", "tuning"}) {
     for (const char* kind : {"abreast", "crossing", "overtaking", "far_ship", "drift"}) files.push_back({set, kind, kind});
@@ -171,6 +171,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"abreast_20", "abreast_36"}) files.push_back({"heldout_abreast", name, "abreast"});
   for (const char* name : {"overtaking_a", "overtaking_b"}) files.push_back({"fresh_overtaking", name, "overtaking"});
   for (const char* kind : {"far_ship", "drift"}) files.push_back({"fresh_farship", kind, kind});
+  for (const char* name : {"abreast_28", "abreast_39"}) files.push_back({"fresh_abreast", name, "abreast"});
   for (const auto& [set, file, kind] : files) {
     {
       SCOPED_TRACE(set + "/" + file);

@@ -45,6 +45,9 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
     return Fail(error, "evidence_min_tensor_snr must be finite and >= 0");
   }
   if (!(pair_refit_s >= 0.0) || !std::isfinite(pair_refit_s)) return Fail(error, "pair_refit_s must be finite and >= 0");
+  if (!(joint_start_s >= 0.0) || !std::isfinite(joint_start_s)) {
+    return Fail(error, "joint_start_s must be finite and >= 0");
+  }
   return true;
 }
 
@@ -93,6 +96,7 @@ struct Track {
   std::uint32_t id = 0;  // 0 while tentative
   TrackLifeCycle life{0.0, TrackManagementOptions{}};  // confirmation and end rules
   std::string origin;    // what started it, for the start event
+  double t_started_s = 0.0;  // when it was started (tentative)
   // This epoch's prediction.
   bool has_pred = false;
   CtState<double> pred{};
@@ -125,7 +129,9 @@ struct Track {
   // field, so its covariance is conditional on the partner's start; what the
   // partner's uncertainty adds (InitialTrack::cov_state −
   // cov_state_given_partner, at the start's state `pair_start_state`,
-  // propagated along it) is added to the rows' covariance.
+  // propagated along it) is added to the covariance of its engine's
+  // estimates as the multi-tracker takes them (Collect): the rows, the
+  // association gates (`newest`) and the end rules all use it.
   bool has_pair_excess = false;
   CtState<double> pair_start_state{};
   double pair_start_ref_s = 0.0;
@@ -232,8 +238,13 @@ struct MultiTracker::Impl {
   // did not detect the track. An epoch from before the track existed (the
   // initiator's buffer it was started on) has no verdict: confirmed, as the
   // initiator found the vessel there.
-  void Collect(Track& tr, const std::vector<EpochEstimate>& est, std::vector<TrackOutput>* out) {
-    if (est.empty()) return;
+  void Collect(Track& tr, const std::vector<EpochEstimate>& engine_est, std::vector<TrackOutput>* out) {
+    if (engine_est.empty()) return;
+    // A pair start's covariance excess (Track::pair_excess) on the engine's
+    // estimates: the association gates (via `newest`), the end rules and the
+    // rows all use the same covariance.
+    std::vector<EpochEstimate> est = engine_est;
+    for (EpochEstimate& e : est) AddPairExcess(tr, &e);
     tr.has_newest = true;
     tr.newest = est.back();
     tr.life.OnEstimate(est.back().t_s, est.back().usable, HorizontalSigma(est.back()));
@@ -250,20 +261,24 @@ struct MultiTracker::Impl {
     const Eigen::Vector3d m = tr.engine->m_B_Am2();
     const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
     for (std::size_t k = 0; k < est.size(); ++k) {
-      EpochEstimate e = est[k];
-      if (tr.has_pair_excess && e.has_covariance &&
-          e.t_s <= tr.pair_excess_until_s + options.track.epoch_tolerance_s) {
-        const Eigen::Matrix<double, 6, 6> F =
-            CoordinatedTurnJacobian(tr.pair_start_state, e.t_s - tr.pair_start_ref_s);
-        e.cov_state += F * tr.pair_excess * F.transpose();
-      }
-      out->push_back({tr.id, e, states[k], m, Pm});
-      r.t_end_s = e.t_s;
+      out->push_back({tr.id, est[k], states[k], m, Pm});
+      r.t_end_s = est[k].t_s;
       ++r.num_estimates;
     }
     r.m_B_Am2 = m;
     r.cov_m_B = Pm;
     r.t_last_detection_s = tr.life.t_last_detection_s();
+  }
+
+  // The pair start's excess, propagated along the start's line, added to
+  // the covariance of an estimate until the pair's refit (or its deadline).
+  void AddPairExcess(const Track& tr, EpochEstimate* e) const {
+    if (!tr.has_pair_excess || !e->has_covariance ||
+        e->t_s > tr.pair_excess_until_s + options.track.epoch_tolerance_s) {
+      return;
+    }
+    const Eigen::Matrix<double, 6, 6> F = CoordinatedTurnJacobian(tr.pair_start_state, e->t_s - tr.pair_start_ref_s);
+    e->cov_state += F * tr.pair_excess * F.transpose();
   }
 
   // The epoch with every sample's B corrected by its sensor's background
@@ -451,29 +466,29 @@ struct MultiTracker::Impl {
     buffer.push_back(std::move(residual));
     const double span = options.track.window_s + options.track.epoch_tolerance_s;
     while (t - buffer.front().t_s > span) buffer.pop_front();
-    if (mg().pair_refit_s > 0.0) {
+    if (mg().pair_refit_s > 0.0 || mg().joint_start_s > 0.0) {
       recent.push_back(e);
       while (t - recent.front().t_s > span) recent.pop_front();
-      RefitPairs(t, &out);
+      if (mg().pair_refit_s > 0.0) RefitPairs(t, &out);
     }
     while (!fixes.empty() && fixes.front().t_s < buffer.front().t_s - options.track.epoch_tolerance_s) {
       fixes.pop_front();
     }
     if (t - last_init_t >= mg().init_interval_s - options.track.epoch_tolerance_s) {
       last_init_t = t;
-      if (!TryStart(t)) TryBeside(t, &out);
+      if (!TryStart(t, &out)) TryBeside(t, &out);
     }
     return out;
   }
 
-  // Looks for a new vessel in the buffer; starts a tentative track. True if
-  // one was started.
-  bool TryStart(double t) {
+  // Looks for a new vessel in the buffer; starts a tentative track (jointly
+  // with a young neighbour: StartJointly). True if one was started.
+  bool TryStart(double t, std::vector<TrackOutput>* out) {
     const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
     const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
     const std::optional<InitialTrack> init =
         InitializeTrack(epochs, B0_W, options.track, any_fix ? &given : nullptr);
-    if (init) return StartTrack(t, *init, nullptr);
+    if (init) return StartJointly(t, *init, out) || StartTrack(t, *init, nullptr);
     // Two vessels whose sum no single dipole explains (initialize.h): each
     // starts on the samples without the other's initial field.
     const std::vector<InitialTrack> pair = InitializePair(epochs, B0_W, options.track, mg().min_separation_m);
@@ -557,6 +572,51 @@ struct MultiTracker::Impl {
       MakePair(t, tracks[i], pair[0], tracks.back(), pair[1]);
       return;
     }
+  }
+
+
+  // Whether the track `probe` (its state predicted to e.t_s) and the line
+  // `init` both reach gate_snr at one of e's sensors.
+  bool ShareASensor(const Track& probe, const InitialTrack& init, const Epoch& e) const {
+    Track line;
+    line.pred = PropagateCoordinatedTurn(init.state, e.t_s - init.t_ref_s);
+    line.m_B = init.m_B_Am2;
+    for (const GradiometerSample& s : e.samples) {
+      if (Predict(probe, s).snr >= mg().gate_snr && Predict(line, s).snr >= mg().gate_snr) return true;
+    }
+    return false;
+  }
+
+  // A single start `init` beside a young track (TrackManagementOptions::
+  // joint_start_s): both fitted jointly (RefitPair on the recent epochs
+  // without the other tracks' fields), the young track's engine started
+  // again from the fit and the new track started from it, each without the
+  // other's field; the two become a pair. False (nothing changed) if no
+  // young track shares a sensor with it or the joint fit fails its gates.
+  bool StartJointly(double t, const InitialTrack& init, std::vector<TrackOutput>* out) {
+    if (!(mg().joint_start_s > 0.0) || recent.empty()) return false;
+    const double tol = options.track.epoch_tolerance_s;
+    for (std::size_t k = 0; k < tracks.size(); ++k) {
+      Track& young = tracks[k];
+      if (young.ended || young.pair != 0 || t - young.t_started_s > mg().joint_start_s + tol) continue;
+      const auto now = young.engine->PredictState(t);
+      if (!now || !young.engine->m_B_Am2().allFinite()) continue;
+      Track probe;
+      probe.pred = *now;
+      probe.m_B = young.engine->m_B_Am2();
+      if (!ShareASensor(probe, init, recent.back())) continue;
+      InitialTrack at_t;
+      at_t.t_ref_s = t;
+      at_t.state = *now;
+      const std::vector<Epoch> epochs = RecentWithout(k, tracks.size());
+      const std::vector<InitialTrack> fit = RefitPair(epochs, B0_W, options.track, at_t, init, mg().min_separation_m);
+      if (fit.size() != 2) continue;
+      Restart(young, fit[0], fit[1], epochs, out);
+      if (!StartTrack(t, fit[1], &fit[0], &epochs)) return true;  // the young track is refitted anyway
+      MakePair(t, tracks[k], fit[0], tracks.back(), fit[1]);
+      return true;
+    }
+    return false;
   }
 
   // A pair start's covariance excess (Track::pair_excess) from its start.
@@ -713,11 +773,14 @@ struct MultiTracker::Impl {
     }
   }
 
-  // Starts a tentative track from `init` on the buffer (minus `partner`'s
-  // field, if given), unless a track is already near it. True if started.
-  bool StartTrack(double t, const InitialTrack& init_track, const InitialTrack* partner) {
+  // Starts a tentative track from `init` on the buffer, or on `from` if
+  // given (the recent epochs without other tracks' fields: StartJointly),
+  // minus `partner`'s field if given, unless a track is already near it.
+  // True if started.
+  bool StartTrack(double t, const InitialTrack& init_track, const InitialTrack* partner,
+                  const std::vector<Epoch>* from = nullptr) {
     const InitialTrack* init = &init_track;
-    const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
+    const std::vector<Epoch> epochs = from != nullptr ? *from : std::vector<Epoch>(buffer.begin(), buffer.end());
     const CtState<double> now = PropagateCoordinatedTurn(init->state, t - init->t_ref_s);
     for (const Track& tr : tracks) {
       const auto p = tr.engine->PredictState(t);
@@ -730,6 +793,7 @@ struct MultiTracker::Impl {
     // initialiser's line and moment).
     Track tr;
     tr.life = TrackLifeCycle(t, mg());
+    tr.t_started_s = t;
     std::vector<Epoch> mine;
     for (const Epoch& b : epochs) {
       Track probe;
@@ -992,6 +1056,7 @@ std::string MultiTracker::SaveState() const {
     w.Matrix(tr.pair_excess);
     w.F64(tr.pair_excess_until_s);
     w.F64(tr.t_poor_fit);
+    w.F64(tr.t_started_s);
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -1082,6 +1147,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.pair_excess = internal::GetMatrix(r, 6, 6);
     tr.pair_excess_until_s = r.F64();
     tr.t_poor_fit = r.F64();
+    tr.t_started_s = r.F64();
     m.tracks.push_back(std::move(tr));
   }
   m.records.resize(r.Count(internal::kMaxStateCount));

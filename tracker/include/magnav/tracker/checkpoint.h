@@ -3,7 +3,7 @@
 // container (header, checksum, field writer/reader, atomic write) is
 // core/checkpoint.h's; this is the tracker's kind of it:
 //
-//   magic "MAGNAVTC", format version 3 (kTrackerCheckpointVersion), payload
+//   magic "MAGNAVTC", format version 4 (kTrackerCheckpointVersion), payload
 //   written by the service node: its stream position and counters around
 //   MultiTracker::SaveState (configuration, tracks, records, initiator).
 #pragma once
@@ -22,7 +22,11 @@ namespace magnav::tracker {
 // Version 3 (2026-11-26): the cluster background (cluster_background.h):
 // its options in the configuration, its raw span and offsets, and the
 // summary's cluster counters; a version-2 file is refused.
-inline constexpr std::uint32_t kTrackerCheckpointVersion = 3;
+// Version 4 (2026-11-26): per live track the time of its last poor fit (the
+// start beside a track) and of its start (the joint start), and the options
+// of the joint start, the start beside a track and the batch restarts from
+// the window; a version-3 file is refused.
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 4;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 
 // Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).

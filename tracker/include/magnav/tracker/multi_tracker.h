@@ -48,14 +48,18 @@
 //     never reused) and produce estimates. Two vessels started together by
 //     the two-dipole start (InitializePair) are refitted together once,
 //     pair_refit_s later (RefitPair), and their engines started again from
-//     that refit (TrackManagementOptions::pair_refit_s). When nothing starts
-//     and a confirmed track's fit was poor within the last init_interval_s
-//     (a vessel come close to it: an overtaking), the two-dipole fit is tried
-//     beside it (pair_beside.h InitializeBeside, on the last window_s of
-//     samples with every other track's field removed): if it passes, the
-//     track's engine is started again from its line of the fit (id and
-//     earlier rows kept) and the newcomer starts tentative, the two partners
-//     as a pair start's (refitted pair_refit_s later; 0 turns this off too).
+//     that refit (TrackManagementOptions::pair_refit_s). A single start
+//     within joint_start_s of another young track's start that shares a
+//     sensor with it is fitted jointly with it at once (RefitPair) and the
+//     two become such a pair (TrackManagementOptions::joint_start_s). When
+//     nothing starts and a confirmed track's fit was poor within the last
+//     init_interval_s (a vessel come close to it: an overtaking), the
+//     two-dipole fit is tried beside it (pair_beside.h InitializeBeside, on
+//     the last window_s of samples with every other track's field removed):
+//     if it passes, the track's engine is started again from its line of the
+//     fit (id and earlier rows kept) and the newcomer starts tentative, the
+//     two partners as a pair start's (refitted pair_refit_s later; 0 turns
+//     this off too).
 //  Background (background.h): before step 2 every sample's B is corrected by
 //     its sensor's background prior (its deviation from B0; its variance
 //     added to σ_B²), and after step 3 each sensor's background takes the
@@ -135,6 +139,22 @@ struct TrackManagementOptions {
   // confirmed, then once per init_interval_s until it passes or window_s
   // has gone by. 0 = off.
   double pair_refit_s = 5.0;
+  // Two vessels started one by one, close in time, that share a sensor
+  // (issue 24, abreast_36): each single start is made with the other's
+  // field unexplained at the shared sensors, and its moment and line carry
+  // that through the whole track (the window's prior keeps the moment).
+  // A single start made within joint_start_s (s) of another live track's
+  // start, where both predicted signals reach gate_snr at one sensor at
+  // least, is fitted jointly with it (RefitPair on the last window_s of
+  // samples, every other track's field removed); if the fit passes
+  // InitializePair's gates, the older track's engine is started again from
+  // it and the new one is started from it, each without the other's field,
+  // and the two are then a pair as if started together (pair refit,
+  // partner, the joint fit's covariance excess). Otherwise the single start
+  // goes on alone. 0 = off. 20 s (window_s): 5 s, the first value, left
+  // fresh_abreast/abreast_28 (starts 6 s apart) failing (docs/ACCURACY.md,
+  // "Two vessels started one by one: the joint start").
+  double joint_start_s = 20.0;
 
   bool IsValid(std::string* error) const;
 };
