@@ -299,7 +299,9 @@ TEST(UncertaintyGate, RelativeGateIsScaleFreeAbsoluteGateIsTheFixsOwnSigma) {
     EXPECT_EQ(InvertSample(s, former).valid, f.position_sigma_3d_m <= 0.05) << k;
     const DipoleFix d = InvertSample(s, InverterOptions{});
     EXPECT_EQ(d.valid, f.position_sigma_3d_m <= limit) << k;
-    if (!d.valid) EXPECT_EQ(d.reason, RejectReason::kUncertain) << k;
+    if (!d.valid) {
+      EXPECT_EQ(d.reason, RejectReason::kUncertain) << k;
+    }
     default_accepted += d.valid;
   }
   // Both sides of the default gate are exercised (σ_3d ≈ 0.06 m at k = 1).
