@@ -511,7 +511,11 @@ std::unique_ptr<SequentialMatcher> MakeParticleFilter(ParticleFilterKind kind, c
 // Runs a filter over a whole path (what `magnav match --method pf|afpf` does):
 // the matched position of point k is the estimate after step k. score = mean
 // ESS over the path; converged = not lost at the last step (reason names the
-// first lost step); points_used = updates; off map = all-off-map steps.
+// first lost step), and for the AFPF on dense readings (some reading spaced
+// out by min_update_spacing_m) its likelihood σ not at afpf_max_sigma_nT in
+// half or more of its last 40 updates (the innovations beyond the largest
+// noise it allows; docs/ACCURACY.md, "Dense readings II"); points_used =
+// updates; off map = all-off-map steps.
 // `steps` (optional) receives every step's diagnostics.
 MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
                                 const MatchPath& path, const ParticleFilterOptions& options,
