@@ -133,11 +133,11 @@ TEST(SpacedReadings, AfpfWithItsSigmaAtTheCapIsNotConvergedOnDenseReadings) {
   const GeoGrid& g = CrustalMap();
   const ParticleFilterOptions o;
   const MatchResult noisy = MatchParticleFilter(ParticleFilterKind::kAfpf, g, g.layer("anomaly_nT"),
-                                                DensePath(12.0, 1600), o);
+                                                DensePath(12.0, 1200), o);
   EXPECT_FALSE(noisy.converged);
   EXPECT_NE(noisy.reason.find("cap"), std::string::npos) << noisy.reason;
   const MatchResult quiet = MatchParticleFilter(ParticleFilterKind::kAfpf, g, g.layer("anomaly_nT"),
-                                                DensePath(3.0, 1600), o);
+                                                DensePath(3.0, 1200), o);
   EXPECT_TRUE(quiet.converged) << quiet.reason;
 }
 
