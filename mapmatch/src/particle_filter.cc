@@ -132,7 +132,6 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
                    (ins_lon - update_lon_) * MetresPerDegreeLon(ins_lat)) < o_.min_update_spacing_m) {
       SkipUpdate(StepUpdate::kSpaced, &d);
       ++counters_.spaced;
-      if (o_.average_spaced_readings) AccumulateSpaced(measured_nT, &d);
     } else {
       Update(measured_nT, &d);
     }
@@ -188,7 +187,6 @@ void Filter::SpreadPrior(double lat, double lon) {
   std::uniform_real_distribution<double> ulat(lat0, lat1), ulon(lon0, lon1);
   p_.assign(static_cast<std::size_t>(n), Particle{});
   logw_.assign(p_.size(), 0.0);
-  spaced_steps_ = 0;  // readings averaged along the old particles' tracks do not apply to the new ones
   for (Particle& q : p_) {
     q.lat_deg = ulat(rng_);
     q.lon_deg = ulon(rng_);
@@ -263,7 +261,6 @@ void Filter::Update(double z, StepDiagnostics* d) {
     return;
   }
   update_lat_ = prev_lat_, update_lon_ = prev_lon_;  // the next reading used is this far away (min_update_spacing_m)
-  AveragedReadings(z);  // zt_[i]: z, or the mean of the readings spaced out since the last update
   const std::size_t n = p_.size();
   loglik_.resize(n);
   bool any_on = false;
@@ -284,17 +281,13 @@ void Filter::Update(double z, StepDiagnostics* d) {
   for (std::size_t i = 0; i < n; ++i) {
     bool on = false;
     double r = 0.0;
-    loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, zt_[i] - p_[i].bias_nT, p_[i].bias_var_nT2, &on, &r);
+    loglik_[i] = LogLik(p_[i].lat_deg, p_[i].lon_deg, z - p_[i].bias_nT, p_[i].bias_var_nT2, &on, &r);
     any_on = any_on || on;
     evidence += p_[i].weight * std::exp(loglik_[i]);
     if (on) {
-      if (o_.estimate_bias) resid_[i] = r;
-      // The predictive moments (σ, outlier gate, lost-track rules) are this reading's alone, z − b − m(x_i),
-      // as without averaging: the averaged residual r̄_i weighs the particle (loglik), its noise is not the
-      // one σ and the detectors are for.
-      const double r_now = zt_[i] == z ? r : r + (z - zt_[i]);
-      w_on += p_[i].weight, r1 += p_[i].weight * r_now, r2 += p_[i].weight * r_now * r_now;
+      w_on += p_[i].weight, r1 += p_[i].weight * r, r2 += p_[i].weight * r * r;
       pb += p_[i].weight * p_[i].bias_var_nT2;
+      if (o_.estimate_bias) resid_[i] = r;
     }
   }
   if (w_on > 0.5) {  // the predictive moments (lost-track detection and diagnostics)
@@ -361,7 +354,7 @@ void Filter::Update(double z, StepDiagnostics* d) {
     }
     PfResample(d);
   } else {
-    Fission();
+    Fission(z);
   }
   d->lost = Lost();
 }

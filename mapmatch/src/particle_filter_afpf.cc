@@ -9,7 +9,7 @@
 namespace magnav::mapmatch::internal {
 
 // The paper's fission, pooling and selection of the heaviest current-count particles.
-void Filter::Fission() {
+void Filter::Fission(double z) {
   const std::size_t n = p_.size();
   double w_max = 0.0;
   for (const Particle& q : p_) w_max = std::max(w_max, q.weight);
@@ -44,9 +44,7 @@ void Filter::Fission() {
       double r = 0.0;
       // The parent's prior weight times the offspring's likelihood, with the
       // parents' normaliser: logw_i − loglik_i + loglik(offspring).
-      // zt_[i]: the parent's reading (averaged over the readings spaced out since the last update, each
-      // against the parent's map value there, referred to this point; z when nothing was spaced out).
-      double lw = logw_[i] - loglik_[i] + LogLik(c.lat_deg, c.lon_deg, zt_[i] - c.bias_nT, c.bias_var_nT2, &on, &r);
+      double lw = logw_[i] - loglik_[i] + LogLik(c.lat_deg, c.lon_deg, z - c.bias_nT, c.bias_var_nT2, &on, &r);
       if (o_.estimate_bias && on) UpdateBias(&c, r, noise_var);
       if (penalty > 0.0) {
         const double dl = c.lat_deg - p_[i].lat_deg, dn = c.lon_deg - p_[i].lon_deg;

@@ -3,9 +3,8 @@
 // role over
 //   particle_filter.cc              options, the step (prior, prediction,
 //                                   update), the factory
-//   particle_filter_likelihood.cc   the measurement model: log-likelihood,
-//                                   the (adaptive) likelihood σ, the spaced
-//                                   readings averaged (average_spaced_readings)
+//   particle_filter_likelihood.cc   the measurement model: log-likelihood and
+//                                   the (adaptive) likelihood σ
 //   particle_filter_pf.cc           the PF strategy: tempering, resampling,
 //                                   regularisation
 //   particle_filter_afpf.cc         the AFPF strategy: fission, selection,
@@ -64,8 +63,6 @@ class Filter final : public SequentialMatcher {
   void Normalise();
   void Update(double z, StepDiagnostics* d);
   void SkipUpdate(StepUpdate why, StepDiagnostics* d);
-  void AccumulateSpaced(double z, StepDiagnostics* d);
-  void AveragedReadings(double z);
 
   // particle_filter_likelihood.cc: the measurement model.
   double LogLik(double lat, double lon, double z, double bias_var, bool* on_map, double* residual = nullptr) const;
@@ -80,7 +77,7 @@ class Filter final : public SequentialMatcher {
   void Regularise();
 
   // particle_filter_afpf.cc: the AFPF strategy.
-  void Fission();  // the offspring weighed by zt_ (this update's reading per parent)
+  void Fission(double z);
   void KeepHeaviest(std::size_t n);
   void AdaptCount(const StepDiagnostics& d);
 
@@ -111,14 +108,6 @@ class Filter final : public SequentialMatcher {
   double mean_step_m_ = -1.0;
   double drift_sd_deg_ = 0.0;
   double update_lat_ = 0.0, update_lon_ = 0.0;  // INS position of the last reading used (min_update_spacing_m)
-  // average_spaced_readings: per particle, the sum of the residuals z_j − m(x_i at step j) of the readings
-  // spaced out since the last update and their count (on the map); spaced_steps_ readings averaged in
-  // (0: nothing pending, the vectors may be stale); zt_: this update's reading per particle (z, or the
-  // mean referred to the current point, AveragedReadings).
-  std::vector<double> spaced_sum_;
-  std::vector<int> spaced_n_;
-  int spaced_steps_ = 0;
-  std::vector<double> zt_;
   std::vector<Particle> p_;
   std::vector<double> logw_, loglik_;
   std::vector<double> resid_;  // estimate_bias: each particle's residual z − b − m(x) (NaN off the map)

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 namespace magnav::mapmatch::internal {
 
@@ -47,56 +46,6 @@ double Filter::CurrentSigma() const {
   const double sd = std::sqrt(std::max((r2 - spread) / static_cast<double>(innov_.size()), 0.0));
   if (afpf) return std::clamp(o_.afpf_sigma_factor * sd, o_.measurement_sigma_nT, hi);
   return std::clamp(sd, o_.min_measurement_sigma_nT, hi);
-}
-
-// A reading left out by min_update_spacing_m (average_spaced_readings): each particle's residual
-// z − m(x_i) at its position now is added to its sum, to be averaged into the next update
-// (AveragedReadings). A reading the whole cloud's prediction does not explain (the outlier gate's
-// rule, outlier_sigmas) is not added (counted as an outlier).
-void Filter::AccumulateSpaced(double z, StepDiagnostics* d) {
-  const std::size_t n = p_.size();
-  if (spaced_steps_ == 0 || spaced_sum_.size() != n) {
-    spaced_sum_.assign(n, 0.0);
-    spaced_n_.assign(n, 0);
-    spaced_steps_ = 0;
-  }
-  zt_.resize(n);
-  double w_on = 0.0, r1 = 0.0, r2 = 0.0, pb = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto s = grid_.Sample(layer_, p_[i].lat_deg, p_[i].lon_deg);
-    zt_[i] = s ? z - s->value_nT : std::numeric_limits<double>::quiet_NaN();
-    if (!s) continue;
-    const double r = zt_[i] - p_[i].bias_nT, w = p_[i].weight;
-    w_on += w, r1 += w * r, r2 += w * r * r, pb += w * p_[i].bias_var_nT2;
-  }
-  if (o_.outlier_sigmas > 0.0 && w_on > 0.5) {
-    const double mean = r1 / w_on, spread = std::max(r2 / w_on - mean * mean, 0.0) + pb / w_on;
-    if (mean * mean > o_.outlier_sigmas * o_.outlier_sigmas * (sigma_ * sigma_ + spread)) {
-      ++counters_.outliers;
-      d->update = StepUpdate::kOutlier;
-      return;
-    }
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    if (std::isfinite(zt_[i])) spaced_sum_[i] += zt_[i], ++spaced_n_[i];
-  }
-  ++spaced_steps_;
-}
-
-// This update's reading per particle, zt_[i]: z, or — readings spaced out since the last update
-// (AccumulateSpaced) — the mean of the particle's residuals over them and this one, referred to the
-// particle's map value now: m(x_i) + (Σ_j (z_j − m(x_i,j)) + z − m(x_i)) / (n_i + 1). Empties the sums.
-void Filter::AveragedReadings(double z) {
-  const std::size_t n = p_.size();
-  zt_.assign(n, z);
-  if (spaced_steps_ > 0 && spaced_sum_.size() == n) {
-    for (std::size_t i = 0; i < n; ++i) {
-      if (spaced_n_[i] == 0) continue;
-      const auto s = grid_.Sample(layer_, p_[i].lat_deg, p_[i].lon_deg);
-      if (s) zt_[i] = s->value_nT + (spaced_sum_[i] + z - s->value_nT) / (spaced_n_[i] + 1);
-    }
-  }
-  spaced_steps_ = 0;
 }
 
 }  // namespace magnav::mapmatch::internal

@@ -35,9 +35,6 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
   opt("--min-update-spacing", &f->min_update_spacing_m,
       "pf, afpf: use a reading only once the INS has moved this far (m) since the last one used (readings a few "
       "metres apart repeat one another on a map of ~100 m cells); 0 = every reading");
-  opt("--average-spaced", &f->average_spaced_readings,
-      "pf, afpf: average the readings left out by --min-update-spacing into the next one used, each against the "
-      "particle's map value where it was taken (1), or drop them (0, the default: measured no better, docs/ACCURACY.md)");
   opt("--drift-step", &f->drift_step_m,
       "pf, afpf: while the INS steps are shorter than this on average (m), the drift per step is "
       "--drift-sigma x sqrt(mean step / this), a random walk in distance; 0 = --drift-sigma per step whatever its length");

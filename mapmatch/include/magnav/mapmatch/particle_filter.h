@@ -202,26 +202,6 @@ struct ParticleFilterOptions {
   // reference and generated paths' steps (≥ 45 m) all update, unchanged.
   // 0 = every reading.
   double min_update_spacing_m = 25.0;
-  // Averaging the readings left out by min_update_spacing_m into the next
-  // one used, instead of dropping them (an option, off by default): each
-  // particle keeps the sum of its residuals z_j − m(x_i,j), the map taken
-  // where that particle was at each reading (it moves with every INS step),
-  // and the update weighs it by the mean of those residuals and its own,
-  // r̄_i = (Σ_j (z_j − m(x_i,j)) + z − m(x_i)) / (n_i + 1), with the
-  // likelihood σ of one reading; the adaptive σ, the outlier gate and the
-  // lost-track rules still take this reading's own innovation z − m̄. A
-  // spaced reading the whole cloud's prediction does not explain (the
-  // outlier gate's rule, outlier_sigmas) is not added (counted in outliers).
-  // AFPF offspring take their parent's mean, referred to their own position.
-  // Off by default, measured on the dense tuning paths 9001–9006 × 3 seeds
-  // (docs/ACCURACY.md, "Dense readings II"): runs off by > 1 km PF 5 of 18
-  // either way, AFPF 3 → 5 of 18; with the averaged innovation also driving
-  // σ (the PF's adaptive σ and the AFPF's fell with the averaged noise) 6 and
-  // 6 of 18. The losses are wrong basins taken during acquisition, where a
-  // particle's map mismatch (shared by readings a few metres apart) and not
-  // the sensor noise limits what the readings say; averaging removes only the
-  // noise. false = dropped (the readings in between only counted).
-  bool average_spaced_readings = false;
   // Half-width of the uniform prior square around the first INS position (deg).
   // Default 0.15°: covers the 0.1°-offset reference paths (≈ 11 km).
   double prior_half_width_deg = 0.15;
