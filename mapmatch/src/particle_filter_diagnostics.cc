@@ -75,8 +75,11 @@ bool Filter::Lost() const {
 
 // The INS glitch test (ins_glitch_ratio, see the header): this step's INS increment (dn, de; m)
 // against the running mean increment, step length and mean square departure of the steps before
-// (gain 0.1; a glitch does not enter them). Runs before the update, so that the step's lost flag
-// (set by Lost() in Update / SkipUpdate) includes it.
+// (gain 0.1). A departing increment is held pending: if the next one is back within the usual, the
+// departing one was a one-step jump of the INS position (a glitch: lost from this step for
+// ins_glitch_hold steps); if the next one departs too, the vehicle changed its motion (a manoeuvre,
+// a new speed) and the statistics restart from it. Runs before the update, so that the step's lost
+// flag (set by Lost() in Update / SkipUpdate) includes it.
 void Filter::CheckInsGlitch(double dn_m, double de_m, StepDiagnostics* d) {
   if (o_.ins_glitch_ratio <= 0.0) return;
   constexpr double kGain = 0.1;
@@ -85,22 +88,33 @@ void Filter::CheckInsGlitch(double dn_m, double de_m, StepDiagnostics* d) {
   if (!glitch_init_) {
     glitch_dn_ = dn_m, glitch_de_ = de_m, glitch_len_ = len, glitch_dev2_ = 0.0;
     glitch_init_ = true;
+    return;
+  }
+  const double dev = std::hypot(dn_m - glitch_dn_, de_m - glitch_de_);
+  // (at least a quarter of the map's cell: a still or repeating INS is not a glitch detector for
+  // centimetres, and a glitch well inside one cell does not move the filter off the map's detail)
+  const double cell_m = std::min(grid_.lat().step_deg * MetresPerDegreeLat(grid_.lat().first_deg),
+                                 grid_.lon().step_deg * MetresPerDegreeLon(grid_.lat().first_deg));
+  const double scale = std::max(std::sqrt(glitch_len_ * glitch_len_ + glitch_dev2_), 0.25 * cell_m);
+  d->ins_step_ratio = dev / scale;
+  const bool departs = d->ins_step_ratio > o_.ins_glitch_ratio;
+  if (glitch_pending_ && departs) {  // a new motion, not a glitch: restart from it
+    glitch_dev2_ = (dn_m - glitch_pending_dn_) * (dn_m - glitch_pending_dn_) +
+                   (de_m - glitch_pending_de_) * (de_m - glitch_pending_de_);
+    glitch_dn_ = dn_m, glitch_de_ = de_m, glitch_len_ = len;
+    glitch_pending_ = false;
+  } else if (departs) {
+    glitch_pending_ = true;
+    glitch_pending_dn_ = dn_m, glitch_pending_de_ = de_m;
   } else {
-    const double dev = std::hypot(dn_m - glitch_dn_, de_m - glitch_de_);
-    // (at least a quarter of the map's cell: a still or repeating INS is not a glitch detector for
-    // centimetres, and a glitch well inside one cell does not move the filter off the map's detail)
-    const double cell_m = std::min(grid_.lat().step_deg * MetresPerDegreeLat(grid_.lat().first_deg),
-                                   grid_.lon().step_deg * MetresPerDegreeLon(grid_.lat().first_deg));
-    const double scale = std::max(std::sqrt(glitch_len_ * glitch_len_ + glitch_dev2_), 0.25 * cell_m);
-    d->ins_step_ratio = dev / scale;
-    if (d->ins_step_ratio > o_.ins_glitch_ratio) {
+    if (glitch_pending_) {  // the step before was a one-step jump
       glitch_left_ = o_.ins_glitch_hold;
       ++counters_.ins_glitches;
-    } else {
-      glitch_dn_ += kGain * (dn_m - glitch_dn_), glitch_de_ += kGain * (de_m - glitch_de_);
-      glitch_len_ += kGain * (len - glitch_len_);
-      glitch_dev2_ += kGain * (dev * dev - glitch_dev2_);
+      glitch_pending_ = false;
     }
+    glitch_dn_ += kGain * (dn_m - glitch_dn_), glitch_de_ += kGain * (de_m - glitch_de_);
+    glitch_len_ += kGain * (len - glitch_len_);
+    glitch_dev2_ += kGain * (dev * dev - glitch_dev2_);
   }
   d->ins_glitch = glitch_left_ > 0;
 }

@@ -113,6 +113,8 @@ class Filter final : public SequentialMatcher {
   bool glitch_init_ = false;
   double glitch_dn_ = 0.0, glitch_de_ = 0.0, glitch_len_ = 0.0, glitch_dev2_ = 0.0;
   int glitch_left_ = 0;
+  bool glitch_pending_ = false;  // the last increment departed; the next one says whether it was a jump
+  double glitch_pending_dn_ = 0.0, glitch_pending_de_ = 0.0;
   // The acquisition phase (acquisition_bias_test_chi2): the step at which the cloud first settled (−1: not yet).
   long long settled_at_ = -1;
   double update_lat_ = 0.0, update_lon_ = 0.0;  // INS position of the last reading used (min_update_spacing_m)

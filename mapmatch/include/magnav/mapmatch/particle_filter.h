@@ -234,17 +234,20 @@ struct ParticleFilterOptions {
   // An INS increment longer than this (deg) is a jump, not applied.
   double max_step_deg = 0.01;
   // INS glitch test (issue 25 item 3; docs/ACCURACY.md, "Lost-track detection, sixth round"): an
-  // INS increment Δ (m, north/east) that departs from the recent increments by more than
+  // INS increment Δ (m, north/east) departs when it differs from the recent increments by more than
   // ins_glitch_ratio × max(√(L̄² + D̄²), a quarter of the map's cell) — L̄ the running mean step
   // length, D̄² the running mean square of |Δ − Δ̄|, Δ̄ the running mean increment (gain 0.1, ≈ 10
-  // steps; a glitch step does not enter them) — is an INS glitch: below max_step_deg it is applied as motion (the filter cannot tell a
-  // glitch from a real move), so the filter follows the INS off the truth if the vehicle did not
-  // move, and it says so: lost for ins_glitch_hold steps from the glitch (flag only; the cloud is not
-  // re-spread, the estimates are unchanged). What it sees is a step many times the usual one, as a
-  // real INS position reset or a bad aiding fix gives (the kidnaps of the lost-detection paths are
-  // such a step). 3.5 chosen on the tuning paths 301–420 of tests/data/generated/pf_paths.csv
-  // (largest clean ratio 2.15, smallest kidnap step 4.1), the reference paths (1.9) and 4000-step
-  // dense paths (2 m steps, drift per distance: 3.0). 0 = off.
+  // steps). A departing increment followed by a usual one is a one-step jump of the INS position, an
+  // INS glitch; two departing in a row are a change of motion (a manoeuvre, a new speed), not a
+  // glitch, and the statistics restart from it. Below max_step_deg a glitch is applied as motion (the
+  // filter cannot tell it from a real move), so the filter follows the INS off the truth if the
+  // vehicle did not move, and it says so: lost for ins_glitch_hold steps from the step after the
+  // glitch (flag only; the cloud is not re-spread, the estimates are unchanged). What it sees is one
+  // step many times the usual one, as a real INS position reset or a bad aiding fix gives (the kidnaps
+  // of the lost-detection paths are such a step; a vehicle moved off its INS track slowly, by an
+  // unsensed current, is not). 3.5 chosen on the tuning paths 301–420 of
+  // tests/data/generated/pf_paths.csv (largest clean ratio 2.15, smallest kidnap step 4.1), the
+  // reference paths (1.9) and 4000-step dense paths (2 m steps, drift per distance: 3.0). 0 = off.
   double ins_glitch_ratio = 3.5;
   int ins_glitch_hold = 20;
   // Divergence rule (see above).
@@ -480,8 +483,9 @@ struct StepDiagnostics {
   bool subclouds_disagree = false;
   bool resampled = false;
   bool ins_jump = false;
-  // The INS increment's departure from the recent ones over √(L̄² + D̄²) (ins_glitch_ratio; 0 at the
-  // first steps, or when the test is off), and whether this step is within ins_glitch_hold steps of a glitch.
+  // The INS increment's departure from the recent ones over max(√(L̄² + D̄²), a quarter cell)
+  // (ins_glitch_ratio; 0 at the first steps, or when the test is off), and whether this step is lost
+  // because of an INS glitch (within ins_glitch_hold steps of one).
   double ins_step_ratio = 0.0;
   bool ins_glitch = false;
   StepUpdate update = StepUpdate::kUpdated;
