@@ -54,7 +54,7 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost", "bias_nT", "bias_sigma_nT",
                "sigma_nT", "likelihood_exponent", "track_check_chi2", "innovation_nT", "predicted_spread_nT", "innovation_bias_chi2",
                "reacquiring", "cloud_cov_lat_lat", "cloud_cov_lat_lon", "cloud_cov_lon_lon", "track_check_failed",
-               "subcloud_chi2", "subclouds_disagree", "innovation_cusum"},
+               "subcloud_chi2", "subclouds_disagree", "innovation_cusum", "ins_step_ratio", "ins_glitch"},
               {{"frame", "estimate lat/lon deg, covariance deg^2 (published; cloud_cov_*: the cloud's own; particle_filter.h StepDiagnostics)"}});
   for (std::size_t p = 0; p < steps.size(); ++p) {
     const mapmatch::StepDiagnostics& d = steps[p];
@@ -68,7 +68,7 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                 FormatNumber(d.predicted_spread_nT), FormatNumber(d.innovation_bias_chi2), d.reacquiring ? "1" : "0",
                 FormatNumber(d.cloud_cov_lat_lat), FormatNumber(d.cloud_cov_lat_lon), FormatNumber(d.cloud_cov_lon_lon),
                 d.track_check_failed ? "1" : "0", FormatNumber(d.subcloud_chi2), d.subclouds_disagree ? "1" : "0",
-                FormatNumber(d.innovation_cusum)});
+                FormatNumber(d.innovation_cusum), FormatNumber(d.ins_step_ratio), d.ins_glitch ? "1" : "0"});
   }
   w.Close();
 }

@@ -48,6 +48,15 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
     return Fail(error, "off_map_sigmas must be finite and >= 0");
   }
   if (!PositiveFinite(max_step_deg)) return Fail(error, "max_step_deg must be finite and > 0");
+  if (!(std::isfinite(acquisition_bias_test_chi2) && acquisition_bias_test_chi2 >= 0.0 &&
+        std::isfinite(afpf_acquisition_bias_test_chi2) && afpf_acquisition_bias_test_chi2 >= 0.0) ||
+      acquisition_steps < 0) {
+    return Fail(error, "acquisition_bias_test_chi2 and afpf_acquisition_bias_test_chi2 must be finite and >= 0 "
+                       "(0 = off) and acquisition_steps >= 0");
+  }
+  if (!(std::isfinite(ins_glitch_ratio) && ins_glitch_ratio >= 0.0) || ins_glitch_hold < 1) {
+    return Fail(error, "ins_glitch_ratio must be finite and >= 0 (0 = off) and ins_glitch_hold >= 1");
+  }
   if (divergence_window < 1) return Fail(error, "divergence_window must be >= 1");
   if (track_check_window < 0) return Fail(error, "track_check_window must be >= 0 (0 = off)");
   if (track_check_every < 1) return Fail(error, "track_check_every must be >= 1");
@@ -125,7 +134,12 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
     initialised_ = true;
     Update(measured_nT, &d);
   } else {
+    const double from_lat = prev_lat_, from_lon = prev_lon_;  // the last finite INS position
     d.ins_jump = Predict(ins_lat, ins_lon);
+    if (!d.ins_jump) {
+      CheckInsGlitch((ins_lat - from_lat) * MetresPerDegreeLat(ins_lat),
+                     (ins_lon - from_lon) * MetresPerDegreeLon(ins_lat), &d);
+    }
     if (o_.min_update_spacing_m > 0.0 && std::isfinite(measured_nT) && std::isfinite(ins_lat) &&
         std::isfinite(ins_lon) &&
         std::hypot((ins_lat - update_lat_) * MetresPerDegreeLat(ins_lat),
@@ -144,6 +158,10 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
   d.unique_particles = std::min(d.unique_particles, d.particles);  // after the AFPF's trim
   if (bias_failed_) ++counters_.bias_test_failures;
   if (CusumThreshold() > 0.0 && cusum_g_ > CusumThreshold()) ++counters_.innovation_cusum_alarms;
+  // The acquisition phase ends acquisition_steps after the cloud first settled (acquisition_bias_test_chi2).
+  if (settled_at_ < 0 && std::sqrt(d.cov_lat_lat + d.cov_lon_lon) < o_.settled_sigma_deg) {
+    settled_at_ = counters_.steps - 1;
+  }
   // A re-initialised cloud stays lost until it has settled (settled_sigma_deg), at most
   // 2 divergence windows.
   if (reacquiring_ && (std::sqrt(d.cov_lat_lat + d.cov_lon_lon) < o_.settled_sigma_deg ||

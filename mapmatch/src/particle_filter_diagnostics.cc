@@ -12,6 +12,7 @@
 #include <string>
 
 #include "magnav/core/csv.h"
+#include "magnav/mapmatch/fix_schedule.h"
 #include "match_common.h"
 
 namespace magnav::mapmatch {
@@ -65,11 +66,58 @@ double Filter::Ess() const {
 }
 
 // Lost: the divergence rule (mean NIS over divergence_window updates), the
-// innovation-bias test (RecordInnovation, this update) or the innovation CUSUM
-// (RecordCusum, held until g falls back).
+// innovation-bias test (RecordInnovation, this update), the innovation CUSUM
+// (RecordCusum, held until g falls back) or an INS glitch (CheckInsGlitch,
+// ins_glitch_hold steps).
 bool Filter::Lost() const {
   const double h = CusumThreshold();
-  return bias_failed_ || (h > 0.0 && cusum_g_ > h) || Diverged();
+  return bias_failed_ || (h > 0.0 && cusum_g_ > h) || glitch_left_ > 0 || Diverged();
+}
+
+// The INS glitch test (ins_glitch_ratio, see the header): this step's INS increment (dn, de; m)
+// against the running mean increment, step length and mean square departure of the steps before
+// (gain 0.1). A departing increment is held pending: if the next one is back within the usual, the
+// departing one was a one-step jump of the INS position (a glitch: lost from this step for
+// ins_glitch_hold steps); if the next one departs too, the vehicle changed its motion (a manoeuvre,
+// a new speed) and the statistics restart from it. Runs before the update, so that the step's lost
+// flag (set by Lost() in Update / SkipUpdate) includes it.
+void Filter::CheckInsGlitch(double dn_m, double de_m, StepDiagnostics* d) {
+  if (o_.ins_glitch_ratio <= 0.0) return;
+  constexpr double kGain = 0.1;
+  if (glitch_left_ > 0) --glitch_left_;
+  const double len = std::hypot(dn_m, de_m);
+  if (!glitch_init_) {
+    glitch_dn_ = dn_m, glitch_de_ = de_m, glitch_len_ = len, glitch_dev2_ = 0.0;
+    glitch_init_ = true;
+    return;
+  }
+  const double dev = std::hypot(dn_m - glitch_dn_, de_m - glitch_de_);
+  // (at least a quarter of the map's cell: a still or repeating INS is not a glitch detector for
+  // centimetres, and a glitch well inside one cell does not move the filter off the map's detail)
+  const double cell_m = std::min(grid_.lat().step_deg * MetresPerDegreeLat(grid_.lat().first_deg),
+                                 grid_.lon().step_deg * MetresPerDegreeLon(grid_.lat().first_deg));
+  const double scale = std::max(std::sqrt(glitch_len_ * glitch_len_ + glitch_dev2_), 0.25 * cell_m);
+  d->ins_step_ratio = dev / scale;
+  const bool departs = d->ins_step_ratio > o_.ins_glitch_ratio;
+  if (glitch_pending_ && departs) {  // a new motion, not a glitch: restart from it
+    glitch_dev2_ = (dn_m - glitch_pending_dn_) * (dn_m - glitch_pending_dn_) +
+                   (de_m - glitch_pending_de_) * (de_m - glitch_pending_de_);
+    glitch_dn_ = dn_m, glitch_de_ = de_m, glitch_len_ = len;
+    glitch_pending_ = false;
+  } else if (departs) {
+    glitch_pending_ = true;
+    glitch_pending_dn_ = dn_m, glitch_pending_de_ = de_m;
+  } else {
+    if (glitch_pending_) {  // the step before was a one-step jump
+      glitch_left_ = o_.ins_glitch_hold;
+      ++counters_.ins_glitches;
+      glitch_pending_ = false;
+    }
+    glitch_dn_ += kGain * (dn_m - glitch_dn_), glitch_de_ += kGain * (de_m - glitch_de_);
+    glitch_len_ += kGain * (len - glitch_len_);
+    glitch_dev2_ += kGain * (dev * dev - glitch_dev2_);
+  }
+  d->ins_glitch = glitch_left_ > 0;
 }
 
 double Filter::CusumThreshold() const {
@@ -113,10 +161,20 @@ double Filter::NoiseSigma() const {
 // The innovation-bias test (bias_test_window, see the header): this update's
 // innovation r = z − m̄ and the cloud's spread V of predicted map values (nT²)
 // join the window; B = (Σ r)² / Σ (σ_n² + V) once it is full.
+// During acquisition (acquisition_bias_test_chi2) the lower of the two thresholds applies.
 void Filter::RecordInnovation(double r, double spread2, StepDiagnostics* d) {
   bias_failed_ = false;
-  const double threshold = kind_ == ParticleFilterKind::kAfpf ? o_.afpf_bias_test_chi2 : o_.bias_test_chi2;
-  if (o_.bias_test_window == 0 || threshold == 0.0 || !std::isfinite(r)) return;
+  const double always = kind_ == ParticleFilterKind::kAfpf ? o_.afpf_bias_test_chi2 : o_.bias_test_chi2;
+  const double acquiring =  // (no phase without settled_sigma_deg)
+      o_.settled_sigma_deg <= 0.0                ? 0.0
+      : kind_ == ParticleFilterKind::kAfpf ? o_.afpf_acquisition_bias_test_chi2
+                                           : o_.acquisition_bias_test_chi2;
+  // (the window fills whenever either test is on; 0 = no test at this update)
+  if (o_.bias_test_window == 0 || (always == 0.0 && acquiring == 0.0) || !std::isfinite(r)) return;
+  double threshold = always;
+  if (acquiring > 0.0 && (settled_at_ < 0 || counters_.steps - 1 < settled_at_ + o_.acquisition_steps)) {
+    threshold = always > 0.0 ? std::min(always, acquiring) : acquiring;
+  }
   const double sn = NoiseSigma();
   bias_window_.emplace_back(r, sn * sn + spread2);
   if (static_cast<int>(bias_window_.size()) > o_.bias_test_window) bias_window_.pop_front();
@@ -124,7 +182,7 @@ void Filter::RecordInnovation(double r, double spread2, StepDiagnostics* d) {
   double sum_r = 0.0, sum_var = 0.0;
   for (const auto& [a, v] : bias_window_) sum_r += a, sum_var += v;
   d->innovation_bias_chi2 = sum_var > 0.0 ? sum_r * sum_r / sum_var : 0.0;
-  bias_failed_ = d->innovation_bias_chi2 > threshold;
+  bias_failed_ = threshold > 0.0 && d->innovation_bias_chi2 > threshold;
 }
 
 // The track check (track_check_window, see the header): a coarse re-search of
@@ -285,6 +343,9 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
     r.reason = "off the map at the end: every particle off the map for the last " +
                std::to_string(off_at_end) + " step(s)" +
                " (dead-reckoning on the INS)" + (first_lost >= 0 ? "; lost at k = " + std::to_string(last_lost) : "");
+  } else if (filter->lost() && filter->last().ins_glitch) {
+    r.reason = "lost: an INS glitch (an increment more than " + FormatNumber(options.ins_glitch_ratio) +
+               "x the usual) within the last " + std::to_string(options.ins_glitch_hold) + " steps";
   } else if (filter->lost()) {
     r.reason = filter->last().reacquiring
                    ? std::string("lost: re-initialised, the cloud not settled by the end")
@@ -294,6 +355,10 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                                   (kind == ParticleFilterKind::kAfpf ? options.afpf_bias_test_chi2
                                                                      : options.bias_test_chi2) > 0.0
                               ? ", or the innovation-bias test"
+                          : options.bias_test_window > 0 &&
+                                  (kind == ParticleFilterKind::kAfpf ? options.afpf_acquisition_bias_test_chi2
+                                                                     : options.acquisition_bias_test_chi2) > 0.0
+                              ? ", or the innovation-bias test during acquisition"
                               : "") +
                          ((kind == ParticleFilterKind::kAfpf ? options.afpf_innovation_cusum_threshold
                                                              : options.innovation_cusum_threshold) > 0.0
@@ -325,6 +390,7 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                        "] nT, last " + FormatNumber(last_sigma)
                  : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
+            ", INS glitches " + std::to_string(c.ins_glitches) +
             ", lost steps " + std::to_string(c.lost_steps) + ", bias-test alarms " +
             std::to_string(c.bias_test_failures) + ", innovation-CUSUM alarms " +
             std::to_string(c.innovation_cusum_alarms) +

@@ -92,6 +92,7 @@ class Filter final : public SequentialMatcher {
   double CusumThreshold() const;
   void CheckTrack(double ins_lat, double ins_lon, double z, StepDiagnostics* d);
   void PublishCovariance(StepDiagnostics* d) const;
+  void CheckInsGlitch(double dn_m, double de_m, StepDiagnostics* d);
 
   ParticleFilterKind kind_;
   const GeoGrid& grid_;
@@ -107,6 +108,15 @@ class Filter final : public SequentialMatcher {
   static constexpr double kStepMeanGain = 0.05;
   double mean_step_m_ = -1.0;
   double drift_sd_deg_ = 0.0;
+  // INS glitch test (ins_glitch_ratio, particle_filter_diagnostics.cc): the running mean increment
+  // (m, north/east), mean step length (m) and mean square departure (m²); steps left lost after a glitch.
+  bool glitch_init_ = false;
+  double glitch_dn_ = 0.0, glitch_de_ = 0.0, glitch_len_ = 0.0, glitch_dev2_ = 0.0;
+  int glitch_left_ = 0;
+  bool glitch_pending_ = false;  // the last increment departed; the next one says whether it was a jump
+  double glitch_pending_dn_ = 0.0, glitch_pending_de_ = 0.0;
+  // The acquisition phase (acquisition_bias_test_chi2): the step at which the cloud first settled (−1: not yet).
+  long long settled_at_ = -1;
   double update_lat_ = 0.0, update_lon_ = 0.0;  // INS position of the last reading used (min_update_spacing_m)
   std::vector<Particle> p_;
   std::vector<double> logw_, loglik_;

@@ -102,13 +102,13 @@ const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double me
   }
   d.lost = any_lost || disagree;
   d.reacquiring = d.lost && !disagree && all_reacquiring;
-  // Counters: what the input did (steps, updates, bad readings, off map, INS jumps, outliers) is
+  // Counters: what the input did (steps, updates, bad readings, off map, INS jumps and glitches, outliers) is
   // sub-cloud 0's; what the filters did (resamples, re-initialisations, tempered updates, alarms) is
   // summed over the sub-clouds; lost steps are the pooled filter's.
   const FilterCounters& c0 = subs_.front()->counters();
   counters_.steps = c0.steps, counters_.updates = c0.updates, counters_.bad_measurements = c0.bad_measurements;
   counters_.all_off_map = c0.all_off_map, counters_.ins_jumps = c0.ins_jumps, counters_.outliers = c0.outliers;
-  counters_.spaced = c0.spaced;
+  counters_.spaced = c0.spaced, counters_.ins_glitches = c0.ins_glitches;
   counters_.resamples = counters_.reinitialisations = counters_.tempered_updates = 0;
   counters_.track_check_failures = counters_.bias_test_failures = 0;
   for (const auto& f : subs_) {
@@ -175,6 +175,8 @@ void SubClouds::Pool(StepDiagnostics* d) {
     d->innovation_bias_chi2 = std::max(d->innovation_bias_chi2, s->innovation_bias_chi2);
     d->innovation_cusum = std::max(d->innovation_cusum, s->innovation_cusum);
     d->track_check_failed = d->track_check_failed || s->track_check_failed;
+    d->ins_step_ratio = std::max(d->ins_step_ratio, s->ins_step_ratio);
+    d->ins_glitch = d->ins_glitch || s->ins_glitch;
     d->resampled = d->resampled || s->resampled;
     d->unique_particles += s->unique_particles;
   }

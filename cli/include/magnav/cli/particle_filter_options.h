@@ -47,6 +47,10 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "pf: after resampling jitter by this x N^(-1/6) x the cloud's covariance (regularised PF; 0 = off)");
   opt("--off-map-sigmas", &f->off_map_sigmas, "pf, afpf: an off-map particle's likelihood is that of this many sigma");
   opt("--max-step", &f->max_step_deg, "pf, afpf: a longer INS increment is a jump (not applied), deg");
+  opt("--ins-glitch-ratio", &f->ins_glitch_ratio,
+      "pf, afpf: an INS increment departing from the recent ones by more than this x their usual size is a glitch "
+      "(lost for --ins-glitch-hold steps; 0 = off)");
+  opt("--ins-glitch-hold", &f->ins_glitch_hold, "pf, afpf: steps lost after an INS glitch");
   opt("--divergence-window", &f->divergence_window, "pf, afpf: updates in the divergence test");
   opt("--divergence-nis", &f->divergence_nis, "pf, afpf: lost when the window's mean NIS exceeds this");
   opt("--track-check-window", &f->track_check_window,
@@ -62,6 +66,13 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "0 = off");
   opt("--bias-test-chi2", &f->bias_test_chi2, "pf: the innovation-bias test's threshold (chi-square, 1 dof; 0 = off)");
   opt("--afpf-bias-test-chi2", &f->afpf_bias_test_chi2, "afpf: the innovation-bias test's threshold (0 = off)");
+  opt("--acquisition-bias-test-chi2", &f->acquisition_bias_test_chi2,
+      "pf: the bias test's threshold during acquisition (until --acquisition-steps after the cloud first settled); "
+      "0 = off");
+  opt("--afpf-acquisition-bias-test-chi2", &f->afpf_acquisition_bias_test_chi2,
+      "afpf: the bias test's threshold during acquisition; 0 = off");
+  opt("--acquisition-steps", &f->acquisition_steps,
+      "pf, afpf: acquisition ends this many steps after the cloud's 1-sigma first fell below --settled-sigma");
   opt("--innovation-cusum-window", &f->innovation_cusum_window,
       "pf, afpf: updates in the innovation CUSUM's noise reference s^2 = mean(r^2 - V)");
   opt("--innovation-cusum-delay", &f->innovation_cusum_delay,
