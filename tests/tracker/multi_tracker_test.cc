@@ -106,52 +106,6 @@ TEST(MultiTracker, FarShipArrivingWhileAnAuvIsTracked) {
   EXPECT_LE(s.rms[0], 0.48);       // measured 0.331 m
 }
 
-// The back-filled start (TrackManagementOptions::backfill_start): a
-// confirmed track's rows from its first strong epoch, marked
-// TrackState::kStart, all before its confirmation and before its first live
-// row, as close to the truth as the live rows (no false row), beginning
-// ≥ 2 s before the confirmation (a start needs min_span_s = 5 s of fixes);
-// a track never confirmed has none (no id: every row has one of the two).
-TEST(MultiTracker, StartRowsAreBackFilledForConfirmedTracks) {
-  const FieldScenario sc = testing::TwoVesselScenario();
-  const SimulatedField f = SimulateField(sc);
-  MultiTracker tracker(sc.B0, MultiTrackerOptions{});
-  std::vector<TrackOutput> out;
-  for (const auto& smp : f.samples) {
-    for (const auto& x : tracker.AddSample(smp)) out.push_back(x);
-  }
-  for (const auto& x : tracker.Flush()) out.push_back(x);
-  std::map<std::uint32_t, double> confirmed_at;
-  for (const TrackEvent& ev : tracker.TakeEvents()) {
-    if (ev.kind == TrackEvent::Kind::kStarted) confirmed_at[ev.track_id] = ev.t_s;
-  }
-  ASSERT_EQ(confirmed_at.size(), 2u);
-  std::map<std::uint32_t, double> first_start, last_start, first_live;
-  std::map<std::uint32_t, int> start_rows;
-  testing::TrackRows start_only;
-  for (const TrackOutput& x : out) {
-    ASSERT_EQ(confirmed_at.count(x.track_id), 1u);
-    const double t = x.estimate.t_s;
-    if (x.state != TrackState::kStart) {
-      if (!first_live.count(x.track_id)) first_live[x.track_id] = t;
-      continue;
-    }
-    EXPECT_TRUE(x.estimate.usable && x.estimate.has_covariance) << "t = " << t;
-    if (!first_start.count(x.track_id)) first_start[x.track_id] = t;
-    last_start[x.track_id] = t;
-    ++start_rows[x.track_id];
-    start_only.emplace_back(x.track_id, x.estimate);
-  }
-  ASSERT_EQ(start_rows.size(), 2u);
-  EXPECT_EQ(ScoreField(sc, f, start_only).false_rows, 0u);
-  for (const auto& [id, n] : start_rows) {
-    EXPECT_LT(last_start[id], first_live[id]) << "track " << id;
-    EXPECT_LT(last_start[id], confirmed_at[id]) << "track " << id;
-    EXPECT_LE(first_start[id], confirmed_at[id] - 2.0) << "track " << id;
-    EXPECT_EQ(n, std::lround((first_live[id] - first_start[id]) * sc.rate_hz)) << "track " << id;  // no gap
-  }
-}
-
 TEST(MultiTracker, OptionsAreChecked) {
   MultiTrackerOptions o;
   std::string why;

@@ -153,6 +153,53 @@ TEST(HarbourScenario, WindowStartsOneTrackPerVesselAbreast) {
   EXPECT_LE(s.rms[1], 1.5 * 0.0761);
 }
 
+// The back-filled start (TrackManagementOptions::backfill_start) of a pair
+// start (held-out abreast: both vessels started together at ≈ 51 s): each
+// track's rows from its start's first evidence, marked TrackState::kStart,
+// all before its confirmation and its first live row, without a gap, as
+// close to the truth as the live rows (no false row), beginning ≥ 2 s
+// before the confirmation (a two-dipole start's evidence: min_span_s).
+TEST(HarbourScenario, WindowBackFillsAPairStartsRows) {
+  const FieldScenario sc = HeldOut("abreast");
+  const SimulatedField f = SimulateField(sc);
+  MultiTracker tracker(sc.B0, MultiTrackerOptions{});
+  std::vector<TrackOutput> out;
+  for (const auto& smp : f.samples) {
+    for (const auto& x : tracker.AddSample(smp)) out.push_back(x);
+  }
+  for (const auto& x : tracker.Flush()) out.push_back(x);
+  std::map<std::uint32_t, double> confirmed_at;
+  for (const TrackEvent& ev : tracker.TakeEvents()) {
+    if (ev.kind == TrackEvent::Kind::kStarted) confirmed_at[ev.track_id] = ev.t_s;
+  }
+  ASSERT_EQ(confirmed_at.size(), 2u);
+  std::map<std::uint32_t, double> first_start, last_start, first_live;
+  std::map<std::uint32_t, int> start_rows;
+  magnav::testing::TrackRows start_only;
+  for (const TrackOutput& x : out) {
+    const double t = x.estimate.t_s;
+    if (x.state != TrackState::kStart) {
+      if (!first_live.count(x.track_id)) first_live[x.track_id] = t;
+      continue;
+    }
+    EXPECT_TRUE(x.estimate.usable && x.estimate.has_covariance) << "t = " << t;
+    if (!first_start.count(x.track_id)) first_start[x.track_id] = t;
+    last_start[x.track_id] = t;
+    ++start_rows[x.track_id];
+    start_only.emplace_back(x.track_id, x.estimate);
+  }
+  ASSERT_EQ(start_rows.size(), 2u);
+  EXPECT_EQ(magnav::testing::ScoreField(sc, f, start_only).false_rows, 0u);
+  for (const auto& [id, n] : start_rows) {
+    std::printf("track %u: start rows %.1f-%.1f s, confirmed %.1f s, first live row %.1f s\n", id, first_start[id],
+                last_start[id], confirmed_at[id], first_live[id]);
+    EXPECT_LT(last_start[id], first_live[id]) << "track " << id;
+    EXPECT_LT(last_start[id], confirmed_at[id]) << "track " << id;
+    EXPECT_LE(first_start[id], confirmed_at[id] - 2.0) << "track " << id;
+    EXPECT_EQ(n, std::lround((first_live[id] - first_start[id]) * sc.rate_hz)) << "track " << id;  // no gap
+  }
+}
+
 TEST(HarbourScenario, BatchStartsOneTrackPerVesselAbreast) {
   const auto s = ScoreBatch(HeldOut("abreast"), "held-out abreast");
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));

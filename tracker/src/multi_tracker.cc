@@ -156,6 +156,9 @@ struct Track {
   // the track ends, whichever comes first.
   bool backfill_pending = false;
   double backfill_from_s = 0.0, backfill_until_s = 0.0, backfill_due_s = 0.0;
+  // Its start's first evidence (EvidenceStart): the back-fill goes no
+  // farther back.
+  double t_evidence_s = 0.0;
 };
 
 double HorizontalSigma(const EpochEstimate& e) {
@@ -237,13 +240,15 @@ struct MultiTracker::Impl {
     TrackRecord r;
     r.track_id = tr.id;
     r.t_start_s = t_s;
-    // The back-filled start (TrackManagementOptions::backfill_start): from
-    // the window's first strong epoch to the newest one its engine solved
-    // while the track was tentative (its estimates were dropped then; the
-    // live rows begin after it).
+    // The back-filled start (TrackManagementOptions::backfill_start) of a
+    // track started by a two-dipole fit: from the window's first strong
+    // epoch to the newest one its engine solved while the track was
+    // tentative (its estimates were dropped then; the live rows begin after
+    // it).
     std::string backfilled;
-    if (mg().backfill_start && tr.has_newest) {
-      const double from = tr.engine->FirstStrongEpoch(options.track.init.min_tensor_snr);
+    if (mg().backfill_start && tr.has_newest && tr.started_with != 0) {
+      const double from =
+          std::max(tr.engine->FirstStrongEpoch(options.track.init.min_tensor_snr), tr.t_evidence_s);
       if (std::isfinite(from) && from <= tr.newest.t_s) {
         tr.backfill_pending = true;
         tr.backfill_from_s = from;
@@ -675,11 +680,21 @@ struct MultiTracker::Impl {
       const std::vector<InitialTrack> fit = RefitPair(epochs, B0_W, options.track, at_t, init, mg().min_separation_m);
       if (fit.size() != 2) continue;
       Restart(young, fit[0], fit[1], epochs, out);
-      if (!StartTrack(t, fit[1], &fit[0], &epochs)) return true;  // the young track is refitted anyway
+      if (!StartTrack(t, fit[1], &fit[0], &epochs, EvidenceStart(t, init))) {
+        return true;  // the young track is refitted anyway
+      }
       MakePair(t, tracks[k], fit[0], tracks.back(), fit[1]);
       return true;
     }
     return false;
+  }
+
+  // The first evidence of a start made at t: its first single-sample fix,
+  // or min_span_s before t for a two-dipole fit (which has none).
+  double EvidenceStart(double t, const InitialTrack& init) const {
+    double first = std::numeric_limits<double>::infinity();
+    for (const DipoleFix& f : init.fixes) first = std::min(first, f.t_s);
+    return std::isfinite(first) ? first : t - options.track.init.min_span_s;
   }
 
   // A pair start's covariance excess (Track::pair_excess) from its start.
@@ -805,6 +820,7 @@ struct MultiTracker::Impl {
     if (mine.empty()) return false;
     Track tr;
     tr.life = TrackLifeCycle(t, mg());
+    tr.t_evidence_s = EvidenceStart(t, init);
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
     const std::vector<EpochEstimate> first = tr.engine->Start(init, mine);
     if (first.empty() || !first.back().usable) return false;
@@ -841,7 +857,8 @@ struct MultiTracker::Impl {
   // minus `partner`'s field if given, unless a track is already near it.
   // True if started.
   bool StartTrack(double t, const InitialTrack& init_track, const InitialTrack* partner,
-                  const std::vector<Epoch>* from = nullptr) {
+                  const std::vector<Epoch>* from = nullptr,
+                  double t_evidence_s = std::numeric_limits<double>::quiet_NaN()) {
     const InitialTrack* init = &init_track;
     const std::vector<Epoch> epochs = from != nullptr ? *from : std::vector<Epoch>(buffer.begin(), buffer.end());
     const CtState<double> now = PropagateCoordinatedTurn(init->state, t - init->t_ref_s);
@@ -857,6 +874,7 @@ struct MultiTracker::Impl {
     Track tr;
     tr.life = TrackLifeCycle(t, mg());
     tr.t_started_s = t;
+    tr.t_evidence_s = std::isnan(t_evidence_s) ? EvidenceStart(t, *init) : t_evidence_s;
     std::vector<Epoch> mine;
     for (const Epoch& b : epochs) {
       Track probe;
@@ -1121,7 +1139,7 @@ std::string MultiTracker::SaveState() const {
     w.F64(tr.t_poor_fit);
     w.F64(tr.t_started_s);
     w.U8(tr.backfill_pending ? 1 : 0);
-    for (double v : {tr.backfill_from_s, tr.backfill_until_s, tr.backfill_due_s}) w.F64(v);
+    for (double v : {tr.backfill_from_s, tr.backfill_until_s, tr.backfill_due_s, tr.t_evidence_s}) w.F64(v);
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -1214,7 +1232,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.t_poor_fit = r.F64();
     tr.t_started_s = r.F64();
     tr.backfill_pending = r.U8() != 0;
-    for (double* v : {&tr.backfill_from_s, &tr.backfill_until_s, &tr.backfill_due_s}) *v = r.F64();
+    for (double* v : {&tr.backfill_from_s, &tr.backfill_until_s, &tr.backfill_due_s, &tr.t_evidence_s}) *v = r.F64();
     m.tracks.push_back(std::move(tr));
   }
   m.records.resize(r.Count(internal::kMaxStateCount));

@@ -162,10 +162,14 @@ struct TrackManagementOptions {
   // so a vessel's first rows came ≈ 6 s after its first strong sample (one
   // vessel of heldout_abreast/abreast_36 and of fresh_abreast/abreast_39
   // below the window coverage target for that alone). With backfill_start,
-  // a track's confirmation marks its start's epochs for output: from the
+  // the confirmation of a track started by a two-dipole fit (a pair start,
+  // a joint start, a start beside a track: its start explained its
+  // neighbour's field) marks its start's epochs for output: from the
   // first epoch where its window predicts a tensor of at least
   // init.min_tensor_snr · σ_T at one of its sensors (the strength a start
-  // fix needs) to the newest epoch its engine solved while it was tentative
+  // fix needs), but not before its start's first evidence (the first fix it
+  // was started from; min_span_s before a two-dipole start, which has no
+  // fix), to the newest epoch its engine solved while it was tentative
   // (those estimates were dropped; the live rows follow it). They are
   // output, TrackState::kStart, from the window as it is
   // window_s − init_interval_s after that first epoch (just before it
@@ -174,7 +178,11 @@ struct TrackManagementOptions {
   // covariance — after a pair refit or joint start has restarted the
   // engine, its refitted estimate. So they come out of time order, up to
   // window_s late (the event of the confirmation says when). Only confirmed
-  // tracks back-fill: no row of a track that is never confirmed. The DDS
+  // tracks back-fill: no row of a track that is never confirmed. A single
+  // start does not: its early window carries any neighbour's field it was
+  // started without (on heldout/far_ship a ghost's 168 back-filled rows
+  // were 11 m off, on fresh_overtaking/overtaking_a a vessel's 0.8 m off
+  // with a σ of 2 cm). The DDS
   // node (magnav-tracker) turns it off: it publishes in time order and the
   // wire's TrackState has no value for such a row.
   bool backfill_start = true;
