@@ -116,7 +116,7 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
                     "sigma_x..z the full 3x3), empty if unknown; track_id: one per vessel, never reused; state: "
                     "confirmed (the track detected at this epoch), coasting (not detected: predicted, corrected "
                     "at most by samples too weak for a detection) or start (window: a row before the track's "
-                    "confirmation, back-filled at it from the window's smoothed estimate; --start-rows)"});
+                    "confirmation, back-filled later from the window's smoothed estimate; --start-rows)"});
   params.push_back({"summary", summary});
   CsvWriter w(path,
               {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z", "state", "cov_xy",
@@ -290,8 +290,8 @@ void AddTrackCommand(CLI::App& app) {
                   "weighted by exp(-cost difference) (model averaging over the turn's change points; 0/1)")
       ->capture_default_str();
   cmd->add_option("--start-rows", args->flags.options.management.backfill_start,
-                  "window: at a track's confirmation, output its start's rows from its first strong epoch (state "
-                  "start: the window's smoothed estimates, output late by the confirmation delay; 0/1)")
+                  "window: a track started by a two-dipole fit also gets its start's rows from its first strong "
+                  "epoch (state start: the window's smoothed estimates, output up to --window late; 0/1)")
       ->capture_default_str();
   cmd->callback([args] { RunTrack(*args); });
 }
