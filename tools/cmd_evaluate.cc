@@ -82,7 +82,8 @@ class PositionCovariance {
 
 // Mean NEES (3 dof, PositionCovariance) of the scored rows per regime (issue 24
 // item 6): "coasting" = a track row whose `state` is coasting (magnav track:
-// not detected at that epoch); every other row "inside" (its true position
+// not detected at that epoch); every other row (confirmed, or start: a
+// back-filled start row) "inside" (its true position
 // within --reach of a sensor, horizontally) or "outside"; without sensor
 // positions "not coasting". A file without a `state` column (older track
 // files, fixes, a recorded track topic) has no coasting rows.
@@ -122,9 +123,9 @@ class RegimeNees {
     if (state_) {
       const std::string_view v = est_.text(i, *state_);
       if (v == "coasting") return "coasting";
-      if (v != "confirmed") {
+      if (v != "confirmed" && v != "start") {
         throw InputError(est_.source() + ":" + std::to_string(est_.line_of(i)) +
-                         ": column 'state': expected confirmed or coasting, got '" + std::string(v) + "'");
+                         ": column 'state': expected confirmed, coasting or start, got '" + std::string(v) + "'");
       }
     }
     if (sensors_.empty()) return "not coasting";

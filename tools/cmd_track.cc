@@ -114,8 +114,9 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
                     "north, clockwise seen from above; sigma_*: 1-sigma position uncertainty (m), empty if "
                     "unknown; cov_xy, cov_xz, cov_yz: the position covariance's off-diagonal terms (m^2; with "
                     "sigma_x..z the full 3x3), empty if unknown; track_id: one per vessel, never reused; state: "
-                    "confirmed (the track detected at this epoch) or coasting (not detected: predicted, corrected "
-                    "at most by samples too weak for a detection)"});
+                    "confirmed (the track detected at this epoch), coasting (not detected: predicted, corrected "
+                    "at most by samples too weak for a detection) or start (window: a row before the track's "
+                    "confirmation, back-filled later from the window's smoothed estimate; --start-rows)"});
   params.push_back({"summary", summary});
   CsvWriter w(path,
               {"t", "track_id", "x", "y", "z", "vx", "vy", "heading", "sigma_x", "sigma_y", "sigma_z", "state", "cov_xy",
@@ -250,7 +251,7 @@ void AddTrackCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("track", "Track every dipole (vessel) of a gradiometer pass or field");
   cmd->add_option("--input", args->input, "pass file: t,sensor_id,sensor_x..z,B_x..B_z,T00..T22")->required();
   cmd->add_option("--output", args->output,
-                  "track file: t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state (confirmed|coasting),"
+                  "track file: t,track_id,x,y,z,vx,vy,heading,sigma_x,sigma_y,sigma_z,state (confirmed|coasting|start),"
                   "cov_xy,cov_xz,cov_yz (m^2)")
       ->required();
   AddVec3Option(*cmd, "--b0", &args->b0, "background field B0 in tesla, NED (default: the file's '# B0_T:')");
@@ -287,6 +288,10 @@ void AddTrackCommand(CLI::App& app) {
   cmd->add_option("--batch-model-spread", args->flags.options.track.batch_model_spread,
                   "batch: add to each state's covariance the spread of the restarts' ends about the chosen one, "
                   "weighted by exp(-cost difference) (model averaging over the turn's change points; 0/1)")
+      ->capture_default_str();
+  cmd->add_option("--start-rows", args->flags.options.management.backfill_start,
+                  "window: a track started by a two-dipole fit also gets its start's rows from its first strong "
+                  "epoch (state start: the window's smoothed estimates, output up to --window late; 0/1)")
       ->capture_default_str();
   cmd->callback([args] { RunTrack(*args); });
 }

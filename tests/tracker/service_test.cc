@@ -115,11 +115,14 @@ struct TestPeer {
 
 // The library's estimates for samples as the service sees them: through the
 // message, B0 subtracted by the node (the tracker runs with B0 = 0), `fixes`
-// handed in before the samples.
+// handed in before the samples; no back-filled start rows, as the node
+// (TrackManagementOptions::backfill_start off: tracker_node.h).
 std::vector<TrackOutput> LibraryTracks(const std::vector<GradiometerSample>& samples, const Eigen::Vector3d& B0,
                                        const MultiTrackerOptions& options = MultiTrackerOptions{},
                                        const std::vector<DipoleFix>& fixes = {}) {
-  MultiTracker lib(Eigen::Vector3d::Zero(), options);
+  MultiTrackerOptions live = options;
+  live.management.backfill_start = false;
+  MultiTracker lib(Eigen::Vector3d::Zero(), live);
   for (const auto& f : fixes) lib.AddFix(f);
   std::vector<TrackOutput> want;
   for (std::size_t i = 0; i < samples.size(); ++i) {

@@ -41,13 +41,21 @@ const TrackerNodeOptions& Checked(const TrackerNodeOptions& o) {
   if (!o.IsValid(&err)) throw InputError("tracker options: " + err);
   return o;
 }
+
+// The node publishes each track's estimates in time order and the wire's
+// TrackState has no value for a back-filled start row
+// (TrackManagementOptions::backfill_start): off here, offline only.
+MultiTrackerOptions LiveOptions(MultiTrackerOptions o) {
+  o.management.backfill_start = false;
+  return o;
+}
 }  // namespace
 
 TrackerNode::TrackerNode(dds::Node& node, const TrackerNodeOptions& options,
                          std::unique_ptr<dds::RegionalFieldSource> b0)
     : options_(Checked(options)),
       b0_(std::move(b0)),
-      tracker_(Eigen::Vector3d::Zero(), options.tracker),
+      tracker_(Eigen::Vector3d::Zero(), LiveOptions(options.tracker)),
       merge_(options.merge) {
   repeats_.SetLogName("magnav-tracker: magnav/gradiometer sensor");
   if (!options_.state_dir.empty()) {

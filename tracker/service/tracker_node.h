@@ -2,7 +2,8 @@
 // confirmed track and epoch, from the multi-vessel sliding-window tracker
 // magnav::tracker::MultiTracker: tracks start, are confirmed, coast and end;
 // each has its own track_id, never reused in a run, and its own body moment;
-// starts and ends are logged). Samples
+// starts and ends are logged; no back-filled start rows: the node turns
+// TrackManagementOptions::backfill_start off). Samples
 // of several gradiometers arrive on independent streams, so they are merged
 // in time first (magnav::StreamMerger, core/stream_merge.h; one stream per
 // sensor id, ranked by sensor id at equal times): by default a per-stream

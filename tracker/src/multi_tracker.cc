@@ -80,7 +80,15 @@ std::string MultiSummary::BriefReport() const {
 }
 
 const char* TrackStateName(TrackState state) {
-  return state == TrackState::kCoasting ? "coasting" : "confirmed";
+  switch (state) {
+    case TrackState::kCoasting:
+      return "coasting";
+    case TrackState::kStart:
+      return "start";
+    case TrackState::kConfirmed:
+      break;
+  }
+  return "confirmed";
 }
 
 void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2, const Eigen::Vector3d& p_SinW,
@@ -141,6 +149,16 @@ struct Track {
   // poor_fit): a confirmed track then tries a pair start beside it
   // (pair_beside.h).
   double t_poor_fit = -std::numeric_limits<double>::infinity();
+  // The back-filled start (TrackManagementOptions::backfill_start), set at
+  // its confirmation: the rows of [backfill_from_s, backfill_until_s] (its
+  // first strong epoch to the newest one its engine had solved while it was
+  // tentative) are output from the window once due (backfill_due_s) or when
+  // the track ends, whichever comes first.
+  bool backfill_pending = false;
+  double backfill_from_s = 0.0, backfill_until_s = 0.0, backfill_due_s = 0.0;
+  // Its start's first evidence (EvidenceStart): the back-fill goes no
+  // farther back.
+  double t_evidence_s = 0.0;
 };
 
 double HorizontalSigma(const EpochEstimate& e) {
@@ -183,7 +201,8 @@ struct MultiTracker::Impl {
     return PredictAtSample(tr.pred, tr.m_B, s, options.track);
   }
 
-  void End(Track& tr, double t_s, const std::string& reason) {
+  void End(Track& tr, double t_s, const std::string& reason, std::vector<TrackOutput>* out) {
+    if (tr.id != 0) Backfill(tr, out);
     tr.ended = true;
     if (tr.id == 0) {
       ++summary.num_tentative_dropped;
@@ -221,6 +240,26 @@ struct MultiTracker::Impl {
     TrackRecord r;
     r.track_id = tr.id;
     r.t_start_s = t_s;
+    // The back-filled start (TrackManagementOptions::backfill_start) of a
+    // track started by a two-dipole fit: from the window's first strong
+    // epoch to the newest one its engine solved while the track was
+    // tentative (its estimates were dropped then; the live rows begin after
+    // it).
+    std::string backfilled;
+    if (mg().backfill_start && tr.has_newest && tr.started_with != 0) {
+      const double from =
+          std::max(tr.engine->FirstStrongEpoch(options.track.init.min_tensor_snr), tr.t_evidence_s);
+      if (std::isfinite(from) && from <= tr.newest.t_s) {
+        tr.backfill_pending = true;
+        tr.backfill_from_s = from;
+        tr.backfill_until_s = tr.newest.t_s;
+        tr.backfill_due_s = std::max(t_s, from + options.track.window_s - mg().init_interval_s);
+        std::ostringstream o;
+        o << "; its start's rows " << FormatNumber(from) << "-" << FormatNumber(tr.newest.t_s)
+          << " s (state start) follow at " << FormatNumber(tr.backfill_due_s) << " s or at its end";
+        backfilled = o.str();
+      }
+    }
     for (const Track& other : tracks) {
       if (&other == &tr || tr.started_with == 0 || other.started_with != tr.started_with || other.id == 0) continue;
       r.partner_id = other.id;
@@ -230,7 +269,29 @@ struct MultiTracker::Impl {
     r.t_last_detection_s = tr.life.t_last_detection_s();
     records.push_back(r);
     ++summary.num_confirmed;
-    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed; " + tr.origin});
+    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed; " + tr.origin + backfilled});
+  }
+
+  // Outputs a confirmed track's pending back-filled start (Track::
+  // backfill_*): its engine's window now, smoothed by every epoch since,
+  // over [backfill_from_s, backfill_until_s] (what has left the window is
+  // lost), each with the pair start's covariance excess as a live row.
+  void Backfill(Track& tr, std::vector<TrackOutput>* out) {
+    if (!tr.backfill_pending || tr.id == 0) return;
+    tr.backfill_pending = false;
+    std::vector<EpochEstimate> start = tr.engine->SolvedBetween(tr.backfill_from_s, tr.backfill_until_s);
+    start.erase(std::remove_if(start.begin(), start.end(), [](const EpochEstimate& e) { return !e.usable; }),
+                start.end());
+    if (start.empty()) return;
+    TrackRecord& rec = records[tr.id - 1];
+    const Eigen::Vector3d m = tr.engine->m_B_Am2();
+    const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
+    for (EpochEstimate& e : start) {
+      AddPairExcess(tr, &e);
+      out->push_back({tr.id, e, TrackState::kStart, m, Pm});
+      ++rec.num_estimates;
+    }
+    rec.t_start_s = std::min(rec.t_start_s, start.front().t_s);
   }
 
   // The estimates of a track's engine, as outputs (confirmed tracks only),
@@ -405,10 +466,17 @@ struct MultiTracker::Impl {
           Confirm(tr, t);
           break;
         case TrackLifeCycle::Decision::kEnd:
-          End(tr, t, reason);
+          End(tr, t, reason, &out);
           break;
         case TrackLifeCycle::Decision::kKeep:
           break;
+      }
+    }
+    // A confirmed track's back-filled start once due (before its first
+    // strong epoch leaves the window).
+    for (Track& tr : tracks) {
+      if (!tr.ended && tr.backfill_pending && t >= tr.backfill_due_s - options.track.epoch_tolerance_s) {
+        Backfill(tr, &out);
       }
     }
     // Duplicates: a track within min_separation_m of an older one.
@@ -425,7 +493,7 @@ struct MultiTracker::Impl {
         const bool older = old.id != 0 && (young.id == 0 || old.id < young.id);
         close = older && (Horizontal(old.pred) - Horizontal(young.pred)).norm() < mg().min_separation_m;
       }
-      if (young.life.OnDuplicateCheck(t, close)) End(young, t, "duplicate");
+      if (young.life.OnDuplicateCheck(t, close)) End(young, t, "duplicate", &out);
     }
     // 5. The initiator's buffer: this epoch with every track's field removed.
     // Where a track's field dominates, what is left is mostly its model
@@ -612,11 +680,21 @@ struct MultiTracker::Impl {
       const std::vector<InitialTrack> fit = RefitPair(epochs, B0_W, options.track, at_t, init, mg().min_separation_m);
       if (fit.size() != 2) continue;
       Restart(young, fit[0], fit[1], epochs, out);
-      if (!StartTrack(t, fit[1], &fit[0], &epochs)) return true;  // the young track is refitted anyway
+      if (!StartTrack(t, fit[1], &fit[0], &epochs, EvidenceStart(t, init))) {
+        return true;  // the young track is refitted anyway
+      }
       MakePair(t, tracks[k], fit[0], tracks.back(), fit[1]);
       return true;
     }
     return false;
+  }
+
+  // The first evidence of a start made at t: its first single-sample fix,
+  // or min_span_s before t for a two-dipole fit (which has none).
+  double EvidenceStart(double t, const InitialTrack& init) const {
+    double first = std::numeric_limits<double>::infinity();
+    for (const DipoleFix& f : init.fixes) first = std::min(first, f.t_s);
+    return std::isfinite(first) ? first : t - options.track.init.min_span_s;
   }
 
   // A pair start's covariance excess (Track::pair_excess) from its start.
@@ -742,6 +820,7 @@ struct MultiTracker::Impl {
     if (mine.empty()) return false;
     Track tr;
     tr.life = TrackLifeCycle(t, mg());
+    tr.t_evidence_s = EvidenceStart(t, init);
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
     const std::vector<EpochEstimate> first = tr.engine->Start(init, mine);
     if (first.empty() || !first.back().usable) return false;
@@ -778,7 +857,8 @@ struct MultiTracker::Impl {
   // minus `partner`'s field if given, unless a track is already near it.
   // True if started.
   bool StartTrack(double t, const InitialTrack& init_track, const InitialTrack* partner,
-                  const std::vector<Epoch>* from = nullptr) {
+                  const std::vector<Epoch>* from = nullptr,
+                  double t_evidence_s = std::numeric_limits<double>::quiet_NaN()) {
     const InitialTrack* init = &init_track;
     const std::vector<Epoch> epochs = from != nullptr ? *from : std::vector<Epoch>(buffer.begin(), buffer.end());
     const CtState<double> now = PropagateCoordinatedTurn(init->state, t - init->t_ref_s);
@@ -794,6 +874,7 @@ struct MultiTracker::Impl {
     Track tr;
     tr.life = TrackLifeCycle(t, mg());
     tr.t_started_s = t;
+    tr.t_evidence_s = std::isnan(t_evidence_s) ? EvidenceStart(t, *init) : t_evidence_s;
     std::vector<Epoch> mine;
     for (const Epoch& b : epochs) {
       Track probe;
@@ -940,7 +1021,7 @@ std::vector<TrackOutput> MultiTracker::Flush() {
   for (Track& tr : m.tracks) {
     m.Collect(tr, tr.engine->Flush(), &out);
     if (tr.id != 0) {
-      m.End(tr, m.last_t, "end of data");
+      m.End(tr, m.last_t, "end of data", &out);
     } else {
       tr.ended = true;  // never confirmed: nothing to say
     }
@@ -1057,6 +1138,8 @@ std::string MultiTracker::SaveState() const {
     w.F64(tr.pair_excess_until_s);
     w.F64(tr.t_poor_fit);
     w.F64(tr.t_started_s);
+    w.U8(tr.backfill_pending ? 1 : 0);
+    for (double v : {tr.backfill_from_s, tr.backfill_until_s, tr.backfill_due_s, tr.t_evidence_s}) w.F64(v);
   }
   w.U64(m.records.size());
   for (const TrackRecord& r : m.records) {
@@ -1148,6 +1231,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.pair_excess_until_s = r.F64();
     tr.t_poor_fit = r.F64();
     tr.t_started_s = r.F64();
+    tr.backfill_pending = r.U8() != 0;
+    for (double* v : {&tr.backfill_from_s, &tr.backfill_until_s, &tr.backfill_due_s, &tr.t_evidence_s}) *v = r.F64();
     m.tracks.push_back(std::move(tr));
   }
   m.records.resize(r.Count(internal::kMaxStateCount));

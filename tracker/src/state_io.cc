@@ -128,7 +128,8 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
         static_cast<std::int64_t>(t.window_solver), static_cast<std::int64_t>(t.compute_covariance),
         static_cast<std::int64_t>(t.covariance_method), static_cast<std::int64_t>(g.confirm_m),
         static_cast<std::int64_t>(g.confirm_n), static_cast<std::int64_t>(o.batch_rounds),
-        static_cast<std::int64_t>(o.background.enabled), static_cast<std::int64_t>(o.cluster_background.enabled)}) {
+        static_cast<std::int64_t>(o.background.enabled), static_cast<std::int64_t>(o.cluster_background.enabled),
+        static_cast<std::int64_t>(g.backfill_start)}) {
     w.I64(n);
   }
   return w.bytes();

@@ -11,7 +11,9 @@
 #include "factors.h"
 #include "state_io.h"
 #include "magnav/core/csv.h"
+#include "magnav/core/dipole.h"
 #include "magnav/core/error.h"
+#include "magnav/core/frames.h"
 #include "magnav/core/units.h"
 #include "magnav/tracker/cost_functions.h"
 #include "magnav/tracker/initialize.h"
@@ -436,6 +438,73 @@ struct WindowTracker::Impl {
     return out;
   }
 
+  std::size_t Solved() const {
+    return window.size() - std::min<std::size_t>(static_cast<std::size_t>(unsolved), window.size());
+  }
+
+  // WindowTracker::FirstStrongEpoch.
+  double FirstStrongEpoch(double min_tensor_snr) const {
+    if (!initialized || window.empty()) return std::numeric_limits<double>::quiet_NaN();
+    const Eigen::Vector3d m_B = moment * moment_scale;
+    for (std::size_t k = 0; k < Solved(); ++k) {
+      const WindowEpoch& w = window[k];
+      const Eigen::Vector3d m_W = HeadingRotation(w.x(4)) * m_B;
+      for (const auto& smp : w.epoch.samples) {
+        Eigen::Vector3d B;
+        Eigen::Matrix3d T;
+        DipoleBT(smp.p_SinW - w.x.head<3>(), m_W, &B, &T);
+        if (T.norm() >= min_tensor_snr * SigmaT(smp, options)) return w.epoch.t_s;
+      }
+    }
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+
+  // WindowTracker::SolvedBetween.
+  std::vector<EpochEstimate> SolvedBetween(double t_from_s, double t_until_s) {
+    if (!initialized || window.empty()) return {};
+    const double tol = options.epoch_tolerance_s;
+    const std::size_t solved = Solved();
+    std::size_t first = 0;
+    while (first < solved && window[first].epoch.t_s < t_from_s - tol) ++first;
+    std::size_t end = first;
+    while (end < solved && window[end].epoch.t_s <= t_until_s + tol) ++end;
+    if (first >= end) return {};
+    const bool ok = summary.usable && moment.allFinite();
+    // The marginals at the last solve's factorisation when it is still the
+    // window's (its newest state is window[solved − 1]'s; epochs appended
+    // since are not in it), else of the window now, factorised here (the
+    // tracker's own factorisation is left as it is).
+    std::vector<StateCovariance> P;
+    Eigen::Matrix3d Pm;
+    bool have = false;
+    std::size_t newest = solved;  // P.back() is window[newest − 1]'s
+    if (options.compute_covariance && ok) {
+      if (chain_fresh) {
+        have = internal::ChainCovariance(chain, &P, &Pm);
+      } else {
+        internal::ChainFactorization local;
+        have = internal::FactorizeChain(Chain(), &local) && internal::ChainCovariance(local, &P, &Pm);
+        newest = window.size();
+      }
+    }
+    std::vector<EpochEstimate> out;
+    for (std::size_t k = first; k < end; ++k) {
+      EpochEstimate est = Estimate(window[k]);
+      est.usable = ok && window[k].x.allFinite();
+      if (options.compute_covariance) {
+        const std::size_t back = newest - k;  // >= 1
+        if (have && back <= P.size() && P[P.size() - back].allFinite()) {
+          est.cov_state = P[P.size() - back];
+          est.has_covariance = true;
+        } else {
+          est.usable = false;
+        }
+      }
+      out.push_back(est);
+    }
+    return out;
+  }
+
   std::optional<CtState<double>> PredictState(double t_s) const {
     if (!initialized || window.empty()) return std::nullopt;
     const WindowEpoch& last = window.back();
@@ -651,6 +720,11 @@ std::vector<WindowTracker::WindowEpochView> WindowTracker::WindowView() const {
     out.push_back(std::move(v));
   }
   return out;
+}
+
+double WindowTracker::FirstStrongEpoch(double min_tensor_snr) const { return impl_->FirstStrongEpoch(min_tensor_snr); }
+std::vector<EpochEstimate> WindowTracker::SolvedBetween(double t_from_s, double t_until_s) {
+  return impl_->SolvedBetween(t_from_s, t_until_s);
 }
 
 bool WindowTracker::initialized() const { return impl_->initialized; }

@@ -45,7 +45,9 @@
 //     started. New tracks are tentative until confirm_m of their first
 //     confirm_n epochs are detections (M-of-N); a tentative track that cannot
 //     reach that is dropped. Only confirmed tracks get a track_id (1, 2, …;
-//     never reused) and produce estimates. Two vessels started together by
+//     never reused) and produce estimates; a confirmed track's rows are
+//     back-filled from its first strong epoch, later, from the smoothed
+//     window (TrackManagementOptions::backfill_start, TrackState::kStart). Two vessels started together by
 //     the two-dipole start (InitializePair) are refitted together once,
 //     pair_refit_s later (RefitPair), and their engines started again from
 //     that refit (TrackManagementOptions::pair_refit_s). A single start
@@ -155,6 +157,35 @@ struct TrackManagementOptions {
   // fresh_abreast/abreast_28 (starts 6 s apart) failing (docs/ACCURACY.md,
   // "Two vessels started one by one: the joint start").
   double joint_start_s = 20.0;
+  // The back-filled start (issue 24, branch coverage): a start needs
+  // min_span_s of strong fixes and then confirm_m of confirm_n detections,
+  // so a vessel's first rows came ≈ 6 s after its first strong sample (one
+  // vessel of heldout_abreast/abreast_36 and of fresh_abreast/abreast_39
+  // below the window coverage target for that alone). With backfill_start,
+  // the confirmation of a track started by a two-dipole fit (a pair start,
+  // a joint start, a start beside a track: its start explained its
+  // neighbour's field) marks its start's epochs for output: from the
+  // first epoch where its window predicts a tensor of at least
+  // init.min_tensor_snr · σ_T at one of its sensors (the strength a start
+  // fix needs), but not before its start's first evidence (the first fix it
+  // was started from; min_span_s before a two-dipole start, which has no
+  // fix), to the newest epoch its engine solved while it was tentative
+  // (those estimates were dropped; the live rows follow it). They are
+  // output, TrackState::kStart, from the window as it is
+  // window_s − init_interval_s after that first epoch (just before it
+  // leaves the window; at once if that is past), or when the track ends:
+  // the fixed-lag smoother's estimate with that lag, each with the window's
+  // covariance — after a pair refit or joint start has restarted the
+  // engine, its refitted estimate. So they come out of time order, up to
+  // window_s late (the event of the confirmation says when). Only confirmed
+  // tracks back-fill: no row of a track that is never confirmed. A single
+  // start does not: its early window carries any neighbour's field it was
+  // started without (on heldout/far_ship a ghost's 168 back-filled rows
+  // were 11 m off, on fresh_overtaking/overtaking_a a vessel's 0.8 m off
+  // with a σ of 2 cm). The DDS
+  // node (magnav-tracker) turns it off: it publishes in time order and the
+  // wire's TrackState has no value for such a row.
+  bool backfill_start = true;
 
   bool IsValid(std::string* error) const;
 };
@@ -233,10 +264,13 @@ struct MultiTrackerOptions {
 //  - kCoasting: it was not (missed, or unobserved: no sensor within its
 //    gate, or too weak a signal there): the estimate is the motion model's
 //    prediction, corrected at most by samples too weak for a detection.
-//    A confirmed track ends "lost" after max_coast_s of it.
+//    A confirmed track ends "lost" after max_coast_s of it;
+//  - kStart: a back-filled row of the track's start
+//    (TrackManagementOptions::backfill_start): the window's smoothed
+//    estimate of an epoch before the track was confirmed, output later.
 // Written per row by `magnav track` (column `state`).
-enum class TrackState { kConfirmed, kCoasting };
-const char* TrackStateName(TrackState state);  // "confirmed", "coasting"
+enum class TrackState { kConfirmed, kCoasting, kStart };
+const char* TrackStateName(TrackState state);  // "confirmed", "coasting", "start"
 
 // One estimate of one track.
 struct TrackOutput {
@@ -304,7 +338,8 @@ class MultiTracker {
 
   // As WindowTracker::AddSample / AddEpoch / Flush: samples in time order,
   // a later time closes the current epoch. Returns the confirmed tracks'
-  // estimates produced by it (in time order per track). A sample that fails
+  // estimates produced by it (in time order per track, but for the
+  // back-filled start rows: TrackManagementOptions::backfill_start). A sample that fails
   // CheckSample is counted and skipped. Throws InputError if time goes back.
   std::vector<TrackOutput> AddSample(const GradiometerSample& sample);
   std::vector<TrackOutput> AddEpoch(const Epoch& epoch);

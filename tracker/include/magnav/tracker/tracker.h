@@ -150,6 +150,16 @@ class WindowTracker {
     std::vector<std::uint32_t> sensor_ids;
   };
   std::vector<WindowEpochView> WindowView() const;
+  // The multi-tracker's back-filled start (TrackState::kStart):
+  // FirstStrongEpoch is the time of the window's first solved epoch with a
+  // sample where the window's state and moment predict a tensor of at least
+  // min_tensor_snr · σ_T (‖T̂‖_F); NaN if none (or before a track exists).
+  // SolvedBetween gives the window's current estimates of its solved epochs
+  // with t_from_s ≤ t ≤ t_until_s (smoothed: solved with every later epoch
+  // of the window), each with its covariance as the live estimates (the
+  // window's marginal at its last solve); empty if none is in the window.
+  double FirstStrongEpoch(double min_tensor_snr) const;
+  std::vector<EpochEstimate> SolvedBetween(double t_from_s, double t_until_s);
   // Hands the initialiser a fix computed elsewhere (every fix magnav-inverter
   // publishes, rejected ones included: with InitSource::kAuto the first fix,
   // valid or not, makes the initialiser try the fixes handed in first), used
