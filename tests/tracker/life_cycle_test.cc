@@ -175,12 +175,14 @@ TEST(TrackLifeCycle, DetectionsWithoutTensorEvidenceDoNotConfirm) {
   EXPECT_EQ(k, 9);
 }
 
-// Out of reach (out_of_reach_s, 2 s): ends after 2 s out of reach in a row,
-// before the 10 s coast of "lost"; a return within reach restarts the
-// count; 0 turns the rule off (then "lost", as before).
+// Out of reach (out_of_reach_s; off by default, here 2 s): ends after 2 s
+// out of reach in a row, before the 10 s coast of "lost"; a return within
+// reach restarts the count; 0 (the default) turns the rule off (then
+// "lost", as before).
 TEST(TrackLifeCycle, EndsOutOfReachAfterOutOfReachS) {
   TrackManagementOptions opt;
-  ASSERT_EQ(opt.out_of_reach_s, 2.0);
+  ASSERT_EQ(opt.out_of_reach_s, 0.0);
+  opt.out_of_reach_s = 2.0;
   std::string why;
   const auto run = [&](const TrackManagementOptions& o, const std::string& reach, int* at) {
     TrackLifeCycle life = Confirmed(o);

@@ -75,9 +75,10 @@ std::vector<double> EarlyNees(const SimulatedField& f, double rate_hz, const mag
 constexpr double kChi2Dof3P99 = 11.345;
 
 magnav::testing::FieldScores ScoreWindow(const FieldScenario& sc, const std::string& name,
-                                         std::vector<double>* early_nees = nullptr) {
+                                         std::vector<double>* early_nees = nullptr,
+                                         const MultiTrackerOptions& options = MultiTrackerOptions{}) {
   const SimulatedField f = SimulateField(sc);
-  MultiTracker tracker(sc.B0, MultiTrackerOptions{});
+  MultiTracker tracker(sc.B0, options);
   const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
   const auto s = magnav::testing::ScoreField(sc, f, rows);
   magnav::testing::PrintFieldScores((name + ", window").c_str(), s);
@@ -302,23 +303,29 @@ TEST(HarbourScenario, BatchKeepsBothVesselsOfAnOvertaking) {
 // No ghost track from a far ship or a drifting background (issue 24 items 1
 // and 3): the held-out far-ship and drift scenarios (heldout/far_ship.toml:
 // a 4.2e5 A·m² ship 114 m off the grid; heldout/drift.toml: 4 nT/min), window
-// mode. On main before the tensor evidence for confirmation and the
-// "out_of_reach" end rule (TrackManagementOptions::confirm_tensor_snr,
-// out_of_reach_s) a departing AUV's track walked off on the ship's or the
-// drift's B: 57 % and 24 % false rows (docs/ACCURACY.md, "No ghost track
-// from a far ship or a drift"); with them 0.0 % and 2.5 %. Held to the
-// issue's 5 % (a 2x regression of the drift figure stays inside it; the
-// 10x of main does not). The AUV's figures as measured (these files were not
-// tuned on; the tuning was on tuning/).
+// mode, with the "out_of_reach" end rule on (out_of_reach_s 2 s; off by
+// default, multi_tracker.h says why) beside the default tensor evidence for
+// confirmation (confirm_tensor_snr 3). On main a departing AUV's track
+// walked off on the ship's or the drift's B: 57 % and 24 % false rows
+// (docs/ACCURACY.md, "No ghost track from a far ship or a drift"); with the
+// rules 0.0 % and 2.5 %. Held to the issue's 5 % (a 2x regression of the
+// drift figure stays inside it; the 10x of main does not). The AUV's figures
+// as measured (these files were not tuned on; the tuning was on tuning/).
+MultiTrackerOptions WithReachRule() {
+  MultiTrackerOptions o;
+  o.management.out_of_reach_s = 2.0;
+  return o;
+}
+
 TEST(HarbourScenario, WindowStartsNoGhostFromAFarShip) {
-  const auto s = ScoreWindow(HeldOut("far_ship"), "held-out far ship");
+  const auto s = ScoreWindow(HeldOut("far_ship"), "held-out far ship", nullptr, WithReachRule());
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
   EXPECT_GE(s.coverage[0], 0.9 * 0.609);  // measured 0.609 (2 ids: broken while the ship is closest)
   EXPECT_LE(s.ids[0], 2u);
 }
 
 TEST(HarbourScenario, WindowStartsNoGhostFromADrift) {
-  const auto s = ScoreWindow(HeldOut("drift"), "held-out drift");
+  const auto s = ScoreWindow(HeldOut("drift"), "held-out drift", nullptr, WithReachRule());
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 2.5 %
   EXPECT_GE(s.coverage[0], 0.8);  // the issue's; measured 0.889
   EXPECT_EQ(s.ids[0], 1u);
