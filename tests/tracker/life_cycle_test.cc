@@ -4,6 +4,7 @@
 // max σ_h 5 m; epochs every 0.125 s (exact in binary: no rounding at the rules' edges).
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <string>
 
 #include "magnav/tracker/track_life_cycle.h"
@@ -142,6 +143,95 @@ TEST(TrackLifeCycle, DuplicateEndsATentativeAtOnceAndAConfirmedAfterMaxMiss) {
   EXPECT_FALSE(life.OnDuplicateCheck(3.25, true));
   EXPECT_FALSE(life.OnDuplicateCheck(5.0, true));
   EXPECT_TRUE(life.OnDuplicateCheck(5.25, true));
+}
+
+// Tensor evidence (confirm_tensor_snr): detections seen in B alone (a far
+// ship's or a drift's B that a far dipole explains) never confirm; the same
+// detections with tensor evidence do, at the 8th.
+TEST(TrackLifeCycle, DetectionsWithoutTensorEvidenceDoNotConfirm) {
+  const TrackManagementOptions opt;
+  ASSERT_EQ(opt.confirm_tensor_snr, 3.0);
+  std::string why;
+  TrackLifeCycle b_only(0.0, opt);
+  Decision d = Decision::kKeep;
+  int k = 0;
+  for (; k < 40 && d == Decision::kKeep; ++k) {
+    const double t = kDt * (k + 1);
+    b_only.OnAssociation(t, true, false, true, false);
+    d = b_only.Decide(t, &why);
+  }
+  EXPECT_EQ(d, Decision::kEnd);  // more than N − M epochs without a counted detection
+  EXPECT_EQ(k, 3);
+  EXPECT_EQ(why, "not confirmed");
+  // Two of the first ten without tensor evidence: confirmed at the tenth.
+  TrackLifeCycle mixed(0.0, opt);
+  for (k = 0; k < 10; ++k) {
+    const double t = kDt * (k + 1);
+    mixed.OnAssociation(t, true, false, true, k != 2 && k != 5);
+    d = mixed.Decide(t, &why);
+    if (d != Decision::kKeep) break;
+  }
+  EXPECT_EQ(d, Decision::kConfirm);
+  EXPECT_EQ(k, 9);
+}
+
+// Out of reach (out_of_reach_s; off by default, here 2 s): ends after 2 s
+// out of reach in a row, before the 10 s coast of "lost"; a return within
+// reach restarts the count; 0 (the default) turns the rule off (then
+// "lost", as before).
+TEST(TrackLifeCycle, EndsOutOfReachAfterOutOfReachS) {
+  TrackManagementOptions opt;
+  ASSERT_EQ(opt.out_of_reach_s, 0.0);
+  opt.out_of_reach_s = 2.0;
+  std::string why;
+  const auto run = [&](const TrackManagementOptions& o, const std::string& reach, int* at) {
+    TrackLifeCycle life = Confirmed(o);
+    for (std::size_t k = 0; k < reach.size(); ++k) {
+      const double t = 1.0 + kDt * static_cast<double>(k + 1);
+      life.OnAssociation(t, true, false, true);  // still "detected" on B alone
+      life.OnReach(t, reach[k] == 'r');
+      life.OnEstimate(t, true, 0.5);
+      if (life.Decide(t, &why) == Decision::kEnd) {
+        *at = static_cast<int>(k);
+        return why;
+      }
+    }
+    *at = -1;
+    return std::string("kept");
+  };
+  int at = 0;
+  // Out of reach from t = 1.125 s: ends at 3.125 s (16 epochs later).
+  EXPECT_EQ(run(opt, std::string(100, 'o'), &at), "out_of_reach");
+  EXPECT_EQ(at, 16);
+  // Back within reach after 1.875 s: the count restarts.
+  EXPECT_EQ(run(opt, std::string(15, 'o') + "r" + std::string(100, 'o'), &at), "out_of_reach");
+  EXPECT_EQ(at, 32);
+  // Within reach throughout: kept.
+  EXPECT_EQ(run(opt, std::string(100, 'r'), &at), "kept");
+  // Off: a B-only detection keeps it.
+  opt.out_of_reach_s = 0.0;
+  EXPECT_EQ(run(opt, std::string(100, 'o'), &at), "kept");
+}
+
+TEST(TrackLifeCycle, GhostRuleOptionsAreChecked) {
+  std::string err;
+  TrackManagementOptions o;
+  EXPECT_TRUE(o.IsValid(&err)) << err;
+  o.confirm_tensor_snr = 0.0;  // off
+  EXPECT_TRUE(o.IsValid(&err)) << err;
+  o.confirm_tensor_snr = -1.0;
+  EXPECT_FALSE(o.IsValid(&err));
+  EXPECT_NE(err.find("confirm_tensor_snr"), std::string::npos);
+  o = TrackManagementOptions{};
+  o.reach_tensor_snr = 0.0;
+  EXPECT_FALSE(o.IsValid(&err));
+  EXPECT_NE(err.find("reach_tensor_snr"), std::string::npos);
+  o = TrackManagementOptions{};
+  o.out_of_reach_s = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(o.IsValid(&err));
+  EXPECT_NE(err.find("out_of_reach_s"), std::string::npos);
+  o.out_of_reach_s = 0.0;  // off
+  EXPECT_TRUE(o.IsValid(&err)) << err;
 }
 
 }  // namespace

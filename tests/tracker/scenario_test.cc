@@ -4,8 +4,8 @@
 // 8.5 m), held to the issue 24 targets (coverage >= 0.8 window / 0.9 batch,
 // one id per vessel, <= 5 % false rows) and to 1.5x its measured RMS
 // (docs/ACCURACY.md, "Harbour-like scenarios"); and the held-out abreast
-// pair (below), held to the same targets. The other kinds fail the targets
-// today (that table); they are not asserted here.
+// pair (below), held to the same targets; and the held-out far-ship and
+// drift scenarios' false rows (below).
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
@@ -75,9 +75,10 @@ std::vector<double> EarlyNees(const SimulatedField& f, double rate_hz, const mag
 constexpr double kChi2Dof3P99 = 11.345;
 
 magnav::testing::FieldScores ScoreWindow(const FieldScenario& sc, const std::string& name,
-                                         std::vector<double>* early_nees = nullptr) {
+                                         std::vector<double>* early_nees = nullptr,
+                                         const MultiTrackerOptions& options = MultiTrackerOptions{}) {
   const SimulatedField f = SimulateField(sc);
-  MultiTracker tracker(sc.B0, MultiTrackerOptions{});
+  MultiTracker tracker(sc.B0, options);
   const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
   const auto s = magnav::testing::ScoreField(sc, f, rows);
   magnav::testing::PrintFieldScores((name + ", window").c_str(), s);
@@ -351,6 +352,38 @@ TEST(HarbourScenario, BatchKeepsBothVesselsOfAnOvertaking) {
   }
   EXPECT_LE(s.rms[0], 1.5 * 0.0115);  // m, measured 0.0115
   EXPECT_LE(s.rms[1], 1.5 * 0.0093);  // m, measured 0.0093
+}
+
+// No ghost track from a far ship or a drifting background (issue 24 items 1
+// and 3): the held-out far-ship and drift scenarios (heldout/far_ship.toml:
+// a 4.2e5 A·m² ship 114 m off the grid; heldout/drift.toml: 4 nT/min), window
+// mode, with the "out_of_reach" end rule on (out_of_reach_s 2 s; off by
+// default, multi_tracker.h says why) beside the default tensor evidence for
+// confirmation (confirm_tensor_snr 3). On main a departing AUV's track
+// walked off on the ship's or the drift's B: 57 % and 24 % false rows
+// (docs/ACCURACY.md, "No ghost track from a far ship or a drift"); with the
+// rules 0.0 % and 2.5 %. Held to the issue's 5 % (a 2x regression of the
+// drift figure stays inside it; the 10x of main does not). The AUV's figures
+// as measured (these files were not tuned on; the tuning was on tuning/).
+MultiTrackerOptions WithReachRule() {
+  MultiTrackerOptions o;
+  o.management.out_of_reach_s = 2.0;
+  return o;
+}
+
+TEST(HarbourScenario, WindowStartsNoGhostFromAFarShip) {
+  const auto s = ScoreWindow(HeldOut("far_ship"), "held-out far ship", nullptr, WithReachRule());
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
+  EXPECT_GE(s.coverage[0], 0.9 * 0.609);  // measured 0.609 (2 ids: broken while the ship is closest)
+  EXPECT_LE(s.ids[0], 2u);
+}
+
+TEST(HarbourScenario, WindowStartsNoGhostFromADrift) {
+  const auto s = ScoreWindow(HeldOut("drift"), "held-out drift", nullptr, WithReachRule());
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 2.5 %
+  EXPECT_GE(s.coverage[0], 0.8);  // the issue's; measured 0.889
+  EXPECT_EQ(s.ids[0], 1u);
+  EXPECT_LE(s.rms[0], 1.5 * 0.445);  // m, measured 0.445 (as on main)
 }
 
 }  // namespace

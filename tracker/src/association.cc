@@ -36,6 +36,9 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
     a.mine.t_s = epoch.t_s;
     if (predictions[i].valid) {
       for (std::size_t j = 0; j < n; ++j) {
+        const double st0 = SigmaT(epoch.samples[j], options.track);
+        const double t_snr = predictions[i].at[j].T.norm() / st0;
+        if (std::isfinite(t_snr)) a.max_tensor_snr = std::max(a.max_tensor_snr, t_snr);
         if (!(predictions[i].at[j].snr >= mg.gate_snr)) continue;
         GradiometerSample s = epoch.samples[j];
         Eigen::Vector3d B_others = Eigen::Vector3d::Zero();
@@ -55,6 +58,11 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
         const FieldPrediction& p = predictions[i].at[j];
         const double m2 = dB.squaredNorm() / (sb * sb) + s.T.squaredNorm() / (st * st);
         const double r2 = (dB - p.B).squaredNorm() / (sb * sb) + (s.T - p.T).squaredNorm() / (st * st);
+        const double mt2 = s.T.squaredNorm() / (st * st), rt2 = (s.T - p.T).squaredNorm() / (st * st);
+        if (std::isfinite(mt2) && std::isfinite(rt2)) {
+          a.tensor_llr += 0.5 * (mt2 - rt2);
+          a.max_own_tensor_snr = std::max(a.max_own_tensor_snr, p.T.norm() / st);
+        }
         if (std::isfinite(m2) && std::isfinite(r2)) {
           a.llr += 0.5 * (m2 - r2);
           a.sum_m2 += m2;
@@ -70,6 +78,8 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
     a.poor_fit = dof > 0.0 && a.sum_r2 > mg.max_chi2_per_dof * dof && a.sum_r2 > mg.max_unexplained * a.sum_m2;
     a.detected = a.llr >= mg.detect_llr && !a.poor_fit;
     a.missed = a.llr <= -mg.detect_llr || a.poor_fit;
+    a.tensor_evidence = !(mg.confirm_tensor_snr > 0.0) ||
+                        (a.max_own_tensor_snr >= mg.confirm_tensor_snr && a.tensor_llr > 0.0);
   }
   return out;
 }

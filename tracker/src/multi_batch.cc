@@ -181,6 +181,53 @@ std::vector<TrackState> BatchStates(const TrackEstimate& est, const std::vector<
   return states;
 }
 
+// The reach rule of the window's life cycle (TrackManagementOptions::
+// out_of_reach_s, reach_tensor_snr) on the batch's rows: a track's leading
+// and trailing estimates outside the sensors' horizontal bounding box whose
+// predicted tensor SNR is below reach_tensor_snr at every sensor are not
+// reported (their samples were used; only the rows go). Past the reach its
+// position rests on B, which a far ship or a drift also moves. Off with
+// out_of_reach_s = 0.
+void TrimOutOfReach(const std::vector<Epoch>& epochs, const MultiTrackerOptions& options,
+                    std::vector<MultiTrackEstimate>* result) {
+  if (!(options.management.out_of_reach_s > 0.0)) return;
+  // The sensors (position, σ_T), each once.
+  std::map<std::uint32_t, std::pair<Eigen::Vector3d, double>> sensors;
+  for (const Epoch& e : epochs) {
+    for (const auto& s : e.samples) {
+      if (!sensors.count(s.sensor_id)) sensors[s.sensor_id] = {s.p_SinW, SigmaT(s, options.track)};
+    }
+  }
+  if (sensors.empty()) return;
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const auto& [id, s] : sensors) {
+    lo = lo.cwiseMin(s.first.head<2>());
+    hi = hi.cwiseMax(s.first.head<2>());
+  }
+  for (MultiTrackEstimate& m : *result) {
+    const auto in_reach = [&](const EpochEstimate& e) {
+      const Eigen::Vector2d h = e.p_VinW.head<2>();
+      if ((h.array() >= lo.array()).all() && (h.array() <= hi.array()).all()) return true;
+      const CtState<double> x{e.p_VinW.x(), e.p_VinW.y(), e.p_VinW.z(), e.speed_mps, e.heading_rad, e.turn_rate_radps};
+      for (const auto& [id, s] : sensors) {
+        Eigen::Vector3d B;
+        Eigen::Matrix3d T;
+        PredictedField(x, m.track.m_B_Am2, s.first, &B, &T);
+        if (T.norm() / s.second >= options.management.reach_tensor_snr) return true;
+      }
+      return false;
+    };
+    std::vector<EpochEstimate>& est = m.track.epochs;
+    const bool with_states = m.states.size() == est.size();
+    std::size_t first = 0, last = est.size();
+    while (first < last && !in_reach(est[first])) ++first;
+    while (last > first && !in_reach(est[last - 1])) --last;
+    if (first == 0 && last == est.size()) continue;
+    est = std::vector<EpochEstimate>(est.begin() + first, est.begin() + last);
+    if (with_states) m.states = std::vector<TrackState>(m.states.begin() + first, m.states.begin() + last);
+  }
+}
+
 }  // namespace
 
 std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
@@ -396,6 +443,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       spans[i].second = std::min(spans[i].second, end_limit[i]);
     }
   }
+  TrimOutOfReach(epochs, options, &result);
   return result;
 }
 

@@ -36,6 +36,13 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
   if (!(min_separation_m >= 0.0) || !std::isfinite(min_separation_m)) {
     return Fail(error, "min_separation_m must be finite and >= 0");
   }
+  if (!(confirm_tensor_snr >= 0.0) || !std::isfinite(confirm_tensor_snr)) {
+    return Fail(error, "confirm_tensor_snr must be finite and >= 0");
+  }
+  if (!PositiveFinite(reach_tensor_snr)) return Fail(error, "reach_tensor_snr must be > 0");
+  if (!(out_of_reach_s >= 0.0) || !std::isfinite(out_of_reach_s)) {
+    return Fail(error, "out_of_reach_s must be finite and >= 0");
+  }
   if (!PositiveFinite(init_interval_s)) return Fail(error, "init_interval_s must be > 0");
   if (!PositiveFinite(max_chi2_per_dof)) return Fail(error, "max_chi2_per_dof must be > 0");
   if (!(max_unexplained > 0.0 && max_unexplained <= 1.0)) return Fail(error, "max_unexplained must be in (0, 1]");
@@ -439,6 +446,13 @@ struct MultiTracker::Impl {
     std::vector<std::size_t> fix_sample;
     const EvidenceAssignment evidence = AssignOwnFixes(e, pred, &fix_sample);
     UpdateBackground(raw, pred);
+    // The sensors' horizontal bounding box at this epoch (the reach rule).
+    Eigen::Vector2d box_lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector2d box_hi = -box_lo;
+    for (const auto& smp : e.samples) {
+      box_lo = box_lo.cwiseMin(smp.p_SinW.head<2>());
+      box_hi = box_hi.cwiseMax(smp.p_SinW.head<2>());
+    }
     // 4. Update, track by track. A tentative track whose gated fixes all
     // went to other tracks is not detected this epoch: one fix never
     // confirms two tracks.
@@ -447,7 +461,13 @@ struct MultiTracker::Impl {
       const TrackAssociation& a = assoc[i];
       const bool had_samples = !a.mine.samples.empty();
       const bool outbid = tr.id == 0 && evidence.outbid[i];
-      tr.life.OnAssociation(t, a.detected && !outbid, a.missed, had_samples);
+      tr.life.OnAssociation(t, a.detected && !outbid, a.missed, had_samples, a.tensor_evidence);
+      if (tr.has_pred) {
+        // Within reach: its tensor seen at a sensor, or inside the array.
+        const Eigen::Vector2d h = Horizontal(tr.pred);
+        const bool inside = (h.array() >= box_lo.array()).all() && (h.array() <= box_hi.array()).all();
+        tr.life.OnReach(t, inside || a.max_tensor_snr >= mg().reach_tensor_snr);
+      }
       if (a.poor_fit) tr.t_poor_fit = t;
       tr.verdicts.emplace_back(t, a.detected && !outbid);
       if (cluster.enabled()) {

@@ -17,9 +17,10 @@ TrackLifeCycle::TrackLifeCycle(double t_created_s, const TrackManagementOptions&
       t_last_detection_(t_created_s),
       miss_since_(kNaN),
       unusable_since_(kNaN),
-      duplicate_since_(kNaN) {}
+      duplicate_since_(kNaN),
+      out_of_reach_since_(kNaN) {}
 
-void TrackLifeCycle::OnAssociation(double t_s, bool detected, bool missed, bool had_samples) {
+void TrackLifeCycle::OnAssociation(double t_s, bool detected, bool missed, bool had_samples, bool tensor_evidence) {
   if (detected) t_last_detection_ = t_s;
   if (missed) {
     if (std::isnan(miss_since_)) miss_since_ = t_s;
@@ -28,7 +29,15 @@ void TrackLifeCycle::OnAssociation(double t_s, bool detected, bool missed, bool 
   }
   if (!confirmed_ && had_samples) {
     ++seen_;
-    detections_ += detected ? 1 : 0;
+    detections_ += detected && tensor_evidence ? 1 : 0;
+  }
+}
+
+void TrackLifeCycle::OnReach(double t_s, bool in_reach) {
+  if (in_reach) {
+    out_of_reach_since_ = kNaN;
+  } else if (std::isnan(out_of_reach_since_)) {
+    out_of_reach_since_ = t_s;
   }
 }
 
@@ -54,6 +63,10 @@ TrackLifeCycle::Decision TrackLifeCycle::Decide(double t, std::string* reason) c
     return Decision::kKeep;
   }
   if (!std::isnan(miss_since_) && t - miss_since_ >= options_.max_miss_s) return end("missed");
+  if (options_.out_of_reach_s > 0.0 && !std::isnan(out_of_reach_since_) &&
+      t - out_of_reach_since_ >= options_.out_of_reach_s) {
+    return end("out_of_reach");
+  }
   if (t - t_last_detection_ >= options_.max_coast_s) return end("lost");
   if (sigma_h_ > options_.max_sigma_horizontal_m) return end("uncertain");
   if (!std::isnan(unusable_since_) && t - unusable_since_ >= options_.max_miss_s) return end("unusable");
@@ -75,7 +88,9 @@ void TrackLifeCycle::SaveState(StateWriter& w) const {
   w.F64(t_created_);
   w.I64(seen_);
   w.I64(detections_);
-  for (double v : {t_last_detection_, miss_since_, unusable_since_, duplicate_since_, sigma_h_}) w.F64(v);
+  for (double v : {t_last_detection_, miss_since_, unusable_since_, duplicate_since_, out_of_reach_since_, sigma_h_}) {
+    w.F64(v);
+  }
 }
 
 void TrackLifeCycle::RestoreState(StateReader& r) {
@@ -83,7 +98,10 @@ void TrackLifeCycle::RestoreState(StateReader& r) {
   t_created_ = r.F64();
   seen_ = static_cast<int>(r.I64());
   detections_ = static_cast<int>(r.I64());
-  for (double* v : {&t_last_detection_, &miss_since_, &unusable_since_, &duplicate_since_, &sigma_h_}) *v = r.F64();
+  for (double* v : {&t_last_detection_, &miss_since_, &unusable_since_, &duplicate_since_, &out_of_reach_since_,
+                    &sigma_h_}) {
+    *v = r.F64();
+  }
 }
 
 }  // namespace magnav::tracker

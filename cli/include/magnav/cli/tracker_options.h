@@ -81,6 +81,16 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--confirm-n", m.confirm_n, "... among its first N epochs")->capture_default_str();
   app.add_option("--max-miss", m.max_miss_s, "a track missed this long in a row ends, s")->capture_default_str();
   app.add_option("--max-coast", m.max_coast_s, "a track not detected this long ends, s")->capture_default_str();
+  app.add_option("--confirm-tensor-snr", m.confirm_tensor_snr,
+                 "a detection counts toward confirmation only if the track's predicted tensor SNR reaches this at one "
+                 "of its sensors and it reduces their tensor chi-square (0 = off)")
+      ->capture_default_str();
+  app.add_option("--reach-tensor-snr", m.reach_tensor_snr,
+                 "a track outside the sensors' bounding box whose predicted tensor SNR is below this at every sensor "
+                 "is out of reach ...")
+      ->capture_default_str();
+  app.add_option("--out-of-reach", m.out_of_reach_s, "... and ends after this long out of reach, s (0 = off)")
+      ->capture_default_str();
   app.add_option("--max-sigma-h", m.max_sigma_horizontal_m, "a track whose horizontal 1-sigma exceeds this ends, m")
       ->capture_default_str();
   app.add_option("--min-separation", m.min_separation_m,

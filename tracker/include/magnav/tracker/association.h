@@ -66,6 +66,13 @@ struct TrackAssociation {
   double llr = 0.0;       // log-likelihood ratio of its field being there
   double sum_m2 = 0.0;    // whitened signal energy over its samples
   double sum_r2 = 0.0;    // whitened residual energy over its samples
+  // The tensor alone (TrackManagementOptions::confirm_tensor_snr): the
+  // largest predicted tensor SNR ‖T̂‖_F/σ_T at any sensor of the epoch, the
+  // largest at its own sensors, and ½ Σ (‖T‖² − ‖T − T̂‖²)/σ_T² over them.
+  double max_tensor_snr = 0.0;
+  double max_own_tensor_snr = 0.0;
+  double tensor_llr = 0.0;
+  bool tensor_evidence = false;  // max_own_tensor_snr ≥ confirm_tensor_snr and tensor_llr > 0 (or the rule off)
   bool poor_fit = false;
   bool detected = false;
   bool missed = false;

@@ -27,8 +27,10 @@ namespace magnav::tracker {
 // of the joint start, the start beside a track and the batch restarts from
 // the window; a version-3 file is refused.
 // Version 5 (2026-11-26): per live track its pending back-filled start
-// (TrackManagementOptions::backfill_start, also in the configuration); a
-// version-4 file is refused.
+// (TrackManagementOptions::backfill_start, also in the configuration) and
+// since when it is out of the sensors' reach (the "out_of_reach" end rule),
+// and the options of the tensor evidence for confirmation and of that end
+// rule; a version-4 file is refused.
 inline constexpr std::uint32_t kTrackerCheckpointVersion = 5;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 

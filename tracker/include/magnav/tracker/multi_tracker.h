@@ -43,7 +43,9 @@
 //     fixes, or through fixes handed in by AddFix) looks for a new vessel
 //     there. A new track closer than min_separation_m to a live one is not
 //     started. New tracks are tentative until confirm_m of their first
-//     confirm_n epochs are detections (M-of-N); a tentative track that cannot
+//     confirm_n epochs are detections (M-of-N) seen in the tensor too
+//     (confirm_tensor_snr: B alone, which a far ship or a drift also
+//     explains, does not confirm); a tentative track that cannot
 //     reach that is dropped. Only confirmed tracks get a track_id (1, 2, …;
 //     never reused) and produce estimates; a confirmed track's rows are
 //     back-filled from its first strong epoch, later, from the smoothed
@@ -67,7 +69,9 @@
 //     added to σ_B²), and after step 3 each sensor's background takes the
 //     residual B: the raw sample minus every live track's predicted B.
 //  6. End: a confirmed track ends when it has been missed for max_miss_s in
-//     a row, or not detected for max_coast_s, or its horizontal 1-σ exceeds
+//     a row, or (off by default) out of the sensors' reach for out_of_reach_s ("out_of_reach":
+//     outside their horizontal bounding box with a predicted tensor SNR below
+//     reach_tensor_snr at every sensor), or not detected for max_coast_s, or its horizontal 1-σ exceeds
 //     max_sigma_horizontal_m, or its window solve stays unusable for
 //     max_miss_s, or it runs within min_separation_m of an older track for
 //     max_miss_s (a duplicate; the younger ends) — not two tracks started
@@ -112,6 +116,30 @@ struct TrackManagementOptions {
   // confirm_n epochs (with at least one sensor).
   int confirm_m = 8;
   int confirm_n = 10;
+  // Tensor evidence for confirmation (issue 24 items 1 and 3: no ghost
+  // track from a far ship's or a drifting background's B). A far source and
+  // a drift change B at every sensor, and a dipole placed far enough away
+  // explains such a B change; only a near vessel's tensor is seen. So an
+  // epoch's detection counts toward a tentative track's M-of-N only if the
+  // track's predicted tensor SNR ‖T̂‖_F/σ_T is at least confirm_tensor_snr
+  // at one of its sensors and its tensor χ² there is reduced by it
+  // (Σ ‖T‖² − ‖T − T̂‖², whitened, > 0). 0 = off (B alone may confirm).
+  double confirm_tensor_snr = 3.0;
+  // End rule "out_of_reach": a confirmed track whose predicted tensor SNR is
+  // below reach_tensor_snr at every sensor while it is outside the sensors'
+  // horizontal bounding box, for out_of_reach_s in a row, has left what the
+  // array observes (a departing vessel): it ends then, not after coasting
+  // for max_coast_s on B alone (which a far ship or a drift also explains).
+  // Inside the box it is kept (a vessel crossing a cell centre returns
+  // within reach). The batch's leading and trailing rows out of reach are
+  // then not reported either (SolveBatchMulti). out_of_reach_s 0 = off.
+  // OFF by default: at 2 s it brings the far-ship and drift false rows to
+  // ≤ 5 % on every file but one (docs/ACCURACY.md, "No ghost track from a
+  // far ship or a drift"), but it removes the coasting rows beyond the reach
+  // that the σ tests while coasting and the single-pass batch figures
+  // (rows within 30 m) are measured on (SinglePass.*, TrackState.*).
+  double reach_tensor_snr = 3.0;
+  double out_of_reach_s = 0.0;
   // End rules (s, m): see above.
   double max_miss_s = 2.0;
   double max_coast_s = 10.0;
@@ -404,7 +432,10 @@ struct MultiTrackEstimate {
 // vessel of a pair started abreast, TrackRecord::partner_id — also outside
 // its span, in the problem and in the span's growth test), for batch_rounds
 // rounds or more while a span grows. A track whose refinement fails keeps its window
-// estimates (its summary says so). Tracks in track_id order; none if no
+// estimates (its summary says so). Its leading and trailing rows out of the
+// sensors' reach (TrackManagementOptions::out_of_reach_s, reach_tensor_snr:
+// outside their horizontal bounding box, predicted tensor SNR below
+// reach_tensor_snr at every sensor) are not reported. Tracks in track_id order; none if no
 // vessel was found. `progress`, if given, is called from the calling thread
 // after every epoch of the window pass ("finding tracks", epochs done, of
 // all) and before each track's refinement ("refining track N, round R", 0,

@@ -6,10 +6,13 @@
 //
 // Times in s; σ in m. Options: TrackManagementOptions (multi_tracker.h).
 //  - Tentative: confirmed once confirm_m of its epochs with a sensor are
-//    detections; dropped ("not confirmed") once more than confirm_n −
-//    confirm_m of them are not, or max_coast_s after it was created.
+//    detections with tensor evidence (confirm_tensor_snr); dropped ("not
+//    confirmed") once more than confirm_n − confirm_m of them are not, or
+//    max_coast_s after it was created.
 //  - Confirmed, ends (first rule that holds, in this order): "missed" (missed
-//    for max_miss_s in a row), "lost" (not detected for max_coast_s),
+//    for max_miss_s in a row), "out_of_reach" (out of the sensors' reach,
+//    OnReach, for out_of_reach_s in a row; 0 = off), "lost" (not detected
+//    for max_coast_s),
 //    "uncertain" (horizontal 1-σ above max_sigma_horizontal_m), "unusable"
 //    (its window solve unusable for max_miss_s).
 //  - Duplicate: within min_separation_m of an older track (the caller says
@@ -33,7 +36,14 @@ class TrackLifeCycle {
 
   // The associator's verdict of the epoch at t_s; `had_samples`: the track
   // took at least one sample (only such epochs count toward M-of-N).
-  void OnAssociation(double t_s, bool detected, bool missed, bool had_samples);
+  // `tensor_evidence`: the detection is also seen in the tensor
+  // (TrackAssociation::tensor_evidence); a detection without it does not
+  // count toward confirmation (it does for the end rules).
+  void OnAssociation(double t_s, bool detected, bool missed, bool had_samples, bool tensor_evidence = true);
+  // Whether the track is within the sensors' reach at t_s (its predicted
+  // tensor SNR ≥ reach_tensor_snr at a sensor, or it is inside the
+  // sensors' horizontal bounding box).
+  void OnReach(double t_s, bool in_reach);
   // The newest estimate of the track's engine: its time, whether its window
   // solve was usable, its horizontal 1-σ (m).
   void OnEstimate(double t_s, bool usable, double sigma_horizontal_m);
@@ -61,7 +71,7 @@ class TrackLifeCycle {
   double t_created_;
   int seen_ = 0, detections_ = 0;  // while tentative
   double t_last_detection_;
-  double miss_since_, unusable_since_, duplicate_since_;  // NaN: not now
+  double miss_since_, unusable_since_, duplicate_since_, out_of_reach_since_;  // NaN: not now
   double sigma_h_ = 0.0;
 };
 
