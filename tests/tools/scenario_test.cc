@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_overtaking/ and fresh_farship/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_overtaking/, fresh_farship/ and fresh_sigma/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -172,6 +172,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"overtaking_a", "overtaking_b"}) files.push_back({"fresh_overtaking", name, "overtaking"});
   for (const char* kind : {"far_ship", "drift"}) files.push_back({"fresh_farship", kind, kind});
   for (const char* name : {"abreast_28", "abreast_39"}) files.push_back({"fresh_abreast", name, "abreast"});
+  for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const auto& [set, file, kind] : files) {
     {
       SCOPED_TRACE(set + "/" + file);
