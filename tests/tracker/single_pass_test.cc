@@ -15,6 +15,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+
 #include "magnav/core/simulate.h"
 #include "magnav/tracker/multi_tracker.h"
 #include "magnav/tracker/tracker.h"
@@ -284,18 +286,19 @@ double CoastingDepthRatio(const PassRow& r, const MultiTrackerOptions& opt, int*
 // where the depth is not observed"): with one walk everywhere (0.01 m/√s,
 // main's) the window's depth σ while coasting grew as √t while the depth
 // error of a depth-keeping vessel did not (8 runs of h9: e_z²/σ_z² 0.039).
-// With the stiff walk (3e-4, not the default) from epochs whose every
+// With the stiff walk (3e-4; the multi-vessel tracker's default since branch
+// tsigma2, MultiTrackerOptions::kFieldDepthWeakMPerSqrtS) from epochs whose every
 // measured tensor is < 10 σ_T the ratio on h6 and h9 (held out, fluxgate,
 // the rows' own draws) is 0.547 and 0.270: asserted above its figure / 1.5
-// (the margin of reference_truth.h) and ≤ 3. With the walk off (the default,
-// printed) it is 0.137 and 0.074: the same assertion fails. Window only, ~1 s.
+// (the margin of reference_truth.h) and ≤ 3. With the walk off (main's
+// default before, printed) it is 0.137 and 0.074: the same assertion fails. Window only, ~1 s.
 TEST(SinglePass, WindowDepthSigmaWhileCoastingFollowsItsError) {
   const auto rows = LoadPasses();
   for (const auto& [name, documented] : {std::pair<const char*, double>{"h6", 0.547}, {"h9", 0.270}}) {
     const PassRow& r = Find(rows, name);
     int n = 0;
     MultiTrackerOptions on;
-    on.track.process.depth_weak_m_per_sqrt_s = 3e-4;  // not the default (options.h)
+    on.track.process.depth_weak_m_per_sqrt_s = 3e-4;  // MultiTrackerOptions' default; set here as measured
     const double ratio = CoastingDepthRatio(r, on, &n);
     MultiTrackerOptions off;
     off.track.process.depth_weak_m_per_sqrt_s = 0.0;
@@ -306,6 +309,64 @@ TEST(SinglePass, WindowDepthSigmaWhileCoastingFollowsItsError) {
     EXPECT_GE(n, 100) << name;
     EXPECT_GE(ratio, documented / testing::kFigureMargin) << name;
     EXPECT_LE(ratio, 3.0) << name;
+  }
+}
+
+// The batch's coasting rows of a pass (SolveBatchMulti, as `magnav track`):
+// Σ e_z² / Σ σ_z² (the depth's share of the NEES there; 1 if its σ is
+// honest) and the mean 3-dof position NEES (full 3 × 3 P).
+struct BatchCoasting {
+  double depth_ratio = 0.0, anees = 0.0;
+  int rows = 0;
+};
+BatchCoasting BatchCoastingOf(const PassRow& r, const MultiTrackerOptions& opt) {
+  const PassScenario sc = Scenario(r, true, r.seed);
+  const SimulatedPass sim = SimulatePass(sc);
+  const testing::TruthTrack truth = testing::TruthOf(sim);
+  std::map<long, std::size_t> at;
+  for (std::size_t i = 0; i < truth.t.size(); ++i) at[std::lround(truth.t[i] * 10.0)] = i;
+  const auto tracks = SolveBatchMulti(GroupEpochs(sim.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
+  double e2 = 0.0, s2 = 0.0, nees = 0.0;
+  BatchCoasting out;
+  for (const auto& t : tracks) {
+    for (std::size_t k = 0; k < t.track.epochs.size() && k < t.states.size(); ++k) {
+      const EpochEstimate& e = t.track.epochs[k];
+      const auto it = at.find(std::lround(e.t_s * 10.0));
+      if (t.states[k] != TrackState::kCoasting || !e.usable || !e.has_covariance || it == at.end()) continue;
+      const Eigen::Vector3d err = e.p_VinW - truth.p[it->second];
+      if (err.norm() > 5.0) continue;  // as scripts/tracker_calibration
+      e2 += err.z() * err.z();
+      s2 += e.cov_state(2, 2);
+      nees += err.dot(e.cov_p_W().ldlt().solve(err));
+      ++out.rows;
+    }
+  }
+  if (out.rows > 0) {
+    out.depth_ratio = e2 / s2;
+    out.anees = nees / out.rows;
+  }
+  return out;
+}
+
+// The multi-vessel tracker's default (MultiTrackerOptions::
+// kFieldDepthWeakMPerSqrtS, 3e-4 from epochs whose every tensor is < 10 σ_T)
+// makes the batch's coasting σ follow its error in depth (docs/ACCURACY.md,
+// "Tracker σ over 20 draws, and the depth walk on by default"). h6 and h9
+// fluxgate, the rows' own draws, default options: the batch's Σ e_z² / Σ σ_z²
+// over its coasting rows is 0.578 and 0.268, asserted above its figure / 1.5
+// and ≤ 3; main's default (one walk, 0.01 m/√s) gives 0.124 and 0.050 (fails). The
+// coasting rows' ANEES (printed, not asserted on one draw: the 20-draw figures
+// are in docs/ACCURACY.md). 4–7 s on the loaded shared machine.
+TEST(SinglePass, BatchDepthSigmaWhileCoastingFollowsItsErrorByDefault) {
+  const auto rows = LoadPasses();
+  for (const auto& [name, documented] : {std::pair<const char*, double>{"h6", 0.578}, {"h9", 0.268}}) {
+    const PassRow& r = Find(rows, name);
+    const BatchCoasting c = BatchCoastingOf(r, MultiTrackerOptions{});
+    std::cout << name << " fluxgate batch coasting (default options): e_z^2/sigma_z^2 " << c.depth_ratio
+              << ", ANEES " << c.anees << " (" << c.rows << " rows)\n";
+    EXPECT_GE(c.rows, 50) << name;
+    EXPECT_GE(c.depth_ratio, documented / testing::kFigureMargin) << name;
+    EXPECT_LE(c.depth_ratio, 3.0) << name;
   }
 }
 

@@ -62,6 +62,12 @@ MultiTrackerOptions::MultiTrackerOptions() {
   track.init.min_tensor_snr = kFieldInitSnr;
   track.init.max_dipole_misfit = kFieldMaxDipoleMisfit;
   track.window_solve_interval_s = kFieldSolveIntervalS;
+  // The depth walk where the depth is not observed (ProcessNoise): on in the
+  // multi-vessel tracker (window and batch, `magnav track`, magnav-tracker),
+  // so that the depth σ does not grow past a depth-keeping vessel's depth
+  // error outside the reach and while coasting (docs/ACCURACY.md, "Tracker σ
+  // over 20 draws, and the depth walk on by default").
+  track.process.depth_weak_m_per_sqrt_s = kFieldDepthWeakMPerSqrtS;
 }
 
 bool MultiTrackerOptions::IsValid(std::string* error) const {

@@ -220,17 +220,23 @@ struct TrackManagementOptions {
 
 struct MultiTrackerOptions {
   MultiTrackerOptions();
-  // Each track's engine. Differs from TrackerOptions' defaults in three
+  // Each track's engine. Differs from TrackerOptions' defaults in four
   // values: init.min_tensor_snr = kFieldInitSnr, so that a vessel crossing
   // a field gets a track before it is right above a sensor;
-  // init.max_dipole_misfit = kFieldMaxDipoleMisfit; and
+  // init.max_dipole_misfit = kFieldMaxDipoleMisfit;
   // window_solve_interval_s = kFieldSolveIntervalS: each track's window is
   // solved twice a second, not every epoch (on the reference field as
   // accurate, 3x cheaper; 100 sensors and 10 vessels need it to run in
-  // 0.1 s of CPU per second of data: docs/BENCHMARKS.md).
+  // 0.1 s of CPU per second of data: docs/BENCHMARKS.md); and
+  // process.depth_weak_m_per_sqrt_s = kFieldDepthWeakMPerSqrtS: the depth
+  // σ outside the reach and while coasting follows a depth-keeping vessel's
+  // error (docs/ACCURACY.md, "Tracker σ over 20 draws, and the depth walk on
+  // by default").
   TrackerOptions track;
   static constexpr double kFieldInitSnr = 20.0;
   static constexpr double kFieldSolveIntervalS = 0.5;
+  // process.depth_weak_m_per_sqrt_s in a field, m/√s (chosen on the tuning passes t1–t3).
+  static constexpr double kFieldDepthWeakMPerSqrtS = 3e-4;
   // init.max_dipole_misfit in a field (several vessels): a sample between
   // two vessels seeds no fix. Chosen on the tuning scenarios
   // (tests/data/generated/scenarios/tuning): the misfit of samples one

@@ -43,7 +43,8 @@ struct ProcessNoise {
   // strong part of a pass (where a loose walk forgets a start's depth error)
   // as it was (docs/ACCURACY.md, "The depth walk where the depth is not
   // observed"). Measured from the data alone, so a checkpoint restores it.
-  // Off by default: 3e-4 keeps every reference pass figure and brings 16 of
+  // Off by default here, on in MultiTrackerOptions (kFieldDepthWeakMPerSqrtS,
+  // so in `magnav track` and magnav-tracker). 3e-4 keeps every reference pass figure and brings 16 of
   // the 18 fluxgate σ cells of the held-out passes within [1.5, 6] (10 with
   // it off), but the batch's chain solver and Ceres then differ by 0.0089 σ
   // on the reference AUV fluxgate pass (the agreement test's bound: 0.001 σ);
