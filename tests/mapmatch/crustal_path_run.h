@@ -2,12 +2,16 @@
 // map path with its truth columns (true_lat, true_lon; deg).
 #pragma once
 
+#include <chrono>
 #include <string>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 #include "magnav/core/csv.h"
 #include "magnav/mapmatch/geo_grid.h"
 #include "magnav/mapmatch/path.h"
+#include "subprocess.h"
 #include "test_data.h"
 
 namespace magnav::mapmatch::testing_paths {
@@ -33,6 +37,17 @@ inline PathRun LoadPathRun(const std::string& file) {
     r.true_lon.push_back(t.number(i, t.column("true_lon")));
   }
   return r;
+}
+
+// Generated path `number` (scripts/heldout_mappaths: seed = path number, 0.01° offset) at `noise` nT,
+// written to the test's temporary directory (file tag `tag`) and read back.
+inline PathRun GeneratedPathRun(int number, const std::string& noise, const std::string& tag) {
+  const std::string dir = ::testing::TempDir();
+  const auto [code, out] = magnav::testing::RunCommand(
+      {magnav::testing::TestDataDir() + "/../../scripts/heldout_mappaths", dir, "1", "0.01", noise, std::to_string(number)},
+      {}, std::chrono::seconds(60));
+  EXPECT_EQ(code, 0) << out;
+  return LoadPathRun(dir + "/heldout_" + std::to_string(number) + "_noise" + tag + ".csv");
 }
 
 }  // namespace magnav::mapmatch::testing_paths

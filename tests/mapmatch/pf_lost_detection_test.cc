@@ -37,14 +37,8 @@ using testing_paths::LoadPathRun;
 using testing_paths::PathRun;
 const GeoGrid& Map() { return testing_paths::CrustalMap(); }
 
-// Generated path `number` (scripts/heldout_mappaths: seed = path number, 0.01° offset).
 PathRun Generated(int number, const std::string& noise, const std::string& tag) {
-  const std::string dir = testing::TempDir();
-  const auto [code, out] = testing::RunCommand(
-      {testing::TestDataDir() + "/../../scripts/heldout_mappaths", dir, "1", "0.01", noise, std::to_string(number)}, {},
-      std::chrono::seconds(60));
-  EXPECT_EQ(code, 0) << out;
-  return LoadPathRun(dir + "/heldout_" + std::to_string(number) + "_noise" + tag + ".csv");
+  return testing_paths::GeneratedPathRun(number, noise, tag);
 }
 
 // From step `from` on the INS is `deg` off in direction `dir_rad` (applied as motion) while the vehicle

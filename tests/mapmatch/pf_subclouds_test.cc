@@ -40,14 +40,8 @@ using testing_paths::PathRun;
 const GeoGrid& Map() { return testing_paths::CrustalMap(); }
 PathRun Load(const std::string& file) { return LoadPathRun(file); }
 
-// Generated path `number` (scripts/heldout_mappaths: seed = path number, 0.01° offset).
 PathRun Generated(int number, const std::string& noise, const std::string& tag) {
-  const std::string dir = testing::TempDir();
-  const auto [code, out] = testing::RunCommand(
-      {testing::TestDataDir() + "/../../scripts/heldout_mappaths", dir, "1", "0.01", noise, std::to_string(number)}, {},
-      std::chrono::seconds(60));
-  EXPECT_EQ(code, 0) << out;
-  return Load(dir + "/heldout_" + std::to_string(number) + "_noise" + tag + ".csv");
+  return testing_paths::GeneratedPathRun(number, noise, tag);
 }
 
 // 2-D NEES of step k against the cloud's own covariance (cloud_cov_*: a flagged filter publishes the
