@@ -62,6 +62,48 @@ TEST(Association, GateGivesATrackOnlyTheSensorsItReaches) {
   EXPECT_NEAR(a[0].sum_r2, 0.0, 1e-6);
 }
 
+// fresh_abreast2/abreast_40 at 54 s: a track 11.7 m from sensor 0 (tensor
+// SNR ≈ 50), whose gate also takes sensor 1 by its B alone (≈ 10 nT,
+// tensor SNR ≈ 1), where an untracked vessel 16 m away (too weak to start)
+// adds ≈ 70 nT and its tensor. By default that sample makes the track's fit
+// poor (a miss); with poor_fit_tensor_snr it is left out of the test, and
+// the track is detected. A B offset there without a tensor (a far source)
+// still makes the fit poor.
+TEST(Association, AnUntrackedVesselsSampleIsNotThisTracksPoorFit) {
+  Epoch e{1.0, {Sensor(0, {-36, -36, 0}), Sensor(1, {0, -36, 0})}};
+  MultiTrackerOptions opt;
+  const auto x = At(-26.5, -40.6, -5), other = At(13, -43.6, -6);
+  const TrackPrediction p = Predict(x, e, opt);
+  ASSERT_GE(p.at[1].snr, opt.management.gate_snr);
+  ASSERT_LT(p.at[1].T.norm() / 1.4e-9, 2.0);
+  Epoch far = e;
+  for (std::size_t j = 0; j < e.samples.size(); ++j) {
+    const FieldPrediction o = PredictAtSample(other, Eigen::Vector3d(2200, -250, 750), e.samples[j], opt.track);
+    for (Epoch* k : {&e, &far}) {
+      k->samples[j].B += p.at[j].B;
+      k->samples[j].T += p.at[j].T;
+    }
+    e.samples[j].B += o.B;
+    e.samples[j].T += o.T;
+  }
+  ASSERT_GT(PredictAtSample(other, Eigen::Vector3d(2200, -250, 750), e.samples[1], opt.track).T.norm() / 1.4e-9, 6.0);
+  far.samples[1].B += Eigen::Vector3d(50e-9, 0, 0);
+  const auto by_default = AssociateEpoch(e, {p}, kB0, opt);
+  ASSERT_EQ(by_default[0].mine.samples.size(), 2u);
+  EXPECT_TRUE(by_default[0].poor_fit);
+  EXPECT_TRUE(by_default[0].missed);
+  opt.management.poor_fit_tensor_snr = 6.0;
+  const auto with_rule = AssociateEpoch(e, {p}, kB0, opt);
+  EXPECT_FALSE(with_rule[0].poor_fit);
+  EXPECT_TRUE(with_rule[0].detected);
+  EXPECT_EQ(with_rule[0].num_fit_samples, 1);
+  const auto far_source = AssociateEpoch(far, {p}, kB0, opt);
+  EXPECT_TRUE(far_source[0].poor_fit);
+  EXPECT_EQ(far_source[0].num_fit_samples, 2);
+  opt.management.poor_fit_tensor_snr = -1.0;
+  EXPECT_FALSE(opt.management.IsValid(nullptr));
+}
+
 TEST(Association, ASharedSensorIsGivenToEachTrackWithTheOthersFieldRemoved) {
   const MultiTrackerOptions opt;
   Epoch e{1.0, {Sensor(0, {0, 0, 0})}};

@@ -34,6 +34,8 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
   for (std::size_t i = 0; i < predictions.size(); ++i) {
     TrackAssociation& a = out[i];
     a.mine.t_s = epoch.t_s;
+    double fit_m2 = 0.0, fit_r2 = 0.0;  // the poor-fit test's sums without the others' samples
+    int num_others = 0;
     if (predictions[i].valid) {
       for (std::size_t j = 0; j < n; ++j) {
         const double st0 = SigmaT(epoch.samples[j], options.track);
@@ -67,6 +69,15 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
           a.llr += 0.5 * (m2 - r2);
           a.sum_m2 += m2;
           a.sum_r2 += r2;
+          // Not this track's misfit: another source's tensor where this
+          // track's own predicted tensor is weak.
+          const bool others = p.T.norm() / st < mg.poor_fit_tensor_snr && std::sqrt(rt2) >= mg.poor_fit_tensor_snr;
+          if (others) {
+            ++num_others;
+          } else {
+            fit_m2 += m2;
+            fit_r2 += r2;
+          }
         }
         a.mine.samples.push_back(std::move(s));
       }
@@ -74,8 +85,18 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
     // Explained share: a track whose prediction leaves most of a strong
     // signal unexplained (another, untracked source dominates its sensors,
     // or it has drifted off its vessel) is not detected but missed.
-    const double dof = 8.0 * static_cast<double>(a.mine.samples.size());
-    a.poor_fit = dof > 0.0 && a.sum_r2 > mg.max_chi2_per_dof * dof && a.sum_r2 > mg.max_unexplained * a.sum_m2;
+    // Without the samples where another source's tensor shows and the
+    // track's own is weak (TrackManagementOptions::poor_fit_tensor_snr:
+    // an untracked vessel too weak to start, beside the track), if any
+    // sample is left; else over all.
+    a.num_fit_samples = static_cast<int>(a.mine.samples.size()) - num_others;
+    if (num_others == 0 || a.num_fit_samples <= 0) {
+      a.num_fit_samples = static_cast<int>(a.mine.samples.size());
+      fit_m2 = a.sum_m2;
+      fit_r2 = a.sum_r2;
+    }
+    const double dof = 8.0 * static_cast<double>(a.num_fit_samples);
+    a.poor_fit = dof > 0.0 && fit_r2 > mg.max_chi2_per_dof * dof && fit_r2 > mg.max_unexplained * fit_m2;
     a.detected = a.llr >= mg.detect_llr && !a.poor_fit;
     a.missed = a.llr <= -mg.detect_llr || a.poor_fit;
     a.tensor_evidence = !(mg.confirm_tensor_snr > 0.0) ||

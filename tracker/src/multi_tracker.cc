@@ -46,6 +46,9 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(init_interval_s)) return Fail(error, "init_interval_s must be > 0");
   if (!PositiveFinite(max_chi2_per_dof)) return Fail(error, "max_chi2_per_dof must be > 0");
   if (!(max_unexplained > 0.0 && max_unexplained <= 1.0)) return Fail(error, "max_unexplained must be in (0, 1]");
+  if (!(poor_fit_tensor_snr >= 0.0) || !std::isfinite(poor_fit_tensor_snr)) {
+    return Fail(error, "poor_fit_tensor_snr must be finite and >= 0");
+  }
   if (!(min_new_share >= 0.0 && min_new_share < 1.0)) return Fail(error, "min_new_share must be in [0, 1)");
   if (!PositiveFinite(evidence_gate_chi2)) return Fail(error, "evidence_gate_chi2 must be > 0");
   if (!(evidence_min_tensor_snr >= 0.0) || !std::isfinite(evidence_min_tensor_snr)) {

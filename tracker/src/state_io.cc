@@ -109,7 +109,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
         i.span_s, i.outlier_threshold_mad, i.cluster_gate_m, i.max_dipole_misfit, t.epoch_tolerance_s, t.function_tolerance,
         t.intermediate_function_tolerance, t.gradient_tolerance, t.parameter_tolerance, t.batch_growth_factor,
         t.window_s, t.window_solve_interval_s, t.window_function_tolerance, g.gate_snr, g.detect_llr,
-        g.max_chi2_per_dof, g.max_unexplained, g.min_new_share, g.max_miss_s, g.max_coast_s,
+        g.max_chi2_per_dof, g.max_unexplained, g.poor_fit_tensor_snr, g.min_new_share, g.max_miss_s, g.max_coast_s,
         g.max_sigma_horizontal_m, g.min_separation_m, g.init_interval_s, g.evidence_gate_chi2,
         g.evidence_min_tensor_snr, g.pair_refit_s, g.joint_start_s, g.confirm_tensor_snr, g.reach_tensor_snr,
         g.out_of_reach_s, o.batch_gate_snr, o.batch_extension_step_s,

@@ -66,6 +66,10 @@ struct TrackAssociation {
   double llr = 0.0;       // log-likelihood ratio of its field being there
   double sum_m2 = 0.0;    // whitened signal energy over its samples
   double sum_r2 = 0.0;    // whitened residual energy over its samples
+  // The samples the poor-fit test is over: all but those where another
+  // source's tensor shows (TrackManagementOptions::poor_fit_tensor_snr),
+  // or all if none would be left.
+  int num_fit_samples = 0;
   // The tensor alone (TrackManagementOptions::confirm_tensor_snr): the
   // largest predicted tensor SNR ‖T̂‖_F/σ_T at any sensor of the epoch, the
   // largest at its own sensors, and ½ Σ (‖T‖² − ‖T − T̂‖²)/σ_T² over them.

@@ -106,6 +106,14 @@ struct TrackManagementOptions {
   // vessel gives ≤ 4.4 per residual, a disturbed one ≥ 300.
   double max_chi2_per_dof = 25.0;
   double max_unexplained = 0.01;
+  // Not in the poor-fit test: a sample where the track's own predicted
+  // tensor SNR ‖T̂‖_F/σ_T is below this and the residual tensor ‖T − T̂‖_F/σ_T
+  // reaches it (another source's tensor: an untracked vessel too weak to
+  // start, beside the track), unless no sample would be left. 0 = off, every
+  // sample (the default). At 6 it tracks the blind fresh_abreast2 file that
+  // got no track but costs abreast RMS elsewhere (docs/ACCURACY.md, "Two
+  // blind abreast files that got no track").
+  double poor_fit_tensor_snr = 0.0;
   // The initiator is not offered a sample whose residual tensor (the sample
   // minus every track's field) is below this share of the strongest track's
   // predicted tensor there: that residual is mostly the track's model error,
