@@ -58,12 +58,15 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
         const double sb = SigmaB(s, options.track), st = SigmaT(s, options.track);
         const Eigen::Vector3d dB = s.B - B0_W;
         const FieldPrediction& p = predictions[i].at[j];
-        const double m2 = dB.squaredNorm() / (sb * sb) + s.T.squaredNorm() / (st * st);
-        const double r2 = (dB - p.B).squaredNorm() / (sb * sb) + (s.T - p.T).squaredNorm() / (st * st);
+        // Whitened squared norms: the tensor's part alone (the tensor
+        // evidence) and with B (the detection and poor-fit tests).
         const double mt2 = s.T.squaredNorm() / (st * st), rt2 = (s.T - p.T).squaredNorm() / (st * st);
+        const double m2 = dB.squaredNorm() / (sb * sb) + mt2;
+        const double r2 = (dB - p.B).squaredNorm() / (sb * sb) + rt2;
+        const double own_t_snr = p.T.norm() / st;
         if (std::isfinite(mt2) && std::isfinite(rt2)) {
           a.tensor_llr += 0.5 * (mt2 - rt2);
-          a.max_own_tensor_snr = std::max(a.max_own_tensor_snr, p.T.norm() / st);
+          a.max_own_tensor_snr = std::max(a.max_own_tensor_snr, own_t_snr);
         }
         if (std::isfinite(m2) && std::isfinite(r2)) {
           a.llr += 0.5 * (m2 - r2);
@@ -71,7 +74,7 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
           a.sum_r2 += r2;
           // Not this track's misfit: another source's tensor where this
           // track's own predicted tensor is weak.
-          const bool others = p.T.norm() / st < mg.poor_fit_tensor_snr && std::sqrt(rt2) >= mg.poor_fit_tensor_snr;
+          const bool others = own_t_snr < mg.poor_fit_tensor_snr && std::sqrt(rt2) >= mg.poor_fit_tensor_snr;
           if (others) {
             ++num_others;
           } else {
