@@ -62,7 +62,7 @@ double EndErrorMetres(const PathRun& p, const MatchResult& m) {
 // 3.0 km against the INS over its last 80 updates (χ² 94 against 13.8); with the rule off it says
 // "converged". Path seed 1: the PF ends 132 m off, "converged". (The seeds: the first wrong run with
 // a strong slide, and the first path, of a search over seeds 1–38 with the defaults: 3 of them ended
-// > 1 km off — seeds 5 and 17 flagged, seed 2 not, still sliding too little — and none of the 35 on
+// > 1 km off — seeds 5 and 17 flagged, seed 2 not (its slide below the threshold) — and none of the 35 on
 // the track was flagged; docs/ACCURACY.md, "Dense readings III".)
 TEST(OffsetSlide, ADensePfRunSettledOffTheTrackIsNotConvergedAndOneOnTheTrackIs) {
   const GeoGrid& g = CrustalMap();
