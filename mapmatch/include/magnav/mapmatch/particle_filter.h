@@ -371,8 +371,9 @@ struct ParticleFilterOptions {
   //   χ² = (Δ_e − Δ_s)ᵀ (C_s + C_e + Q I)⁻¹ (Δ_e − Δ_s),  2 dof, in deg,
   // C the cloud's covariance (cloud_cov_*) at those steps, Q = Σ DriftSigmaPerStep² over the steps
   // after s (StepDiagnostics::drift_sigma_deg); the run is "not converged" when χ² >
-  // offset_slide_chi2. A filter settled in a wrong place keeps sliding against the INS (the
-  // readings its place does not explain pull its cloud along), kilometres per few kilometres of
+  // offset_slide_chi2 (fewer updates since the start or the last restart: not tested). A filter
+  // settled in a wrong place keeps sliding against the INS (the readings its place does not
+  // explain pull its cloud along), kilometres per few kilometres of
   // track, while its NIS rules stay quiet (its σ and spread absorb the mismatch). Measured offline
   // from --diagnostics on the dense tuning paths 9001–9006 (3 filter seeds) and fresh 9101–9110
   // (seed 1; both looked at), runs judged at their last step: on the track χ² ≤ 2.7 (PF) and ≤ 9.8
