@@ -109,6 +109,9 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
         std::isfinite(afpf_innovation_cusum_threshold) && afpf_innovation_cusum_threshold >= 0.0)) {
     return Fail(error, "innovation_cusum_threshold and afpf_innovation_cusum_threshold must be finite and >= 0 (0 = off)");
   }
+  if (offset_slide_updates < 0 || !PositiveFinite(offset_slide_chi2)) {
+    return Fail(error, "offset_slide_updates must be >= 0 (0 = off) and offset_slide_chi2 finite and > 0");
+  }
   if (subclouds < 1 || subclouds > 64) return Fail(error, "subclouds must be in [1, 64] (1 = off)");
   if (!PositiveFinite(subcloud_chi2)) return Fail(error, "subcloud_chi2 must be finite and > 0");
   if (subcloud_hold < 1) return Fail(error, "subcloud_hold must be >= 1");

@@ -14,6 +14,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/mapmatch/fix_schedule.h"
 #include "match_common.h"
+#include "particle_filter_slide.h"
 
 namespace magnav::mapmatch {
 namespace internal {
@@ -43,6 +44,7 @@ void Filter::Estimate(StepDiagnostics* d) {
   d->cov_lon_lon = cnn;
   d->unique_particles = unique_;
   d->occupied_cells = OccupiedCells(grid_, p_, &cells_);
+  d->drift_sigma_deg = drift_sd_deg_;
 }
 
 int OccupiedCells(const GeoGrid& grid, const std::vector<Particle>& particles, std::vector<long long>* scratch) {
@@ -300,6 +302,7 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   // afpf_max_sigma_nT (see the status below).
   constexpr std::size_t kCapWindow = 40;
   std::deque<bool> at_cap;
+  internal::OffsetSlideTest slide(options);  // the offset-slide status rule (particle_filter_slide.h)
   for (std::size_t p = 0; p < path.size(); ++p) {
     const StepDiagnostics& d = filter->Step(path.lat_deg[p], path.lon_deg[p], path.measured_nT[p]);
     r.lat_deg[p] = d.lat_deg;
@@ -313,6 +316,7 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
       at_cap.push_back(d.sigma_nT >= options.afpf_max_sigma_nT);
       if (at_cap.size() > kCapWindow) at_cap.pop_front();
     }
+    slide.Add(path.lat_deg[p], path.lon_deg[p], d, filter->counters().reinitialisations);
     if (steps != nullptr) steps->push_back(d);
   }
   const FilterCounters& c = filter->counters();
@@ -338,7 +342,11 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   const bool sigma_capped = kind == ParticleFilterKind::kAfpf && options.afpf_sigma_factor > 0.0 &&
                             filter->counters().spaced > 0 && at_cap.size() == kCapWindow &&
                             2 * capped >= kCapWindow;
-  r.converged = !filter->lost() && !unsettled && off_at_end == 0 && !sigma_capped;
+  // The estimate slid against the INS beyond the drift model and its cloud (offset_slide_*); on
+  // dense readings only, like the cap rule: the reference and held-out paths keep their status.
+  const double slide_chi2 = slide.Chi2();
+  const bool slid = filter->counters().spaced > 0 && slide_chi2 > options.offset_slide_chi2;
+  r.converged = !filter->lost() && !unsettled && off_at_end == 0 && !sigma_capped && !slid;
   if (off_at_end > 0 && !filter->lost()) {
     r.reason = "off the map at the end: every particle off the map for the last " +
                std::to_string(off_at_end) + " step(s)" +
@@ -370,6 +378,11 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
     r.reason = "innovations beyond the likelihood's cap: sigma at afpf_max_sigma_nT (" +
                FormatNumber(options.afpf_max_sigma_nT) + " nT) in " + std::to_string(capped) + " of the last " +
                std::to_string(kCapWindow) + " updates (a map mismatch: a wrong place or a sensor noisier than the cap)";
+  } else if (slid) {
+    r.reason = "the estimate slid " + FormatNumber(std::round(slide.SlideMetres())) + " m against the INS over the last " +
+               std::to_string(options.offset_slide_updates) + " updates (chi2 " + FormatNumber(std::round(slide_chi2 * 10.0) / 10.0) +
+               " > " + FormatNumber(options.offset_slide_chi2) +
+               " of the drift model and the cloud's covariance: a filter following a wrong place)";
   } else if (unsettled) {
     r.reason = "lost at k = " + std::to_string(last_lost) + (options.reinitialize_when_lost ? ", re-initialised" : "") +
                ", not settled by the end (fewer than " + std::to_string(settle) + " steps since)";

@@ -13,6 +13,8 @@
 //                                   the run's status (MatchParticleFilter)
 //   particle_filter_subclouds.cc    K independent sub-clouds pooled, their
 //                                   disagreement test (MakeSubClouds)
+//   particle_filter_slide.cc        the offset-slide status rule of
+//                                   MatchParticleFilter (particle_filter_slide.h)
 // Units and frames as in particle_filter.h (deg, nT, deg²).
 #pragma once
 

@@ -171,6 +171,7 @@ void SubClouds::Pool(StepDiagnostics* d) {
     nis += s->nis / k, sigma += s->sigma_nT / k;
     if (std::isfinite(s->innovation_nT)) innov += s->innovation_nT, spread += s->predicted_spread_nT, ++n_innov;
     d->likelihood_exponent = std::min(d->likelihood_exponent, s->likelihood_exponent);
+    d->drift_sigma_deg = std::max(d->drift_sigma_deg, s->drift_sigma_deg);  // (the same in every sub-cloud)
     d->track_check_chi2 = std::max(d->track_check_chi2, s->track_check_chi2);
     d->innovation_bias_chi2 = std::max(d->innovation_bias_chi2, s->innovation_bias_chi2);
     d->innovation_cusum = std::max(d->innovation_cusum, s->innovation_cusum);

@@ -90,6 +90,10 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   opt("--lost-covariance-is-prior", &f->lost_covariance_is_prior,
       "pf, afpf: while lost publish at least the prior square's covariance (1) or the cloud's (0)");
+  opt("--offset-slide-updates", &f->offset_slide_updates,
+      "pf, afpf (magnav match's summary only): a run whose estimate slid against the INS over this many last "
+      "updates beyond the drift model and its cloud's covariance (chi2 > --offset-slide-chi2) is not converged; 0 = off");
+  opt("--offset-slide-chi2", &f->offset_slide_chi2, "pf, afpf: threshold of the offset-slide test (chi2, 2 dof)");
   opt("--subclouds", &f->subclouds,
       "pf, afpf: run K independent sub-clouds (each with --particles: K times the cost), publish the pooled cloud "
       "and flag lost when their means disagree (--subcloud-chi2); 1 = off");

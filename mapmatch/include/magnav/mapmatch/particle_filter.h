@@ -361,6 +361,32 @@ struct ParticleFilterOptions {
   // (h = prior_half_width_deg), not the cloud's: a cloud collapsed on a wrong
   // place says nothing of the error (issue 25 item 4; docs/ACCURACY.md).
   bool lost_covariance_is_prior = true;
+  // The offset-slide test (issue 25 item 3, "no converged that is not"; docs/ACCURACY.md, "Dense
+  // readings III"): a status rule of MatchParticleFilter (`magnav match`'s summary), flag only — the
+  // estimates and the per-step lost flags are unchanged; magnav-matcher does not use it. The
+  // particles move with the INS increments plus the drift noise, so the estimate's offset from the
+  // INS, Δ_k = x̂_k − ins_k, changes between two steps by the drift the filter's own model allows
+  // plus the change of its cloud. Over the last offset_slide_updates updates (from the step of the
+  // first of them, s, to the run's last step, e; restarted after an INS jump or a re-initialisation)
+  //   χ² = (Δ_e − Δ_s)ᵀ (C_s + C_e + Q I)⁻¹ (Δ_e − Δ_s),  2 dof, in deg,
+  // C the cloud's covariance (cloud_cov_*) at those steps, Q = Σ DriftSigmaPerStep² over the steps
+  // after s (StepDiagnostics::drift_sigma_deg); the run is "not converged" when χ² >
+  // offset_slide_chi2 (fewer updates since the start or the last restart: not tested). A filter
+  // settled in a wrong place keeps sliding against the INS (the readings its place does not
+  // explain pull its cloud along), kilometres per few kilometres of
+  // track, while its NIS rules stay quiet (its σ and spread absorb the mismatch). Measured offline
+  // from --diagnostics on the dense tuning paths 9001–9006 (3 filter seeds) and fresh 9101–9110
+  // (seed 1; both looked at), runs judged at their last step: on the track χ² ≤ 2.7 (PF) and ≤ 9.8
+  // (AFPF, fresh 9102: still sliding onto the track in its last 2 km), > 1 km off 17–44 (PF) and
+  // 22–54 (AFPF), except PF fresh 9103 (0.2: its cloud 4 km wide). 80 updates (≈ 2 km at the 25 m
+  // update spacing; 40: less contrast, 160: flags runs still converging) and 13.8 (χ²(2) at
+  // p = 0.001, as subcloud_chi2; 9.21, p = 0.01, would flag AFPF fresh 9102). On dense readings
+  // only (some reading spaced out by min_update_spacing_m), like the AFPF's cap rule: on the
+  // held-out paths (100 m steps; scripts/heldout_pf, 10 paths, seed 1, 0.01°) it flagged 2 of 20
+  // AFPF runs on the track (its rank-selected cloud's covariance is narrower than its moves), so the
+  // reference and held-out paths keep their status bit for bit. 0 = off.
+  int offset_slide_updates = 80;
+  double offset_slide_chi2 = 13.8;
   // Independent sub-clouds (a fourth lost-track detector, and the covariance
   // of an ambiguous cloud; issue 25 items 3, 4; particle_filter_subclouds.cc).
   // subclouds = K > 1 runs K filters of the same kind side by side, each with
@@ -468,6 +494,7 @@ struct StepDiagnostics {
   double nis = 0.0;              // this update's normalised innovation (0 if no update)
   double sigma_nT = 0.0;         // the likelihood σ of this step (measurement_sigma_nT unless adaptive_sigma)
   double likelihood_exponent = 1.0;  // β of a tempered PF update (1: the reading applied in full)
+  double drift_sigma_deg = 0.0;      // the drift noise per axis of this step's prediction (deg; DriftSigmaPerStep)
   double track_check_chi2 = 0.0;     // the track check's statistic at this step (0: not run)
   // The predictive moments of this reading over the predicted cloud's particles on the map
   // (weights w_(k−1)): innovation z − m̄ and the spread √V of the predicted map values, nT
@@ -532,7 +559,9 @@ std::unique_ptr<SequentialMatcher> MakeParticleFilter(ParticleFilterKind kind, c
 // first lost step), and for the AFPF on dense readings (some reading spaced
 // out by min_update_spacing_m) its likelihood σ not at afpf_max_sigma_nT in
 // half or more of its last 40 updates (the innovations beyond the largest
-// noise it allows; docs/ACCURACY.md, "Dense readings II"); points_used =
+// noise it allows; docs/ACCURACY.md, "Dense readings II"), and for both filters on
+// dense readings the estimate not slid against the INS beyond the drift model and
+// the cloud (offset_slide_updates, offset_slide_chi2; "Dense readings III"); points_used =
 // updates; off map = all-off-map steps.
 // `steps` (optional) receives every step's diagnostics.
 MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
