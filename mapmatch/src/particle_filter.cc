@@ -54,10 +54,11 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
     return Fail(error, "acquisition_bias_test_chi2 and afpf_acquisition_bias_test_chi2 must be finite and >= 0 "
                        "(0 = off) and acquisition_steps >= 0");
   }
-  if (!(std::isfinite(acquisition_collapse_ratio) && (acquisition_collapse_ratio == 0.0 || acquisition_collapse_ratio >= 1.0)) ||
-      acquisition_min_updates < 1 || acquisition_min_updates > std::max(bias_test_window, 1)) {
-    return Fail(error, "acquisition_collapse_ratio must be 0 (off) or finite and >= 1, and acquisition_min_updates in "
-                       "[1, bias_test_window]");
+  if (!(std::isfinite(acquisition_collapse_ratio) &&
+        (acquisition_collapse_ratio == 0.0 || acquisition_collapse_ratio >= 1.0)) ||
+      acquisition_min_updates < 1 || (bias_test_window > 0 && acquisition_min_updates > bias_test_window)) {
+    return Fail(error, "acquisition_collapse_ratio must be 0 (off) or finite and >= 1, and acquisition_min_updates "
+                       "in [1, bias_test_window]");
   }
   if (!(std::isfinite(ins_glitch_ratio) && ins_glitch_ratio >= 0.0) || ins_glitch_hold < 1) {
     return Fail(error, "ins_glitch_ratio must be finite and >= 0 (0 = off) and ins_glitch_hold >= 1");

@@ -310,8 +310,9 @@ struct ParticleFilterOptions {
   // flagged within 20 steps 4 → 10 of 14, no clean run flagged that was not before (2 of 54);
   // 10 flagged 2 more clean runs, 15 only 7 of 14 losses. The AFPF's 0 = off: it flagged none of
   // its 5 acquisition losses (its cloud is already narrow, 0.001°, and only 0.003° off) at 12.
-  // Known: on scripts/calibration's two PF scenarios (not tuned on) it raises the clean runs
-  // flagged from 6 % to 11 % (0.01°/3 nT) and 25 % (0.1°/5 nT), above item 3's 5 % (docs/ACCURACY.md).
+  // Known: on scripts/calibration's two PF scenarios it raised the clean runs flagged from 6 % to
+  // 11 % (0.01°/3 nT) and 25 % (0.1°/5 nT); with acquisition_collapse_ratio (below) 6 % and 19 %,
+  // still above item 3's 5 % at 0.1°/5 nT (docs/ACCURACY.md, "Lost-track detection, seventh round").
   double acquisition_bias_test_chi2 = 12.0;
   double afpf_acquisition_bias_test_chi2 = 0.0;
   int acquisition_steps = 20;
