@@ -54,6 +54,12 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
     return Fail(error, "acquisition_bias_test_chi2 and afpf_acquisition_bias_test_chi2 must be finite and >= 0 "
                        "(0 = off) and acquisition_steps >= 0");
   }
+  if (!(std::isfinite(acquisition_collapse_ratio) &&
+        (acquisition_collapse_ratio == 0.0 || acquisition_collapse_ratio >= 1.0)) ||
+      acquisition_min_updates < 1 || (bias_test_window > 0 && acquisition_min_updates > bias_test_window)) {
+    return Fail(error, "acquisition_collapse_ratio must be 0 (off) or finite and >= 1, and acquisition_min_updates "
+                       "in [1, bias_test_window]");
+  }
   if (!(std::isfinite(ins_glitch_ratio) && ins_glitch_ratio >= 0.0) || ins_glitch_hold < 1) {
     return Fail(error, "ins_glitch_ratio must be finite and >= 0 (0 = off) and ins_glitch_hold >= 1");
   }
@@ -161,6 +167,7 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
   d.unique_particles = std::min(d.unique_particles, d.particles);  // after the AFPF's trim
   if (bias_failed_) ++counters_.bias_test_failures;
   if (CusumThreshold() > 0.0 && cusum_g_ > CusumThreshold()) ++counters_.innovation_cusum_alarms;
+  CheckAcquisitionBias(&d);
   // The acquisition phase ends acquisition_steps after the cloud first settled (acquisition_bias_test_chi2).
   if (settled_at_ < 0 && std::sqrt(d.cov_lat_lat + d.cov_lon_lon) < o_.settled_sigma_deg) {
     settled_at_ = counters_.steps - 1;
@@ -180,6 +187,7 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
       SpreadPrior(ins_lat, ins_lon);
       nis_window_.clear();
       bias_window_.clear();
+      acq_window_.clear();
       cusum_hist_.clear();
       cusum_g_ = 0.0;
       innov_.clear();

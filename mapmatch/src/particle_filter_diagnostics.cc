@@ -163,28 +163,65 @@ double Filter::NoiseSigma() const {
 // The innovation-bias test (bias_test_window, see the header): this update's
 // innovation r = z − m̄ and the cloud's spread V of predicted map values (nT²)
 // join the window; B = (Σ r)² / Σ (σ_n² + V) once it is full.
-// During acquisition (acquisition_bias_test_chi2) the lower of the two thresholds applies.
+// The test during acquisition has its own window (CheckAcquisitionBias): recorded here, judged after the estimate.
 void Filter::RecordInnovation(double r, double spread2, StepDiagnostics* d) {
   bias_failed_ = false;
   const double always = kind_ == ParticleFilterKind::kAfpf ? o_.afpf_bias_test_chi2 : o_.bias_test_chi2;
-  const double acquiring =  // (no phase without settled_sigma_deg)
-      o_.settled_sigma_deg <= 0.0                ? 0.0
-      : kind_ == ParticleFilterKind::kAfpf ? o_.afpf_acquisition_bias_test_chi2
-                                           : o_.acquisition_bias_test_chi2;
-  // (the window fills whenever either test is on; 0 = no test at this update)
-  if (o_.bias_test_window == 0 || (always == 0.0 && acquiring == 0.0) || !std::isfinite(r)) return;
-  double threshold = always;
-  if (acquiring > 0.0 && (settled_at_ < 0 || counters_.steps - 1 < settled_at_ + o_.acquisition_steps)) {
-    threshold = always > 0.0 ? std::min(always, acquiring) : acquiring;
-  }
+  if (o_.bias_test_window == 0 || !std::isfinite(r)) return;
   const double sn = NoiseSigma();
+  if (AcquisitionThreshold() > 0.0) {  // (the cloud's spread is filled in after the estimate)
+    acq_window_.push_back({r, sn * sn + spread2, std::numeric_limits<double>::quiet_NaN()});
+    if (static_cast<int>(acq_window_.size()) > o_.bias_test_window) acq_window_.pop_front();
+    acq_recorded_ = true;
+  }
+  if (always == 0.0) return;
   bias_window_.emplace_back(r, sn * sn + spread2);
   if (static_cast<int>(bias_window_.size()) > o_.bias_test_window) bias_window_.pop_front();
   if (static_cast<int>(bias_window_.size()) < o_.bias_test_window) return;
   double sum_r = 0.0, sum_var = 0.0;
   for (const auto& [a, v] : bias_window_) sum_r += a, sum_var += v;
   d->innovation_bias_chi2 = sum_var > 0.0 ? sum_r * sum_r / sum_var : 0.0;
-  bias_failed_ = threshold > 0.0 && d->innovation_bias_chi2 > threshold;
+  bias_failed_ = d->innovation_bias_chi2 > always;
+}
+
+// The bias test's threshold during acquisition for this filter (0: off, or no phase without settled_sigma_deg).
+double Filter::AcquisitionThreshold() const {
+  if (o_.settled_sigma_deg <= 0.0) return 0.0;
+  return kind_ == ParticleFilterKind::kAfpf ? o_.afpf_acquisition_bias_test_chi2 : o_.acquisition_bias_test_chi2;
+}
+
+// The bias test during acquisition (acquisition_bias_test_chi2, acquisition_collapse_ratio; see the
+// header), after this step's estimate: from the first step until acquisition_steps after the cloud
+// first settled, at a step whose update recorded an innovation, B = (Σ r)² / Σ (σ_n² + V) over the
+// window — with a collapse ratio, only the innovations recorded while the cloud's spread was at most
+// that ratio × the current one, and at least acquisition_min_updates of them; without, the full
+// window. Flags (this step) and does not re-spread.
+void Filter::CheckAcquisitionBias(StepDiagnostics* d) {
+  acq_failed_ = false;
+  const bool recorded = acq_recorded_;
+  acq_recorded_ = false;
+  const double threshold = AcquisitionThreshold();
+  if (threshold <= 0.0 || acq_window_.empty()) return;
+  const double spread = std::sqrt(d->cov_lat_lat + d->cov_lon_lon);  // the cloud's (before PublishCovariance)
+  if (recorded) acq_window_.back()[2] = spread;
+  std::size_t need = static_cast<std::size_t>(o_.bias_test_window);
+  if (o_.acquisition_collapse_ratio > 0.0) {
+    while (!acq_window_.empty() && !(acq_window_.front()[2] <= o_.acquisition_collapse_ratio * spread)) {
+      acq_window_.pop_front();
+    }
+    need = static_cast<std::size_t>(o_.acquisition_min_updates);
+  }
+  const bool acquiring = settled_at_ < 0 || counters_.steps - 1 < settled_at_ + o_.acquisition_steps;
+  if (!recorded || !acquiring || acq_window_.size() < need) return;
+  double sum_r = 0.0, sum_var = 0.0;
+  for (const auto& e : acq_window_) sum_r += e[0], sum_var += e[1];
+  const double b = sum_var > 0.0 ? sum_r * sum_r / sum_var : 0.0;
+  d->innovation_bias_chi2 = std::max(d->innovation_bias_chi2, b);
+  acq_failed_ = b > threshold;
+  if (acq_failed_) {
+    d->lost = true;
+    ++counters_.bias_test_failures;
+  }
 }
 
 // The track check (track_check_window, see the header): a coarse re-search of

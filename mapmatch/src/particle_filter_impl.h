@@ -90,6 +90,8 @@ class Filter final : public SequentialMatcher {
   bool Diverged() const;
   double NoiseSigma() const;
   void RecordInnovation(double r, double spread2, StepDiagnostics* d);
+  double AcquisitionThreshold() const;
+  void CheckAcquisitionBias(StepDiagnostics* d);
   void RecordCusum(double r, double spread2, StepDiagnostics* d);
   double CusumThreshold() const;
   void CheckTrack(double ins_lat, double ins_lon, double z, StepDiagnostics* d);
@@ -130,6 +132,11 @@ class Filter final : public SequentialMatcher {
   std::deque<double> nis_window_;
   std::deque<std::pair<double, double>> bias_window_;  // innovation-bias test: (r, σ_n² + V) per update
   bool bias_failed_ = false;                          // the bias test fired at this update
+  // The bias test during acquisition (CheckAcquisitionBias): (r, σ_n² + V, the cloud's 1-σ spread after that
+  // update, deg) per update; whether this step's update recorded one; whether the test fired at this step.
+  std::deque<std::array<double, 3>> acq_window_;
+  bool acq_recorded_ = false;
+  bool acq_failed_ = false;
   std::deque<double> cusum_hist_;  // innovation CUSUM: r² − V per update (window + delay)
   double cusum_g_ = 0.0;           // its statistic g
   bool reacquiring_ = false;                          // re-initialised and not settled yet

@@ -39,12 +39,13 @@ inline PathRun LoadPathRun(const std::string& file) {
   return r;
 }
 
-// Generated path `number` (scripts/heldout_mappaths: seed = path number, 0.01° offset) at `noise` nT,
-// written to the test's temporary directory (file tag `tag`) and read back.
-inline PathRun GeneratedPathRun(int number, const std::string& noise, const std::string& tag) {
+// Generated path `number` (scripts/heldout_mappaths: seed = path number, `offset_deg` INS offset, 0.01° unless
+// given) at `noise` nT, written to the test's temporary directory (file tag `tag`) and read back.
+inline PathRun GeneratedPathRun(int number, const std::string& noise, const std::string& tag,
+                                const std::string& offset_deg = "0.01") {
   const std::string dir = ::testing::TempDir();
   const auto [code, out] = magnav::testing::RunCommand(
-      {magnav::testing::TestDataDir() + "/../../scripts/heldout_mappaths", dir, "1", "0.01", noise, std::to_string(number)},
+      {magnav::testing::TestDataDir() + "/../../scripts/heldout_mappaths", dir, "1", offset_deg, noise, std::to_string(number)},
       {}, std::chrono::seconds(60));
   EXPECT_EQ(code, 0) << out;
   return LoadPathRun(dir + "/heldout_" + std::to_string(number) + "_noise" + tag + ".csv");

@@ -335,6 +335,15 @@ TEST(ParticleFilter, DoorAndOptions) {
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("subcloud_reseed_nats"), std::string::npos);
   o = {};
+  o.acquisition_collapse_ratio = 0.5;  // below 1 would drop the current innovation itself
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("acquisition_collapse_ratio"), std::string::npos);
+  o = {};
+  o.acquisition_min_updates = o.bias_test_window + 1;
+  EXPECT_FALSE(o.IsValid(&why));
+  o.bias_test_window = 0;  // the bias tests off: no window to compare with
+  EXPECT_TRUE(o.IsValid(&why)) << why;
+  o = {};
   o.subclouds = 3;
   o.subcloud_hold = 0;  // refused by the pooled filter as by one
   EXPECT_THROW(MakeParticleFilter(ParticleFilterKind::kPf, SyntheticMap(), 0, o), InputError);

@@ -37,8 +37,8 @@ using testing_paths::LoadPathRun;
 using testing_paths::PathRun;
 const GeoGrid& Map() { return testing_paths::CrustalMap(); }
 
-PathRun Generated(int number, const std::string& noise, const std::string& tag) {
-  return testing_paths::GeneratedPathRun(number, noise, tag);
+PathRun Generated(int number, const std::string& noise, const std::string& tag, const std::string& offset = "0.01") {
+  return testing_paths::GeneratedPathRun(number, noise, tag, offset);
 }
 
 // From step `from` on the INS is `deg` off in direction `dir_rad` (applied as motion) while the vehicle
@@ -133,6 +133,31 @@ TEST(PfLostDetection, TheBiasTestDuringAcquisitionFlagsAWrongBasin) {
     ASSERT_TRUE(start.has_value());
     EXPECT_LE(*start, 20u);  // an acquisition loss (measured: from step 6)
     EXPECT_EQ(FlaggedIn(steps, *start, *start + 20), on) << "loss from step " << *start;
+  }
+}
+
+// Seventh round (acquisition_collapse_ratio): two clean runs of scripts/calibration's PF scenarios
+// (off0p01_noise3 path 3018, off0p1_noise5 path 3104; filter seed = path number, as the harness runs
+// them) whose cloud collapses from the wide prior onto the right basin at steps 14–16 while its
+// innovations are large and same-signed (12–34 nT): with the sixth round's window (ratio 0) the
+// acquisition test counts them and flags a run that is never lost (steps 17–18, 19–22); with the
+// window restricted to the innovations of a cloud at most 2× the current one's spread, no flag.
+// (Tuning path 329's wrong-basin collapse is still flagged with the defaults: the test above.)
+TEST(PfLostDetection, TheAcquisitionTestIgnoresACollapsingCloudsInnovations) {
+  const std::vector<std::pair<int, PathRun>> runs = {{3018, Generated(3018, "3", "3", "0.01")},
+                                                     {3104, Generated(3104, "5", "5", "0.1")}};
+  for (const auto& [number, run] : runs) {
+    for (const bool on : {true, false}) {
+      SCOPED_TRACE("path " + std::to_string(number) + (on ? ", collapse ratio 2" : ", collapse ratio 0"));
+      ParticleFilterOptions o;
+      o.seed = static_cast<std::uint64_t>(number);
+      if (!on) o.acquisition_collapse_ratio = 0.0;
+      std::vector<StepDiagnostics> steps;
+      const MatchResult r = MatchParticleFilter(ParticleFilterKind::kPf, Map(), 0, run.path, o, &steps);
+      ASSERT_FALSE(LossStart(run, steps).has_value()) << "a clean run";
+      EXPECT_EQ(FlaggedIn(steps, 0, steps.size() - 1), !on);
+      if (on) EXPECT_TRUE(r.converged) << r.BriefReport();
+    }
   }
 }
 

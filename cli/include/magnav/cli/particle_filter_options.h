@@ -73,6 +73,11 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "afpf: the bias test's threshold during acquisition; 0 = off");
   opt("--acquisition-steps", &f->acquisition_steps,
       "pf, afpf: acquisition ends this many steps after the cloud's 1-sigma first fell below --settled-sigma");
+  opt("--acquisition-collapse-ratio", &f->acquisition_collapse_ratio,
+      "pf, afpf: the acquisition test keeps only the innovations recorded while the cloud's 1-sigma was at most this "
+      "x the current one (0 = off: the last --bias-test-window updates)");
+  opt("--acquisition-min-updates", &f->acquisition_min_updates,
+      "pf, afpf: with --acquisition-collapse-ratio, the fewest innovations the acquisition test judges");
   opt("--innovation-cusum-window", &f->innovation_cusum_window,
       "pf, afpf: updates in the innovation CUSUM's noise reference s^2 = mean(r^2 - V)");
   opt("--innovation-cusum-delay", &f->innovation_cusum_delay,
