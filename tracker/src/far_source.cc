@@ -14,6 +14,10 @@ constexpr double kMu0Over4Pi = 1e-7;
 // The moment is solved in units of 1e5 A·m² (a ship's), so that the solver's
 // parameters are of order one.
 constexpr double kMomentUnit = 1e5;
+// Fewer sensors than this: no fit. The model is an array's (its bound is
+// from the array's extent; with one sensor it would be 10 m from it and
+// take the near vessel itself), and 8 parameters need B at several sensors.
+constexpr std::size_t kMinSensors = 4;
 
 bool Fail(std::string* error, const std::string& why) {
   if (error != nullptr) *error = "far_source: " + why;
@@ -143,7 +147,7 @@ double FarSourceMinRange(const std::vector<Eigen::Vector3d>& sensors, const FarS
 FarSourceModel FitFarSource(const std::vector<FarSourceSample>& samples, const std::vector<Eigen::Vector3d>& sensors,
                             const FarSourceOptions& options, const FarSourceModel* warm) {
   FarSourceModel out;
-  if (samples.size() < 10 || sensors.empty()) return out;
+  if (samples.size() < 10 || sensors.size() < kMinSensors) return out;
   Eigen::Vector2d c;
   const double r_min = FarSourceMinRange(sensors, options, &c);
   const double r_max = std::max(options.max_range_m, r_min + 1.0);
