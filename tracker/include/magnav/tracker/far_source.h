@@ -121,7 +121,8 @@ double FarSourceMinRange(const std::vector<Eigen::Vector3d>& sensors, const FarS
 
 // Fits the model to `samples` (any order); `sensors`: the sensors' positions
 // (for the centroid and the bound). `warm` (may be null): a previous fit, one
-// more start. Invalid model if there are fewer than 10 samples.
+// more start. Invalid model if there are fewer than 10 samples or fewer than
+// 4 sensors (an array's model).
 FarSourceModel FitFarSource(const std::vector<FarSourceSample>& samples, const std::vector<Eigen::Vector3d>& sensors,
                             const FarSourceOptions& options, const FarSourceModel* warm = nullptr);
 
