@@ -251,9 +251,16 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   // Each sample's background prior from the finder (background.h), taken
   // out of the samples the refinement gets.
   std::vector<std::vector<BackgroundEstimate>> background(options.background.enabled ? epochs.size() : 0);
+  // The same for the far source's B (far_source.h): what the finder removed.
+  std::vector<std::vector<std::pair<Eigen::Vector3d, double>>> far(options.far_source.enabled ? epochs.size() : 0);
   for (const Epoch& e : epochs) {
     for (const auto& s : e.samples) {
       if (options.background.enabled) background[&e - epochs.data()].push_back(finder.Background(s.sensor_id, e.t_s));
+      if (options.far_source.enabled) {
+        double sf = 0.0;
+        const Eigen::Vector3d b = finder.FarSourceB(s, &sf);
+        far[&e - epochs.data()].emplace_back(b, sf);
+      }
     }
     while (fixes != nullptr && next_fix < fixes->size() && (*fixes)[next_fix].t_s <= e.t_s) {
       finder.AddFix((*fixes)[next_fix++]);
@@ -381,6 +388,11 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           GradiometerSample s0 = e.samples[j];
           if (CheckSample(s0) != SampleDefect::kNone) continue;
           if (options.cluster_background.enabled) s0.B -= offsets.At(s0.sensor_id, e.t_s);
+          if (options.far_source.enabled) {
+            const auto& [b_far, s_far] = far[&e - epochs.data()][j];
+            if (s_far > 0.0) s0.sigma_B = std::hypot(SigmaB(s0, topt), s_far);
+            s0.B -= b_far;
+          }
           if (options.background.enabled) {
             const BackgroundEstimate& bg = background[&e - epochs.data()][j];
             s0.sigma_B = std::hypot(SigmaB(s0, topt), bg.sigma_T);

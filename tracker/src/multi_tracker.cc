@@ -80,6 +80,10 @@ bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (background.enabled && cluster_background.enabled) {
     return Fail(error, "the per-sensor background filter and the cluster background are exclusive");
   }
+  if (!far_source.IsValid(error)) return false;
+  if (far_source.enabled && (background.enabled || cluster_background.enabled)) {
+    return Fail(error, "the far source and a background model are exclusive");
+  }
   if (batch_rounds < 1) return Fail(error, "batch_rounds must be >= 1");
   if (!PositiveFinite(batch_gate_snr)) return Fail(error, "batch_gate_snr must be > 0");
   if (!PositiveFinite(batch_extension_step_s)) return Fail(error, "batch_extension_step_s must be > 0");
@@ -193,6 +197,7 @@ struct MultiTracker::Impl {
   MultiTrackerOptions options;
   SensorBackgrounds background{Eigen::Vector3d::Zero(), BackgroundOptions{}};
   internal::WindowClusterBackground cluster{Eigen::Vector3d::Zero(), MultiTrackerOptions{}};
+  FarSourceEstimator far;
   const TrackManagementOptions& mg() const { return options.management; }
   std::vector<Track> tracks;  // live (confirmed and tentative)
   std::vector<TrackRecord> records;  // confirmed, by id - 1
@@ -372,6 +377,54 @@ struct MultiTracker::Impl {
     return e;
   }
 
+  // The epoch with the far source's B removed (far_source.h), its σ added
+  // to σ_B.
+  Epoch WithoutFarSource(Epoch e) const {
+    if (!far.enabled()) return e;
+    for (GradiometerSample& s : e.samples) {
+      double sf = 0.0;
+      s.B -= far.B(s.p_SinW, e.t_s, &sf);
+      if (sf > 0.0) s.sigma_B = std::hypot(SigmaB(s, options.track), sf);
+    }
+    return e;
+  }
+
+  // The far source takes the raw sample minus B0 and every live track's
+  // predicted B (their model error in its σ) where no untracked near source
+  // (residual tensor) and no tracked vessel (predicted tensor) is; a fit
+  // when due.
+  void UpdateFarSource(const Epoch& raw, const std::vector<TrackPrediction>& pred) {
+    if (!far.enabled() || !far.WantsEpoch(raw.t_s)) return;
+    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+    const FarSourceOptions& fo = options.far_source;
+    std::vector<FarSourceSample> used;
+    std::vector<Eigen::Vector3d> sensors;
+    for (std::size_t j = 0; j < raw.samples.size(); ++j) {
+      const GradiometerSample& s = raw.samples[j];
+      if (CheckSample(s) != SampleDefect::kNone) continue;
+      sensors.push_back(s.p_SinW);
+      Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
+      for (const TrackPrediction& p : pred) {
+        if (!p.valid) continue;
+        B_tracks += p.at[j].B;
+        T_tracks += p.at[j].T;
+      }
+      const double sb = SigmaB(s, options.track), st = SigmaT(s, options.track);
+      if (fo.occupied_tensor_snr > 0.0 && T_tracks.norm() / st >= fo.occupied_tensor_snr) continue;
+      const double st2 = st * st + rel * rel * T_tracks.squaredNorm() / 9.0;
+      if ((s.T - T_tracks).squaredNorm() / st2 / 9.0 > fo.tensor_gate) continue;
+      FarSourceSample f;
+      f.t_s = raw.t_s;
+      f.p_SinW = s.p_SinW;
+      f.r_W = s.B - B0_W - B_tracks;
+      f.sigma_T = std::sqrt(sb * sb + rel * rel * B_tracks.squaredNorm() / 3.0);
+      used.push_back(f);
+    }
+    far.AddEpoch(raw.t_s, used, sensors);
+    far.StepIfDue(raw.t_s);
+  }
+
   // Each sensor's background takes the raw sample minus every live track's
   // predicted B (their model error in its variance).
   void UpdateBackground(const Epoch& raw, const std::vector<TrackPrediction>& pred) {
@@ -433,7 +486,7 @@ struct MultiTracker::Impl {
         }
       }
     }
-    const Epoch e = WithoutBackground(raw);
+    const Epoch e = WithoutFarSource(WithoutBackground(raw));
     const double t = e.t_s;
     const std::size_t n = e.samples.size();
     // 1. Prediction.
@@ -455,6 +508,7 @@ struct MultiTracker::Impl {
     std::vector<std::size_t> fix_sample;
     const EvidenceAssignment evidence = AssignOwnFixes(e, pred, &fix_sample);
     UpdateBackground(raw, pred);
+    UpdateFarSource(raw, pred);
     // The sensors' horizontal bounding box at this epoch (the reach rule).
     Eigen::Vector2d box_lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector2d box_hi = -box_lo;
@@ -1013,6 +1067,7 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   impl_->options = options;
   impl_->background = SensorBackgrounds(B0_W, options.background);
   impl_->cluster = internal::WindowClusterBackground(B0_W, options);
+  impl_->far = FarSourceEstimator(options.far_source);
 }
 
 MultiTracker::~MultiTracker() = default;
@@ -1304,6 +1359,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.last_t = r.F64();
   m.background = SensorBackgrounds(m.B0_W, m.options.background);
   m.background.RestoreState(r);
+  m.far = FarSourceEstimator(m.options.far_source);  // not in the checkpoint: fitted again
   m.cluster = internal::WindowClusterBackground(m.B0_W, m.options);
   if (m.cluster.enabled()) {
     m.cluster.RestoreState(r);
@@ -1315,6 +1371,12 @@ void MultiTracker::RestoreState(const std::string& payload) {
   impl_ = std::move(fresh);
 }
 const MultiSummary& MultiTracker::summary() const { return impl_->summary; }
+
+Eigen::Vector3d MultiTracker::FarSourceB(const GradiometerSample& s, double* sigma_T) const {
+  return impl_->far.B(s.p_SinW, s.t_s, sigma_T);
+}
+
+const FarSourceModel& MultiTracker::FarSource() const { return impl_->far.model(); }
 
 BackgroundEstimate MultiTracker::Background(std::uint32_t sensor_id, double t_s) const {
   const Impl& m = *impl_;

@@ -23,6 +23,7 @@ struct TrackerFlags {
   std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
   std::string background = tracker::BackgroundOptions{}.enabled ? "on" : "off";
   std::string cluster_background = tracker::ClusterBackgroundOptions{}.enabled ? "on" : "off";
+  std::string far_source = tracker::FarSourceOptions{}.enabled ? "on" : "off";
 };
 
 // `fixes_help` says where this program's single-sample fixes come from.
@@ -149,6 +150,22 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "cluster background: a sample where the tracks' predicted tensor SNR is at least this does not enter "
                  "the offset (0 = every sample)")
       ->capture_default_str();
+  tracker::FarSourceOptions& fs = f->options.far_source;
+  app.add_option("--far-source", f->far_source,
+                 "a far ship as one dipole outside the array, fitted over the recent samples minus the tracks' B and "
+                 "its B removed from every sample (on), or nothing removed (off); not with a background model")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--far-window", fs.window_s, "far source: span of recent samples each fit is made over, s")
+      ->capture_default_str();
+  app.add_option("--far-extent-factor", fs.extent_factor,
+                 "far source: it stays this many times the array's horizontal half-extent (plus --far-margin) "
+                 "from the sensors' centroid")
+      ->capture_default_str();
+  app.add_option("--far-margin", fs.margin_m, "far source: added to that distance, m")->capture_default_str();
+  app.add_option("--far-share", fs.model_share,
+                 "far source: its removed B taken as uncertain by this share of its norm (added to sigma_B)")
+      ->capture_default_str();
 }
 
 // The options the flags give. Throws InputError naming the flag for a bad
@@ -166,6 +183,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   }
   o.background.enabled = f.background == "on";
   o.cluster_background.enabled = f.cluster_background == "on";
+  o.far_source.enabled = f.far_source == "on";
   std::string why;
   if (!o.IsValid(&why)) throw InputError("tracker options: " + why);
   return o;

@@ -87,6 +87,7 @@
 
 #include "magnav/tracker/background.h"
 #include "magnav/tracker/cluster_background.h"
+#include "magnav/tracker/far_source.h"
 #include "magnav/tracker/options.h"
 #include "magnav/tracker/tracker.h"
 
@@ -295,6 +296,13 @@ struct MultiTrackerOptions {
   // (cluster_background.enabled = false): the fixed B0. Not together with
   // `background` (one background model at a time).
   ClusterBackgroundOptions cluster_background;
+  // Window and batch: a far ship as one dipole outside the array
+  // (far_source.h), fitted over the recent samples minus the tracks'
+  // predicted B; its B removed from every sample the tracks, the
+  // association and the initiator see (its uncertainty added to σ_B). Off
+  // (far_source.enabled = false): nothing removed. Not together with
+  // `background` or `cluster_background`.
+  FarSourceOptions far_source;
 
   bool IsValid(std::string* error) const;
 };
@@ -405,6 +413,12 @@ class MultiTracker {
   // Sensor `sensor_id`'s background prior at t_s (B0 while the background
   // is off or the sensor not seen yet). World NED, T.
   BackgroundEstimate Background(std::uint32_t sensor_id, double t_s) const;
+  // The far source's B (T, world NED) that the next epoch's sample `s` will
+  // have removed, and its σ per axis (T); zero while the far source is off
+  // or has no fit.
+  Eigen::Vector3d FarSourceB(const GradiometerSample& s, double* sigma_T) const;
+  // The far source's current fit (valid = false: none).
+  const FarSourceModel& FarSource() const;
 
   // Checkpoint (tracker/checkpoint.h; docs/RELIABILITY.md): a payload with
   // the configuration it was made for (B0, every option the results depend

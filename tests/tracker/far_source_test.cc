@@ -1,0 +1,210 @@
+// The far-source model alone (tracker/far_source.h; issue 24 items 1 and 3):
+// it recovers a far ship's B at the sensors, and it does not absorb a near
+// vessel's B bell at one sensor — because of the range bound (the same fit
+// without it does).
+#include "magnav/tracker/far_source.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cstdio>
+#include <random>
+
+#include "magnav/core/dipole.h"
+
+namespace magnav::tracker {
+namespace {
+
+// 3 × 3 sensors, 36 m spacing, on the seabed (z = 0).
+std::vector<Eigen::Vector3d> Grid() {
+  std::vector<Eigen::Vector3d> s;
+  for (int i = -1; i <= 1; ++i) {
+    for (int j = -1; j <= 1; ++j) s.emplace_back(36.0 * i, 36.0 * j, 0.0);
+  }
+  return s;
+}
+
+struct Source {
+  Eigen::Vector3d p0, v, m;
+  Eigen::Vector3d At(double t) const { return p0 + v * t; }
+};
+
+// Samples every 0.5 s over [t0, t1] of the sources' B plus 1 nT noise.
+std::vector<FarSourceSample> Samples(const std::vector<Source>& src, double t0, double t1, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n(0.0, 1e-9);
+  std::vector<FarSourceSample> out;
+  for (double t = t0; t <= t1 + 1e-9; t += 0.5) {
+    for (const auto& p : Grid()) {
+      FarSourceSample s;
+      s.t_s = t;
+      s.p_SinW = p;
+      for (const Source& q : src) s.r_W += DipoleB(p - q.At(t), q.m);
+      s.r_W += Eigen::Vector3d(n(rng), n(rng), n(rng));
+      s.sigma_T = 1e-9;
+      out.push_back(s);
+    }
+  }
+  return out;
+}
+
+// A ship (4.2e5 A·m²) 12 m above the sensors, 144 m off the grid's western
+// edge (y = −180 m), going north at 3 m/s, abeam of the grid at t = 50 s.
+Source Ship() { return {{-150.0, -180.0, -12.0}, {3.0, 0.0, 0.0}, {420000.0, -20000.0, 160000.0}}; }
+
+TEST(FarSource, RecoversAFarShipsBAtTheSensors) {
+  const FarSourceOptions opt;
+  const Source ship = Ship();
+  // The 60 s up to abeam (its B changes fastest there) and the next 1 s,
+  // extrapolated: what is removed before the next fit.
+  const FarSourceModel f = FitFarSource(Samples({ship}, -10.0, 50.0, 11), Grid(), opt);
+  ASSERT_TRUE(f.valid);
+  double worst = 0.0, worst_next = 0.0, largest = 0.0, smallest = 1.0;
+  for (const auto& p : Grid()) {
+    const Eigen::Vector3d truth = DipoleB(p - ship.At(50.0), ship.m);
+    largest = std::max(largest, truth.norm());
+    smallest = std::min(smallest, truth.norm());
+    worst = std::max(worst, (f.BAt(p, 50.0) - truth).norm());
+    worst_next = std::max(worst_next, (f.BAt(p, 51.0) - DipoleB(p - ship.At(51.0), ship.m)).norm());
+  }
+  std::printf("ship B at the sensors %.1f–%.1f nT; fit error at 50 s %.3f nT, at 51 s %.3f nT; rms %.3f; "
+              "range %.1f m (bound %.1f m); position error %.1f m\n",
+              smallest * 1e9, largest * 1e9, worst * 1e9, worst_next * 1e9, f.rms_whitened, f.RangeAt(50.0),
+              f.min_range_m, (f.PositionAt(50.0) - ship.At(50.0)).norm());
+  EXPECT_GT(largest, 10e-9);  // the ship is there: tens of nT
+  EXPECT_LT(worst, 0.45e-9);       // measured 0.23 nT
+  EXPECT_LT(worst_next, 0.45e-9);  // measured 0.24 nT
+  EXPECT_LT(f.rms_whitened, 1.1);
+  EXPECT_GE(f.RangeAt(-10.0), f.min_range_m - 1e-6);
+  EXPECT_NEAR(f.min_range_m, 1.5 * 36.0 * std::sqrt(2.0) + 10.0, 1e-9);
+}
+
+// An AUV (2000 A·m², 5 m above the sensors, 1 m/s) passes 8 m beside the
+// north-east corner sensor: a B bell of hundreds of nT there, tens at its
+// neighbours, little elsewhere (its tensor is left out: the model sees B).
+Source NearAuv() { return {{44.0, -14.0, -5.0}, {0.0, 1.0, 0.0}, {2000.0, 300.0, 800.0}}; }
+
+double AbsorbedAtPeak(const FarSourceOptions& opt, double* peak) {
+  const Source auv = NearAuv();  // abeam of the corner sensor (36, 36) at t = 50 s
+  const Eigen::Vector3d corner(36.0, 36.0, 0.0);
+  const FarSourceModel f = FitFarSource(Samples({auv}, -5.0, 55.0, 12), Grid(), opt);
+  *peak = DipoleB(corner - auv.At(50.0), auv.m).norm();
+  return f.valid ? f.BAt(corner, 50.0).norm() : 0.0;
+}
+
+TEST(FarSource, DoesNotAbsorbANearVesselsBellAtOneSensor) {
+  FarSourceOptions with;
+  FarSourceOptions without = with;
+  without.extent_factor = 0.0;  // no range bound
+  without.margin_m = 0.0;
+  double peak = 0.0;
+  const double a_with = AbsorbedAtPeak(with, &peak);
+  const double a_without = AbsorbedAtPeak(without, &peak);
+  std::printf("near vessel's B at the corner sensor at its peak %.1f nT; taken by the far source: %.2f nT with "
+              "the range bound, %.1f nT without\n",
+              peak * 1e9, a_with * 1e9, a_without * 1e9);
+  EXPECT_GT(peak, 300e-9);
+  EXPECT_LT(a_with, 0.15 * peak);  // measured 10 %: the bound keeps it 35 m from the corner sensor
+  EXPECT_GT(a_without, 0.5 * peak);  // what the bound is for
+}
+
+TEST(FarSource, EstimatorRemovesTheShipOnlyOnceItsFieldCounts) {
+  FarSourceOptions opt;
+  opt.enabled = true;
+  FarSourceEstimator est(opt);
+  const Source ship = Ship();
+  const auto grid = Grid();
+  double sigma = -1.0;
+  EXPECT_EQ(est.B(grid[0], 0.0, &sigma), Eigen::Vector3d::Zero());
+  EXPECT_EQ(sigma, 0.0);
+  for (double t = -20.0; t <= 40.0 + 1e-9; t += 0.1) {
+    if (!est.WantsEpoch(t)) continue;
+    std::vector<FarSourceSample> used;
+    for (const auto& s : Samples({ship}, t, t, static_cast<unsigned>(1000 + t * 10))) used.push_back(s);
+    est.AddEpoch(t, used, grid);
+    est.StepIfDue(t);
+  }
+  ASSERT_TRUE(est.active());
+  const Eigen::Vector3d b = est.B(grid[0], 40.0, &sigma);
+  const Eigen::Vector3d truth = DipoleB(grid[0] - ship.At(40.0), ship.m);
+  EXPECT_LT((b - truth).norm(), 1.0e-9);
+  EXPECT_NEAR(sigma, opt.model_share * b.norm() / std::sqrt(3.0), 1e-15);
+  // Nothing far: a fit of noise alone removes nothing.
+  FarSourceEstimator quiet(opt);
+  for (double t = 0.0; t <= 30.0 + 1e-9; t += 0.5) {
+    quiet.AddEpoch(t, Samples({}, t, t, static_cast<unsigned>(2000 + t * 10)), grid);
+    quiet.StepIfDue(t);
+  }
+  EXPECT_FALSE(quiet.active());
+  EXPECT_EQ(quiet.B(grid[4], 30.0, &sigma), Eigen::Vector3d::Zero());
+}
+
+// A near vessel alone (no ship): its fit is small and pressed against the
+// bound, so nothing is removed.
+TEST(FarSource, EstimatorRemovesNothingOfANearVessel) {
+  FarSourceOptions opt;
+  opt.enabled = true;
+  opt.solve_interval_s = 5.0;  // (fewer fits: the test's time)
+  FarSourceEstimator est(opt);
+  const Source auv = NearAuv();
+  const auto grid = Grid();
+  bool ever = false;
+  for (double t = -5.0; t <= 60.0 + 1e-9; t += 0.5) {
+    est.AddEpoch(t, Samples({auv}, t, t, static_cast<unsigned>(3000 + t * 10)), grid);
+    est.StepIfDue(t);
+    ever = ever || est.active();
+  }
+  ASSERT_TRUE(est.model().valid);
+  std::printf("near vessel alone: fit moment %.3g A m^2, line %.1f m from the centroid (bound %.1f m)\n",
+              est.model().m_W.norm(), est.model().d_m, est.model().min_range_m);
+  EXPECT_FALSE(ever);
+  // Without the two rules it would be removed.
+  opt.min_moment_Am2 = 0.0;
+  opt.bound_slack_m = 0.0;
+  FarSourceEstimator loose(opt);
+  bool loose_ever = false;
+  for (double t = -5.0; t <= 60.0 + 1e-9; t += 0.5) {
+    loose.AddEpoch(t, Samples({auv}, t, t, static_cast<unsigned>(3000 + t * 10)), grid);
+    loose.StepIfDue(t);
+    loose_ever = loose_ever || loose.active();
+  }
+  EXPECT_TRUE(loose_ever);
+}
+
+// One sensor is not an array: no fit (the bound would be 10 m from it).
+TEST(FarSource, NoFitWithFewerThanFourSensors) {
+  std::vector<FarSourceSample> one;
+  for (const auto& s : Samples({Ship()}, 0.0, 60.0, 13)) {
+    if (s.p_SinW.isZero()) one.push_back(s);
+  }
+  EXPECT_FALSE(FitFarSource(one, {Eigen::Vector3d::Zero()}, FarSourceOptions{}).valid);
+  EXPECT_TRUE(FitFarSource(Samples({Ship()}, 0.0, 60.0, 13), Grid(), FarSourceOptions{}).valid);
+}
+
+TEST(FarSource, OptionsAreChecked) {
+  std::string why;
+  EXPECT_TRUE(FarSourceOptions{}.IsValid(&why)) << why;
+  EXPECT_FALSE(FarSourceOptions{}.enabled);
+  FarSourceOptions o;
+  o.window_s = 0.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  o = {};
+  o.extent_factor = -1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("extent_factor"), std::string::npos);
+  o = {};
+  o.min_span_s = 100.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  o = {};
+  o.model_share = std::nan("");
+  EXPECT_FALSE(o.IsValid(&why));
+  o = {};
+  o.min_moment_Am2 = -1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  o = {};
+  o.bound_slack_m = -1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+}
+
+}  // namespace
+}  // namespace magnav::tracker

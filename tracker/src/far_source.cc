@@ -1,0 +1,288 @@
+#include "magnav/tracker/far_source.h"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+namespace magnav::tracker {
+namespace {
+
+constexpr double kMu0Over4Pi = 1e-7;
+// The moment is solved in units of 1e5 A·m² (a ship's), so that the solver's
+// parameters are of order one.
+constexpr double kMomentUnit = 1e5;
+// Fewer sensors than this: no fit. The model is an array's (its bound is
+// from the array's extent; with one sensor it would be 10 m from it and
+// take the near vessel itself), and 8 parameters need B at several sensors.
+constexpr std::size_t kMinSensors = 4;
+
+bool Fail(std::string* error, const std::string& why) {
+  if (error != nullptr) *error = "far_source: " + why;
+  return false;
+}
+
+// Horizontal position on the line (see far_source.h) at t.
+template <typename T>
+void LinePosition(const T* g, const Eigen::Vector2d& c, double dt, T* x, T* y) {
+  const T& d = g[0];
+  const T& th = g[1];
+  const T along = g[2] + g[3] * dt;
+  using std::cos;
+  using std::sin;
+  *x = c.x() + d * cos(th) - along * sin(th);
+  *y = c.y() + d * sin(th) + along * cos(th);
+}
+
+// One sample's whitened residual: (r − B_far)/σ.
+struct FarSampleCost {
+  FarSampleCost(const FarSourceSample& s, const Eigen::Vector2d& c, double t_ref) : s_(s), c_(c), dt_(s.t_s - t_ref) {}
+  template <typename T>
+  bool operator()(const T* g, const T* m, T* res) const {
+    T px, py;
+    LinePosition(g, c_, dt_, &px, &py);
+    const T rx = s_.p_SinW.x() - px, ry = s_.p_SinW.y() - py, rz = s_.p_SinW.z() - g[4];
+    const T r2 = rx * rx + ry * ry + rz * rz;
+    using std::sqrt;
+    const T r = sqrt(r2);
+    const T r3 = r2 * r, r5 = r3 * r2;
+    const T mx = m[0] * kMomentUnit, my = m[1] * kMomentUnit, mz = m[2] * kMomentUnit;
+    const T mr = mx * rx + my * ry + mz * rz;
+    const T k = T(kMu0Over4Pi);
+    const T Bx = k * (T(3) * mr * rx / r5 - mx / r3);
+    const T By = k * (T(3) * mr * ry / r5 - my / r3);
+    const T Bz = k * (T(3) * mr * rz / r5 - mz / r3);
+    res[0] = (s_.r_W.x() - Bx) / s_.sigma_T;
+    res[1] = (s_.r_W.y() - By) / s_.sigma_T;
+    res[2] = (s_.r_W.z() - Bz) / s_.sigma_T;
+    return true;
+  }
+  FarSourceSample s_;
+  Eigen::Vector2d c_;
+  double dt_;
+};
+
+// B = G(r) m: G = μ0/4π (3 r rᵀ/r⁵ − I/r³).
+Eigen::Matrix3d DipoleGain(const Eigen::Vector3d& r) {
+  const double r2 = r.squaredNorm(), r1 = std::sqrt(r2), r3 = r2 * r1, r5 = r3 * r2;
+  return kMu0Over4Pi * (3.0 * r * r.transpose() / r5 - Eigen::Matrix3d::Identity() / r3);
+}
+
+Eigen::Vector3d Position(const double* g, const Eigen::Vector2d& c, double dt) {
+  double x, y;
+  LinePosition(g, c, dt, &x, &y);
+  return {x, y, g[4]};
+}
+
+// The moment that best fits the samples from the line g (least squares),
+// and its whitened cost. False if singular.
+bool LinearMoment(const std::vector<FarSourceSample>& samples, const double* g, const Eigen::Vector2d& c, double t_ref,
+                  Eigen::Vector3d* m, double* cost) {
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  double rr = 0.0;
+  for (const FarSourceSample& s : samples) {
+    const Eigen::Vector3d r = s.p_SinW - Position(g, c, s.t_s - t_ref);
+    if (!(r.squaredNorm() > 1e-6)) return false;
+    const Eigen::Matrix3d G = DipoleGain(r) / s.sigma_T;
+    const Eigen::Vector3d z = s.r_W / s.sigma_T;
+    A += G.transpose() * G;
+    b += G.transpose() * z;
+    rr += z.squaredNorm();
+  }
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(A);
+  if (ldlt.info() != Eigen::Success || !(A.trace() > 0.0)) return false;
+  *m = ldlt.solve(b);
+  if (!m->allFinite()) return false;
+  *cost = rr - 2.0 * m->dot(b) + m->dot(A * *m);
+  return std::isfinite(*cost);
+}
+
+}  // namespace
+
+bool FarSourceOptions::IsValid(std::string* error) const {
+  if (!(window_s > 0.0) || !std::isfinite(window_s)) return Fail(error, "window_s must be > 0");
+  if (!(solve_interval_s > 0.0) || !std::isfinite(solve_interval_s)) return Fail(error, "solve_interval_s must be > 0");
+  if (!(sample_interval_s >= 0.0) || !std::isfinite(sample_interval_s)) return Fail(error, "sample_interval_s must be >= 0");
+  if (!(min_span_s >= 0.0) || !(min_span_s <= window_s)) return Fail(error, "min_span_s must be in [0, window_s]");
+  if (!(extent_factor >= 0.0) || !std::isfinite(extent_factor)) return Fail(error, "extent_factor must be >= 0");
+  if (!(margin_m >= 0.0) || !std::isfinite(margin_m)) return Fail(error, "margin_m must be >= 0");
+  if (!(max_range_m > 0.0) || !std::isfinite(max_range_m)) return Fail(error, "max_range_m must be > 0");
+  if (!(max_height_m > 0.0) || !std::isfinite(max_height_m)) return Fail(error, "max_height_m must be > 0");
+  if (!(huber_sigmas > 0.0) || !std::isfinite(huber_sigmas)) return Fail(error, "huber_sigmas must be > 0");
+  if (!(tensor_gate > 0.0)) return Fail(error, "tensor_gate must be > 0");
+  if (!(occupied_tensor_snr >= 0.0)) return Fail(error, "occupied_tensor_snr must be >= 0 (0 = off)");
+  if (!(model_share >= 0.0) || !std::isfinite(model_share)) return Fail(error, "model_share must be >= 0");
+  if (!(min_field_T >= 0.0) || !std::isfinite(min_field_T)) return Fail(error, "min_field_T must be >= 0");
+  if (!(min_moment_Am2 >= 0.0) || !std::isfinite(min_moment_Am2)) return Fail(error, "min_moment_Am2 must be >= 0");
+  if (!(bound_slack_m >= 0.0) || !std::isfinite(bound_slack_m)) return Fail(error, "bound_slack_m must be >= 0");
+  return true;
+}
+
+Eigen::Vector3d FarSourceModel::PositionAt(double t_s) const {
+  const double g[5] = {d_m, theta_rad, a0_m, u_mps, z_m};
+  return Position(g, centroid, t_s - t_ref_s);
+}
+
+Eigen::Vector3d FarSourceModel::BAt(const Eigen::Vector3d& p_SinW, double t_s) const {
+  if (!valid) return Eigen::Vector3d::Zero();
+  return DipoleGain(p_SinW - PositionAt(t_s)) * m_W;
+}
+
+double FarSourceModel::RangeAt(double t_s) const { return (PositionAt(t_s).head<2>() - centroid).norm(); }
+
+double FarSourceMinRange(const std::vector<Eigen::Vector3d>& sensors, const FarSourceOptions& options,
+                         Eigen::Vector2d* centroid) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const auto& p : sensors) c += p.head<2>();
+  if (!sensors.empty()) c /= static_cast<double>(sensors.size());
+  double R = 0.0;
+  for (const auto& p : sensors) R = std::max(R, (p.head<2>() - c).norm());
+  if (centroid != nullptr) *centroid = c;
+  return options.extent_factor * R + options.margin_m;
+}
+
+FarSourceModel FitFarSource(const std::vector<FarSourceSample>& samples, const std::vector<Eigen::Vector3d>& sensors,
+                            const FarSourceOptions& options, const FarSourceModel* warm) {
+  FarSourceModel out;
+  if (samples.size() < 10 || sensors.size() < kMinSensors) return out;
+  Eigen::Vector2d c;
+  const double r_min = FarSourceMinRange(sensors, options, &c);
+  const double r_max = std::max(options.max_range_m, r_min + 1.0);
+  double cz = 0.0;
+  for (const auto& p : sensors) cz += p.z();
+  cz /= static_cast<double>(sensors.size());
+  double t0 = samples.front().t_s, t1 = t0;
+  for (const auto& s : samples) {
+    t0 = std::min(t0, s.t_s);
+    t1 = std::max(t1, s.t_s);
+  }
+  const double t_ref = t1;  // the newest sample: what is removed next is near it
+  // Starts: a grid of lines (moment solved at each) on every 4th sample,
+  // and the previous fit moved to this t_ref.
+  std::vector<FarSourceSample> coarse;
+  for (std::size_t i = 0; i < samples.size(); i += 4) coarse.push_back(samples[i]);
+  double best_g[5] = {0, 0, 0, 0, 0};
+  double best_cost = std::numeric_limits<double>::infinity();
+  const auto consider = [&](const double* g) {
+    Eigen::Vector3d m;
+    double cost;
+    if (LinearMoment(coarse, g, c, t_ref, &m, &cost) && cost < best_cost) {
+      best_cost = cost;
+      std::copy(g, g + 5, best_g);
+    }
+  };
+  const double z0 = std::clamp(cz - 12.0, cz - options.max_height_m, cz + options.max_height_m);
+  if (warm != nullptr && warm->valid) {
+    // The same line at this t_ref: the along-track position moves with u.
+    double d = std::clamp(warm->d_m, r_min, r_max);
+    double g[5] = {d, warm->theta_rad, warm->a0_m + warm->u_mps * (t_ref - warm->t_ref_s), warm->u_mps,
+                   std::clamp(warm->z_m, cz - options.max_height_m, cz + options.max_height_m)};
+    consider(g);
+  }
+  // The grid only when there is no previous fit or it no longer fits (its
+  // whitened RMS per axis above 1.5 on these samples): a far ship's line
+  // changes little from one fit to the next.
+  const bool warm_fits = std::isfinite(best_cost) && best_cost <= 1.5 * 1.5 * 3.0 * static_cast<double>(coarse.size());
+  constexpr int kAngles = 16;
+  for (int k = 0; k < kAngles && !warm_fits; ++k) {
+    const double th = 2.0 * M_PI * k / kAngles;
+    for (double dd : {20.0, 70.0, 150.0}) {
+      const double d = std::min(r_min + dd, r_max);
+      for (double a0 : {-120.0, -60.0, 0.0, 60.0, 120.0}) {
+        for (double u : {-3.0, 0.0, 3.0}) {
+          const double g[5] = {d, th, a0, u, z0};
+          consider(g);
+        }
+      }
+    }
+  }
+  if (!std::isfinite(best_cost)) return out;
+  double g[5];
+  std::copy(best_g, best_g + 5, g);
+  Eigen::Vector3d m;
+  double cost0;
+  if (!LinearMoment(samples, g, c, t_ref, &m, &cost0)) return out;
+  double mu[3] = {m.x() / kMomentUnit, m.y() / kMomentUnit, m.z() / kMomentUnit};
+  ceres::Problem::Options popt;
+  popt.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(popt);
+  ceres::HuberLoss loss(options.huber_sigmas);
+  for (const FarSourceSample& s : samples) {
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<FarSampleCost, 3, 5, 3>(new FarSampleCost(s, c, t_ref)), &loss, g, mu);
+  }
+  // The bound that keeps the source out of the array: a hard bound of the
+  // solver (its steps are projected onto it), not a penalty.
+  problem.SetParameterLowerBound(g, 0, r_min);
+  problem.SetParameterUpperBound(g, 0, r_max);
+  problem.SetParameterLowerBound(g, 4, cz - options.max_height_m);
+  problem.SetParameterUpperBound(g, 4, cz + options.max_height_m);
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = 30;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary sum;
+  ceres::Solve(so, &problem, &sum);
+  if (!(sum.final_cost >= 0.0) || !std::isfinite(sum.final_cost)) return out;
+  out.valid = true;
+  out.t_ref_s = t_ref;
+  out.centroid = c;
+  out.min_range_m = r_min;
+  out.d_m = g[0];
+  out.theta_rad = std::remainder(g[1], 2.0 * M_PI);
+  out.a0_m = g[2];
+  out.u_mps = g[3];
+  out.z_m = g[4];
+  out.m_W = Eigen::Vector3d(mu[0], mu[1], mu[2]) * kMomentUnit;
+  out.num_samples = static_cast<int>(samples.size());
+  out.t_first_s = t0;
+  out.t_last_s = t1;
+  double ss = 0.0;
+  for (const FarSourceSample& s : samples) ss += ((s.r_W - out.BAt(s.p_SinW, s.t_s)) / s.sigma_T).squaredNorm();
+  out.rms_whitened = std::sqrt(ss / (3.0 * static_cast<double>(samples.size())));
+  return out;
+}
+
+bool FarSourceEstimator::WantsEpoch(double t_s) const {
+  return options_.enabled && t_s - last_kept_t_ >= options_.sample_interval_s - 1e-6;
+}
+
+void FarSourceEstimator::AddEpoch(double t_s, const std::vector<FarSourceSample>& used,
+                                  const std::vector<Eigen::Vector3d>& sensors) {
+  if (!options_.enabled) return;
+  last_kept_t_ = t_s;
+  if (!sensors.empty()) sensors_ = sensors;
+  kept_.push_back({t_s, used});
+  while (!kept_.empty() && t_s - kept_.front().t_s > options_.window_s) kept_.pop_front();
+}
+
+bool FarSourceEstimator::StepIfDue(double t_s) {
+  if (!options_.enabled || kept_.empty()) return false;
+  if (t_s - last_fit_t_ < options_.solve_interval_s - 1e-6) return false;
+  if (kept_.back().t_s - kept_.front().t_s < options_.min_span_s) return false;
+  last_fit_t_ = t_s;
+  std::vector<FarSourceSample> all;
+  for (const Kept& k : kept_) all.insert(all.end(), k.used.begin(), k.used.end());
+  const FarSourceModel fit = FitFarSource(all, sensors_, options_, model_.valid ? &model_ : nullptr);
+  model_ = fit;
+  active_ = false;
+  if (model_.valid && model_.m_W.norm() >= options_.min_moment_Am2 &&
+      model_.d_m >= model_.min_range_m + options_.bound_slack_m) {
+    for (const auto& p : sensors_) active_ = active_ || model_.BAt(p, model_.t_last_s).norm() >= options_.min_field_T;
+  }
+  return true;
+}
+
+Eigen::Vector3d FarSourceEstimator::B(const Eigen::Vector3d& p_SinW, double t_s, double* sigma_T) const {
+  if (sigma_T != nullptr) *sigma_T = 0.0;
+  if (!active_) return Eigen::Vector3d::Zero();
+  const Eigen::Vector3d b = model_.BAt(p_SinW, t_s);
+  if (sigma_T != nullptr) *sigma_T = options_.model_share * b.norm() / std::sqrt(3.0);
+  return b;
+}
+
+}  // namespace magnav::tracker
