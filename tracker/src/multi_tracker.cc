@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -58,6 +59,7 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
   if (!(joint_start_s >= 0.0) || !std::isfinite(joint_start_s)) {
     return Fail(error, "joint_start_s must be finite and >= 0");
   }
+  if (!residual_start.IsValid(error)) return false;
   return true;
 }
 
@@ -280,6 +282,8 @@ struct MultiTracker::Impl {
           << " s (state start) follow at " << FormatNumber(tr.backfill_due_s) << " s or at its end";
         backfilled = o.str();
       }
+    } else if (tr.has_newest) {
+      tr.backfill_until_s = tr.newest.t_s;  // not back-filled: a later joint start may (MarkOlderBackfill)
     }
     for (const Track& other : tracks) {
       if (&other == &tr || tr.started_with == 0 || other.started_with != tr.started_with || other.id == 0) continue;
@@ -627,7 +631,11 @@ struct MultiTracker::Impl {
     }
     if (t - last_init_t >= mg().init_interval_s - options.track.epoch_tolerance_s) {
       last_init_t = t;
-      if (!TryStart(t, &out)) TryBeside(t, &out);
+      if (!TryStart(t, &out)) {
+        const std::size_t before = tracks.size();
+        TryBeside(t, &out);
+        if (tracks.size() == before) StartInResidual(t, &out);
+      }
     }
     return out;
   }
@@ -639,7 +647,12 @@ struct MultiTracker::Impl {
     const std::vector<DipoleFix> given(fixes.begin(), fixes.end());
     const std::optional<InitialTrack> init =
         InitializeTrack(epochs, B0_W, options.track, any_fix ? &given : nullptr);
-    if (init) return StartJointly(t, *init, out) || StartTrack(t, *init, nullptr);
+    if (init) {
+      const bool started = StartJointly(t, *init, out) || StartTrack(t, *init, nullptr);
+      // With the new track's field out of the buffer, a weaker vessel beside it.
+      if (started) StartInResidual(t, out);
+      return started;
+    }
     // Two vessels whose sum no single dipole explains (initialize.h): each
     // starts on the samples without the other's initial field.
     const std::vector<InitialTrack> pair = InitializePair(epochs, B0_W, options.track, mg().min_separation_m);
@@ -744,12 +757,15 @@ struct MultiTracker::Impl {
   // again from the fit and the new track started from it, each without the
   // other's field; the two become a pair. False (nothing changed) if no
   // young track shares a sensor with it or the joint fit fails its gates.
-  bool StartJointly(double t, const InitialTrack& init, std::vector<TrackOutput>* out) {
-    if (!(mg().joint_start_s > 0.0) || recent.empty()) return false;
+  // `fit`: the joint fit's options (StartInResidual's lower start SNR; null:
+  // options.track); `any_age`: with any live track, not only a young one.
+  bool StartJointly(double t, const InitialTrack& init, std::vector<TrackOutput>* out,
+                    const TrackerOptions* fit_options = nullptr, bool any_age = false) {
+    if ((!any_age && !(mg().joint_start_s > 0.0)) || recent.empty()) return false;
     const double tol = options.track.epoch_tolerance_s;
     for (std::size_t k = 0; k < tracks.size(); ++k) {
       Track& young = tracks[k];
-      if (young.ended || young.pair != 0 || t - young.t_started_s > mg().joint_start_s + tol) continue;
+      if (young.ended || young.pair != 0 || (!any_age && t - young.t_started_s > mg().joint_start_s + tol)) continue;
       const auto now = young.engine->PredictState(t);
       if (!now || !young.engine->m_B_Am2().allFinite()) continue;
       Track probe;
@@ -760,16 +776,88 @@ struct MultiTracker::Impl {
       at_t.t_ref_s = t;
       at_t.state = *now;
       const std::vector<Epoch> epochs = RecentWithout(k, tracks.size());
-      const std::vector<InitialTrack> fit = RefitPair(epochs, B0_W, options.track, at_t, init, mg().min_separation_m);
+      const std::vector<InitialTrack> fit = RefitPair(epochs, B0_W, fit_options != nullptr ? *fit_options : options.track,
+                                                      at_t, init, mg().min_separation_m);
       if (fit.size() != 2) continue;
+      if (any_age && (Horizontal(PropagateCoordinatedTurn(fit[0].state, t - fit[0].t_ref_s)) - Horizontal(*now)).norm() >
+                         mg().residual_start.max_track_shift_m) {
+        continue;  // the fit moved the live track: not its vessel and a neighbour (StartInResidual)
+      }
       Restart(young, fit[0], fit[1], epochs, out);
       if (!StartTrack(t, fit[1], &fit[0], &epochs, EvidenceStart(t, init))) {
         return true;  // the young track is refitted anyway
       }
+      MarkOlderBackfill(tracks[k], t);
       MakePair(t, tracks[k], fit[0], tracks.back(), fit[1]);
       return true;
     }
     return false;
+  }
+
+  // The older track of a joint start, confirmed as a single start (not
+  // back-filled then: Confirm), gets its start's rows from its engine just
+  // restarted from the joint fit (ResidualStartOptions::backfill_older).
+  void MarkOlderBackfill(Track& tr, double t) {
+    if (!mg().backfill_start || !mg().residual_start.backfill_older || tr.id == 0 || tr.started_with != 0 ||
+        tr.backfill_pending || !(tr.backfill_until_s > 0.0)) {
+      return;
+    }
+    const double from = std::max(tr.engine->FirstStrongEpoch(options.track.init.min_tensor_snr), tr.t_evidence_s);
+    if (!std::isfinite(from) || from > tr.backfill_until_s) return;
+    tr.backfill_pending = true;
+    tr.backfill_from_s = from;
+    tr.backfill_due_s = std::max(t, from + options.track.window_s - mg().init_interval_s);
+  }
+
+  // A vessel too weak for the field's start SNR beside a live track
+  // (residual_start.h): a line in the buffer's residual at the lower start
+  // SNR, started only jointly with a live track that shares a sensor with it
+  // (StartJointly with the joint fit at that SNR, any track's age). True if
+  // started.
+  bool StartInResidual(double t, std::vector<TrackOutput>* out) {
+    const ResidualStartOptions& ro = mg().residual_start;
+    if (!(ro.tensor_snr > 0.0) || !(ro.tensor_snr < options.track.init.min_tensor_snr) || recent.empty()) return false;
+    std::vector<std::size_t> live;
+    for (std::size_t k = 0; k < tracks.size(); ++k) {
+      if (!tracks[k].ended) live.push_back(k);
+    }
+    if (live.empty()) return false;
+    // The strongest live track's predicted tensor at a buffered sample (its
+    // states per epoch, cached).
+    double cached_t = std::numeric_limits<double>::quiet_NaN();
+    std::vector<std::pair<CtState<double>, Eigen::Vector3d>> at;
+    const auto tracks_T = [&](double t_s, const GradiometerSample& s) {
+      if (t_s != cached_t) {
+        cached_t = t_s;
+        at.clear();
+        for (std::size_t k : live) {
+          const auto p = tracks[k].engine->PredictState(t_s);
+          if (p && tracks[k].engine->m_B_Am2().allFinite()) at.emplace_back(*p, tracks[k].engine->m_B_Am2());
+        }
+      }
+      double strongest = 0.0;
+      for (const auto& [state, m_B] : at) {
+        strongest = std::max(strongest, PredictAtSample(state, m_B, s, options.track).T.norm());
+      }
+      return strongest;
+    };
+    const std::optional<InitialTrack> init = InitializeInResidual(std::vector<Epoch>(buffer.begin(), buffer.end()),
+                                                                  B0_W, options.track, ro, tracks_T);
+    if (!init) return false;
+    // Not a live track's own line (its model error).
+    const CtState<double> now = PropagateCoordinatedTurn(init->state, t - init->t_ref_s);
+    for (const Track& tr : tracks) {
+      const auto p = tr.engine->PredictState(t);
+      if (!tr.ended && p && (Horizontal(*p) - Horizontal(now)).norm() < mg().min_separation_m) return false;
+    }
+    const TrackerOptions weak = ResidualStartTrackerOptions(options.track, ro);
+    const std::size_t before = tracks.size();
+    if (!StartJointly(t, *init, out, &weak, true) || tracks.size() == before) return false;
+    std::ostringstream o;
+    o << "from " << init->fixes.size() << " fixes in the residual beside a live track (tensor SNR >= "
+      << FormatNumber(weak.init.min_tensor_snr) << "), fitted jointly with it";
+    tracks.back().origin = o.str();
+    return true;
   }
 
   // The first evidence of a start made at t: its first single-sample fix,

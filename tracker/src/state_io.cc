@@ -133,6 +133,10 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
         static_cast<std::int64_t>(g.backfill_start)}) {
     w.I64(n);
   }
+  w.F64(g.residual_start.tensor_snr);
+  w.F64(g.residual_start.track_share);
+  w.F64(g.residual_start.max_track_shift_m);
+  w.I64(static_cast<std::int64_t>(g.residual_start.backfill_older));
   return w.bytes();
 }
 

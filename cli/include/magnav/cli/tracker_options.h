@@ -105,6 +105,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--poor-fit-tensor-snr", m.poor_fit_tensor_snr,
                  "... not counting a sample where the track's predicted tensor SNR is below this and the residual tensor's reaches it (another vessel's; 0 = off)")
       ->capture_default_str();
+  app.add_option("--residual-start-snr", m.residual_start.tensor_snr,
+                 "beside a live track, start a vessel from the residual (every track's field removed) at this tensor "
+                 "SNR, jointly with the track (0 = off)")
+      ->capture_default_str();
   app.add_option("--min-new-share", m.min_new_share,
                  "residual below this share of a track's predicted tensor is not offered to the initiator")
       ->capture_default_str();

@@ -89,6 +89,7 @@
 #include "magnav/tracker/cluster_background.h"
 #include "magnav/tracker/far_source.h"
 #include "magnav/tracker/options.h"
+#include "magnav/tracker/residual_start.h"
 #include "magnav/tracker/tracker.h"
 
 namespace magnav::tracker {
@@ -223,6 +224,10 @@ struct TrackManagementOptions {
   // node (magnav-tracker) turns it off: it publishes in time order and the
   // wire's TrackState has no value for such a row.
   bool backfill_start = true;
+  // A vessel too weak for the field's start SNR beside a tracked neighbour
+  // (residual_start.h): a start in the residual at a lower SNR, jointly with
+  // the neighbour; and the older track of a joint start back-filled.
+  ResidualStartOptions residual_start;
 
   bool IsValid(std::string* error) const;
 };
