@@ -440,7 +440,8 @@ struct MultiTrackEstimate {
   std::vector<TrackState> states;
 };
 
-// Every vessel of a pass: the window tracker finds the tracks, then each is
+// Every vessel of a pass: the window tracker finds the tracks (without the
+// out_of_reach end rule, so a track is refined past the reach too), then each is
 // refined by SolveBatch over its own samples (its sensors, over its span
 // grown to every epoch where it is seen — batch_extension_step_s — the other
 // tracks' fields removed within their spans, its partner's — the other
