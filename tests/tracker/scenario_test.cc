@@ -366,8 +366,13 @@ TEST(HarbourScenario, WindowKeepsBothVesselsOfAnOvertaking) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
     EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the issue's; measured 0.932 / 0.990
   }
-  EXPECT_LE(s.rms[0], 1.5 * 0.0632);  // m, measured 0.0632
-  EXPECT_LE(s.rms[1], 1.5 * 0.0405);  // m, measured 0.0405
+  // m, measured 0.111; 0.0632 with the end rule beyond the reach off (the
+  // default before 2026-11-26): the fast vessel's track now ends 2 s out of
+  // reach, and its B, still seen at the slow vessel's sensors, is no longer
+  // removed from them (docs/ACCURACY.md, "The end rule beyond the reach by
+  // default"; not fixed).
+  EXPECT_LE(s.rms[0], 1.5 * 0.111);
+  EXPECT_LE(s.rms[1], 1.5 * 0.0412);  // m, measured 0.0412 (0.0405 before)
 }
 
 TEST(HarbourScenario, BatchKeepsBothVesselsOfAnOvertaking) {
