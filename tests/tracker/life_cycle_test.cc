@@ -175,14 +175,13 @@ TEST(TrackLifeCycle, DetectionsWithoutTensorEvidenceDoNotConfirm) {
   EXPECT_EQ(k, 9);
 }
 
-// Out of reach (out_of_reach_s; off by default, here 2 s): ends after 2 s
+// Out of reach (out_of_reach_s; the default, 2 s): ends after 2 s
 // out of reach in a row, before the 10 s coast of "lost"; a return within
-// reach restarts the count; 0 (the default) turns the rule off (then
-// "lost", as before).
+// reach restarts the count; 0 turns the rule off (then "lost", as before
+// 2026-11-26).
 TEST(TrackLifeCycle, EndsOutOfReachAfterOutOfReachS) {
   TrackManagementOptions opt;
-  ASSERT_EQ(opt.out_of_reach_s, 0.0);
-  opt.out_of_reach_s = 2.0;
+  ASSERT_EQ(opt.out_of_reach_s, 2.0);
   std::string why;
   const auto run = [&](const TrackManagementOptions& o, const std::string& reach, int* at) {
     TrackLifeCycle life = Confirmed(o);

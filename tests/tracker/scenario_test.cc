@@ -392,8 +392,13 @@ TEST(HarbourScenario, WindowKeepsBothVesselsOfAnOvertaking) {
     EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
     EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the issue's; measured 0.932 / 0.990
   }
-  EXPECT_LE(s.rms[0], 1.5 * 0.0632);  // m, measured 0.0632
-  EXPECT_LE(s.rms[1], 1.5 * 0.0405);  // m, measured 0.0405
+  // m, measured 0.111; 0.0632 with the end rule beyond the reach off (the
+  // default before 2026-11-26): the fast vessel's track now ends 2 s out of
+  // reach, and its B, still seen at the slow vessel's sensors, is no longer
+  // removed from them (docs/ACCURACY.md, "The end rule beyond the reach by
+  // default"; not fixed).
+  EXPECT_LE(s.rms[0], 1.5 * 0.111);
+  EXPECT_LE(s.rms[1], 1.5 * 0.0412);  // m, measured 0.0412 (0.0405 before)
 }
 
 TEST(HarbourScenario, BatchKeepsBothVesselsOfAnOvertaking) {
@@ -410,48 +415,52 @@ TEST(HarbourScenario, BatchKeepsBothVesselsOfAnOvertaking) {
 // No ghost track from a far ship or a drifting background (issue 24 items 1
 // and 3): the held-out far-ship and drift scenarios (heldout/far_ship.toml:
 // a 4.2e5 A·m² ship 114 m off the grid; heldout/drift.toml: 4 nT/min), window
-// mode, with the "out_of_reach" end rule on (out_of_reach_s 2 s; off by
-// default, multi_tracker.h says why) beside the default tensor evidence for
-// confirmation (confirm_tensor_snr 3). On main a departing AUV's track
-// walked off on the ship's or the drift's B: 57 % and 24 % false rows
-// (docs/ACCURACY.md, "No ghost track from a far ship or a drift"); with the
-// rules 0.0 % and 2.5 %. Held to the issue's 5 % (a 2x regression of the
-// drift figure stays inside it; the 10x of main does not). The AUV's figures
-// as measured (these files were not tuned on; the tuning was on tuning/).
-MultiTrackerOptions WithReachRule() {
-  MultiTrackerOptions o;
-  o.management.out_of_reach_s = 2.0;
-  return o;
-}
-
+// mode, with the defaults: the "out_of_reach" end rule (out_of_reach_s 2 s,
+// the default since 2026-11-26) beside the tensor evidence for confirmation
+// (confirm_tensor_snr 3). Before both a departing AUV's track walked off on
+// the ship's or the drift's B: 57 % and 24 % false rows (docs/ACCURACY.md,
+// "No ghost track from a far ship or a drift"); with the rules 0.0 % and
+// 2.9 %. Held to the issue's 5 % (the 10x without the rules does not pass).
+// The AUV's figures as measured (these files were not tuned on; the tuning
+// was on tuning/).
 TEST(HarbourScenario, WindowStartsNoGhostFromAFarShip) {
-  const auto s = ScoreWindow(HeldOut("far_ship"), "held-out far ship", nullptr, WithReachRule());
+  const auto s = ScoreWindow(HeldOut("far_ship"), "held-out far ship", nullptr);
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
   EXPECT_GE(s.coverage[0], 0.9 * 0.609);  // measured 0.609 (2 ids: broken while the ship is closest)
   EXPECT_LE(s.ids[0], 2u);
 }
 
-// The same held-out far ship with the defaults alone (the out-of-reach rule
-// off): the tensor evidence for confirmation (confirm_tensor_snr 3) is what
-// stops the ghost started at 133.8 s, whose detections were B alone (main:
-// 660 of 1155 rows false, 57 %; with the default 0 %). With the confirmation
-// off the ghost comes back: that run is asserted to fail the 5 %, so the
-// check cannot pass without the rule.
+// The same held-out far ship with the defaults alone: the tensor evidence
+// for confirmation (confirm_tensor_snr 3) is what stops the ghost started at
+// 133.8 s, whose detections were B alone (main: 660 of 1155 rows false, 57 %;
+// with the default 0 %). With the confirmation off and the end rule on (the
+// default since 2026-11-26) the ghost is confirmed and ended "out_of_reach"
+// after 15 false rows (2.9 %); with both off (main's rules before) it comes
+// back: that run is asserted to fail the 5 %, so the check cannot pass
+// without the rules.
 TEST(HarbourScenario, WindowConfirmsNoGhostFromAFarShipByDefault) {
   const auto s = ScoreWindow(HeldOut("far_ship"), "held-out far ship, defaults", nullptr);
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
   MultiTrackerOptions without;
   without.management.confirm_tensor_snr = 0.0;
-  const auto g = ScoreWindow(HeldOut("far_ship"), "held-out far ship, no tensor evidence", nullptr, without);
+  without.management.out_of_reach_s = 0.0;
+  const auto g = ScoreWindow(HeldOut("far_ship"), "held-out far ship, no tensor evidence nor end rule", nullptr, without);
   EXPECT_GT(static_cast<double>(g.false_rows), 0.2 * static_cast<double>(g.rows));  // measured 57 % on main
 }
 
+// The drift with the defaults, and the same run with the end rule off
+// (out_of_reach_s 0, the default before 2026-11-26): asserted to fail the
+// 5 % (measured 23.5 %), so the check cannot pass without the rule.
 TEST(HarbourScenario, WindowStartsNoGhostFromADrift) {
-  const auto s = ScoreWindow(HeldOut("drift"), "held-out drift", nullptr, WithReachRule());
-  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 2.5 %
+  const auto s = ScoreWindow(HeldOut("drift"), "held-out drift", nullptr);
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 2.9 %
   EXPECT_GE(s.coverage[0], 0.8);  // the issue's; measured 0.889
   EXPECT_EQ(s.ids[0], 1u);
-  EXPECT_LE(s.rms[0], 1.5 * 0.445);  // m, measured 0.445 (as on main)
+  EXPECT_LE(s.rms[0], 1.5 * 0.44);  // m, measured 0.44 (0.44 with the rule off)
+  MultiTrackerOptions off;
+  off.management.out_of_reach_s = 0.0;
+  const auto g = ScoreWindow(HeldOut("drift"), "held-out drift, end rule off", nullptr, off);
+  EXPECT_GT(static_cast<double>(g.false_rows), 0.1 * static_cast<double>(g.rows));  // measured 23.5 %
 }
 
 }  // namespace

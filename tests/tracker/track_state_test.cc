@@ -72,10 +72,22 @@ struct Counts {
   }
 };
 
+// The state of rows without a detection needs such rows: with the default
+// end rule (TrackManagementOptions::out_of_reach_s 2 s) the track ends
+// "out_of_reach" 2 s after it leaves the sensor's reach, before its B falls
+// below detection, so it has none; these two tests turn the rule off (what
+// they check is the row's state, not the end rule; life_cycle_test.cc and
+// HarbourScenario.* test the rule).
+MultiTrackerOptions WithoutEndRule() {
+  MultiTrackerOptions o;
+  o.management.out_of_reach_s = 0.0;
+  return o;
+}
+
 TEST(TrackState, WindowRowsWithoutADetectionAreCoasting) {
   const FieldScenario sc = OnePass();
   const SimulatedField f = SimulateField(sc);
-  MultiTracker tracker(sc.B0, MultiTrackerOptions{});
+  MultiTracker tracker(sc.B0, WithoutEndRule());
   std::vector<TrackOutput> rows;
   for (const auto& s : f.samples) {
     for (auto& o : tracker.AddSample(s)) rows.push_back(o);
@@ -112,7 +124,7 @@ TEST(TrackState, WindowRowsWithoutADetectionAreCoasting) {
 TEST(TrackState, BatchRowsWithoutADetectionAreCoasting) {
   const FieldScenario sc = OnePass();
   const SimulatedField f = SimulateField(sc);
-  const MultiTrackerOptions opt;
+  const MultiTrackerOptions opt = WithoutEndRule();
   const auto tracks = SolveBatchMulti(GroupEpochs(f.samples, opt.track.epoch_tolerance_s), sc.B0, opt);
   ASSERT_EQ(tracks.size(), 1u);
   const MultiTrackEstimate& t = tracks[0];

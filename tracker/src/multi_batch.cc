@@ -237,7 +237,14 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   std::string why;
   if (!options.IsValid(&why)) throw InputError("multi-tracker options: " + why);
   // 1. The causal pass finds the vessels.
-  MultiTracker finder(B0_W, options);
+  // The out_of_reach end rule is the window's (a track's reported rows);
+  // the batch finds its tracks without it, refines each over every sample
+  // where it is seen (past its reach too: on a clean field a departing
+  // vessel's B still steers its turn) and then reports only its rows within
+  // reach (TrimOutOfReach).
+  MultiTrackerOptions finder_options = options;
+  finder_options.management.out_of_reach_s = 0.0;
+  MultiTracker finder(B0_W, finder_options);
   std::map<std::uint32_t, TrackPath> paths;
   std::map<std::uint32_t, std::vector<TrackState>> window_states;  // per paths[id].epochs
   std::size_t next_fix = 0;

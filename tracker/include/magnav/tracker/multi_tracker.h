@@ -69,7 +69,7 @@
 //     added to σ_B²), and after step 3 each sensor's background takes the
 //     residual B: the raw sample minus every live track's predicted B.
 //  6. End: a confirmed track ends when it has been missed for max_miss_s in
-//     a row, or (off by default) out of the sensors' reach for out_of_reach_s ("out_of_reach":
+//     a row, or out of the sensors' reach for out_of_reach_s ("out_of_reach":
 //     outside their horizontal bounding box with a predicted tensor SNR below
 //     reach_tensor_snr at every sensor), or not detected for max_coast_s, or its horizontal 1-σ exceeds
 //     max_sigma_horizontal_m, or its window solve stays unusable for
@@ -142,14 +142,15 @@ struct TrackManagementOptions {
   // for max_coast_s on B alone (which a far ship or a drift also explains).
   // Inside the box it is kept (a vessel crossing a cell centre returns
   // within reach). The batch's leading and trailing rows out of reach are
-  // then not reported either (SolveBatchMulti). out_of_reach_s 0 = off.
-  // OFF by default: at 2 s it brings the far-ship and drift false rows to
-  // ≤ 5 % on every file but one (docs/ACCURACY.md, "No ghost track from a
-  // far ship or a drift"), but it removes the coasting rows beyond the reach
-  // that the σ tests while coasting and the single-pass batch figures
-  // (rows within 30 m) are measured on (SinglePass.*, TrackState.*).
+  // then not reported either (SolveBatchMulti; the batch still refines each
+  // track over every sample where it is seen, past the reach too).
+  // out_of_reach_s 0 = off. On by default (2 s) since 2026-11-26 (branch
+  // reach): the far-ship and drift false rows from 9–52 % to ≤ 5 % on
+  // most files (not all), no target met before lost; the window then
+  // reports no coasting rows beyond the reach (docs/ACCURACY.md, "The end
+  // rule beyond the reach by default").
   double reach_tensor_snr = 3.0;
-  double out_of_reach_s = 0.0;
+  double out_of_reach_s = 2.0;
   // End rules (s, m): see above.
   double max_miss_s = 2.0;
   double max_coast_s = 10.0;
@@ -458,7 +459,8 @@ struct MultiTrackEstimate {
   std::vector<TrackState> states;
 };
 
-// Every vessel of a pass: the window tracker finds the tracks, then each is
+// Every vessel of a pass: the window tracker finds the tracks (without the
+// out_of_reach end rule, so a track is refined past the reach too), then each is
 // refined by SolveBatch over its own samples (its sensors, over its span
 // grown to every epoch where it is seen — batch_extension_step_s — the other
 // tracks' fields removed within their spans, its partner's — the other
