@@ -89,6 +89,7 @@
 #include "magnav/tracker/cluster_background.h"
 #include "magnav/tracker/options.h"
 #include "magnav/tracker/tracker.h"
+#include "magnav/tracker/variance_factor.h"
 
 namespace magnav::tracker {
 
@@ -295,6 +296,10 @@ struct MultiTrackerOptions {
   // (cluster_background.enabled = false): the fixed B0. Not together with
   // `background` (one background model at a time).
   ClusterBackgroundOptions cluster_background;
+  // Window: each track's reported covariance scaled by its window solve's
+  // a-posteriori variance factor when the fit is poorer than chance allows
+  // (variance_factor.h); only the rows' σ, not the gates. Off by default.
+  VarianceFactorOptions variance_factor;
 
   bool IsValid(std::string* error) const;
 };
