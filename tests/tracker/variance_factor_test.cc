@@ -29,6 +29,11 @@ VarianceFactorOptions On() {
   o.enabled = true;
   return o;
 }
+VarianceFactorOptions Off() {
+  VarianceFactorOptions o;
+  o.enabled = false;
+  return o;
+}
 
 TEST(VarianceFactor, OneUnlessTheFitIsPoorerThanChanceAllows) {
   // χ²(800) 0.99 quantile ≈ 894.4: s² = 1.10 is below it, 1.2 above.
@@ -37,7 +42,7 @@ TEST(VarianceFactor, OneUnlessTheFitIsPoorerThanChanceAllows) {
   EXPECT_NEAR(VarianceFactor(8.0e4, 800.0, On()), 100.0, 1e-9);
   // Never below 1, off means 1, capped, and nothing from no dof.
   EXPECT_EQ(VarianceFactor(100.0, 800.0, On()), 1.0);
-  EXPECT_EQ(VarianceFactor(960.0, 800.0, VarianceFactorOptions{}), 1.0);
+  EXPECT_EQ(VarianceFactor(960.0, 800.0, Off()), 1.0);
   VarianceFactorOptions capped = On();
   capped.max_factor = 10.0;
   EXPECT_EQ(VarianceFactor(8.0e4, 800.0, capped), 10.0);
@@ -61,6 +66,8 @@ TEST(VarianceFactor, WindowFactorFromTheSummary) {
 TEST(VarianceFactor, OptionsAreChecked) {
   std::string why;
   EXPECT_TRUE(VarianceFactorOptions{}.IsValid(&why));
+  EXPECT_TRUE(VarianceFactorOptions{}.enabled);
+  EXPECT_EQ(VarianceFactorOptions{}.statistic, VarianceFactorOptions::Statistic::kSensorMeans);
   VarianceFactorOptions o;
   o.quantile = 1.0;
   EXPECT_FALSE(o.IsValid(&why));
@@ -126,8 +133,9 @@ EarlyRows Vessel1Rows(const FieldScenario& sc, const MultiTrackerOptions& option
 TEST(VarianceFactor, SlowVesselBeforeTheFastOneIsTrackedIsNoLongerOverconfident) {
   const FieldScenario sc = Overtaking60();
   MultiTrackerOptions off;
-  MultiTrackerOptions on;
-  on.variance_factor = On();
+  off.variance_factor = Off();
+  MultiTrackerOptions on;  // the default: on, kSensorMeans, 0.99
+  ASSERT_TRUE(on.variance_factor.enabled);
   const EarlyRows a = Vessel1Rows(sc, off, 40.0);
   const EarlyRows b = Vessel1Rows(sc, on, 40.0);
   std::printf("overtaking, vessel 1's window rows to 40 s: %d / %d rows, ANEES %.3g -> %.3g, mean tr P %.3g -> %.3g m^2\n",
@@ -146,8 +154,9 @@ TEST(VarianceFactor, LeavesALoneVesselsSigmaAlone) {
   FieldScenario sc = Overtaking60();
   sc.vessels.resize(1);  // the slow vessel alone: nothing unmodelled in its samples
   MultiTrackerOptions off;
-  MultiTrackerOptions on;
-  on.variance_factor = On();
+  off.variance_factor = Off();
+  MultiTrackerOptions on;  // the default: on, kSensorMeans, 0.99
+  ASSERT_TRUE(on.variance_factor.enabled);
   const EarlyRows a = Vessel1Rows(sc, off, 60.0);
   const EarlyRows b = Vessel1Rows(sc, on, 60.0);
   std::printf("the slow vessel alone, window rows to 60 s: %d rows, mean tr P %.4g -> %.4g m^2 (ANEES %.3g -> %.3g)\n",

@@ -298,7 +298,7 @@ struct MultiTrackerOptions {
   ClusterBackgroundOptions cluster_background;
   // Window: each track's reported covariance scaled by its window solve's
   // a-posteriori variance factor when the fit is poorer than chance allows
-  // (variance_factor.h); only the rows' σ, not the gates. Off by default.
+  // (variance_factor.h); only the rows' σ, not the gates. On by default.
   VarianceFactorOptions variance_factor;
 
   bool IsValid(std::string* error) const;
