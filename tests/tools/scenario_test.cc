@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_overtaking/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/ and fresh_farsrc/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_overtaking/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/ and fresh_farsrc/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -180,6 +180,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"far_ship_120", "far_ship_170"}) files.push_back({"fresh_ghost2", name, "far_ship"});
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
+  for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});
   for (const auto& [set, file, kind] : files) {
     {
       SCOPED_TRACE(set + "/" + file);

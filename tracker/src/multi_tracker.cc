@@ -79,6 +79,7 @@ bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (!track.IsValid(error) || !management.IsValid(error)) return false;
   if (!background.IsValid(error)) return false;
   if (!cluster_background.IsValid(error)) return false;
+  if (!variance_factor.IsValid(error)) return false;
   if (background.enabled && cluster_background.enabled) {
     return Fail(error, "the per-sensor background filter and the cluster background are exclusive");
   }
@@ -311,9 +312,11 @@ struct MultiTracker::Impl {
     TrackRecord& rec = records[tr.id - 1];
     const Eigen::Vector3d m = tr.engine->m_B_Am2();
     const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
+    const double f = WindowVarianceFactor(*tr.engine, options.variance_factor);
     for (EpochEstimate& e : start) {
       AddPairExcess(tr, &e);
-      out->push_back({tr.id, e, TrackState::kStart, m, Pm});
+      ScaleCovariance(f, &e);  // the row's σ only (variance_factor.h)
+      out->push_back({tr.id, e, TrackState::kStart, m, f * Pm});
       ++rec.num_estimates;
     }
     rec.t_start_s = std::min(rec.t_start_s, start.front().t_s);
@@ -346,8 +349,10 @@ struct MultiTracker::Impl {
     TrackRecord& r = records[tr.id - 1];
     const Eigen::Vector3d m = tr.engine->m_B_Am2();
     const Eigen::Matrix3d Pm = tr.engine->cov_m_B();
+    const double f = WindowVarianceFactor(*tr.engine, options.variance_factor);
     for (std::size_t k = 0; k < est.size(); ++k) {
-      out->push_back({tr.id, est[k], states[k], m, Pm});
+      out->push_back({tr.id, est[k], states[k], m, f * Pm});
+      ScaleCovariance(f, &out->back().estimate);  // the row's σ only, not tr.newest (variance_factor.h)
       r.t_end_s = est[k].t_s;
       ++r.num_estimates;
     }

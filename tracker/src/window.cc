@@ -5,6 +5,7 @@
 #include <cmath>
 #include <deque>
 #include <limits>
+#include <map>
 #include <optional>
 #include <stdexcept>
 
@@ -731,5 +732,28 @@ bool WindowTracker::initialized() const { return impl_->initialized; }
 Eigen::Vector3d WindowTracker::m_B_Am2() const { return impl_->moment * impl_->moment_scale; }
 Eigen::Matrix3d WindowTracker::cov_m_B() const { return impl_->cov_m_B; }
 const Summary& WindowTracker::last_summary() const { return impl_->summary; }
+
+void WindowTracker::ResidualMeansChi2(double* chi2, double* dof) const {
+  *chi2 = 0.0;
+  *dof = 0.0;
+  if (!impl_->initialized || !impl_->summary.usable) return;
+  std::map<std::uint32_t, std::pair<Eigen::Matrix<double, 8, 1>, int>> sums;  // per sensor
+  const std::size_t solved = impl_->Solved();
+  for (std::size_t k = 0; k < solved; ++k) {
+    const auto& w = impl_->window[k];
+    for (std::size_t i = 0; i < w.measurements.size() && i < w.epoch.samples.size(); ++i) {
+      const internal::Factor& f = w.measurements[i];
+      Eigen::Matrix<double, 8, 1> e;
+      if (!f.cost || !f.cost->Evaluate(f.blocks.data(), e.data(), nullptr) || !e.allFinite()) continue;
+      auto& s = sums.try_emplace(w.epoch.samples[i].sensor_id, Eigen::Matrix<double, 8, 1>::Zero(), 0).first->second;
+      s.first += e;
+      ++s.second;
+    }
+  }
+  for (const auto& [id, s] : sums) {
+    *chi2 += s.first.squaredNorm() / s.second;  // n ‖ē‖² = ‖Σ e‖² / n
+    *dof += 8.0;
+  }
+}
 
 }  // namespace magnav::tracker

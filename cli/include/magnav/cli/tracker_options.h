@@ -24,6 +24,11 @@ struct TrackerFlags {
   std::string background = tracker::BackgroundOptions{}.enabled ? "on" : "off";
   std::string cluster_background = tracker::ClusterBackgroundOptions{}.enabled ? "on" : "off";
   std::string far_source = tracker::FarSourceOptions{}.enabled ? "on" : "off";
+  std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
+  std::string variance_factor_statistic =
+      tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
+          ? "residuals"
+          : "sensor-means";
 };
 
 // `fixes_help` says where this program's single-sample fixes come from.
@@ -42,6 +47,19 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--q-position", t.process.position_m_per_sqrt_s, "horizontal (x, y) position random walk, m/sqrt(s)")
       ->capture_default_str();
   app.add_option("--q-depth", t.process.depth_m_per_sqrt_s, "depth (z) random walk, m/sqrt(s)")->capture_default_str();
+  app.add_option("--variance-factor", f->variance_factor,
+                 "window: scale each track's reported covariance by its window's chi2/dof when above "
+                 "--variance-factor-quantile of chi2_dof/dof (on), or not (off); the rows' sigma only")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--variance-factor-statistic", f->variance_factor_statistic,
+                 "--variance-factor's chi2: every whitened residual (residuals) or each sensor's mean residual over "
+                 "the window (sensor-means)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"residuals", "sensor-means"}));
+  app.add_option("--variance-factor-quantile", f->options.variance_factor.quantile,
+                 "--variance-factor applies above this quantile of chi2_dof/dof")
+      ->capture_default_str();
   app.add_option("--q-depth-weak", t.process.depth_weak_m_per_sqrt_s,
                  "depth random walk from an epoch whose measured tensors are all below --depth-weak-snr "
                  "sigma_T, m/sqrt(s) (0 = --q-depth everywhere)")
@@ -188,6 +206,10 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.background.enabled = f.background == "on";
   o.cluster_background.enabled = f.cluster_background == "on";
   o.far_source.enabled = f.far_source == "on";
+  o.variance_factor.enabled = f.variance_factor == "on";
+  o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
+                                    ? tracker::VarianceFactorOptions::Statistic::kResiduals
+                                    : tracker::VarianceFactorOptions::Statistic::kSensorMeans;
   std::string why;
   if (!o.IsValid(&why)) throw InputError("tracker options: " + why);
   return o;

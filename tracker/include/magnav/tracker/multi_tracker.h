@@ -91,6 +91,7 @@
 #include "magnav/tracker/options.h"
 #include "magnav/tracker/residual_start.h"
 #include "magnav/tracker/tracker.h"
+#include "magnav/tracker/variance_factor.h"
 
 namespace magnav::tracker {
 
@@ -309,6 +310,10 @@ struct MultiTrackerOptions {
   // (far_source.enabled = false): nothing removed. Not together with
   // `background` or `cluster_background`.
   FarSourceOptions far_source;
+  // Window: each track's reported covariance scaled by its window solve's
+  // a-posteriori variance factor when the fit is poorer than chance allows
+  // (variance_factor.h); only the rows' σ, not the gates. On by default.
+  VarianceFactorOptions variance_factor;
 
   bool IsValid(std::string* error) const;
 };

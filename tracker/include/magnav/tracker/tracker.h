@@ -176,6 +176,10 @@ class WindowTracker {
   Eigen::Matrix3d cov_m_B() const;
   // Summary of the last window solve.
   const Summary& last_summary() const;
+  // Over the solved epochs of the window: Σ over its sensors of n_j ‖ē_j‖²,
+  // ē_j the mean whitened residual (8) of sensor j's n_j samples, and its
+  // dof 8·(sensors); both 0 before a usable solve (variance_factor.h).
+  void ResidualMeansChi2(double* chi2, double* dof) const;
 
   // Checkpoint (tracker/checkpoint.h): everything that changes after
   // construction (the initiator's buffer and fixes, the epoch being filled,
