@@ -285,6 +285,10 @@ void AddTrackCommand(CLI::App& app) {
                   "batch: also restart each track's solve from the window track that found it, kept if it ends at a "
                   "lower cost (0/1)")
       ->capture_default_str();
+  cmd->add_option("--batch-turn-loss-scale", args->flags.options.batch_turn_loss_scale_sigma,
+                  "batch: Cauchy scale of the turn-rate changes in each track's solve, in sigmas of one step (0 = "
+                  "--turn-loss-scale, as the window)")
+      ->capture_default_str();
   cmd->add_option("--batch-model-spread", args->flags.options.track.batch_model_spread,
                   "batch: add to each state's covariance the spread of the restarts' ends about the chosen one, "
                   "weighted by exp(-cost difference) (model averaging over the turn's change points; 0/1)")

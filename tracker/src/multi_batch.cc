@@ -325,6 +325,9 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   const double seen_gate = options.batch_gate_snr;  // an epoch extends the span (tensor)
   TrackerOptions topt = options.track;
   if (topt.init.source == InitSource::kExternal) topt.init.source = InitSource::kAuto;
+  if (options.batch_turn_loss_scale_sigma > 0.0) {
+    topt.process.turn_rate_loss_scale_sigma = options.batch_turn_loss_scale_sigma;
+  }
   bool grew = true;
   const int max_rounds = std::max(options.batch_rounds, MultiTrackerOptions::kMaxBatchRounds);
   for (int round = 0; round < max_rounds && (round < options.batch_rounds || grew); ++round) {

@@ -90,6 +90,9 @@ bool MultiTrackerOptions::IsValid(std::string* error) const {
   if (batch_rounds < 1) return Fail(error, "batch_rounds must be >= 1");
   if (!PositiveFinite(batch_gate_snr)) return Fail(error, "batch_gate_snr must be > 0");
   if (!PositiveFinite(batch_extension_step_s)) return Fail(error, "batch_extension_step_s must be > 0");
+  if (!(batch_turn_loss_scale_sigma >= 0.0 && std::isfinite(batch_turn_loss_scale_sigma))) {
+    return Fail(error, "batch_turn_loss_scale_sigma must be >= 0 (0 = track.process.turn_rate_loss_scale_sigma)");
+  }
   return true;
 }
 

@@ -288,6 +288,19 @@ struct MultiTrackerOptions {
   // which re-solves its turn rate as the data come, is a start from another
   // basin than the batch's own turn-rate restarts.
   bool batch_restart_from_window = true;
+  // Batch: the Cauchy scale of the turn-rate changes in each track's solve,
+  // in σ of one step (0 = track.process.turn_rate_loss_scale_sigma, 2, as
+  // the window and the single-target SolveBatch). A 0.015 rad/s onset under
+  // the batch's walk (3e-4 rad/s/√s) is ≈ 160 σ of a 0.1 s step: it costs
+  // ≈ 17.5 (½ρ) at scale 2, ≈ 10.5 at 1.5, ≈ 5.1 at 1. Past ~15 m a lone
+  // vessel's B fits a straight path that drifts sideways about as well as
+  // the true turn, so at scale 2 the batch kept the straight path (the
+  // fresh2 passes f20, f22–f24: 0.44–0.68 m within 30 m; from the truth the
+  // same problem ended higher on f22 and f24: the model's choice, not a
+  // local minimum); at 1.5 and at 1 they are ≤ 0.18 m. 1 broke the cluster
+  // background's drifting-sensor batch (0.044 → 0.145 m, 18 false rows);
+  // 1.5 keeps it (docs/ACCURACY.md, "The batch's turn onset cost"). ≥ 0.
+  double batch_turn_loss_scale_sigma = 1.5;
   // Window and batch: the fields of the other tracks removed from a sample
   // are models, taken as uncertain by this share of their norm (per
   // element: the norm over √3 for B, over 3 for T), added in quadrature to
