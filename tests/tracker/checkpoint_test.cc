@@ -380,6 +380,7 @@ TEST(TrackerCheckpoint, ClusterBackgroundIsInTheCheckpoint) {
   const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions options;
   options.cluster_background.enabled = true;
+  options.far_source.enabled = false;  // on by default; exclusive with a background model
   MultiTracker a(sc.B0, options), b(sc.B0, options);
   SaveAtFiftySecondsAndRestore(f, &a, &b);
   // Made without it: refused (other options).
@@ -395,6 +396,7 @@ TEST(TrackerCheckpoint, BackgroundIsInTheCheckpoint) {
   const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions options;
   options.background.enabled = true;
+  options.far_source.enabled = false;  // on by default; exclusive with a background model
   MultiTracker a(sc.B0, options), b(sc.B0, options);
   const double t = SaveAtFiftySecondsAndRestore(f, &a, &b);
   for (std::uint32_t id = 0; id < sc.sensors.size(); ++id) {

@@ -155,6 +155,7 @@ TEST(ClusterBackground, VesselOverADriftingSensorWindow) {
   MultiTrackerOptions off;
   MultiTrackerOptions on;
   on.cluster_background.enabled = true;
+  on.far_source.enabled = false;  // on by default; exclusive with a background model
   MultiTracker t_off(sc.B0, off), t_on(sc.B0, on);
   const testing::FieldScores s_off = testing::ScoreField(sc, f, testing::WindowRows(&t_off, f.samples));
   const testing::FieldScores s_on = testing::ScoreField(sc, f, testing::WindowRows(&t_on, f.samples));
@@ -173,6 +174,7 @@ TEST(ClusterBackground, VesselOverADriftingSensorBatch) {
   MultiTrackerOptions off;
   MultiTrackerOptions on;
   on.cluster_background.enabled = true;
+  on.far_source.enabled = false;  // on by default; exclusive with a background model
   const auto epochs = GroupEpochs(f.samples, on.track.epoch_tolerance_s);
   const testing::FieldScores s_off = testing::ScoreField(sc, f, testing::BatchRows(SolveBatchMulti(epochs, sc.B0, off)));
   const testing::FieldScores s_on = testing::ScoreField(sc, f, testing::BatchRows(SolveBatchMulti(epochs, sc.B0, on)));
@@ -189,8 +191,10 @@ TEST(ClusterBackground, OptionsAreChecked) {
   MultiTrackerOptions o;
   std::string why;
   o.cluster_background.enabled = true;
+  o.far_source.enabled = false;  // on by default; exclusive with a background model
   EXPECT_TRUE(o.IsValid(&why)) << why;
   o.background.enabled = true;
+  o.far_source.enabled = false;  // on by default; exclusive with a background model
   EXPECT_FALSE(o.IsValid(&why));
   o.background.enabled = false;
   for (double* v : {&o.cluster_background.prior_sigma_T, &o.cluster_background.walk_T_per_sqrt_s,

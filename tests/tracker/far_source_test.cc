@@ -184,7 +184,7 @@ TEST(FarSource, NoFitWithFewerThanFourSensors) {
 TEST(FarSource, OptionsAreChecked) {
   std::string why;
   EXPECT_TRUE(FarSourceOptions{}.IsValid(&why)) << why;
-  EXPECT_FALSE(FarSourceOptions{}.enabled);
+  EXPECT_TRUE(FarSourceOptions{}.enabled);  // on by default since 2026-11-26
   FarSourceOptions o;
   o.window_s = 0.0;
   EXPECT_FALSE(o.IsValid(&why));

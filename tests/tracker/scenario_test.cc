@@ -437,14 +437,18 @@ TEST(HarbourScenario, WindowStartsNoGhostFromAFarShip) {
 // default since 2026-11-26) the ghost is confirmed and ended "out_of_reach"
 // after 15 false rows (2.9 %); with both off (main's rules before) it comes
 // back: that run is asserted to fail the 5 %, so the check cannot pass
-// without the rules.
+// without the rules. The far source (on by default since 2026-11-26) removes
+// the ship's B, which alone also keeps the ghost away (0 false rows with both
+// rules off): the counter-run turns it off too, so that it tests the rules.
 TEST(HarbourScenario, WindowConfirmsNoGhostFromAFarShipByDefault) {
   const auto s = ScoreWindow(HeldOut("far_ship"), "held-out far ship, defaults", nullptr);
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
   MultiTrackerOptions without;
   without.management.confirm_tensor_snr = 0.0;
   without.management.out_of_reach_s = 0.0;
-  const auto g = ScoreWindow(HeldOut("far_ship"), "held-out far ship, no tensor evidence nor end rule", nullptr, without);
+  without.far_source.enabled = false;
+  const auto g = ScoreWindow(HeldOut("far_ship"), "held-out far ship, no tensor evidence nor end rule nor far source",
+                             nullptr, without);
   EXPECT_GT(static_cast<double>(g.false_rows), 0.2 * static_cast<double>(g.rows));  // measured 57 % on main
 }
 

@@ -433,8 +433,11 @@ TEST(SinglePass, BatchTurnOnsetCostLetsTheFarTurnBeFound) {
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("batch_turn_loss_scale_sigma"), std::string::npos);
   const std::vector<std::pair<const char*, Figures>> doc = {
-      {"f20", {0.107, 0.263, 2.31, 395}},
-      {"f22", {0.0714, 0.188, 2.31, 381}},
+      // Measured on main after the merges of 2026-11-26 evening (the batch's
+      // rows within the reach only, since the end rule's default: 395 and 381
+      // epochs before, RMS 0.107 / 0.0714 m over them).
+      {"f20", {0.0651, 0.152, 2.50, 302}},
+      {"f22", {0.0545, 0.134, 2.36, 305}},
   };
   const auto rows = LoadPasses();
   for (const auto& [name, d] : doc) {
@@ -451,7 +454,9 @@ TEST(SinglePass, BatchTurnOnsetCostLetsTheFarTurnBeFound) {
   const PassScores s =
       RunPass(Find(rows, "f20"), true, false, false, TrackerOptions{}.batch_turn_change_points, old);
   std::cout << "f20 fluxgate batch, turn loss scale 2 sigma: RMS " << s.batch.rms << " m\n";
-  EXPECT_GT(s.batch.rms, 0.3);
+  // Measured 0.322 m over the rows within reach (0.678 m over every row,
+  // before the end rule's default): the 2 σ scale misses the 0.2 m target.
+  EXPECT_GT(s.batch.rms, 0.2);
 }
 
 }  // namespace

@@ -137,6 +137,20 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.F64(g.residual_start.track_share);
   w.F64(g.residual_start.max_track_shift_m);
   w.I64(static_cast<std::int64_t>(g.residual_start.backfill_older));
+  // The far source and the variance factor change every estimate or σ that
+  // follows: a checkpoint made with other settings is another configuration.
+  const FarSourceOptions& f = o.far_source;
+  w.I64(static_cast<std::int64_t>(f.enabled));
+  for (double d : {f.window_s, f.solve_interval_s, f.sample_interval_s, f.min_span_s, f.extent_factor, f.margin_m,
+                   f.max_range_m, f.max_height_m, f.huber_sigmas, f.tensor_gate, f.occupied_tensor_snr, f.model_share,
+                   f.min_field_T, f.min_moment_Am2, f.bound_slack_m}) {
+    w.F64(d);
+  }
+  const VarianceFactorOptions& v = o.variance_factor;
+  w.I64(static_cast<std::int64_t>(v.enabled));
+  w.I64(static_cast<std::int64_t>(v.statistic));
+  w.F64(v.quantile);
+  w.F64(v.max_factor);
   return w.bytes();
 }
 

@@ -23,7 +23,9 @@ struct TrackerFlags {
   std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
   std::string background = tracker::BackgroundOptions{}.enabled ? "on" : "off";
   std::string cluster_background = tracker::ClusterBackgroundOptions{}.enabled ? "on" : "off";
-  std::string far_source = tracker::FarSourceOptions{}.enabled ? "on" : "off";
+  // auto: the library default (on) unless a background model is chosen, with
+  // which it is exclusive.
+  std::string far_source = "auto";
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
@@ -175,9 +177,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   tracker::FarSourceOptions& fs = f->options.far_source;
   app.add_option("--far-source", f->far_source,
                  "a far ship as one dipole outside the array, fitted over the recent samples minus the tracks' B and "
-                 "its B removed from every sample (on), or nothing removed (off); not with a background model")
+                 "its B removed from every sample (on), or nothing removed (off); not with a background model; auto: "
+                 "on unless --background or --cluster-background is on")
       ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   app.add_option("--far-window", fs.window_s, "far source: span of recent samples each fit is made over, s")
       ->capture_default_str();
   app.add_option("--far-extent-factor", fs.extent_factor,
@@ -205,7 +208,9 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   }
   o.background.enabled = f.background == "on";
   o.cluster_background.enabled = f.cluster_background == "on";
-  o.far_source.enabled = f.far_source == "on";
+  o.far_source.enabled = f.far_source == "auto"
+                            ? tracker::FarSourceOptions{}.enabled && !o.background.enabled && !o.cluster_background.enabled
+                            : f.far_source == "on";
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals

@@ -21,8 +21,11 @@
 // (θ, d, u) with the moment solved by least squares at each node, the best
 // refined (with the previous fit, warm, as one more candidate).
 //
-// Off by default (MultiTrackerOptions::far_source; docs/ACCURACY.md, "A far
-// ship as a dipole outside the array": the measured table).
+// On by default since 2026-11-26 (MultiTrackerOptions::far_source;
+// docs/ACCURACY.md, "A far ship as a dipole outside the array": the measured
+// table, and "The far source on by default": every set with it on). Where
+// there is no ship its fit is refused by the rules below and nothing is
+// removed.
 #pragma once
 
 #include <Eigen/Core>
@@ -35,8 +38,8 @@
 namespace magnav::tracker {
 
 struct FarSourceOptions {
-  // Off (the default): no far source is estimated or removed.
-  bool enabled = false;
+  // On (the default); false: no far source is estimated or removed.
+  bool enabled = true;
   // The span of recent samples a fit is made over (s): a ship's B bell is
   // ~50 s wide at 100–200 m and 3 m/s; over 60 s its straight course at
   // constant velocity is exact.

@@ -319,8 +319,8 @@ struct MultiTrackerOptions {
   // Window and batch: a far ship as one dipole outside the array
   // (far_source.h), fitted over the recent samples minus the tracks'
   // predicted B; its B removed from every sample the tracks, the
-  // association and the initiator see (its uncertainty added to σ_B). Off
-  // (far_source.enabled = false): nothing removed. Not together with
+  // association and the initiator see (its uncertainty added to σ_B). On by
+  // default; far_source.enabled = false: nothing removed. Not together with
   // `background` or `cluster_background`.
   FarSourceOptions far_source;
   // Window: each track's reported covariance scaled by its window solve's
