@@ -102,8 +102,11 @@ double ForwardModelSeconds(const FieldScenario& sc, const SimulatedField& f) {
 
 // Args: grid side N, vessels V, window solve interval (ms; 0 = every epoch;
 // the multi-tracker's default is 500), layout (0 apart, 1 pairs abreast),
-// cluster background (0 off, the default; 1 on: cluster_background.h, with
-// the mean and largest number of tracks per cluster of its offset steps).
+// background model: 0 the defaults (fixed B0 and the far source,
+// far_source.h, on by default since 2026-11-26); 1 the cluster background
+// (cluster_background.h, with the mean and largest number of tracks per
+// cluster of its offset steps; the far source off, they are exclusive); 2 the
+// fixed B0 alone (the far source off: its cost is the difference with 0).
 void BM_MultiTrackerField(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));
   const int vessels = static_cast<int>(state.range(1));
@@ -114,7 +117,8 @@ void BM_MultiTrackerField(benchmark::State& state) {
   const SimulatedField& f = Field(n, vessels, duration_s, layout);
   magnav::tracker::MultiTrackerOptions opt;
   opt.track.window_solve_interval_s = solve_interval_s;
-  opt.cluster_background.enabled = state.range(4) != 0;
+  opt.cluster_background.enabled = state.range(4) == 1;
+  if (state.range(4) != 0) opt.far_source.enabled = false;
   int tracks = 0;
   magnav::tracker::MultiSummary summary;
   double cpu_s = 0.0;
@@ -198,6 +202,9 @@ BENCHMARK(BM_MultiTrackerField)
     ->Args({10, 10, 500, 1, 1})
     ->Args({3, 2, 500, 1, 1})
     ->Args({10, 1, 500, 0, 0})
+    // The far source's cost: the default rows above with it off.
+    ->Args({10, 10, 500, 0, 2})
+    ->Args({10, 10, 500, 1, 2})
     ->Iterations(1)
     ->Unit(benchmark::kSecond)
     ->UseRealTime();

@@ -189,6 +189,10 @@ TEST(FarSource, OptionsAreChecked) {
   o.window_s = 0.0;
   EXPECT_FALSE(o.IsValid(&why));
   o = {};
+  o.max_samples = 5;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("max_samples"), std::string::npos);
+  o = {};
   o.extent_factor = -1.0;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("extent_factor"), std::string::npos);

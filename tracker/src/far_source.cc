@@ -105,6 +105,7 @@ bool LinearMoment(const std::vector<FarSourceSample>& samples, const double* g, 
 bool FarSourceOptions::IsValid(std::string* error) const {
   if (!(window_s > 0.0) || !std::isfinite(window_s)) return Fail(error, "window_s must be > 0");
   if (!(solve_interval_s > 0.0) || !std::isfinite(solve_interval_s)) return Fail(error, "solve_interval_s must be > 0");
+  if (max_samples < 10) return Fail(error, "max_samples must be >= 10");
   if (!(sample_interval_s >= 0.0) || !std::isfinite(sample_interval_s)) return Fail(error, "sample_interval_s must be >= 0");
   if (!(min_span_s >= 0.0) || !(min_span_s <= window_s)) return Fail(error, "min_span_s must be in [0, window_s]");
   if (!(extent_factor >= 0.0) || !std::isfinite(extent_factor)) return Fail(error, "extent_factor must be >= 0");
@@ -267,6 +268,17 @@ bool FarSourceEstimator::StepIfDue(double t_s) {
   last_fit_t_ = t_s;
   std::vector<FarSourceSample> all;
   for (const Kept& k : kept_) all.insert(all.end(), k.used.begin(), k.used.end());
+  if (static_cast<int>(all.size()) > options_.max_samples) {
+    // An even stride over the samples, the newest kept (what is removed next
+    // is near it).
+    const double stride = static_cast<double>(all.size()) / static_cast<double>(options_.max_samples);
+    std::vector<FarSourceSample> thinned;
+    thinned.reserve(static_cast<std::size_t>(options_.max_samples));
+    for (int i = options_.max_samples - 1; i >= 0; --i) {
+      thinned.push_back(all[all.size() - 1 - static_cast<std::size_t>(std::floor(i * stride))]);
+    }
+    all.swap(thinned);
+  }
   const FarSourceModel fit = FitFarSource(all, sensors_, options_, model_.valid ? &model_ : nullptr);
   model_ = fit;
   active_ = false;

@@ -141,6 +141,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   // follows: a checkpoint made with other settings is another configuration.
   const FarSourceOptions& f = o.far_source;
   w.I64(static_cast<std::int64_t>(f.enabled));
+  w.I64(static_cast<std::int64_t>(f.max_samples));
   for (double d : {f.window_s, f.solve_interval_s, f.sample_interval_s, f.min_span_s, f.extent_factor, f.margin_m,
                    f.max_range_m, f.max_height_m, f.huber_sigmas, f.tensor_gate, f.occupied_tensor_snr, f.model_share,
                    f.min_field_T, f.min_moment_Am2, f.bound_slack_m}) {

@@ -86,6 +86,12 @@ struct FarSourceOptions {
   // A·m², each at the bound; the ship's 4.4e5 A·m², 95 m inside it.
   double min_moment_Am2 = 1e5;
   double bound_slack_m = 5.0;
+  // At most this many samples enter one fit: beyond it, an even stride over
+  // the window's samples (epoch after epoch, so the sensors kept change from
+  // one epoch to the next). A 3 × 3 grid over 60 s at 0.5 s has 1080, all
+  // kept; 100 sensors would have 12 000, whose refit every second cost
+  // 0.11 CPU s per s of data (docs/BENCHMARKS.md), 3× the whole tracker.
+  int max_samples = 1500;
 
   bool IsValid(std::string* error) const;
 };
