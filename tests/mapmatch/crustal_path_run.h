@@ -3,18 +3,34 @@
 #pragma once
 
 #include <chrono>
+#include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "magnav/core/csv.h"
+#include "magnav/mapmatch/fix_schedule.h"
 #include "magnav/mapmatch/geo_grid.h"
 #include "magnav/mapmatch/path.h"
 #include "subprocess.h"
 #include "test_data.h"
 
 namespace magnav::mapmatch::testing_paths {
+
+// One 2 m step of the dense test paths (pf_drift_step_test, pf_offset_slide_test):
+// the heading walks 0.02 rad per step, the vehicle moves 2 m along it (lat, lon
+// deg), and the INS error (dlat, dlon deg) walks `drift` deg per step. Draws
+// three normals from `rng` in that order.
+inline void DenseWalkStep(std::mt19937_64& rng, std::normal_distribution<double>& unit, double drift, double* lat,
+                          double* lon, double* heading, double* dlat, double* dlon) {
+  *heading += 0.02 * unit(rng);
+  *lat += 2.0 * std::cos(*heading) / MetresPerDegreeLat(*lat);
+  *lon += 2.0 * std::sin(*heading) / MetresPerDegreeLon(*lat);
+  *dlat += drift * unit(rng);
+  *dlon += drift * unit(rng);
+}
 
 // tests/data/reference/map_crustal_anomaly.csv, read once.
 inline const GeoGrid& CrustalMap() {

@@ -50,13 +50,7 @@ DensePath MakeDensePath(std::uint64_t seed, int steps) {
   double dlat = -0.0098, dlon = 0.0019;  // the INS error, deg: the reference 0.01° paths' offset
   const double drift = 0.0003 * std::sqrt(2.0 / 100.0);
   for (int k = 0; k < steps; ++k) {
-    if (k > 0) {
-      heading += 0.02 * unit(rng);
-      lat += 2.0 * std::cos(heading) / MetresPerDegreeLat(lat);
-      lon += 2.0 * std::sin(heading) / MetresPerDegreeLon(lat);
-      dlat += drift * unit(rng);
-      dlon += drift * unit(rng);
-    }
+    if (k > 0) testing_paths::DenseWalkStep(rng, unit, drift, &lat, &lon, &heading, &dlat, &dlon);
     const auto s = g.Sample(layer, lat, lon);
     if (!s) ADD_FAILURE() << "the generated path leaves the map at step " << k;
     p.true_lat.push_back(lat);

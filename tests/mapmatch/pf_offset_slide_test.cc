@@ -33,13 +33,7 @@ PathRun DensePath(std::uint64_t seed, int steps) {
   const double off = 2.0 * M_PI * u(rng), drift = 0.0003 * std::sqrt(2.0 / 100.0);
   double dlat = 0.01 * std::cos(off), dlon = 0.01 * std::sin(off);
   for (int k = 0; k < steps; ++k) {
-    if (k > 0) {
-      heading += 0.02 * unit(rng);
-      lat += 2.0 * std::cos(heading) / MetresPerDegreeLat(lat);
-      lon += 2.0 * std::sin(heading) / MetresPerDegreeLon(lat);
-      dlat += drift * unit(rng);
-      dlon += drift * unit(rng);
-    }
+    if (k > 0) testing_paths::DenseWalkStep(rng, unit, drift, &lat, &lon, &heading, &dlat, &dlon);
     const auto v = g.Sample(layer, lat, lon);
     if (!v) break;
     r.path.k.push_back(k);
