@@ -156,7 +156,9 @@ TEST(PfLostDetection, TheAcquisitionTestIgnoresACollapsingCloudsInnovations) {
       const MatchResult r = MatchParticleFilter(ParticleFilterKind::kPf, Map(), 0, run.path, o, &steps);
       ASSERT_FALSE(LossStart(run, steps).has_value()) << "a clean run";
       EXPECT_EQ(FlaggedIn(steps, 0, steps.size() - 1), !on);
-      if (on) EXPECT_TRUE(r.converged) << r.BriefReport();
+      if (on) {
+        EXPECT_TRUE(r.converged) << r.BriefReport();
+      }
     }
   }
 }
