@@ -147,6 +147,13 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
                    f.min_field_T, f.min_moment_Am2, f.bound_slack_m}) {
     w.F64(d);
   }
+  w.I64(static_cast<std::int64_t>(f.drift.enabled));
+  w.I64(static_cast<std::int64_t>(f.drift.min_samples));
+  for (double d : {f.drift.rate_prior_sigma_T_per_s, f.drift.huber_sigmas, f.drift.reject_sigmas, f.drift.max_rate_T_per_s,
+                   f.drift.occupied_B_sigmas, f.drift.min_span_s, f.drift.window_s,
+                   f.drift.sample_interval_s}) {
+    w.F64(d);
+  }
   const VarianceFactorOptions& v = o.variance_factor;
   w.I64(static_cast<std::int64_t>(v.enabled));
   w.I64(static_cast<std::int64_t>(v.statistic));

@@ -26,6 +26,7 @@ struct TrackerFlags {
   // auto: the library default (on) unless a background model is chosen, with
   // which it is exclusive.
   std::string far_source = "auto";
+  std::string far_drift = tracker::SensorDriftOptions{}.enabled ? "on" : "off";
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
@@ -191,6 +192,11 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--far-share", fs.model_share,
                  "far source: its removed B taken as uncertain by this share of its norm (added to sigma_B)")
       ->capture_default_str();
+  app.add_option("--far-drift", f->far_drift,
+                 "far source: each sensor's drift (a line in time over the far source's window) fitted with it and "
+                 "removed (on), or the fixed B0 (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
 }
 
 // The options the flags give. Throws InputError naming the flag for a bad
@@ -211,6 +217,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.far_source.enabled = f.far_source == "auto"
                             ? tracker::FarSourceOptions{}.enabled && !o.background.enabled && !o.cluster_background.enabled
                             : f.far_source == "on";
+  o.far_source.drift.enabled = f.far_drift == "on";
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals
