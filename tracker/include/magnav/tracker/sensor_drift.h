@@ -1,10 +1,10 @@
 // Each sensor's background drift (issue 24 item 1): a sensor's B0 that
 // moves by a few nT per minute in its own direction. Fitted with the far
 // source (far_source.h), on the same quiet samples (no vessel near: the
-// sample rule of tracker/src/quiet_sample.h) over the same window, and
-// removed from every sample with it.
+// sample rule of tracker/src/quiet_sample.h, and the tracks' predicted B
+// below occupied_B_sigmas), and removed from every sample with it.
 //
-// The model, per sensor s, over its own window (drift.window_s, 300 s: longer
+// The model, per sensor s, over its own window (window_s, 600 s: far longer
 // than the far source's 60 s, so that a far ship's bell, ~100 s wide at
 // 150 m and 3 m/s, is not a line over it; world NED; T, s):
 //   b_s(t) = a_s + ṙ_s·(t − t_ref)
@@ -17,14 +17,17 @@
 // prior on the rate (rate_prior_sigma_T_per_s per axis) — the offset's prior
 // is flat: the level comes from the data.
 //
-// Why a line over 300 s follows a drift and not a near vessel: a drift is
+// Why a line over 600 s follows a drift and not a near vessel: a drift is
 // a line (exactly, for the simulator's drift; to O(t²) for a slow one),
 // while a passing vessel's B at a sensor is a bell a few seconds to tens of
 // seconds wide; of it a line takes only its projection on {1, t}, and the
 // Huber loss (from a median start) less (docs/ACCURACY.md, "A per-sensor
 // drift with the far source": the measured leak). The samples near a
 // tracked vessel do not enter at all (the sample rule); across them the
-// line is carried.
+// line is carried. What this does not stop (measured there, why it is off
+// by default): an untracked vessel's B rising over tens of seconds at the
+// start of a file, when the window is short, pulls a line, and a pulled
+// line, warm-started, keeps the samples that agree with it.
 //
 // Between fits a sensor's line is extrapolated; a sensor with too few
 // samples in the window (occupied throughout) keeps its previous line.
@@ -65,7 +68,7 @@ struct SensorDriftOptions {
   // model error is the track's; the far source's rule is on the tensor).
   double occupied_B_sigmas = 3.0;
   // The span of recent samples a line is fitted over (s), one epoch kept
-  // every sample_interval_s (s): 300 per sensor.
+  // every sample_interval_s (s): 600 per sensor.
   double window_s = 600.0;
   double sample_interval_s = 1.0;
   // A sensor is (re)fitted only with at least this many samples spanning at
