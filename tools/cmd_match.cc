@@ -224,7 +224,10 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--basin-half-width", o.fast_msd.basin_half_width_deg,
                   "fast-msd: half width (deg) of the offset grid whose posterior (forward-backward along the path) "
                   "adds the other basins' spread to each point's covariance; 0 = off (the linearised basin only); "
-                  "positions are the same either way");
+                  "positions are the same either way unless --basin-mean-shift");
+  cmd->add_flag("--basin-mean-shift", o.fast_msd.basin_mean_shift,
+                "fast-msd: move each point to the mean of the other-basins posterior (the published basin's mass "
+                "at the published point) and take the covariance about it; needs --basin-half-width > 0");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "

@@ -333,7 +333,7 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     r.cov_lat_lon = c.lat_lon;
     r.cov_lon_lon = c.lon_lon;
     // The other basins (fast_msd_basins.h): the posterior mass outside each point's published basin.
-    int basin_points = 0;
+    int basin_points = 0, shifted_points = 0;
     if (options.basin_half_width_deg > 0.0 && c.tau2_deg2 > 0.0 && c.curvature_limited.size() == n) {
       // At most kMaxBasinRadius offsets each side (the grid's memory and time grow as its square): a wider
       // half width for the map's step coarsens the grid instead.
@@ -353,6 +353,15 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
           map_var, c.tau2_deg2, cap, step, radius);
       for (std::size_t i = 0; i < n; ++i) {
         Eigen::Matrix2d m = cov[i] + bs.far_moment[i];
+        if (options.basin_mean_shift) {
+          // The mixture's mean: the published point moves by the outside mass's first moment, and the
+          // second moment is taken about the moved point (C + S − d̄ d̄ᵀ ⪰ C, fast_msd.h).
+          const Eigen::Vector2d& d = bs.far_mean[i];
+          r.lat_deg[i] += d(0);
+          r.lon_deg[i] += d(1);
+          m -= d * d.transpose();
+          if (d.squaredNorm() > 0.0) ++shifted_points;
+        }
         internal::CapAtPrior(&m, prior_var);
         r.cov_lat_lat[i] = m(0, 0);
         r.cov_lat_lon[i] = m(0, 1);
@@ -372,6 +381,18 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     }
     if (basin_points > 0) {
       r.notes += "; other basins hold > 5 % of the posterior at " + std::to_string(basin_points) + " points";
+    }
+    if (shifted_points > 0) {
+      // The score at the published (moved) points.
+      sum2 = 0.0;
+      for (std::size_t p = 0; p < n; ++p) {
+        if (!final_lin.data[p]) continue;
+        if (const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p])) {
+          const double d = s->value_nT - path.measured_nT[p];
+          sum2 += d * d;
+        }
+      }
+      r.notes += "; moved to the posterior mean at " + std::to_string(shifted_points) + " points";
     }
     if (c.prior_limited_points > 0) {
       r.notes += "; covariance capped at the search window's at " + std::to_string(c.prior_limited_points) +

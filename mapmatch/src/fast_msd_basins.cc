@@ -128,6 +128,7 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
   out.step_deg = step_deg;
   out.radius = radius;
   out.far_moment.assign(n, Eigen::Matrix2d::Zero());
+  out.far_mean.assign(n, Eigen::Vector2d::Zero());
   out.far_mass.assign(n, 0.0);
   if (n < 2 || !(tau2_deg2 > 0.0) || !(s2_nT2 > 0.0) || !(step_deg > 0.0) || radius < 1) return out;
   const int side = 2 * radius + 1;
@@ -244,7 +245,7 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
     const Eigen::Matrix2d inv = cov[i].inverse();
     if (!inv.allFinite()) continue;
     // Σ p d dᵀ over the cells outside the published basin (dᵀ C⁻¹ d > chi2), with each cell's own h²/12.
-    double saa = 0.0, sab = 0.0, sbb = 0.0, mass = 0.0;
+    double saa = 0.0, sab = 0.0, sbb = 0.0, sa = 0.0, sb = 0.0, mass = 0.0;
     for (int r = b.r0; r <= b.r1; ++r) {
       const double da = (r - radius) * step_deg;
       for (int c = b.c0; c <= b.c1; ++c) {
@@ -256,11 +257,14 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
         saa += p * da * da;
         sab += p * da * db;
         sbb += p * db * db;
+        sa += p * da;
+        sb += p * db;
         mass += p;
       }
     }
     mass /= sum;
     out.far_moment[i] << saa / sum + mass * cell, sab / sum, sab / sum, sbb / sum + mass * cell;
+    out.far_mean[i] << sa / sum, sb / sum;
     out.far_mass[i] = mass;
   }
   return out;

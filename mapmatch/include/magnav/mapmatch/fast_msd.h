@@ -115,6 +115,16 @@ struct FastMsdOptions {
   // offsets each side: a wider half width for the map's step coarsens the grid.
   double basin_half_width_deg = 0.012;
   double basin_step_cells = 0.25;
+  // Positions from the other basins (issue 25 item 6; docs/ACCURACY.md, "Fast
+  // MSD: single paths above 0.001°"; needs basin_half_width_deg > 0): each
+  // point moves to the mean of that posterior mixture — the published basin's
+  // mass at the published point, the other basins' mass where it lies — i.e.
+  // by far_mean = Σ_outside p(d) d (fast_msd_basins.h), and its covariance is
+  // the mixture's second moment about the moved point, C_i + S_i − far_mean
+  // far_meanᵀ (S_i the outside second moment; never narrower than C_i). Where
+  // the posterior holds no mass outside the published basin nothing moves.
+  // false = the rounds' positions (the covariance as above, about them).
+  bool basin_mean_shift = false;
 
   bool IsValid(std::string* error) const;
 };
