@@ -147,6 +147,11 @@ bool FastMsdOptions::IsValid(std::string* error) const {
 namespace {
 
 constexpr double kChi2Two99 = 9.2103;  // 99 % point of χ² with 2 degrees of freedom
+// basin_mean_shift: the largest posterior mass on the offset grid's outermost ring at which the grid is
+// taken to hold the posterior (fast_msd.h). On the tuning and held-out paths (501-520, 601-640, 0.5 and
+// 3 nT) the largest was 4.4e-4 but on one, 626 at 3 nT (0.085, its start 0.019 deg off, beyond the grid's
+// 0.012 deg); any value in [1e-3, 5e-2] separates them alike.
+constexpr double kMaxEdgeMass = 0.01;
 
 // The map's Hessian (nT/deg²) at a point: central second differences of the
 // grid at the nearest node (one node in from the edge), the curvature the
@@ -334,6 +339,7 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     r.cov_lon_lon = c.lon_lon;
     // The other basins (fast_msd_basins.h): the posterior mass outside each point's published basin.
     int basin_points = 0, shifted_points = 0;
+    double max_edge_mass = 0.0;
     if (options.basin_half_width_deg > 0.0 && c.tau2_deg2 > 0.0 && c.curvature_limited.size() == n) {
       // At most kMaxBasinRadius offsets each side (the grid's memory and time grow as its square): a wider
       // half width for the map's step coarsens the grid instead.
@@ -351,9 +357,13 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
       const internal::BasinSpread bs = internal::FastMsdBasinSpread(
           grid, layer, r.lat_deg, r.lon_deg, path.measured_nT, final_lin.data, e_lat, e_lon, cov, c.s2_nT2,
           map_var, c.tau2_deg2, cap, step, radius);
+      for (double x : bs.edge_mass) max_edge_mass = std::max(max_edge_mass, x);
+      // The mean of a posterior the grid truncates is not the posterior's mean: no point moves when the
+      // mass on the grid's outermost ring reaches kMaxEdgeMass anywhere along the path (fast_msd.h).
+      const bool shift = options.basin_mean_shift && max_edge_mass < kMaxEdgeMass;
       for (std::size_t i = 0; i < n; ++i) {
         Eigen::Matrix2d m = cov[i] + bs.far_moment[i];
-        if (options.basin_mean_shift) {
+        if (shift) {
           // The mixture's mean: the published point moves by the outside mass's first moment, and the
           // second moment is taken about the moved point (C + S − d̄ d̄ᵀ ⪰ C, fast_msd.h).
           const Eigen::Vector2d& d = bs.far_mean[i];
@@ -393,6 +403,10 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
         }
       }
       r.notes += "; moved to the posterior mean at " + std::to_string(shifted_points) + " points";
+    }
+    if (options.basin_mean_shift && max_edge_mass >= kMaxEdgeMass) {
+      r.notes += "; not moved to the posterior mean: its mass on the offset grid's edge reaches " +
+                 FormatNumber(max_edge_mass);
     }
     if (c.prior_limited_points > 0) {
       r.notes += "; covariance capped at the search window's at " + std::to_string(c.prior_limited_points) +

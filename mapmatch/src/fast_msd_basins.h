@@ -44,6 +44,9 @@ struct BasinSpread {
   std::vector<Eigen::Matrix2d> far_moment;  // deg²
   std::vector<Eigen::Vector2d> far_mean;    // deg
   std::vector<double> far_mass;
+  // The posterior mass on the grid's outermost ring of offsets (|a| or |b| =
+  // R): where it is not small the grid truncates the posterior.
+  std::vector<double> edge_mass;
   double step_deg = 0.0;
   int radius = 0;
 };

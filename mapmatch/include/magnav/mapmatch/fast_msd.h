@@ -123,6 +123,9 @@ struct FastMsdOptions {
   // the mixture's second moment about the moved point, C_i + S_i − far_mean
   // far_meanᵀ (S_i the outside second moment; never narrower than C_i). Where
   // the posterior holds no mass outside the published basin nothing moves.
+  // Nothing moves either when the posterior's mass on the offset grid's
+  // outermost ring reaches 1 % at some point (the grid truncates it there, so
+  // its mean is not the posterior's; notes: "not moved to the posterior mean").
   // false = the rounds' positions (the covariance as above, about them).
   bool basin_mean_shift = false;
 
