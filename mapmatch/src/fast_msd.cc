@@ -169,12 +169,18 @@ void MapHessian(const GeoGrid& grid, std::size_t layer, double lat_deg, double l
   *h_ln = (f(i + 1, j + 1) - f(i + 1, j - 1) - f(i - 1, j + 1) + f(i - 1, j - 1)) / (4.0 * la.step_deg * lo.step_deg);
 }
 
+// basin_mean_shift's move of each point (deg, (lat, lon)), empty = none, and the points the score is over.
+struct MeanShift {
+  std::vector<Eigen::Vector2d> d;
+  std::vector<char> scored;
+};
+
 // The rounds (and the robust refit) from one start path; `r` carries the
-// counts so far.
+// counts so far; `mean_shift` (may be null) receives basin_mean_shift's move.
 MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path, const FastMsdOptions& options,
                   const std::vector<std::size_t>& finite, std::vector<char> usable,
                   const internal::RobustSpread& readings, const std::vector<double>& start_lat,
-                  const std::vector<double>& start_lon, MatchResult r) {
+                  const std::vector<double>& start_lon, MatchResult r, MeanShift* mean_shift) {
   const std::size_t n = path.size();
   std::vector<double> ref_lat = start_lat, ref_lon = start_lon;
   // The rounds from the start with the points of `use` (returns whether every round converged).
@@ -338,7 +344,7 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     r.cov_lat_lon = c.lat_lon;
     r.cov_lon_lon = c.lon_lon;
     // The other basins (fast_msd_basins.h): the posterior mass outside each point's published basin.
-    int basin_points = 0, shifted_points = 0;
+    int basin_points = 0;
     double max_edge_mass = 0.0;
     if (options.basin_half_width_deg > 0.0 && c.tau2_deg2 > 0.0 && c.curvature_limited.size() == n) {
       // At most kMaxBasinRadius offsets each side (the grid's memory and time grow as its square): a wider
@@ -358,20 +364,15 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
           grid, layer, r.lat_deg, r.lon_deg, path.measured_nT, final_lin.data, e_lat, e_lon, cov, c.s2_nT2,
           map_var, c.tau2_deg2, cap, step, radius);
       for (double x : bs.edge_mass) max_edge_mass = std::max(max_edge_mass, x);
-      // The mean of a posterior the grid truncates is not the posterior's mean: no point moves when the
-      // mass on the grid's outermost ring reaches kMaxEdgeMass anywhere along the path (fast_msd.h).
-      const bool shift = options.basin_mean_shift && max_edge_mass < kMaxEdgeMass;
+      // The mixture's mean (applied by MatchFastMsd, after the ambiguity check). The mean of a posterior the
+      // grid truncates is not the posterior's mean: no point moves when the mass on the grid's outermost
+      // ring reaches kMaxEdgeMass anywhere along the path (fast_msd.h).
+      if (mean_shift != nullptr && options.basin_mean_shift && max_edge_mass < kMaxEdgeMass) {
+        mean_shift->d = bs.far_mean;
+        mean_shift->scored = final_lin.data;
+      }
       for (std::size_t i = 0; i < n; ++i) {
         Eigen::Matrix2d m = cov[i] + bs.far_moment[i];
-        if (shift) {
-          // The mixture's mean: the published point moves by the outside mass's first moment, and the
-          // second moment is taken about the moved point (C + S − d̄ d̄ᵀ ⪰ C, fast_msd.h).
-          const Eigen::Vector2d& d = bs.far_mean[i];
-          r.lat_deg[i] += d(0);
-          r.lon_deg[i] += d(1);
-          m -= d * d.transpose();
-          if (d.squaredNorm() > 0.0) ++shifted_points;
-        }
         internal::CapAtPrior(&m, prior_var);
         r.cov_lat_lat[i] = m(0, 0);
         r.cov_lat_lon[i] = m(0, 1);
@@ -391,18 +392,6 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     }
     if (basin_points > 0) {
       r.notes += "; other basins hold > 5 % of the posterior at " + std::to_string(basin_points) + " points";
-    }
-    if (shifted_points > 0) {
-      // The score at the published (moved) points.
-      sum2 = 0.0;
-      for (std::size_t p = 0; p < n; ++p) {
-        if (!final_lin.data[p]) continue;
-        if (const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p])) {
-          const double d = s->value_nT - path.measured_nT[p];
-          sum2 += d * d;
-        }
-      }
-      r.notes += "; moved to the posterior mean at " + std::to_string(shifted_points) + " points";
     }
     if (options.basin_mean_shift && max_edge_mass >= kMaxEdgeMass) {
       r.notes += "; not moved to the posterior mean: its mass on the offset grid's edge reaches " +
@@ -458,7 +447,9 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
     start_lon = c.lon_deg;
     r.notes = "coarse stage: " + c.notes + (c.converged ? "" : " (" + c.reason + ")");
   }
-  MatchResult best = Refine(grid, layer, path, options, finite, usable, readings, start_lat, start_lon, r);
+  MeanShift mean_shift;
+  MatchResult best =
+      Refine(grid, layer, path, options, finite, usable, readings, start_lat, start_lon, r, &mean_shift);
   // Ambiguity: the coarse surface's second minimum (at least the separation
   // away) is not clearly worse than its best. Then the answer may be the wrong
   // peak: not converged, and the covariance covers both refined paths.
@@ -471,7 +462,7 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
       lat2[p] += peaks.found[1].shift_lat_deg;
       lon2[p] += peaks.found[1].shift_lon_deg;
     }
-    other = Refine(grid, layer, path, options, finite, usable, readings, lat2, lon2, r);
+    other = Refine(grid, layer, path, options, finite, usable, readings, lat2, lon2, r, nullptr);
     // The two refined paths, told apart by the best's covariance: the mean over
     // the points of dᵀ Σ⁻¹ d (d = other − best). Below the 99 % point of χ²(2)
     // the second minimum led to the same answer (a neighbour in the same basin).
@@ -511,6 +502,32 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
     best.converged = false;
   } else if (peaks.found.size() >= 2 && other.lat_deg.empty()) {
     best.notes += "; second coarse minimum " + FormatNumber(peaks.found[1].score / peaks.found[0].score) + "x the best";
+  }
+  // basin_mean_shift (fast_msd.h): each point to the mean of the other-basins mixture, its covariance the
+  // mixture's second moment about it (C + S − d dᵀ); not when ambiguous (the covariance covers the second
+  // peak's refined path about the published one, as before).
+  if (!ambiguous && mean_shift.d.size() == path.size() && best.cov_lat_lat.size() == path.size()) {
+    int moved = 0;
+    double sum2 = 0.0;
+    int on = 0;
+    for (std::size_t p = 0; p < path.size(); ++p) {
+      const Eigen::Vector2d& d = mean_shift.d[p];
+      if (d.squaredNorm() > 0.0) ++moved;
+      if (!grid.Contains(best.lat_deg[p], best.lon_deg[p])) --best.points_off_map;
+      best.lat_deg[p] += d(0);
+      best.lon_deg[p] += d(1);
+      best.cov_lat_lat[p] -= d(0) * d(0);
+      best.cov_lat_lon[p] -= d(0) * d(1);
+      best.cov_lon_lon[p] -= d(1) * d(1);
+      if (!grid.Contains(best.lat_deg[p], best.lon_deg[p])) ++best.points_off_map;
+      if (!mean_shift.scored[p]) continue;
+      if (const auto s = grid.Sample(layer, best.lat_deg[p], best.lon_deg[p])) {
+        sum2 += (s->value_nT - path.measured_nT[p]) * (s->value_nT - path.measured_nT[p]);
+        ++on;
+      }
+    }
+    if (on > 0) best.score = sum2 / on;  // at the published (moved) points
+    best.notes += "; moved to the posterior mean at " + std::to_string(moved) + " points";
   }
   return best;
 }
