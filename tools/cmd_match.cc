@@ -25,6 +25,7 @@ struct MatchArgs {
   std::string diagnostics;  // pf, afpf: per-step CSV
   bool icp_3d = false;
   bool no_map_error = false;
+  bool no_basin_mean_shift = false;
   double outlier_sigmas = 5.0;
   double search_window_deg = 0.0;  // 0 = not given
   mapmatch::MatchOptions options;
@@ -89,6 +90,7 @@ void RunMatch(MatchArgs a) {
   a.options.fast_msd.search_window_deg = a.search_window_deg;  // 0: no coarse stage
   a.options.icp.planar_motion = !a.icp_3d;
   a.options.fast_msd.map_error_in_covariance = !a.no_map_error;
+  if (a.no_basin_mean_shift) a.options.fast_msd.basin_mean_shift = false;
   a.options.fast_msd.solver = a.solver == "direct" ? mapmatch::FastMsdSolver::kDirect : mapmatch::FastMsdSolver::kJacobi;
   // NGDC-style whitespace text ("lon lat value") by its extension, else CSV.
   const mapmatch::GeoGrid grid = mapmatch::ReadGeoGridFile(a.map, {a.value_column});
@@ -221,7 +223,11 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--basin-half-width", o.fast_msd.basin_half_width_deg,
                   "fast-msd: half width (deg) of the offset grid whose posterior (forward-backward along the path) "
                   "adds the other basins' spread to each point's covariance; 0 = off (the linearised basin only); "
-                  "positions are the same either way");
+                  "0 also turns off the basin mean shift (--no-basin-mean-shift)");
+  cmd->add_flag("--no-basin-mean-shift", args->no_basin_mean_shift,
+                "fast-msd: keep the rounds' positions (by default each point moves to the mean of the other-basins "
+                "posterior, the published basin's mass at the rounds' position, unless the result is ambiguous or "
+                "that posterior reaches the offset grid's edge; the covariance is taken about the published point)");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "
