@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_overtaking/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/ and fresh_farsrc/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_overtaking/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/ and fresh_farsrc2/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -178,6 +178,9 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"drift_3", "drift_6"}) files.push_back({"fresh_ghost", name, "drift"});
   for (const char* name : {"far_ship_110", "far_ship_150", "far_ship_190"}) files.push_back({"fresh_farsrc", name, "far_ship"});
   for (const char* name : {"far_ship_120", "far_ship_170"}) files.push_back({"fresh_ghost2", name, "far_ship"});
+  for (const char* name : {"far_ship_105", "far_ship_147", "far_ship_160", "far_ship_185"}) {
+    files.push_back({"fresh_farsrc2", name, "far_ship"});
+  }
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});

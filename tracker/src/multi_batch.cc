@@ -233,7 +233,7 @@ void TrimOutOfReach(const std::vector<Epoch>& epochs, const MultiTrackerOptions&
 std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                                 const MultiTrackerOptions& options,
                                                 const std::vector<DipoleFix>* fixes,
-                                                const BatchProgress& progress) {
+                                                const BatchProgress& progress, MultiSummary* finder_summary) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("multi-tracker options: " + why);
   // 1. The causal pass finds the vessels.
@@ -276,6 +276,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     if (progress) progress("finding tracks", static_cast<std::size_t>(&e - epochs.data()) + 1, epochs.size());
   }
   take(finder.Flush());
+  if (finder_summary != nullptr) *finder_summary = finder.summary();
   std::vector<MultiTrackEstimate> result;
   // Each track's span: its window estimates'; a track that ended because its
   // sensors stopped fitting it (an untracked vessel came, or it was lost)

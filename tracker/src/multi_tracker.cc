@@ -102,6 +102,7 @@ std::string MultiSummary::BriefReport() const {
     << " ended, " << num_tentative_dropped << " tentative dropped, " << num_starts_refused
     << " starts refused (too close to a track)";
   if (num_rejected_samples > 0) o << ", " << num_rejected_samples << " bad samples left out";
+  if (far_source_enabled) o << "; " << far_source.BriefReport();
   return o.str();
 }
 
@@ -435,6 +436,7 @@ struct MultiTracker::Impl {
     }
     far.AddEpoch(raw.t_s, used, sensors);
     far.StepIfDue(raw.t_s);
+    summary.far_source = far.stats();
   }
 
   // Each sensor's background takes the raw sample minus every live track's
@@ -1164,6 +1166,7 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   impl_->background = SensorBackgrounds(B0_W, options.background);
   impl_->cluster = internal::WindowClusterBackground(B0_W, options);
   impl_->far = FarSourceEstimator(options.far_source);
+  impl_->summary.far_source_enabled = options.far_source.enabled;
 }
 
 MultiTracker::~MultiTracker() = default;
@@ -1456,6 +1459,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.background = SensorBackgrounds(m.B0_W, m.options.background);
   m.background.RestoreState(r);
   m.far = FarSourceEstimator(m.options.far_source);  // not in the checkpoint: fitted again
+  m.summary.far_source_enabled = m.options.far_source.enabled;
+  m.summary.far_source = {};
   m.cluster = internal::WindowClusterBackground(m.B0_W, m.options);
   if (m.cluster.enabled()) {
     m.cluster.RestoreState(r);

@@ -26,6 +26,8 @@ struct TrackerFlags {
   // auto: the library default (on) unless a background model is chosen, with
   // which it is exclusive.
   std::string far_source = "auto";
+  std::string far_grid_when_refused = "on";
+  std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
@@ -191,6 +193,21 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--far-share", fs.model_share,
                  "far source: its removed B taken as uncertain by this share of its norm (added to sigma_B)")
       ->capture_default_str();
+  app.add_option("--far-max-interval", fs.max_interval_s,
+                 "far source: while its fits are refused (no ship-like source), the interval to the next fit doubles "
+                 "up to this, s (1 = a fit every second, no back-off)")
+      ->capture_default_str();
+  app.add_option("--far-along", fs.along_extent_m,
+                 "far source: its start grid's along-line positions reach this far from the line's closest point, m")
+      ->capture_default_str();
+  app.add_option("--far-grid-when-refused", f->far_grid_when_refused,
+                 "far source: after a refused fit, search the start grid again (on) or only when the previous fit "
+                 "no longer fits (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--far-loss", f->far_loss,
+                 "far source: the fit's robust loss on the whitened B residual (cauchy, huber or trivial)")
+      ->capture_default_str();
 }
 
 // The options the flags give. Throws InputError naming the flag for a bad
@@ -211,6 +228,10 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.far_source.enabled = f.far_source == "auto"
                             ? tracker::FarSourceOptions{}.enabled && !o.background.enabled && !o.cluster_background.enabled
                             : f.far_source == "on";
+  o.far_source.grid_when_refused = f.far_grid_when_refused == "on";
+  if (!tracker::ParseLossType(f.far_loss, &o.far_source.loss)) {
+    throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");
+  }
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals

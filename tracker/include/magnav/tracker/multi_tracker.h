@@ -398,6 +398,11 @@ struct MultiSummary {
   int num_clusters = 0;
   int num_cluster_tracks = 0;
   int max_cluster_tracks = 0;
+  // The far source (far_source.h), when on: its fits accepted and refused,
+  // the time its B was removed, its position at the last accepted fit. Not
+  // in the checkpoint (nor is its fit): counted again after a restart.
+  bool far_source_enabled = false;
+  FarSourceStats far_source;
   std::string BriefReport() const;
 };
 
@@ -492,12 +497,14 @@ struct MultiTrackEstimate {
 // vessel was found. `progress`, if given, is called from the calling thread
 // after every epoch of the window pass ("finding tracks", epochs done, of
 // all) and before each track's refinement ("refining track N, round R", 0,
-// 0): a long pass can say how far it is (magnav track).
+// 0): a long pass can say how far it is (magnav track). `finder_summary`, if
+// given, gets the causal pass's summary (its far source's activity).
 using BatchProgress = std::function<void(const std::string& stage, std::size_t done, std::size_t total)>;
 std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                                 const MultiTrackerOptions& options,
                                                 const std::vector<DipoleFix>* fixes = nullptr,
-                                                const BatchProgress& progress = {});
+                                                const BatchProgress& progress = {},
+                                                MultiSummary* finder_summary = nullptr);
 
 // Predicted field of a dipole vessel at a sensor (T, T/m).
 void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2, const Eigen::Vector3d& p_SinW,
