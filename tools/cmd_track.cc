@@ -288,6 +288,10 @@ void AddTrackCommand(CLI::App& app) {
                   "batch: also restart each track's solve from the window track that found it, kept if it ends at a "
                   "lower cost (0/1)")
       ->capture_default_str();
+  cmd->add_option("--batch-weak-init", args->flags.options.batch_weak_init,
+                  "batch: a track too weak for the field's start SNR (started in the residual) is initialised at "
+                  "the residual start's SNR (--residual-start-snr) and refined; 0: it keeps its window rows (0/1)")
+      ->capture_default_str();
   cmd->add_option("--batch-turn-loss-scale", args->flags.options.batch_turn_loss_scale_sigma,
                   "batch: Cauchy scale of the turn-rate changes in each track's solve, in sigmas of one step (0 = "
                   "--turn-loss-scale, as the window)")

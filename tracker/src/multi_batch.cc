@@ -329,6 +329,10 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   if (options.batch_turn_loss_scale_sigma > 0.0) {
     topt.process.turn_rate_loss_scale_sigma = options.batch_turn_loss_scale_sigma;
   }
+  // A track the field's start SNR cannot initialise (batch_weak_init).
+  const bool weak_init = options.batch_weak_init && options.management.residual_start.tensor_snr > 0.0 &&
+                         options.management.residual_start.tensor_snr < topt.init.min_tensor_snr;
+  const TrackerOptions weak_topt = ResidualStartTrackerOptions(topt, options.management.residual_start);
   bool grew = true;
   const int max_rounds = std::max(options.batch_rounds, MultiTrackerOptions::kMaxBatchRounds);
   for (int round = 0; round < max_rounds && (round < options.batch_rounds || grew); ++round) {
@@ -441,6 +445,12 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
         starts.push_back([path, max_gap](double t) { return path->At(t, max_gap); });
       }
       TrackEstimate est = SolveBatch(mine, B0_W, topt, &track_fixes, &starts);
+      if (!est.summary.initialized && weak_init) {
+        // Too few fixes at the field's start SNR: a vessel started in the
+        // residual (batch_weak_init).
+        est = SolveBatch(mine, B0_W, weak_topt, &track_fixes, &starts);
+        if (est.summary.initialized) est.summary.message += " (initialised at the residual start's SNR)";
+      }
       const bool ok = est.summary.initialized && est.summary.usable &&
                       std::any_of(est.epochs.begin(), est.epochs.end(), [](const EpochEstimate& e) { return e.usable; });
       if (ok) {

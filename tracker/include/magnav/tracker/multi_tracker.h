@@ -288,6 +288,19 @@ struct MultiTrackerOptions {
   // which re-solves its turn rate as the data come, is a start from another
   // basin than the batch's own turn-rate restarts.
   bool batch_restart_from_window = true;
+  // Batch: a track whose solve finds too few fixes at the field's start SNR
+  // (track.init.min_tensor_snr, 20) to initialise — a vessel started in the
+  // residual beside its neighbour (management.residual_start), whose tensor
+  // never reaches 20 — is initialised again at the residual start's SNR
+  // (ResidualStartTrackerOptions, 10), from the fixes its window track
+  // gives (only its initialisation changes), and refined over its own
+  // samples as any track: each round with the neighbour's refined field
+  // removed, the neighbour's with its own (the rounds alternate, so the two
+  // overlapping fields are fitted together), its span grown over every
+  // epoch where it is seen. Off (or residual start off): such a track keeps
+  // its window estimates, and its window field is what the neighbour's
+  // refinement removes.
+  bool batch_weak_init = true;
   // Batch: the Cauchy scale of the turn-rate changes in each track's solve,
   // in σ of one step (0 = track.process.turn_rate_loss_scale_sigma, 2, as
   // the window and the single-target SolveBatch). A 0.015 rad/s onset under
