@@ -325,6 +325,27 @@ void Filter::PublishCovariance(StepDiagnostics* d) const {
 
 }  // namespace internal
 
+StepStatus StatusOf(const StepDiagnostics& d) {
+  return d.lost                                ? StepStatus::kLost
+         : d.update == StepUpdate::kAllOffMap ? StepStatus::kOffMap
+         : d.converging                        ? StepStatus::kConverging
+                                               : StepStatus::kOk;
+}
+
+const char* StepStatusName(StepStatus s) {
+  switch (s) {
+    case StepStatus::kOk:
+      return "ok";
+    case StepStatus::kConverging:
+      return "converging";
+    case StepStatus::kLost:
+      return "lost";
+    case StepStatus::kOffMap:
+      return "off_map";
+  }
+  return "?";
+}
+
 MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
                                 const MatchPath& path, const ParticleFilterOptions& options,
                                 std::vector<StepDiagnostics>* steps) {
@@ -383,7 +404,9 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   // dense readings only, like the cap rule: the reference and held-out paths keep their status.
   const double slide_chi2 = slide.Chi2();
   const bool slid = filter->counters().spaced > 0 && slide_chi2 > options.offset_slide_chi2;
-  r.converged = !filter->lost() && !unsettled && off_at_end == 0 && !sigma_capped && !slid;
+  // A filter converging at the last step (settle_updates) has not settled: never "converged".
+  const bool converging = filter->last().converging;
+  r.converged = !filter->lost() && !unsettled && off_at_end == 0 && !sigma_capped && !slid && !converging;
   if (off_at_end > 0 && !filter->lost()) {
     r.reason = "off the map at the end: every particle off the map for the last " +
                std::to_string(off_at_end) + " step(s)" +
@@ -411,6 +434,13 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                               : "") +
                          (options.track_check_window > 0 ? ", or the track check" : "") +
                          (options.subclouds > 1 ? ", or the sub-clouds disagree" : "") + ")";
+  } else if (converging) {
+    const StepDiagnostics& e = filter->last();
+    r.reason = "converging at the end: the cloud's 1-sigma spread " +
+               FormatNumber(std::round(std::sqrt(e.cloud_cov_lat_lat + e.cloud_cov_lon_lon) * 1e5) / 1e5) +
+               " deg, settled below " + FormatNumber(options.settled_sigma_deg) + " deg for fewer than " +
+               std::to_string(options.settle_updates) + " updates (" + std::to_string(c.converging_steps) +
+               " converging steps in the run)";
   } else if (sigma_capped) {
     r.reason = "innovations beyond the likelihood's cap: sigma at afpf_max_sigma_nT (" +
                FormatNumber(options.afpf_max_sigma_nT) + " nT) in " + std::to_string(capped) + " of the last " +
@@ -441,7 +471,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                  : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", INS glitches " + std::to_string(c.ins_glitches) +
-            ", lost steps " + std::to_string(c.lost_steps) + ", bias-test alarms " +
+            ", lost steps " + std::to_string(c.lost_steps) + ", converging steps " +
+            std::to_string(c.converging_steps) + ", bias-test alarms " +
             std::to_string(c.bias_test_failures) + ", innovation-CUSUM alarms " +
             std::to_string(c.innovation_cusum_alarms) +
             ", reinitialisations " + std::to_string(c.reinitialisations) +
