@@ -20,10 +20,22 @@ MapFixRecord ToRecord(const mapmatch::StepDiagnostics& d, mapmatch::ParticleFilt
   r.score = d.ess;
   const auto cov = mapmatch::CovarianceNorthEast_m2(d);
   r.cov_ne_m2 << cov[0], cov[1], cov[2], cov[3];
-  r.status = d.lost                                         ? MapFixStatus::kLost
-             : d.update == mapmatch::StepUpdate::kAllOffMap ? MapFixStatus::kOffMap
-             : d.partly_observable                          ? MapFixStatus::kPartlyObservable
-                                                            : MapFixStatus::kOk;
+  // The filter's status (particle_filter.h StatusOf: lost, off the map, converging, ok); the matcher's
+  // partly observable only where the filter says ok.
+  switch (mapmatch::StatusOf(d)) {
+    case mapmatch::StepStatus::kLost:
+      r.status = MapFixStatus::kLost;
+      break;
+    case mapmatch::StepStatus::kOffMap:
+      r.status = MapFixStatus::kOffMap;
+      break;
+    case mapmatch::StepStatus::kConverging:
+      r.status = MapFixStatus::kConverging;
+      break;
+    case mapmatch::StepStatus::kOk:
+      r.status = d.partly_observable ? MapFixStatus::kPartlyObservable : MapFixStatus::kOk;
+      break;
+  }
   return r;
 }
 

@@ -124,9 +124,11 @@ void ReplayedRunsFixesEqualTheOfflineFilters(const char* stock_qos) {
     EXPECT_EQ(t.number(r, t.column("lon")), d.lon_deg);
     EXPECT_EQ(t.number(r, t.column("score")), d.ess);
     EXPECT_EQ(t.number(r, t.column("cov_nn")), CovarianceNorthEast_m2(d)[0]);
-    // The appended status: the offline filter's own lost / off-map state at that step.
-    EXPECT_EQ(t.text(r, t.column("status")),
-              d.lost ? "lost" : d.update == StepUpdate::kAllOffMap ? "off_map" : "ok");
+    // The appended status: the offline filter's own lost / off-map / converging state at that step.
+    EXPECT_EQ(t.text(r, t.column("status")), d.lost                                 ? "lost"
+                                             : d.update == StepUpdate::kAllOffMap ? "off_map"
+                                             : d.converging                        ? "converging"
+                                                                                   : "ok");
   }
 }
 
@@ -149,6 +151,8 @@ TEST(MatcherService, FixCarriesItsMethodAndStatus) {
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_LOST);
   d.lost = false;
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+  d.converging = true;  // appended (issue 25): a filter not settled yet
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kPf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_CONVERGING);
   // A default-constructed message (a publisher older than the field) says "unknown".
   EXPECT_EQ(dds::msg::MapFix().status(), dds::msg::MAP_FIX_STATUS_UNKNOWN);
 }
