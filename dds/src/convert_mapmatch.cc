@@ -20,22 +20,15 @@ MapFixRecord ToRecord(const mapmatch::StepDiagnostics& d, mapmatch::ParticleFilt
   r.score = d.ess;
   const auto cov = mapmatch::CovarianceNorthEast_m2(d);
   r.cov_ne_m2 << cov[0], cov[1], cov[2], cov[3];
-  // The filter's status (particle_filter.h StatusOf: lost, off the map, converging, ok); the matcher's
-  // partly observable only where the filter says ok.
-  switch (mapmatch::StatusOf(d)) {
-    case mapmatch::StepStatus::kLost:
-      r.status = MapFixStatus::kLost;
-      break;
-    case mapmatch::StepStatus::kOffMap:
-      r.status = MapFixStatus::kOffMap;
-      break;
-    case mapmatch::StepStatus::kConverging:
-      r.status = MapFixStatus::kConverging;
-      break;
-    case mapmatch::StepStatus::kOk:
-      r.status = d.partly_observable ? MapFixStatus::kPartlyObservable : MapFixStatus::kOk;
-      break;
-  }
+  // Lost, off the map, partly observable (the matcher's review of the map, its covariance floored), then the
+  // filter's converging (particle_filter.h StatusOf), else ok: CONVERGING (appended, issue 25) takes only
+  // what was OK before, so the earlier values keep their meaning.
+  const mapmatch::StepStatus s = mapmatch::StatusOf(d);
+  r.status = s == mapmatch::StepStatus::kLost     ? MapFixStatus::kLost
+             : s == mapmatch::StepStatus::kOffMap ? MapFixStatus::kOffMap
+             : d.partly_observable                ? MapFixStatus::kPartlyObservable
+             : s == mapmatch::StepStatus::kConverging ? MapFixStatus::kConverging
+                                                      : MapFixStatus::kOk;
   return r;
 }
 

@@ -67,10 +67,10 @@ using dds::InsNavMsg;
 // The fix (dds/convert_mapmatch.h, magnav::dds_mapmatch): method METHOD_PF / METHOD_AFPF, method_name
 // "pf"/"afpf", score = ESS, covariance (north, east) m², status LOST while the filter's lost-track detector
 // is raised (StepDiagnostics::lost), OFF_MAP when every particle was off the map at this step, else
-// CONVERGING while the filter has not settled (StepDiagnostics::converging, settle_updates), else
 // PARTLY_OBSERVABLE when the map knows less than the prior along its least observed direction at this step
 // (MatcherNodeOptions::observability; the published covariance then raised along that direction to what the
-// map and the prior can know, FloorAlongLeastKnown in deg² before the conversion to m² north/east), else OK.
+// map and the prior can know, FloorAlongLeastKnown in deg² before the conversion to m² north/east), else
+// CONVERGING while the filter has not settled (StepDiagnostics::converging, settle_updates), else OK.
 using dds::ToMsg;
 
 class MatcherNode {

@@ -359,7 +359,9 @@ TEST(DdsConvert, MatcherStepOnTheWire) {
   EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_OFF_MAP);
   d.update = mapmatch::StepUpdate::kUpdated;
   EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
-  d.converging = true;  // converging (appended, issue 25) outranks partly observable
+  d.converging = true;  // partly observable outranks converging (appended, issue 25: it takes only what was ok)
+  EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+  d.partly_observable = false;
   EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_CONVERGING);
   EXPECT_EQ(RecordOf(ToMsg(d, mapmatch::ParticleFilterKind::kPf, 1, kStamp)).status, MapFixStatus::kConverging);
   d.update = mapmatch::StepUpdate::kAllOffMap;  // off the map outranks converging

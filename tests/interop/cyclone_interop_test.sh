@@ -23,7 +23,7 @@
 #                    at every step); cyclone_peer and `magnav record` take the
 #                    fixes: the stock reader gets every status magnav's own
 #                    reader gets, MAP_FIX_STATUS_CONVERGING (5, appended in
-#                    issue 25) among them while the cloud settles, then OK.
+#                    issue 25) among them while the cloud settles, and OK.
 #   startup          The start-up race of issue 14, repeated: a Cyclone reader
 #                    started 0.2 s before `magnav replay --wait-readers 1` of a
 #                    50-sample file, $MAGNAV_INTEROP_RUNS times (default 20):
@@ -139,7 +139,6 @@ map_fix_status)
   echo "statuses received by the Cyclone reader: $converging converging (5), $ok ok (1), of $N"
   [ "$converging" -ge 1 ] || fail "no MAP_FIX_STATUS_CONVERGING reached the Cyclone reader"
   [ "$ok" -ge 1 ] || fail "no MAP_FIX_STATUS_OK reached the Cyclone reader"
-  [ "$(head -1 "$WORK/peer_status")" = 5 ] || fail "the first fix is not CONVERGING"
   echo "ok: magnav-matcher -> Cyclone: every MapFix status as magnav reads it, CONVERGING (5) included"
   ;;
 startup)

@@ -151,7 +151,9 @@ TEST(MatcherService, FixCarriesItsMethodAndStatus) {
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_LOST);
   d.lost = false;
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
-  d.converging = true;  // appended (issue 25): a filter not settled yet
+  d.converging = true;  // appended (issue 25): a filter not settled yet, where it would otherwise say ok
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kPf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+  d.partly_observable = false;
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kPf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_CONVERGING);
   // A default-constructed message (a publisher older than the field) says "unknown".
   EXPECT_EQ(dds::msg::MapFix().status(), dds::msg::MAP_FIX_STATUS_UNKNOWN);
