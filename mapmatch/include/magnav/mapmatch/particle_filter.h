@@ -391,8 +391,8 @@ struct ParticleFilterOptions {
   // place says nothing of the error (issue 25 item 4; docs/ACCURACY.md).
   bool lost_covariance_is_prior = true;
   // The offset-slide test (issue 25 item 3, "no converged that is not"; docs/ACCURACY.md, "Dense
-  // readings III"): a status rule of MatchParticleFilter (`magnav match`'s summary), flag only — the
-  // estimates and the per-step lost flags are unchanged; magnav-matcher does not use it. The
+  // readings III"): a status rule of RunStatus (run_status.h: `magnav match`'s summary and
+  // magnav-matcher's fixes), flag only — the estimates and the per-step lost flags are unchanged. The
   // particles move with the INS increments plus the drift noise, so the estimate's offset from the
   // INS, Δ_k = x̂_k − ins_k, changes between two steps by the drift the filter's own model allows
   // plus the change of its cloud. Over the last offset_slide_updates updates (from the step of the
@@ -508,6 +508,12 @@ struct Particle {
 // kSpaced: the reading left out, the INS has moved less than min_update_spacing_m since the last one used.
 enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap, kOutlier, kSpaced };
 
+// The status of a run as of a step (RunStatus, run_status.h, says which rule each names).
+enum class RunVerdict { kConverged, kLost, kOffMap, kSigmaCapped, kSlid, kUnsettled, kImplausible, kNonFinite, kConverging };
+// "converged", "lost", "off_map", "sigma_capped", "slid", "unsettled", "implausible", "non_finite",
+// "converging".
+const char* RunVerdictName(RunVerdict v);
+
 // Diagnostics after one step.
 struct StepDiagnostics {
   double lat_deg = 0.0, lon_deg = 0.0;                    // weighted mean
@@ -555,6 +561,9 @@ struct StepDiagnostics {
   // at this step (StepObservability, observability.h; set by magnav-matcher,
   // which then floors cov_* there; the filters and Match leave it false).
   bool partly_observable = false;
+  // The run's status as of this step, had it ended here (RunStatus, run_status.h: set by
+  // MatchParticleFilter and magnav-matcher, the same rules; the filters leave kConverged).
+  RunVerdict run_status = RunVerdict::kConverged;
 };
 
 // A step's status as published (`magnav match`'s `status` column, magnav-matcher's MapFix.status):
@@ -601,13 +610,15 @@ std::unique_ptr<SequentialMatcher> MakeParticleFilter(ParticleFilterKind kind, c
 // half or more of its last 40 updates (the innovations beyond the largest
 // noise it allows; docs/ACCURACY.md, "Dense readings II"), and for both filters on
 // dense readings the estimate not slid against the INS beyond the drift model and
-// the cloud (offset_slide_updates, offset_slide_chi2; "Dense readings III"), and for both filters
-// not converging at the last step (settle_updates: a filter that has not settled never says
-// "converged"); points_used =
+// the cloud (offset_slide_updates, offset_slide_chi2; "Dense readings III"), no estimate
+// further from its INS position than max_correction_deg (0 = 2 × prior_half_width_deg), and not
+// converging at the last step (settle_updates: a filter that has not settled never says
+// "converged"): the rules of RunStatus (run_status.h), which magnav-matcher applies at every fix;
+// points_used =
 // updates; off map = all-off-map steps.
-// `steps` (optional) receives every step's diagnostics.
+// `steps` (optional) receives every step's diagnostics, run_status the run's status as of it.
 MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
                                 const MatchPath& path, const ParticleFilterOptions& options,
-                                std::vector<StepDiagnostics>* steps = nullptr);
+                                std::vector<StepDiagnostics>* steps = nullptr, double max_correction_deg = 0.0);
 
 }  // namespace magnav::mapmatch
