@@ -55,10 +55,12 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost", "bias_nT", "bias_sigma_nT",
                "sigma_nT", "likelihood_exponent", "track_check_chi2", "innovation_nT", "predicted_spread_nT", "innovation_bias_chi2",
                "reacquiring", "cloud_cov_lat_lat", "cloud_cov_lat_lon", "cloud_cov_lon_lon", "track_check_failed",
-               "subcloud_chi2", "subclouds_disagree", "innovation_cusum", "ins_step_ratio", "ins_glitch", "run_status"},
+               "subcloud_chi2", "subclouds_disagree", "innovation_cusum", "ins_step_ratio", "ins_glitch", "run_status",
+               "converging", "status"},
               {{"frame", "estimate lat/lon deg, covariance deg^2 (published; cloud_cov_*: the cloud's own; particle_filter.h StepDiagnostics)"},
                {"run_status", "the run's status had it ended at this step (run_status.h; magnav-matcher publishes it: converged = ok, "
-                              "off_map = off_map, any other = lost)"}});
+                              "off_map = off_map, converging = converging, any other = lost)"},
+               {"status", "the step's own status (particle_filter.h StatusOf: ok, converging, lost, off_map)"}});
   for (std::size_t p = 0; p < steps.size(); ++p) {
     const mapmatch::StepDiagnostics& d = steps[p];
     w.WriteRow({std::to_string(path.k[p]), FormatNumber(d.lat_deg), FormatNumber(d.lon_deg),
@@ -72,7 +74,8 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                 FormatNumber(d.cloud_cov_lat_lat), FormatNumber(d.cloud_cov_lat_lon), FormatNumber(d.cloud_cov_lon_lon),
                 d.track_check_failed ? "1" : "0", FormatNumber(d.subcloud_chi2), d.subclouds_disagree ? "1" : "0",
                 FormatNumber(d.innovation_cusum), FormatNumber(d.ins_step_ratio), d.ins_glitch ? "1" : "0",
-                mapmatch::RunVerdictName(d.run_status)});
+                mapmatch::RunVerdictName(d.run_status), d.converging ? "1" : "0",
+                mapmatch::StepStatusName(mapmatch::StatusOf(d))});
   }
   w.Close();
 }
@@ -126,6 +129,8 @@ void RunMatch(MatchArgs a) {
   const bool cov = r.cov_lat_lat.size() == path.size();
   std::vector<std::string> columns = {"k", "lat", "lon", "on_map"};
   if (cov) columns.insert(columns.end(), {"cov_lat_lat", "cov_lat_lon", "cov_lon_lon"});
+  // pf, afpf: each step's status (ok, converging, lost, off_map; particle_filter.h StatusOf), as MapFix.status.
+  if (filter) columns.push_back("status");
   CsvWriter w(a.output, columns,
               {{"map", a.map},
                {"value_column", a.value_column},
@@ -133,7 +138,8 @@ void RunMatch(MatchArgs a) {
                {"meas_column", a.meas_column},
                {"frame", std::string("matched position, latitude/longitude in degrees (WGS84); on_map 1 inside "
                                      "the map's grid") +
-                             (cov ? "; cov_* its covariance (lat, lon), deg^2" : "")},
+                             (cov ? "; cov_* its covariance (lat, lon), deg^2" : "") +
+                             (filter ? "; status the filter's at that step (ok, converging, lost, off_map)" : "")},
                {"off_map_points", std::to_string(off_map) + " of " + std::to_string(path.size())},
                {"summary", r.BriefReport()}});
   for (std::size_t p = 0; p < path.size(); ++p) {
@@ -141,6 +147,7 @@ void RunMatch(MatchArgs a) {
                                     FormatNumber(r.lon_deg[p]), on_map[p] ? "1" : "0"};
     if (cov) row.insert(row.end(), {FormatNumber(r.cov_lat_lat[p]), FormatNumber(r.cov_lat_lon[p]),
                                     FormatNumber(r.cov_lon_lon[p])});
+    if (filter) row.push_back(mapmatch::StepStatusName(mapmatch::StatusOf(steps[p])));
     w.WriteRow(row);
   }
   w.Close();

@@ -159,8 +159,12 @@ void MatcherNode::Drain() {
       StepDiagnostics fix = d;
       fix.run_status = status_.verdict();
       // Not converged by the run's rules (`magnav match` would say so): LOST on the wire (off_map
-      // is the step's own OFF_MAP; the filter's own lost is LOST already).
-      if (fix.run_status != RunVerdict::kConverged && fix.run_status != RunVerdict::kOffMap) fix.lost = true;
+      // is the step's own OFF_MAP; the filter's own lost is LOST already; converging is the step's
+      // own CONVERGING, not an alarm).
+      if (fix.run_status != RunVerdict::kConverged && fix.run_status != RunVerdict::kOffMap &&
+          fix.run_status != RunVerdict::kConverging) {
+        fix.lost = true;
+      }
       fix.partly_observable = observe_.partly_observable();
       if (fix.partly_observable) {
         Cov2 c{fix.cov_lat_lat, fix.cov_lat_lon, fix.cov_lon_lon};  // deg², floored before ToMsg's m² north/east

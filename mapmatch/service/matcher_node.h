@@ -73,12 +73,14 @@ using dds::InsNavMsg;
 // is raised (StepDiagnostics::lost), OFF_MAP when every particle was off the map at this step, else
 // PARTLY_OBSERVABLE when the map knows less than the prior along its least observed direction at this step
 // (MatcherNodeOptions::observability; the published covariance then raised along that direction to what the
-// map and the prior can know, FloorAlongLeastKnown in deg² before the conversion to m² north/east), else OK.
+// map and the prior can know, FloorAlongLeastKnown in deg² before the conversion to m² north/east), else
+// CONVERGING while the filter has not settled (StepDiagnostics::converging, settle_updates), else OK.
 // The run's status (RunStatus, run_status.h: the rules `magnav match` applies to a whole path, here at
 // every step: the AFPF's σ at its cap or the estimate sliding against the INS on dense readings, a lost
 // episode not yet settled, a correction beyond --max-correction, a non-finite estimate) makes a fix
-// that would otherwise be OK or PARTLY_OBSERVABLE LOST ("not converged" offline: do not use the
-// position; the position and covariance published are the filter's, as offline).
+// that would otherwise be OK, CONVERGING or PARTLY_OBSERVABLE LOST ("not converged" offline: do not use
+// the position; the position and covariance published are the filter's, as offline); its verdict
+// "converging" (the filter not settled) does not: that fix is CONVERGING.
 using dds::ToMsg;
 
 class MatcherNode {

@@ -325,6 +325,27 @@ void Filter::PublishCovariance(StepDiagnostics* d) const {
 
 }  // namespace internal
 
+StepStatus StatusOf(const StepDiagnostics& d) {
+  return d.lost                                ? StepStatus::kLost
+         : d.update == StepUpdate::kAllOffMap ? StepStatus::kOffMap
+         : d.converging                        ? StepStatus::kConverging
+                                               : StepStatus::kOk;
+}
+
+const char* StepStatusName(StepStatus s) {
+  switch (s) {
+    case StepStatus::kOk:
+      return "ok";
+    case StepStatus::kConverging:
+      return "converging";
+    case StepStatus::kLost:
+      return "lost";
+    case StepStatus::kOffMap:
+      return "off_map";
+  }
+  return "?";
+}
+
 MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
                                 const MatchPath& path, const ParticleFilterOptions& options,
                                 std::vector<StepDiagnostics>* steps, double max_correction_deg) {
@@ -374,7 +395,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                  : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", INS glitches " + std::to_string(c.ins_glitches) +
-            ", lost steps " + std::to_string(c.lost_steps) + ", bias-test alarms " +
+            ", lost steps " + std::to_string(c.lost_steps) + ", converging steps " +
+            std::to_string(c.converging_steps) + ", bias-test alarms " +
             std::to_string(c.bias_test_failures) + ", innovation-CUSUM alarms " +
             std::to_string(c.innovation_cusum_alarms) +
             ", reinitialisations " + std::to_string(c.reinitialisations) +

@@ -27,6 +27,8 @@ const char* RunVerdictName(RunVerdict v) {
       return "implausible";
     case RunVerdict::kNonFinite:
       return "non_finite";
+    case RunVerdict::kConverging:
+      return "converging";
   }
   return "?";
 }
@@ -46,6 +48,9 @@ void RunStatus::Add(double ins_lat, double ins_lon, const StepDiagnostics& d, co
   lost_ = d.lost;
   reacquiring_ = d.reacquiring;
   ins_glitch_ = d.ins_glitch;
+  converging_ = d.converging;
+  spread_deg_ = std::sqrt(d.cloud_cov_lat_lat + d.cloud_cov_lon_lon);
+  converging_steps_ = c.converging_steps;
   off_at_end_ = d.update == StepUpdate::kAllOffMap ? off_at_end_ + 1 : 0;
   if (d.update == StepUpdate::kUpdated && d.sigma_nT > 0.0) {
     const bool cap = d.sigma_nT >= o_.afpf_max_sigma_nT;
@@ -89,6 +94,8 @@ RunVerdict RunStatus::verdict() const {
   if (slid) return RunVerdict::kSlid;
   if (unsettled) return RunVerdict::kUnsettled;
   if (max_correction_deg_ > 0.0 && moved_deg_ > max_correction_deg_) return RunVerdict::kImplausible;
+  // A filter converging at this step (settle_updates) has not settled: never "converged".
+  if (converging_) return RunVerdict::kConverging;
   return RunVerdict::kConverged;
 }
 
@@ -142,6 +149,11 @@ std::string RunStatus::reason() const {
     case RunVerdict::kImplausible:
       return "implausible: moved a point " + FormatNumber(moved_deg_) + " deg, beyond the plausible correction of " +
              FormatNumber(max_correction_deg_) + " deg (max_correction_deg, --max-correction)";
+    case RunVerdict::kConverging:
+      return "converging at the end: the cloud's 1-sigma spread " +
+             FormatNumber(std::round(spread_deg_ * 1e5) / 1e5) + " deg, settled below " +
+             FormatNumber(options.settled_sigma_deg) + " deg for fewer than " + std::to_string(options.settle_updates) +
+             " updates (" + std::to_string(converging_steps_) + " converging steps in the run)";
     case RunVerdict::kConverged:
       if (first_lost_ >= 0) {
         return "lost from k = " + std::to_string(first_lost_) + ", last at k = " + std::to_string(last_lost_) +

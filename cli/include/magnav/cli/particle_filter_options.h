@@ -91,6 +91,9 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "afpf: lost while the innovation CUSUM g exceeds this (0 = off)");
   opt("--settled-sigma", &f->settled_sigma_deg,
       "pf, afpf: after a re-initialisation stay lost until the cloud's 1-sigma spread is below this, deg; 0 = off");
+  opt("--settle-updates", &f->settle_updates,
+      "pf, afpf: status 'converging' (not ok) until the cloud's 1-sigma spread has stayed below --settled-sigma "
+      "for this many updates in a row (from the start, after a re-initialisation or a widening); 0 = off");
   opt("--reinitialize-when-lost", &f->reinitialize_when_lost,
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   opt("--lost-covariance-is-prior", &f->lost_covariance_is_prior,

@@ -20,6 +20,10 @@
 //                 correction (max_correction_deg; 0 = 2 × prior_half_width_deg, as
 //                 PlausibleCorrectionDeg for pf/afpf; Match's ReviewResult makes the same check)
 //   non_finite    some estimate so far is not finite
+//   converging    the filter has not settled at this step (StepDiagnostics::converging,
+//                 settle_updates: its cloud still wider than settled_sigma_deg, or narrower for fewer
+//                 than settle_updates updates): not "converged", and not an alarm (magnav-matcher
+//                 publishes CONVERGING, not LOST)
 //   converged     none of these (a run that was lost and has been quiet since says so in reason())
 // Priority: non_finite, then as listed (off_map before lost only while the filter is not lost).
 // Units: deg as in particle_filter.h.
@@ -73,6 +77,9 @@ class RunStatus {
   long long first_lost_ = -1, last_lost_ = -1;
   std::size_t last_lost_step_ = 0, off_at_end_ = 0;
   bool lost_ = false, reacquiring_ = false, ins_glitch_ = false;
+  bool converging_ = false;  // the last step's StepDiagnostics::converging
+  double spread_deg_ = 0.0;  // the last step's cloud 1-σ spread (deg)
+  int converging_steps_ = 0;
   int spaced_ = 0;
   double moved_deg_ = 0.0;
   long long first_non_finite_ = -1;
