@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_overtaking/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/ and fresh_farsrc2/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_overtaking/, fresh_overtaking2/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/ and fresh_farsrc2/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -185,6 +185,9 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});
+  for (const char* name : {"overtaking_ne", "overtaking_n14", "overtaking_wsw19", "overtaking_e5"}) {
+    files.push_back({"fresh_overtaking2", name, "overtaking"});
+  }
   for (const auto& [set, file, kind] : files) {
     {
       SCOPED_TRACE(set + "/" + file);
@@ -248,7 +251,8 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         };
         EXPECT_LT(along(fa), along(same_t(fa.t_s)));
         EXPECT_GT(along(fb), along(same_t(fb.t_s)));
-        EXPECT_LE(closest_pair, 12.0);
+        // fresh_overtaking2 passes 5-20 m apart; the older sets 8-12 m.
+        EXPECT_LE(closest_pair, set == "fresh_overtaking2" ? 20.0 : 12.0);
       } else if (k == "far_ship") {
         ASSERT_EQ(f.truth.size(), 2u);
         // The ship passes 100–200 m off the grid (from its nearest sensor),

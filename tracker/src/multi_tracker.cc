@@ -725,8 +725,14 @@ struct MultiTracker::Impl {
       now.state = *pa;
       now.m_B_Am2 = a.engine->m_B_Am2();
       const std::vector<Epoch> epochs = RecentWithout(i, i);
-      const std::vector<InitialTrack> pair =
-          InitializeBeside(epochs, B0_W, options.track, now, mg().min_separation_m);
+      bool waiting = false;
+      const std::vector<InitialTrack> pair = InitializeBeside(epochs, B0_W, options.track, now, mg().min_separation_m,
+                                                              mg().confirm_tensor_snr, &waiting);
+      if (waiting && mg().excuse_beside) {
+        // A vessel beside it, too weak yet to start, spoils its fit: its
+        // misses are not its own (pair_beside.h).
+        a.life.ExcuseMisses();
+      }
       if (pair.size() != 2) continue;
       // The newcomer is not another live track.
       const CtState<double> b_now = PropagateCoordinatedTurn(pair[1].state, t - pair[1].t_ref_s);
