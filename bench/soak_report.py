@@ -102,7 +102,7 @@ def counts(out, hours, service):
     else:
         sent = 2 * rows(os.path.join(out, 'mappath_%sh.csv' % h))
         m = last_match(log, r'stopping after (\d+) vessel_nav \+ (\d+) magnetometer in, (\d+) steps \((\d+) updates.*'
-                            r', (\d+) lost steps\).* (\d+) fixes out')
+                            r', (\d+) lost steps[;)].* (\d+) fixes out')
         received = int(m.group(1)) + int(m.group(2)) if m else 0
         what = '%s steps, %s lost steps, %s fixes' % (m.group(3), m.group(5), m.group(6)) if m else '?'
     return sent, received, what

@@ -40,6 +40,9 @@ void FuzzConfig(const std::uint8_t* data, std::size_t size) {
   app.add_option("--vehicle-id", vehicle_id, "id");
   app.add_option("--sensor-id", sensor_id, "id");
   cli::AddParticleFilterOptions(app, &pf);
+  double max_correction_deg = 0.0;
+  cli::AddOutlierSigmasOption(app, &pf.outlier_sigmas);
+  cli::AddMaxCorrectionOption(app, &max_correction_deg);
   app.add_option("--stats-period", stats_period_s, "s");
   app.add_option("--domain", domain_id, "domain")->check(CLI::Range(0, 232));
   app.add_option("--dds-profiles", profiles, "file");

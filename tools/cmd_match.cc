@@ -25,6 +25,7 @@ struct MatchArgs {
   std::string diagnostics;  // pf, afpf: per-step CSV
   bool icp_3d = false;
   bool no_map_error = false;
+  bool no_basin_mean_shift = false;
   double outlier_sigmas = 5.0;
   double search_window_deg = 0.0;  // 0 = not given
   mapmatch::MatchOptions options;
@@ -54,8 +55,12 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                "occupied_cells", "nis", "resampled", "ins_jump", "update", "lost", "bias_nT", "bias_sigma_nT",
                "sigma_nT", "likelihood_exponent", "track_check_chi2", "innovation_nT", "predicted_spread_nT", "innovation_bias_chi2",
                "reacquiring", "cloud_cov_lat_lat", "cloud_cov_lat_lon", "cloud_cov_lon_lon", "track_check_failed",
-               "subcloud_chi2", "subclouds_disagree", "innovation_cusum", "ins_step_ratio", "ins_glitch"},
-              {{"frame", "estimate lat/lon deg, covariance deg^2 (published; cloud_cov_*: the cloud's own; particle_filter.h StepDiagnostics)"}});
+               "subcloud_chi2", "subclouds_disagree", "innovation_cusum", "ins_step_ratio", "ins_glitch", "run_status",
+               "converging", "status"},
+              {{"frame", "estimate lat/lon deg, covariance deg^2 (published; cloud_cov_*: the cloud's own; particle_filter.h StepDiagnostics)"},
+               {"run_status", "the run's status had it ended at this step (run_status.h; magnav-matcher publishes it: converged = ok, "
+                              "off_map = off_map, converging = converging, any other = lost)"},
+               {"status", "the step's own status (particle_filter.h StatusOf: ok, converging, lost, off_map)"}});
   for (std::size_t p = 0; p < steps.size(); ++p) {
     const mapmatch::StepDiagnostics& d = steps[p];
     w.WriteRow({std::to_string(path.k[p]), FormatNumber(d.lat_deg), FormatNumber(d.lon_deg),
@@ -68,7 +73,9 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                 FormatNumber(d.predicted_spread_nT), FormatNumber(d.innovation_bias_chi2), d.reacquiring ? "1" : "0",
                 FormatNumber(d.cloud_cov_lat_lat), FormatNumber(d.cloud_cov_lat_lon), FormatNumber(d.cloud_cov_lon_lon),
                 d.track_check_failed ? "1" : "0", FormatNumber(d.subcloud_chi2), d.subclouds_disagree ? "1" : "0",
-                FormatNumber(d.innovation_cusum), FormatNumber(d.ins_step_ratio), d.ins_glitch ? "1" : "0"});
+                FormatNumber(d.innovation_cusum), FormatNumber(d.ins_step_ratio), d.ins_glitch ? "1" : "0",
+                mapmatch::RunVerdictName(d.run_status), d.converging ? "1" : "0",
+                mapmatch::StepStatusName(mapmatch::StatusOf(d))});
   }
   w.Close();
 }
@@ -86,6 +93,7 @@ void RunMatch(MatchArgs a) {
   a.options.fast_msd.search_window_deg = a.search_window_deg;  // 0: no coarse stage
   a.options.icp.planar_motion = !a.icp_3d;
   a.options.fast_msd.map_error_in_covariance = !a.no_map_error;
+  if (a.no_basin_mean_shift) a.options.fast_msd.basin_mean_shift = false;
   a.options.fast_msd.solver = a.solver == "direct" ? mapmatch::FastMsdSolver::kDirect : mapmatch::FastMsdSolver::kJacobi;
   // NGDC-style whitespace text ("lon lat value") by its extension, else CSV.
   const mapmatch::GeoGrid grid = mapmatch::ReadGeoGridFile(a.map, {a.value_column});
@@ -121,6 +129,8 @@ void RunMatch(MatchArgs a) {
   const bool cov = r.cov_lat_lat.size() == path.size();
   std::vector<std::string> columns = {"k", "lat", "lon", "on_map"};
   if (cov) columns.insert(columns.end(), {"cov_lat_lat", "cov_lat_lon", "cov_lon_lon"});
+  // pf, afpf: each step's status (ok, converging, lost, off_map; particle_filter.h StatusOf), as MapFix.status.
+  if (filter) columns.push_back("status");
   CsvWriter w(a.output, columns,
               {{"map", a.map},
                {"value_column", a.value_column},
@@ -128,7 +138,8 @@ void RunMatch(MatchArgs a) {
                {"meas_column", a.meas_column},
                {"frame", std::string("matched position, latitude/longitude in degrees (WGS84); on_map 1 inside "
                                      "the map's grid") +
-                             (cov ? "; cov_* its covariance (lat, lon), deg^2" : "")},
+                             (cov ? "; cov_* its covariance (lat, lon), deg^2" : "") +
+                             (filter ? "; status the filter's at that step (ok, converging, lost, off_map)" : "")},
                {"off_map_points", std::to_string(off_map) + " of " + std::to_string(path.size())},
                {"summary", r.BriefReport()}});
   for (std::size_t p = 0; p < path.size(); ++p) {
@@ -136,6 +147,7 @@ void RunMatch(MatchArgs a) {
                                     FormatNumber(r.lon_deg[p]), on_map[p] ? "1" : "0"};
     if (cov) row.insert(row.end(), {FormatNumber(r.cov_lat_lat[p]), FormatNumber(r.cov_lat_lon[p]),
                                     FormatNumber(r.cov_lon_lon[p])});
+    if (filter) row.push_back(mapmatch::StepStatusName(mapmatch::StatusOf(steps[p])));
     w.WriteRow(row);
   }
   w.Close();
@@ -167,10 +179,7 @@ void AddMatchCommand(CLI::App& app) {
                   "k,lat,lon (deg) of the matched path, on_map (1 inside the map's grid, 0 off it), a "
                   "'# off_map_points:' count and a '# summary:' line")
       ->required();
-  cmd->add_option("--max-correction", args->options.max_correction_deg,
-                  "largest correction (deg) a result may make and still be called converged (the prior on the "
-                  "INS error); 0 = the method's own: 2 x --search-window, 2 x the pf/afpf prior half-width, else "
-                  "the INS path's size");
+  cli::AddMaxCorrectionOption(*cmd, &args->options.max_correction_deg);
   cmd->add_option("--ins-start-sd", args->options.observability.prior.start_sd_deg,
                   "the prior on the INS error at the path's first point, 1 sigma per axis (deg); with "
                   "--ins-drift-sd, a random walk from there. Both 0: pf/afpf their own prior (--prior-half-width / "
@@ -186,10 +195,7 @@ void AddMatchCommand(CLI::App& app) {
                   "covariance (fast-msd's, the pf/afpf diagnostics') is raised along that direction to what the map "
                   "and the prior can know; the summary always gives the figure ('map information at the path's end: "
                   "...'); 0 = never");
-  cmd->add_option("--outlier-sigmas", args->outlier_sigmas,
-                  "robust residuals of every method: a reading whose residual is beyond this many robust sigmas "
-                  "(1.4826 MAD) is left out (counted as outliers in the summary); pf/afpf: a reading beyond this "
-                  "many sigmas of the whole cloud's prediction is skipped; 0 = off");
+  cli::AddOutlierSigmasOption(*cmd, &args->outlier_sigmas);
   mapmatch::MatchOptions& o = args->options;
   cmd->add_option("--tolerance", o.point.tolerance_nT, "point: half-width of the value window, nT");
   cmd->add_option("--field-scale", o.icp.field_scale_deg_per_nT,
@@ -224,7 +230,11 @@ void AddMatchCommand(CLI::App& app) {
   cmd->add_option("--basin-half-width", o.fast_msd.basin_half_width_deg,
                   "fast-msd: half width (deg) of the offset grid whose posterior (forward-backward along the path) "
                   "adds the other basins' spread to each point's covariance; 0 = off (the linearised basin only); "
-                  "positions are the same either way");
+                  "0 also turns off the basin mean shift (--no-basin-mean-shift)");
+  cmd->add_flag("--no-basin-mean-shift", args->no_basin_mean_shift,
+                "fast-msd: keep the rounds' positions (by default each point moves to the mean of the other-basins "
+                "posterior, the published basin's mass at the rounds' position, unless the result is ambiguous or "
+                "that posterior reaches the offset grid's edge; the covariance is taken about the published point)");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "

@@ -186,14 +186,17 @@ void RunTrack(const TrackArgs& a) {
     const auto epochs = tracker::GroupEpochs(f.samples, opt.epoch_tolerance_s);
     std::vector<GradiometerSample>().swap(f.samples);  // the epochs hold them now (a long pass: half the memory)
     cli::Progress progress("track", "epochs", epochs.size(), stderr);
+    tracker::MultiSummary finder_summary;
     const auto tracks = tracker::SolveBatchMulti(
-        epochs, B0, mopt, given, [&](const std::string& stage, std::size_t done, std::size_t total) {
+        epochs, B0, mopt, given,
+        [&](const std::string& stage, std::size_t done, std::size_t total) {
           if (total > 0) {
             progress.Update(done, stage);
           } else if (epochs.size() >= kSayStagesFromEpochs) {
             progress.Say(stage);
           }
-        });
+        },
+        &finder_summary);
     progress.Done();
     for (const auto& t : tracks) {
       tracker::TrackRecord r;
@@ -210,6 +213,8 @@ void RunTrack(const TrackArgs& a) {
       }
       summary += "track " + std::to_string(t.track_id) + ": " + t.track.summary.BriefReport() + "; ";
     }
+    // What the finder's far source removed (the refinement removes the same).
+    if (finder_summary.far_source_enabled) summary += finder_summary.far_source.BriefReport();
   } else if (a.mode == "window") {
     // As magnav-tracker: each fix is handed in before the sample it came from.
     tracker::MultiTracker tr(B0, mopt);
@@ -235,9 +240,7 @@ void RunTrack(const TrackArgs& a) {
   // empty track file whose summary says why, exit 0.
   if (records.empty()) {
     std::string why = tracker::NoTrackMessage(opt, given != nullptr);
-    if (a.mode == "window") {
-      why += "; " + summary;
-    }
+    if (!summary.empty()) why += "; " + summary;
     std::fprintf(stderr, "magnav track: %s: %s; writing a track file with no rows\n", a.input.c_str(), why.c_str());
     summary = why;
   }
@@ -284,6 +287,10 @@ void AddTrackCommand(CLI::App& app) {
   cmd->add_option("--batch-restart-from-window", args->flags.options.batch_restart_from_window,
                   "batch: also restart each track's solve from the window track that found it, kept if it ends at a "
                   "lower cost (0/1)")
+      ->capture_default_str();
+  cmd->add_option("--batch-weak-init", args->flags.options.batch_weak_init,
+                  "batch: a track too weak for the field's start SNR (started in the residual) is initialised at "
+                  "the residual start's SNR (--residual-start-snr) and refined; 0: it keeps its window rows (0/1)")
       ->capture_default_str();
   cmd->add_option("--batch-turn-loss-scale", args->flags.options.batch_turn_loss_scale_sigma,
                   "batch: Cauchy scale of the turn-rate changes in each track's solve, in sigmas of one step (0 = "

@@ -111,6 +111,8 @@ const char* MapFixStatusName(dds::msg::MapFixStatus s) {
       return "off_map";
     case dds::msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE:
       return "partly_observable";
+    case dds::msg::MAP_FIX_STATUS_CONVERGING:
+      return "converging";
     default:
       return "";
   }

@@ -22,6 +22,7 @@ static_assert(static_cast<std::uint32_t>(MapFixStatus::kOk) == msg::MAP_FIX_STAT
 static_assert(static_cast<std::uint32_t>(MapFixStatus::kLost) == msg::MAP_FIX_STATUS_LOST);
 static_assert(static_cast<std::uint32_t>(MapFixStatus::kOffMap) == msg::MAP_FIX_STATUS_OFF_MAP);
 static_assert(static_cast<std::uint32_t>(MapFixStatus::kPartlyObservable) == msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+static_assert(static_cast<std::uint32_t>(MapFixStatus::kConverging) == msg::MAP_FIX_STATUS_CONVERGING);
 static_assert(static_cast<std::uint32_t>(TrackState::kUnknown) == msg::TRACK_STATE_UNKNOWN);
 static_assert(static_cast<std::uint32_t>(TrackState::kConfirmed) == msg::TRACK_STATE_CONFIRMED);
 static_assert(static_cast<std::uint32_t>(TrackState::kCoasting) == msg::TRACK_STATE_COASTING);

@@ -20,10 +20,15 @@ MapFixRecord ToRecord(const mapmatch::StepDiagnostics& d, mapmatch::ParticleFilt
   r.score = d.ess;
   const auto cov = mapmatch::CovarianceNorthEast_m2(d);
   r.cov_ne_m2 << cov[0], cov[1], cov[2], cov[3];
-  r.status = d.lost                                         ? MapFixStatus::kLost
-             : d.update == mapmatch::StepUpdate::kAllOffMap ? MapFixStatus::kOffMap
-             : d.partly_observable                          ? MapFixStatus::kPartlyObservable
-                                                            : MapFixStatus::kOk;
+  // Lost, off the map, partly observable (the matcher's review of the map, its covariance floored), then the
+  // filter's converging (particle_filter.h StatusOf), else ok: CONVERGING (appended, issue 25) takes only
+  // what was OK before, so the earlier values keep their meaning.
+  const mapmatch::StepStatus s = mapmatch::StatusOf(d);
+  r.status = s == mapmatch::StepStatus::kLost     ? MapFixStatus::kLost
+             : s == mapmatch::StepStatus::kOffMap ? MapFixStatus::kOffMap
+             : d.partly_observable                ? MapFixStatus::kPartlyObservable
+             : s == mapmatch::StepStatus::kConverging ? MapFixStatus::kConverging
+                                                      : MapFixStatus::kOk;
   return r;
 }
 

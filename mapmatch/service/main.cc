@@ -42,6 +42,8 @@ int main(int argc, char** argv) {
   app.add_option("--vehicle-id", opt.vehicle_id, "VesselNav vessel_id followed (and MapFix vehicle_id)");
   app.add_option("--sensor-id", opt.sensor_id, "MagnetometerSample sensor_id used");
   magnav::cli::AddParticleFilterOptions(app, &f);
+  magnav::cli::AddOutlierSigmasOption(app, &f.outlier_sigmas);
+  magnav::cli::AddMaxCorrectionOption(app, &opt.max_correction_deg);
   app.add_option("--min-observability", opt.observability.min_information_ratio,
                  "a fix whose map information along the least observed direction is below this fraction of the INS "
                  "prior's there (the filter's prior square and drift, or --ins-start-sd/--ins-drift-sd) is published "
@@ -70,10 +72,12 @@ int main(int argc, char** argv) {
     auto log = [&](const char* what) {
       const mapmatch::FilterCounters c = matcher.filter_counters();
       spdlog::info("magnav-matcher: {} {} vessel_nav + {} magnetometer in, {} steps ({} updates, {} bad readings, "
-                   "{} all off the map, {} INS jumps, {} lost steps), {} skipped, {} ignored (another vehicle, sensor "
+                   "{} all off the map, {} INS jumps, {} lost steps; status {}{}), {} skipped, {} ignored (another vehicle, sensor "
                    "or source), {} repeated, {} missing (sequence gaps), {} wild stamps or seqs, {} waiting, {} fixes out",
                    what, matcher.navs_received(), matcher.samples_received(), matcher.steps(), c.updates,
-                   c.bad_measurements, c.all_off_map, c.ins_jumps, c.lost_steps, matcher.skipped(), matcher.ignored(),
+                   c.bad_measurements, c.all_off_map, c.ins_jumps, c.lost_steps,
+                   mapmatch::RunVerdictName(matcher.run_verdict()),
+                   matcher.run_reason().empty() ? std::string() : ": " + matcher.run_reason(), matcher.skipped(), matcher.ignored(),
                    matcher.repeated(), matcher.missing(), matcher.wild(), matcher.buffered(), matcher.published());
     };
     while (!magnav::dds::WaitForShutdown(std::chrono::milliseconds(50))) {

@@ -13,6 +13,9 @@ namespace magnav::mapmatch {
 
 bool MatcherNodeOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(fix_every_m) && fix_every_m >= 0.0)) return Fail(error, "fix_every_m must be finite and >= 0");
+  if (!(std::isfinite(max_correction_deg) && max_correction_deg >= 0.0)) {
+    return Fail(error, "max_correction_deg must be finite and >= 0 (0 = 2 x the prior half-width)");
+  }
   if (max_buffered < 1) return Fail(error, "max_buffered must be >= 1");
   if (!PositiveFinite(reference_field_nT)) {
     return Fail(error, "reference_field_nT (the map's reference field, nT) must be given, finite and > 0");
@@ -36,6 +39,7 @@ InsErrorPrior PriorOf(const MatcherNodeOptions& o) {
 MatcherNode::MatcherNode(dds::Node& node, const GeoGrid& grid, std::size_t layer, const MatcherNodeOptions& options)
     : options_(Checked(options)),
       filter_(MakeParticleFilter(options.kind, grid, layer, options.filter)),
+      status_(options.kind, options.filter, options.max_correction_deg),
       observe_(grid, layer, PriorOf(options_), options_.observability),
       schedule_(options.fix_every_m, options.filter.max_step_deg) {
   repeats_.SetLogName("magnav-matcher: magnav/magnetometer sensor");
@@ -48,6 +52,16 @@ MatcherNode::MatcherNode(dds::Node& node, const GeoGrid& grid, std::size_t layer
 FilterCounters MatcherNode::filter_counters() const {
   std::lock_guard<std::mutex> lk(mu_);
   return filter_->counters();
+}
+
+RunVerdict MatcherNode::run_verdict() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return status_.verdict();
+}
+
+std::string MatcherNode::run_reason() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return status_.reason();
 }
 
 void MatcherNode::Skip(const std::string& why, double t_s) {
@@ -137,11 +151,20 @@ void MatcherNode::Drain() {
     navs_.erase(navs_.begin(), nav);  // keep the one used
     const StepDiagnostics& d = filter_->Step(lat, lon, anomaly);
     observe_.Step(d.lat_deg, d.lon_deg, anomaly);
+    status_.Add(lat, lon, d, filter_->counters(), static_cast<long long>(steps_.load()));
     stepped_ = true;
     last_step_ns_ = stamp;
     ++steps_;
     if (schedule_.Step(lat, lon)) {
       StepDiagnostics fix = d;
+      fix.run_status = status_.verdict();
+      // Not converged by the run's rules (`magnav match` would say so): LOST on the wire (off_map
+      // is the step's own OFF_MAP; the filter's own lost is LOST already; converging is the step's
+      // own CONVERGING, not an alarm).
+      if (fix.run_status != RunVerdict::kConverged && fix.run_status != RunVerdict::kOffMap &&
+          fix.run_status != RunVerdict::kConverging) {
+        fix.lost = true;
+      }
       fix.partly_observable = observe_.partly_observable();
       if (fix.partly_observable) {
         Cov2 c{fix.cov_lat_lat, fix.cov_lat_lon, fix.cov_lon_lon};  // deg², floored before ToMsg's m² north/east

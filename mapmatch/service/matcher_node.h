@@ -33,6 +33,7 @@
 #include "magnav/mapmatch/geo_grid.h"
 #include "magnav/mapmatch/observability.h"
 #include "magnav/mapmatch/particle_filter.h"
+#include "magnav/mapmatch/run_status.h"
 
 namespace magnav::mapmatch {
 
@@ -54,6 +55,9 @@ struct MatcherNodeOptions {
   // filter's own (ParticleFilterInsPrior: its prior square and drift);
   // min_information_ratio 1 by default, 0 = never.
   ObservabilityOptions observability;
+  // The status review's plausible correction (deg; RunStatus, run_status.h; `--max-correction`, as
+  // `magnav match`'s): 0 = 2 × the filter's prior half-width.
+  double max_correction_deg = 0.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -69,7 +73,14 @@ using dds::InsNavMsg;
 // is raised (StepDiagnostics::lost), OFF_MAP when every particle was off the map at this step, else
 // PARTLY_OBSERVABLE when the map knows less than the prior along its least observed direction at this step
 // (MatcherNodeOptions::observability; the published covariance then raised along that direction to what the
-// map and the prior can know, FloorAlongLeastKnown in deg² before the conversion to m² north/east), else OK.
+// map and the prior can know, FloorAlongLeastKnown in deg² before the conversion to m² north/east), else
+// CONVERGING while the filter has not settled (StepDiagnostics::converging, settle_updates), else OK.
+// The run's status (RunStatus, run_status.h: the rules `magnav match` applies to a whole path, here at
+// every step: the AFPF's σ at its cap or the estimate sliding against the INS on dense readings, a lost
+// episode not yet settled, a correction beyond --max-correction, a non-finite estimate) makes a fix
+// that would otherwise be OK, CONVERGING or PARTLY_OBSERVABLE LOST ("not converged" offline: do not use
+// the position; the position and covariance published are the filter's, as offline); its verdict
+// "converging" (the filter not settled) does not: that fix is CONVERGING.
 using dds::ToMsg;
 
 class MatcherNode {
@@ -93,6 +104,9 @@ class MatcherNode {
   std::uint64_t missing() const { return repeats_.missing(); }
   std::uint64_t published() const { return writer_->stats().samples.load(); }
   FilterCounters filter_counters() const;
+  // The run's status after the last step (what `magnav match` would say of the stream so far).
+  RunVerdict run_verdict() const;
+  std::string run_reason() const;
 
  private:
   void OnNav(const dds::msg::VesselNav& m, const dds::fdds::SampleInfo& info);
@@ -106,6 +120,7 @@ class MatcherNode {
   MatcherNodeOptions options_;
   mutable std::mutex mu_;
   std::unique_ptr<SequentialMatcher> filter_;
+  RunStatus status_;  // mu_ held
   StepObservability observe_;  // mu_ held
   FixSchedule schedule_;
   std::map<std::uint64_t, std::pair<double, double>> navs_;  // stamp -> INS lat, lon

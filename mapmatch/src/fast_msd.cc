@@ -147,6 +147,11 @@ bool FastMsdOptions::IsValid(std::string* error) const {
 namespace {
 
 constexpr double kChi2Two99 = 9.2103;  // 99 % point of χ² with 2 degrees of freedom
+// basin_mean_shift: the largest posterior mass on the offset grid's outermost ring at which the grid is
+// taken to hold the posterior (fast_msd.h). On the tuning and held-out paths (501-520, 601-640, 0.5 and
+// 3 nT) the largest was 4.4e-4 but on one, 626 at 3 nT (0.085, its start 0.019 deg off, beyond the grid's
+// 0.012 deg); any value in [1e-3, 5e-2] separates them alike.
+constexpr double kMaxEdgeMass = 0.01;
 
 // The map's Hessian (nT/deg²) at a point: central second differences of the
 // grid at the nearest node (one node in from the edge), the curvature the
@@ -164,12 +169,18 @@ void MapHessian(const GeoGrid& grid, std::size_t layer, double lat_deg, double l
   *h_ln = (f(i + 1, j + 1) - f(i + 1, j - 1) - f(i - 1, j + 1) + f(i - 1, j - 1)) / (4.0 * la.step_deg * lo.step_deg);
 }
 
+// basin_mean_shift's move of each point (deg, (lat, lon)), empty = none, and the points the score is over.
+struct MeanShift {
+  std::vector<Eigen::Vector2d> d;
+  std::vector<char> scored;
+};
+
 // The rounds (and the robust refit) from one start path; `r` carries the
-// counts so far.
+// counts so far; `mean_shift` (may be null) receives basin_mean_shift's move.
 MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path, const FastMsdOptions& options,
                   const std::vector<std::size_t>& finite, std::vector<char> usable,
                   const internal::RobustSpread& readings, const std::vector<double>& start_lat,
-                  const std::vector<double>& start_lon, MatchResult r) {
+                  const std::vector<double>& start_lon, MatchResult r, MeanShift* mean_shift) {
   const std::size_t n = path.size();
   std::vector<double> ref_lat = start_lat, ref_lon = start_lon;
   // The rounds from the start with the points of `use` (returns whether every round converged).
@@ -334,6 +345,7 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     r.cov_lon_lon = c.lon_lon;
     // The other basins (fast_msd_basins.h): the posterior mass outside each point's published basin.
     int basin_points = 0;
+    double max_edge_mass = 0.0;
     if (options.basin_half_width_deg > 0.0 && c.tau2_deg2 > 0.0 && c.curvature_limited.size() == n) {
       // At most kMaxBasinRadius offsets each side (the grid's memory and time grow as its square): a wider
       // half width for the map's step coarsens the grid instead.
@@ -351,6 +363,14 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
       const internal::BasinSpread bs = internal::FastMsdBasinSpread(
           grid, layer, r.lat_deg, r.lon_deg, path.measured_nT, final_lin.data, e_lat, e_lon, cov, c.s2_nT2,
           map_var, c.tau2_deg2, cap, step, radius);
+      for (double x : bs.edge_mass) max_edge_mass = std::max(max_edge_mass, x);
+      // The mixture's mean (applied by MatchFastMsd, after the ambiguity check). The mean of a posterior the
+      // grid truncates is not the posterior's mean: no point moves when the mass on the grid's outermost
+      // ring reaches kMaxEdgeMass anywhere along the path (fast_msd.h).
+      if (mean_shift != nullptr && options.basin_mean_shift && max_edge_mass < kMaxEdgeMass) {
+        mean_shift->d = bs.far_mean;
+        mean_shift->scored = final_lin.data;
+      }
       for (std::size_t i = 0; i < n; ++i) {
         Eigen::Matrix2d m = cov[i] + bs.far_moment[i];
         internal::CapAtPrior(&m, prior_var);
@@ -372,6 +392,10 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
     }
     if (basin_points > 0) {
       r.notes += "; other basins hold > 5 % of the posterior at " + std::to_string(basin_points) + " points";
+    }
+    if (options.basin_mean_shift && max_edge_mass >= kMaxEdgeMass) {
+      r.notes += "; not moved to the posterior mean: its mass on the offset grid's edge reaches " +
+                 FormatNumber(max_edge_mass);
     }
     if (c.prior_limited_points > 0) {
       r.notes += "; covariance capped at the search window's at " + std::to_string(c.prior_limited_points) +
@@ -423,7 +447,9 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
     start_lon = c.lon_deg;
     r.notes = "coarse stage: " + c.notes + (c.converged ? "" : " (" + c.reason + ")");
   }
-  MatchResult best = Refine(grid, layer, path, options, finite, usable, readings, start_lat, start_lon, r);
+  MeanShift mean_shift;
+  MatchResult best =
+      Refine(grid, layer, path, options, finite, usable, readings, start_lat, start_lon, r, &mean_shift);
   // Ambiguity: the coarse surface's second minimum (at least the separation
   // away) is not clearly worse than its best. Then the answer may be the wrong
   // peak: not converged, and the covariance covers both refined paths.
@@ -436,7 +462,7 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
       lat2[p] += peaks.found[1].shift_lat_deg;
       lon2[p] += peaks.found[1].shift_lon_deg;
     }
-    other = Refine(grid, layer, path, options, finite, usable, readings, lat2, lon2, r);
+    other = Refine(grid, layer, path, options, finite, usable, readings, lat2, lon2, r, nullptr);
     // The two refined paths, told apart by the best's covariance: the mean over
     // the points of dᵀ Σ⁻¹ d (d = other − best). Below the 99 % point of χ²(2)
     // the second minimum led to the same answer (a neighbour in the same basin).
@@ -476,6 +502,32 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
     best.converged = false;
   } else if (peaks.found.size() >= 2 && other.lat_deg.empty()) {
     best.notes += "; second coarse minimum " + FormatNumber(peaks.found[1].score / peaks.found[0].score) + "x the best";
+  }
+  // basin_mean_shift (fast_msd.h): each point to the mean of the other-basins mixture, its covariance the
+  // mixture's second moment about it (C + S − d dᵀ); not when ambiguous (the covariance covers the second
+  // peak's refined path about the published one, as before).
+  if (!ambiguous && mean_shift.d.size() == path.size() && best.cov_lat_lat.size() == path.size()) {
+    int moved = 0;
+    double sum2 = 0.0;
+    int on = 0;
+    for (std::size_t p = 0; p < path.size(); ++p) {
+      const Eigen::Vector2d& d = mean_shift.d[p];
+      if (d.squaredNorm() > 0.0) ++moved;
+      if (!grid.Contains(best.lat_deg[p], best.lon_deg[p])) --best.points_off_map;
+      best.lat_deg[p] += d(0);
+      best.lon_deg[p] += d(1);
+      best.cov_lat_lat[p] -= d(0) * d(0);
+      best.cov_lat_lon[p] -= d(0) * d(1);
+      best.cov_lon_lon[p] -= d(1) * d(1);
+      if (!grid.Contains(best.lat_deg[p], best.lon_deg[p])) ++best.points_off_map;
+      if (!mean_shift.scored[p]) continue;
+      if (const auto s = grid.Sample(layer, best.lat_deg[p], best.lon_deg[p])) {
+        sum2 += (s->value_nT - path.measured_nT[p]) * (s->value_nT - path.measured_nT[p]);
+        ++on;
+      }
+    }
+    if (on > 0) best.score = sum2 / on;  // at the published (moved) points
+    best.notes += "; moved to the posterior mean at " + std::to_string(moved) + " points";
   }
   return best;
 }

@@ -128,7 +128,9 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
   out.step_deg = step_deg;
   out.radius = radius;
   out.far_moment.assign(n, Eigen::Matrix2d::Zero());
+  out.far_mean.assign(n, Eigen::Vector2d::Zero());
   out.far_mass.assign(n, 0.0);
+  out.edge_mass.assign(n, 0.0);
   if (n < 2 || !(tau2_deg2 > 0.0) || !(s2_nT2 > 0.0) || !(step_deg > 0.0) || radius < 1) return out;
   const int side = 2 * radius + 1;
   const double cap2 = cap_nT * cap_nT;
@@ -244,7 +246,7 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
     const Eigen::Matrix2d inv = cov[i].inverse();
     if (!inv.allFinite()) continue;
     // Σ p d dᵀ over the cells outside the published basin (dᵀ C⁻¹ d > chi2), with each cell's own h²/12.
-    double saa = 0.0, sab = 0.0, sbb = 0.0, mass = 0.0;
+    double saa = 0.0, sab = 0.0, sbb = 0.0, sa = 0.0, sb = 0.0, mass = 0.0, edge = 0.0;
     for (int r = b.r0; r <= b.r1; ++r) {
       const double da = (r - radius) * step_deg;
       for (int c = b.c0; c <= b.c1; ++c) {
@@ -252,16 +254,21 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
         const double p = alpha[i][s] * beta[s];
         if (p == 0.0) continue;
         const double db = (c - radius) * step_deg;
+        if (r == 0 || r == side - 1 || c == 0 || c == side - 1) edge += p;
         if (inv(0, 0) * da * da + 2.0 * inv(0, 1) * da * db + inv(1, 1) * db * db <= chi2) continue;
         saa += p * da * da;
         sab += p * da * db;
         sbb += p * db * db;
+        sa += p * da;
+        sb += p * db;
         mass += p;
       }
     }
     mass /= sum;
     out.far_moment[i] << saa / sum + mass * cell, sab / sum, sab / sum, sbb / sum + mass * cell;
+    out.far_mean[i] << sa / sum, sb / sum;
     out.far_mass[i] = mass;
+    out.edge_mass[i] = edge / sum;
   }
   return out;
 }

@@ -36,9 +36,17 @@ namespace magnav::mapmatch::internal {
 // The published covariance is then C_i + far_moment_i (fast_msd.cc): the
 // mixture's second moment about the published point, the published basin's
 // weight taken as 1 (never narrower than C_i).
+// Also the first moment of that outside mass, far_mean_i = Σ_outside p(d) d
+// (deg; the published basin's mass counted at d = 0): the mixture's mean
+// offset from the published point (fast_msd.cc, FastMsdOptions::
+// basin_mean_shift).
 struct BasinSpread {
   std::vector<Eigen::Matrix2d> far_moment;  // deg²
+  std::vector<Eigen::Vector2d> far_mean;    // deg
   std::vector<double> far_mass;
+  // The posterior mass on the grid's outermost ring of offsets (|a| or |b| =
+  // R): where it is not small the grid truncates the posterior.
+  std::vector<double> edge_mass;
   double step_deg = 0.0;
   int radius = 0;
 };

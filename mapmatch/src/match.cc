@@ -210,6 +210,8 @@ std::string Significant(double v) {
 }
 
 void NotConverged(const std::string& why, MatchResult* r) {
+  // The filters' own review (RunStatus) may have said the same already (non-finite, implausible).
+  if (!r->converged && r->reason.compare(0, why.size(), why) == 0) return;
   r->reason = r->converged || r->reason.empty() ? why : why + "; " + r->reason;
   r->converged = false;
 }
@@ -410,10 +412,12 @@ MatchResult Match(Method method, const GeoGrid& grid, std::size_t layer, const M
       r = MatchFastMsd(grid, layer, path, options.fast_msd);
       break;
     case Method::kPf:
-      r = MatchParticleFilter(ParticleFilterKind::kPf, grid, layer, path, options.particle_filter, steps);
+      r = MatchParticleFilter(ParticleFilterKind::kPf, grid, layer, path, options.particle_filter, steps,
+                              options.max_correction_deg);
       break;
     case Method::kAfpf:
-      r = MatchParticleFilter(ParticleFilterKind::kAfpf, grid, layer, path, options.particle_filter, steps);
+      r = MatchParticleFilter(ParticleFilterKind::kAfpf, grid, layer, path, options.particle_filter, steps,
+                              options.max_correction_deg);
       break;
   }
   ReviewResult(grid, layer, path, PlausibleCorrectionDeg(method, grid, path, options), &r);

@@ -79,6 +79,7 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(settled_sigma_deg) && settled_sigma_deg >= 0.0)) {
     return Fail(error, "settled_sigma_deg must be finite and >= 0 (0 = off)");
   }
+  if (settle_updates < 0) return Fail(error, "settle_updates must be >= 0 (0 = no converging status)");
   if (!(std::isfinite(min_measurement_sigma_nT) && min_measurement_sigma_nT > 0.0 &&
         min_measurement_sigma_nT <= measurement_sigma_nT)) {
     return Fail(error, "min_measurement_sigma_nT must be finite, > 0 and <= measurement_sigma_nT");
@@ -181,6 +182,13 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
   // The bias test and the track check flag but do not re-spread the cloud (see the header).
   const bool respread = d.lost && Diverged();
   if (!d.lost && reacquiring_) d.lost = d.reacquiring = true;
+  // The converging status (settle_updates): the cloud's spread (d.cov_* before PublishCovariance).
+  const double spread = std::sqrt(d.cov_lat_lat + d.cov_lon_lon);
+  if (!(spread < o_.settled_sigma_deg)) {
+    settle_count_ = 0;
+  } else if (d.update == StepUpdate::kUpdated && settle_count_ < o_.settle_updates) {
+    ++settle_count_;
+  }
   if (d.lost) {
     ++counters_.lost_steps;
     if (respread && o_.reinitialize_when_lost && std::isfinite(ins_lat) && std::isfinite(ins_lon)) {
@@ -197,8 +205,11 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
       ++counters_.reinitialisations;
       reacquiring_ = o_.settled_sigma_deg > 0.0;
       reacquiring_steps_ = 0;
+      settle_count_ = 0;
     }
   }
+  d.converging = !d.lost && o_.settle_updates > 0 && o_.settled_sigma_deg > 0.0 && settle_count_ < o_.settle_updates;
+  if (d.converging) ++counters_.converging_steps;
   PublishCovariance(&d);
   last_ = d;
   return last_;

@@ -14,7 +14,7 @@
 #include "magnav/core/csv.h"
 #include "magnav/mapmatch/fix_schedule.h"
 #include "match_common.h"
-#include "particle_filter_slide.h"
+#include "magnav/mapmatch/run_status.h"
 
 namespace magnav::mapmatch {
 namespace internal {
@@ -325,36 +325,48 @@ void Filter::PublishCovariance(StepDiagnostics* d) const {
 
 }  // namespace internal
 
+StepStatus StatusOf(const StepDiagnostics& d) {
+  return d.lost                                ? StepStatus::kLost
+         : d.update == StepUpdate::kAllOffMap ? StepStatus::kOffMap
+         : d.converging                        ? StepStatus::kConverging
+                                               : StepStatus::kOk;
+}
+
+const char* StepStatusName(StepStatus s) {
+  switch (s) {
+    case StepStatus::kOk:
+      return "ok";
+    case StepStatus::kConverging:
+      return "converging";
+    case StepStatus::kLost:
+      return "lost";
+    case StepStatus::kOffMap:
+      return "off_map";
+  }
+  return "?";
+}
+
 MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
                                 const MatchPath& path, const ParticleFilterOptions& options,
-                                std::vector<StepDiagnostics>* steps) {
+                                std::vector<StepDiagnostics>* steps, double max_correction_deg) {
   internal::CheckInputs(grid, layer, path, options, ParticleFilterKindName(kind));
   MatchResult r = internal::StartResult(ParticleFilterKindName(kind), "mean effective sample size", path);
   auto filter = MakeParticleFilter(kind, grid, layer, options);
   if (steps != nullptr) steps->clear();
   double ess_sum = 0.0, last_sigma = options.measurement_sigma_nT;
-  long long first_lost = -1, last_lost = -1;
-  std::size_t last_lost_step = 0, off_at_end = 0;  // off_at_end: trailing all-off-map steps
-  // AFPF on dense readings: whether each of the last kCapWindow updates had its likelihood σ at
-  // afpf_max_sigma_nT (see the status below).
-  constexpr std::size_t kCapWindow = 40;
-  std::deque<bool> at_cap;
-  internal::OffsetSlideTest slide(options);  // the offset-slide status rule (particle_filter_slide.h)
+  // The run's status, step by step (run_status.h: the rules magnav-matcher applies at every fix).
+  RunStatus status(kind, options, max_correction_deg);
   for (std::size_t p = 0; p < path.size(); ++p) {
     const StepDiagnostics& d = filter->Step(path.lat_deg[p], path.lon_deg[p], path.measured_nT[p]);
     r.lat_deg[p] = d.lat_deg;
     r.lon_deg[p] = d.lon_deg;
     ess_sum += d.ess;
     if (d.sigma_nT > 0.0) last_sigma = d.sigma_nT;
-    if (d.lost && first_lost < 0) first_lost = path.k[p];
-    if (d.lost) last_lost = path.k[p], last_lost_step = p;
-    off_at_end = d.update == StepUpdate::kAllOffMap ? off_at_end + 1 : 0;
-    if (d.update == StepUpdate::kUpdated && d.sigma_nT > 0.0) {
-      at_cap.push_back(d.sigma_nT >= options.afpf_max_sigma_nT);
-      if (at_cap.size() > kCapWindow) at_cap.pop_front();
+    status.Add(path.lat_deg[p], path.lon_deg[p], d, filter->counters(), path.k[p]);
+    if (steps != nullptr) {
+      steps->push_back(d);
+      steps->back().run_status = status.verdict();
     }
-    slide.Add(path.lat_deg[p], path.lon_deg[p], d, filter->counters().reinitialisations);
-    if (steps != nullptr) steps->push_back(d);
   }
   const FilterCounters& c = filter->counters();
   r.iterations = c.steps;
@@ -363,71 +375,13 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
   r.points_off_map = c.all_off_map;
   r.points_bad_measurement = c.bad_measurements;
   r.points_outlier = c.outliers;
-  // Status (issue 25: no "converged" that is not): lost at the last step, or a re-initialisation
-  // that has not had 2 divergence windows to settle, is not converged. A run that was lost and has
-  // been quiet since says only that: a filter settled in a wrong basin can be quiet too.
-  const std::size_t settle = 2 * static_cast<std::size_t>(options.divergence_window);
-  const bool unsettled = last_lost >= 0 && path.size() - 1 - last_lost_step < settle;
-  // A cloud entirely off the map at the end dead-reckons on the INS: no reading checks it.
-  // AFPF on dense readings (some readings spaced out, min_update_spacing_m): its σ is 3× the
-  // innovations' σ, capped at afpf_max_sigma_nT; at the cap in at least half of the last 40 updates,
-  // the innovations exceed the largest noise the filter allows — a map mismatch the NIS rules do not
-  // see, since they divide by that σ. Measured (docs/ACCURACY.md, "Dense readings II"): 4 of the 5
-  // AFPF runs > 1 km off on the dense tuning and fresh paths, 0 of the 23 on the track. Only where
-  // readings are spaced out: the reference and held-out paths (no spaced reading) keep their status.
-  const auto capped = static_cast<std::size_t>(std::count(at_cap.begin(), at_cap.end(), true));
-  const bool sigma_capped = kind == ParticleFilterKind::kAfpf && options.afpf_sigma_factor > 0.0 &&
-                            filter->counters().spaced > 0 && at_cap.size() == kCapWindow &&
-                            2 * capped >= kCapWindow;
-  // The estimate slid against the INS beyond the drift model and its cloud (offset_slide_*); on
-  // dense readings only, like the cap rule: the reference and held-out paths keep their status.
-  const double slide_chi2 = slide.Chi2();
-  const bool slid = filter->counters().spaced > 0 && slide_chi2 > options.offset_slide_chi2;
-  r.converged = !filter->lost() && !unsettled && off_at_end == 0 && !sigma_capped && !slid;
-  if (off_at_end > 0 && !filter->lost()) {
-    r.reason = "off the map at the end: every particle off the map for the last " +
-               std::to_string(off_at_end) + " step(s)" +
-               " (dead-reckoning on the INS)" + (first_lost >= 0 ? "; lost at k = " + std::to_string(last_lost) : "");
-  } else if (filter->lost() && filter->last().ins_glitch) {
-    r.reason = "lost: an INS glitch (an increment more than " + FormatNumber(options.ins_glitch_ratio) +
-               "x the usual) within the last " + std::to_string(options.ins_glitch_hold) + " steps";
-  } else if (filter->lost()) {
-    r.reason = filter->last().reacquiring
-                   ? std::string("lost: re-initialised, the cloud not settled by the end")
-                   : "lost (mean NIS over the last " + std::to_string(options.divergence_window) + " updates > " +
-                         FormatNumber(options.divergence_nis) +
-                         (options.bias_test_window > 0 &&
-                                  (kind == ParticleFilterKind::kAfpf ? options.afpf_bias_test_chi2
-                                                                     : options.bias_test_chi2) > 0.0
-                              ? ", or the innovation-bias test"
-                          : options.bias_test_window > 0 &&
-                                  (kind == ParticleFilterKind::kAfpf ? options.afpf_acquisition_bias_test_chi2
-                                                                     : options.acquisition_bias_test_chi2) > 0.0
-                              ? ", or the innovation-bias test during acquisition"
-                              : "") +
-                         ((kind == ParticleFilterKind::kAfpf ? options.afpf_innovation_cusum_threshold
-                                                             : options.innovation_cusum_threshold) > 0.0
-                              ? ", or the innovation CUSUM"
-                              : "") +
-                         (options.track_check_window > 0 ? ", or the track check" : "") +
-                         (options.subclouds > 1 ? ", or the sub-clouds disagree" : "") + ")";
-  } else if (sigma_capped) {
-    r.reason = "innovations beyond the likelihood's cap: sigma at afpf_max_sigma_nT (" +
-               FormatNumber(options.afpf_max_sigma_nT) + " nT) in " + std::to_string(capped) + " of the last " +
-               std::to_string(kCapWindow) + " updates (a map mismatch: a wrong place or a sensor noisier than the cap)";
-  } else if (slid) {
-    r.reason = "the estimate slid " + FormatNumber(std::round(slide.SlideMetres())) + " m against the INS over the last " +
-               std::to_string(options.offset_slide_updates) + " updates (chi2 " + FormatNumber(std::round(slide_chi2 * 10.0) / 10.0) +
-               " > " + FormatNumber(options.offset_slide_chi2) +
-               " of the drift model and the cloud's covariance: a filter following a wrong place)";
-  } else if (unsettled) {
-    r.reason = "lost at k = " + std::to_string(last_lost) + (options.reinitialize_when_lost ? ", re-initialised" : "") +
-               ", not settled by the end (fewer than " + std::to_string(settle) + " steps since)";
-  } else if (first_lost >= 0) {
-    r.reason = "lost from k = " + std::to_string(first_lost) + ", last at k = " + std::to_string(last_lost) +
-               "; no lost-track alarm in the " + std::to_string(path.size() - 1 - last_lost_step) +
-               " steps since (not a proof of being on the track)";
-  }
+  // Status (issue 25: no "converged" that is not; run_status.h): lost at the last step, a
+  // re-initialisation that has not had 2 divergence windows to settle, every particle off the map
+  // at the end, the AFPF's σ at its cap or the estimate sliding against the INS on dense readings,
+  // or a correction beyond the plausible one, is not converged. A run that was lost and has been
+  // quiet since says only that: a filter settled in a wrong basin can be quiet too.
+  r.converged = status.converged();
+  r.reason = status.reason();
   r.notes = "particles " + std::to_string(filter->particles().size()) + " at the end, seed " +
             std::to_string(options.seed) + ", sigma " +
             (kind == ParticleFilterKind::kPf && options.adaptive_sigma
@@ -441,7 +395,8 @@ MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, st
                  : FormatNumber(options.measurement_sigma_nT)) +
             " nT, resamples " + std::to_string(c.resamples) + ", INS jumps " + std::to_string(c.ins_jumps) +
             ", INS glitches " + std::to_string(c.ins_glitches) +
-            ", lost steps " + std::to_string(c.lost_steps) + ", bias-test alarms " +
+            ", lost steps " + std::to_string(c.lost_steps) + ", converging steps " +
+            std::to_string(c.converging_steps) + ", bias-test alarms " +
             std::to_string(c.bias_test_failures) + ", innovation-CUSUM alarms " +
             std::to_string(c.innovation_cusum_alarms) +
             ", reinitialisations " + std::to_string(c.reinitialisations) +

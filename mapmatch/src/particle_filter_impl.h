@@ -141,6 +141,7 @@ class Filter final : public SequentialMatcher {
   double cusum_g_ = 0.0;           // its statistic g
   bool reacquiring_ = false;                          // re-initialised and not settled yet
   int reacquiring_steps_ = 0;                         // steps since that re-initialisation
+  int settle_count_ = 0;  // the converging status: updates in a row with the cloud settled (settle_updates)
   std::deque<std::array<double, 3>> track_;  // track check: (INS lat, lon, reading) per update
   int since_check_ = 0;
   bool track_lost_ = false;  // the last track check's verdict (held until the next check)

@@ -102,6 +102,12 @@ const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double me
   }
   d.lost = any_lost || disagree;
   d.reacquiring = d.lost && !disagree && all_reacquiring;
+  // Converging (settle_updates): some sub-cloud not settled, or the pooled cloud (their disagreement
+  // included) wider than settled_sigma_deg.
+  bool any_converging = false;
+  for (const StepDiagnostics* s : sd_) any_converging = any_converging || s->converging;
+  d.converging = !d.lost && o_.settle_updates > 0 && o_.settled_sigma_deg > 0.0 &&
+                 (any_converging || !(std::sqrt(d.cloud_cov_lat_lat + d.cloud_cov_lon_lon) < o_.settled_sigma_deg));
   // Counters: what the input did (steps, updates, bad readings, off map, INS jumps and glitches, outliers) is
   // sub-cloud 0's; what the filters did (resamples, re-initialisations, tempered updates, alarms) is
   // summed over the sub-clouds; lost steps are the pooled filter's.
@@ -118,6 +124,7 @@ const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double me
     counters_.bias_test_failures += c.bias_test_failures;
   }
   if (d.lost) ++counters_.lost_steps;
+  if (d.converging) ++counters_.converging_steps;
   // The published covariance: the pooled cloud's, while lost at least the prior square's (as one filter's).
   d.cov_lat_lat = d.cloud_cov_lat_lat, d.cov_lat_lon = d.cloud_cov_lat_lon, d.cov_lon_lon = d.cloud_cov_lon_lon;
   const double v = o_.prior_half_width_deg * o_.prior_half_width_deg / 3.0;

@@ -207,7 +207,7 @@ TEST(DdsConvert, EveryEnumValueRoundTripsAndUnknownOnesAreCarried) {
     ExpectRoundTrip(MapFixMsg(f, method, msg::MAP_FIX_STATUS_OK));
     EXPECT_EQ(static_cast<std::uint32_t>(RecordOf(Fix(f, method)).method), v);
   }
-  for (std::uint32_t v = 0; v <= msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE + 1; ++v) {
+  for (std::uint32_t v = 0; v <= msg::MAP_FIX_STATUS_CONVERGING + 1; ++v) {
     const auto status = static_cast<msg::MapFixStatus>(v);
     const msg::MapFix m = MapFixMsg(f, msg::METHOD_PF, status);
     ExpectRoundTrip(m);
@@ -359,6 +359,15 @@ TEST(DdsConvert, MatcherStepOnTheWire) {
   EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_OFF_MAP);
   d.update = mapmatch::StepUpdate::kUpdated;
   EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+  d.converging = true;  // partly observable outranks converging (appended, issue 25: it takes only what was ok)
+  EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+  d.partly_observable = false;
+  EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_CONVERGING);
+  EXPECT_EQ(RecordOf(ToMsg(d, mapmatch::ParticleFilterKind::kPf, 1, kStamp)).status, MapFixStatus::kConverging);
+  d.update = mapmatch::StepUpdate::kAllOffMap;  // off the map outranks converging
+  EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_OFF_MAP);
+  d.lost = true;  // and lost outranks both
+  EXPECT_EQ(ToMsg(d, mapmatch::ParticleFilterKind::kAfpf, 1, kStamp).status(), msg::MAP_FIX_STATUS_LOST);
 }
 
 }  // namespace

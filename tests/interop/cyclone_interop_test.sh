@@ -18,6 +18,12 @@
 #                    to refuse both: "incompatible QoS: durability").
 #   ros2_names       The first half of both_directions with ROS 2 topic and
 #                    type names on both sides ($MAGNAV_ROS2_NAMES=1).
+#   map_fix_status   magnav -> Cyclone, map matching: `magnav replay --map-path`
+#                    of a reference crustal path feeds magnav-matcher (PF, a fix
+#                    at every step); cyclone_peer and `magnav record` take the
+#                    fixes: the stock reader gets every status magnav's own
+#                    reader gets, MAP_FIX_STATUS_CONVERGING (5, appended in
+#                    issue 25) among them while the cloud settles, and OK.
 #   startup          The start-up race of issue 14, repeated: a Cyclone reader
 #                    started 0.2 s before `magnav replay --wait-readers 1` of a
 #                    50-sample file, $MAGNAV_INTEROP_RUNS times (default 20):
@@ -105,6 +111,35 @@ ros2_names)
   fi
   grep -q 'no reader of magnav/gradiometer' "$WORK/replay.log" || { cat "$WORK/replay.log"; exit 1; }
   echo "ok: ROS 2 names (rt/magnav/..., magnav::msg::dds_::..._) on both sides; magnav's own names stay apart"
+  ;;
+map_fix_status)
+  MPATH="$SRC/tests/data/reference/mappath_crustal_off0p1deg_noise3nT.csv"
+  N=$(grep -c '^[0-9]' "$MPATH")
+  # |F0| of the crustal map (tests/data/reference/README.md §4b), as the service tests.
+  F0=$(awk 'BEGIN { printf "%.17g", sqrt(22838.121767602996^2 + 1452.8242542037194^2 + 41845.01475649571^2) }')
+  "$BIN/magnav-matcher" --map "$SRC/tests/data/reference/map_crustal_anomaly.csv" --value-column anomaly_nT \
+    --reference-field "$F0" --method pf --seed 7 --fix-every 0 --stats-period 0 >"$WORK/matcher.log" 2>&1 & pids+=($!)
+  "$PEER" collect-map-fixes "$WORK/peer.csv" "$N" 120 >"$WORK/peer.log" 2>&1 & peer=$!
+  wait_ready "$WORK/peer.log"
+  "$BIN/magnav" record --topic map_fix --count "$N" --output "$WORK/record.csv" >"$WORK/record.log" 2>&1 & rec=$!
+  for _ in $(seq 300); do grep -q 'map_fix: 1 writer(s) matched' "$WORK/record.log" 2>/dev/null && break; sleep 0.1; done
+  "$BIN/magnav" replay --map-path "$MPATH" --reference-field "$F0" --step-period 0.01 --speed 1 --wait-readers 1 \
+    --wait 20 >"$WORK/replay.log" 2>&1 || fail "magnav replay --map-path"
+  rc=0; wait "$peer" || rc=$?
+  cat "$WORK/peer.log"
+  [ "$rc" -eq 0 ] || fail "cyclone_peer did not receive the $N map fixes"
+  wait "$rec" || fail "magnav record --topic map_fix"
+  # magnav's status names as the enum's values (idl/magnav.idl MapFixStatus).
+  col "$WORK/record.csv" status | awk 'BEGIN { v["ok"] = 1; v["lost"] = 2; v["off_map"] = 3;
+      v["partly_observable"] = 4; v["converging"] = 5 } { print ($0 in v) ? v[$0] : 0 }' >"$WORK/magnav_status"
+  cut -d, -f2 "$WORK/peer.csv" >"$WORK/peer_status"
+  cmp -s "$WORK/magnav_status" "$WORK/peer_status" || fail "the Cyclone reader's statuses differ from magnav record's"
+  converging=$(grep -c '^5$' "$WORK/peer_status" || true)
+  ok=$(grep -c '^1$' "$WORK/peer_status" || true)
+  echo "statuses received by the Cyclone reader: $converging converging (5), $ok ok (1), of $N"
+  [ "$converging" -ge 1 ] || fail "no MAP_FIX_STATUS_CONVERGING reached the Cyclone reader"
+  [ "$ok" -ge 1 ] || fail "no MAP_FIX_STATUS_OK reached the Cyclone reader"
+  echo "ok: magnav-matcher -> Cyclone: every MapFix status as magnav reads it, CONVERGING (5) included"
   ;;
 startup)
   RUNS=${MAGNAV_INTEROP_RUNS:-20}

@@ -41,6 +41,13 @@
  *       the CSV `magnav invert` writes for the same samples; checks validity,
  *       reason, position and covariance bit for bit (the CSV has 17
  *       significant digits, so strtod gives back the very doubles).
+ *   cyclone_peer collect-map-fixes OUT N TIMEOUT_S
+ *       Subscribes magnav/map_fix (RELIABLE, TRANSIENT_LOCAL, KEEP_ALL),
+ *       prints "ready" once a writer (magnav-matcher) is matched, and writes
+ *       one line "stamp_ns,status" per fix received (status the MapFixStatus
+ *       value as a number: an appended value this peer's IDL knows, e.g.
+ *       MAP_FIX_STATUS_CONVERGING = 5, arrives as itself) to OUT until N
+ *       came or TIMEOUT_S passed. Exit 0 iff N came.
  *
  * Exit codes: 0 ok, 1 the check failed, 2 usage or input error, 3 DDS error.
  */
@@ -584,6 +591,50 @@ static int expect_fixes(const char *path, double timeout_s) {
   return all_once(&c, t.num_rows) ? 0 : 1;
 }
 
+/* ---- collect-map-fixes: magnav-matcher's fixes as a stock reader sees them ---- */
+
+static int collect_map_fixes(const char *out_path, size_t n, double timeout_s) {
+  FILE *out = fopen(out_path, "w");
+  if (!out) {
+    fprintf(stderr, "cyclone_peer: cannot write %s\n", out_path);
+    return 2;
+  }
+  const dds_entity_t pp = participant();
+  const dds_entity_t rd = reader_on(pp, &magnav_msg_MapFix_desc, "magnav/map_fix", 1);
+  const dds_entity_t ws = waitset_for(pp, rd);
+  dds_subscription_matched_status_t st = {0};
+  const dds_time_t match_deadline = dds_time() + DDS_SECS(30);
+  while (st.current_count < 1 && dds_time() < match_deadline) {
+    dds_get_subscription_matched_status(rd, &st);
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  if (st.current_count < 1) {
+    fprintf(stderr, "cyclone_peer: no writer of magnav/map_fix within 30 s\n");
+    fclose(out);
+    return 1;
+  }
+  printf("ready\n");
+  fflush(stdout);
+  size_t received = 0;
+  const dds_time_t deadline = dds_time() + (dds_duration_t)(timeout_s * 1e9);
+  void *samples[TAKE_MAX];
+  dds_sample_info_t infos[TAKE_MAX];
+  while (received < n && dds_time() < deadline) {
+    const int got = take_some(rd, ws, samples, infos);
+    for (int i = 0; i < got; ++i) {
+      if (!infos[i].valid_data) continue;
+      const magnav_msg_MapFix *f = samples[i];
+      fprintf(out, "%llu,%u\n", (unsigned long long)f->stamp_ns, (unsigned)f->status);
+      ++received;
+    }
+    if (got > 0) dds_return_loan(rd, samples, got);
+  }
+  fclose(out);
+  printf("received %zu of %zu map fixes\n", received, n);
+  linger_then_delete(pp, rd);
+  return received == n ? 0 : 1;
+}
+
 /* ---- relay: a stock writer in front of magnav ---- */
 
 static volatile sig_atomic_t stop_requested = 0;
@@ -720,9 +771,12 @@ int main(int argc, char **argv) {
                  atof(argv[6]), argc == 8 ? atoi(argv[7]) : 1);
   }
   if (argc == 4 && strcmp(argv[1], "expect-fixes") == 0) return expect_fixes(argv[2], atof(argv[3]));
+  if (argc == 5 && strcmp(argv[1], "collect-map-fixes") == 0) {
+    return collect_map_fixes(argv[2], (size_t)strtoul(argv[3], NULL, 10), atof(argv[4]));
+  }
   fprintf(stderr,
           "usage: cyclone_peer expect-samples FILE TIMEOUT_S [volatile] | send-samples FILE "
-          "[magnav|default|sensor_data] | expect-fixes FILE TIMEOUT_S | relay default|sensor_data TOPICS "
-          "FROM_DOMAIN RATE QUIET_S [READERS]\n");
+          "[magnav|default|sensor_data] | expect-fixes FILE TIMEOUT_S | collect-map-fixes OUT N TIMEOUT_S | "
+          "relay default|sensor_data TOPICS FROM_DOMAIN RATE QUIET_S [READERS]\n");
   return 2;
 }

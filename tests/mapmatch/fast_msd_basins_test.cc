@@ -145,6 +145,16 @@ TEST(FastMsdBasins, OtherCopiesOfTheMapCarryTheirShare) {
   // At least half the mass at ≥ 0.004° in latitude: a spread ≥ 0.5 · 0.004².
   EXPECT_GT(b.far_moment[mid](0, 0), 0.5 * 0.004 * 0.004);
   EXPECT_LT(b.far_moment[mid](1, 1), 0.1 * b.far_moment[mid](0, 0));  // longitude stays known
+  // The mixture's mean offset (basin_mean_shift): the first moment of that
+  // outside mass, bounded by it (|m|² ≤ mass · trace S, Cauchy–Schwarz), along
+  // latitude only; the copies lie symmetrically about the published point, so
+  // it is well inside the copies' spacing; the grid's edge (the ±0.012° copies)
+  // holds some of the mass.
+  const Eigen::Vector2d& m = b.far_mean[mid];
+  EXPECT_LE(m.squaredNorm(), b.far_mass[mid] * b.far_moment[mid].trace() * (1 + 1e-12));
+  EXPECT_LT(std::abs(m(0)), 0.5 * 0.004);
+  EXPECT_LT(std::abs(m(1)), 0.1 * 0.004);
+  EXPECT_GT(b.edge_mass[mid], 0.0);
 
   // The bumps: no second place near the path, (almost) no mass outside the
   // basin — taken here as (0.001°)² per axis, a map cell (PathOn's 3e-4° is
@@ -154,7 +164,12 @@ TEST(FastMsdBasins, OtherCopiesOfTheMapCarryTheirShare) {
   for (auto& m : d.cov) m = Eigen::Matrix2d::Identity() * 1e-6;
   const internal::BasinSpread e = internal::FastMsdBasinSpread(bumps, 0, d.lat, d.lon, d.meas, d.data, d.e_lat,
                                                                d.e_lon, d.cov, 0.25, d.map_var, 4e-8, 1e9, 0.00025, 48);
-  for (std::size_t i = 0; i < d.lat.size(); ++i) EXPECT_LT(e.far_mass[i], 0.05) << i;
+  for (std::size_t i = 0; i < d.lat.size(); ++i) {
+    EXPECT_LT(e.far_mass[i], 0.05) << i;
+    // Nothing outside: (almost) no move, and nothing on the grid's edge.
+    EXPECT_LT(e.far_mean[i].norm(), 0.05 * 0.012) << i;
+    EXPECT_LT(e.edge_mass[i], 1e-3) << i;
+  }
 }
 
 }  // namespace

@@ -60,9 +60,10 @@ double MeanErrorDeg(const std::string& file) {
 }
 
 // Documented figures (docs/ACCURACY.md) of the CI's held-out paths: the mean
-// over paths 601-606 of each path's mean error, deg.
-constexpr double kDocumented05 = 0.00073;  // 0.5 nT
-constexpr double kDocumented3 = 0.00130;   // 3 nT
+// over paths 601-606 of each path's mean error, deg (with the basin mean
+// shift, the default since 2026-11-26 evening; 0.00073 / 0.00130 without).
+constexpr double kDocumented05 = 0.00056;  // 0.5 nT
+constexpr double kDocumented3 = 0.00106;  // 3 nT
 
 struct Row {
   std::string set;
@@ -132,6 +133,29 @@ TEST(FastMsdHeldOut, ACoarseShiftMostlyOffTheMapDoesNotWin) {
   const double e = MeanErrorDeg(dir + "/heldout_504_noise0p5.csv");
   std::printf("tuning path 504, 0.5 nT: mean error %.5f deg\n", e);
   EXPECT_LE(e, 0.002);
+}
+
+// The two held-out paths above 0.001° at 0.5 nT (issue 25 item 6;
+// docs/ACCURACY.md, "Fast MSD: single paths above 0.001°"): 626 kept its
+// first 13 points in a wrong basin (the 11 points joining them to the rest
+// dropped as outliers), 605 its last 30 (where the INS drift runs fastest):
+// 0.00244° and 0.00119° with the rounds' positions. With basin_mean_shift
+// (the default) each point moves to the mean of the other-basins posterior:
+// 0.00081° and 0.00062°. Each ≤ the paper's 0.001° and its documented figure
+// within kFigureMargin. (Off, the test fails: 626 and 605 above 0.001°.)
+TEST(FastMsdHeldOut, TheMeanShiftBringsTheWrongBasinPathsUnderTheFigure) {
+  const std::string dir = testing::TempDir();
+  const struct {
+    int path;
+    double documented;
+  } cases[] = {{605, 0.00062}, {626, 0.00081}};
+  for (const auto& c : cases) {
+    Generate(dir, c.path, 1, "0.1", "0.5");
+    const double e = MeanErrorDeg(dir + "/heldout_" + std::to_string(c.path) + "_noise0p5.csv");
+    std::printf("held-out path %d, 0.5 nT, basin mean shift: mean error %.5f deg\n", c.path, e);
+    EXPECT_LE(e, 0.001) << "path " << c.path;
+    testing::ExpectErrorFigure(e, c.documented, "fast MSD with the basin mean shift, path " + std::to_string(c.path));
+  }
 }
 
 }  // namespace

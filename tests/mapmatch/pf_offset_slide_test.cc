@@ -2,9 +2,7 @@
 // converged that is not"; docs/ACCURACY.md, "Dense readings III"): a PF run on a path read every
 // 2 m that settles kilometres off keeps sliding against the INS and is "not converged", naming the
 // slide; a run on the track keeps "converged". Before (offset_slide_updates = 0) the wrong run said
-// "converged". The paths are generated here like scripts/dense_mappaths (start near the map's
-// centre, random heading, INS = truth + 0.01° in a random direction + a random walk of
-// 0.0003° · √(2 m / 100 m) per axis and step, 3 nT noise).
+// "converged". The paths: testing_paths::DensePath (crustal_path_run.h).
 #include <cmath>
 #include <random>
 #include <string>
@@ -20,31 +18,8 @@ namespace magnav::mapmatch {
 namespace {
 
 using testing_paths::CrustalMap;
+using testing_paths::DensePath;
 using testing_paths::PathRun;
-
-PathRun DensePath(std::uint64_t seed, int steps) {
-  const GeoGrid& g = CrustalMap();
-  const std::size_t layer = g.layer("anomaly_nT");
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> unit(0.0, 1.0);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  PathRun r;
-  double lat = 45.0 + 0.06 * (u(rng) - 0.5), lon = 10.0 + 0.08 * (u(rng) - 0.5), heading = 2.0 * M_PI * u(rng);
-  const double off = 2.0 * M_PI * u(rng), drift = 0.0003 * std::sqrt(2.0 / 100.0);
-  double dlat = 0.01 * std::cos(off), dlon = 0.01 * std::sin(off);
-  for (int k = 0; k < steps; ++k) {
-    if (k > 0) testing_paths::DenseWalkStep(rng, unit, drift, &lat, &lon, &heading, &dlat, &dlon);
-    const auto v = g.Sample(layer, lat, lon);
-    if (!v) break;
-    r.path.k.push_back(k);
-    r.path.lat_deg.push_back(lat + dlat);
-    r.path.lon_deg.push_back(lon + dlon);
-    r.path.measured_nT.push_back(v->value_nT + 3.0 * unit(rng));
-    r.true_lat.push_back(lat);
-    r.true_lon.push_back(lon);
-  }
-  return r;
-}
 
 double EndErrorMetres(const PathRun& p, const MatchResult& m) {
   const std::size_t e = p.true_lat.size() - 1;

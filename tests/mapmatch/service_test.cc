@@ -124,9 +124,14 @@ void ReplayedRunsFixesEqualTheOfflineFilters(const char* stock_qos) {
     EXPECT_EQ(t.number(r, t.column("lon")), d.lon_deg);
     EXPECT_EQ(t.number(r, t.column("score")), d.ess);
     EXPECT_EQ(t.number(r, t.column("cov_nn")), CovarianceNorthEast_m2(d)[0]);
-    // The appended status: the offline filter's own lost / off-map state at that step.
-    EXPECT_EQ(t.text(r, t.column("status")),
-              d.lost ? "lost" : d.update == StepUpdate::kAllOffMap ? "off_map" : "ok");
+    // The appended status: the offline run's status as of that step (run_status.h: lost by the
+    // filter's flag or any rule of the run's but converging, off the map, converging, else ok).
+    const bool run_lost = d.run_status != RunVerdict::kConverged && d.run_status != RunVerdict::kOffMap &&
+                          d.run_status != RunVerdict::kConverging;
+    EXPECT_EQ(t.text(r, t.column("status")), d.lost || run_lost                    ? "lost"
+                                             : d.update == StepUpdate::kAllOffMap ? "off_map"
+                                             : d.converging                        ? "converging"
+                                                                                   : "ok");
   }
 }
 
@@ -149,6 +154,10 @@ TEST(MatcherService, FixCarriesItsMethodAndStatus) {
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_LOST);
   d.lost = false;
   EXPECT_EQ(ToMsg(d, ParticleFilterKind::kAfpf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+  d.converging = true;  // appended (issue 25): a filter not settled yet, where it would otherwise say ok
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kPf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_PARTLY_OBSERVABLE);
+  d.partly_observable = false;
+  EXPECT_EQ(ToMsg(d, ParticleFilterKind::kPf, 1, 0).status(), dds::msg::MAP_FIX_STATUS_CONVERGING);
   // A default-constructed message (a publisher older than the field) says "unknown".
   EXPECT_EQ(dds::msg::MapFix().status(), dds::msg::MAP_FIX_STATUS_UNKNOWN);
 }
@@ -337,6 +346,13 @@ TEST(MatcherService, BadArgumentsExit2) {
                         Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "anomaly_nT", "--reference-field",
                               "47693", "--particles", "0"},
                              "num_particles"},
+                        // The options shared with `magnav match` (cli/particle_filter_options.h).
+                        Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "anomaly_nT", "--reference-field",
+                              "47693", "--max-correction", "-1"},
+                             "max_correction_deg"},
+                        Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "anomaly_nT", "--reference-field",
+                              "47693", "--outlier-sigmas", "-1"},
+                             "outlier_sigmas"},
                         Case{{MAGNAV_SERVICE_BIN, "--map", map, "--value-column", "F_nT", "--reference-field", "47693"},
                              "F_nT"}}) {
     const auto [rc, out] = testing::RunCommand(c.argv, {}, 30s);

@@ -38,6 +38,7 @@ class MapFixStatus(IdlEnum, typename="magnav::msg::MapFixStatus"):
     MAP_FIX_STATUS_LOST = 2
     MAP_FIX_STATUS_OFF_MAP = 3
     MAP_FIX_STATUS_PARTLY_OBSERVABLE = 4
+    MAP_FIX_STATUS_CONVERGING = 5
 
 
 class NavSource(IdlEnum, typename="magnav::msg::NavSource"):

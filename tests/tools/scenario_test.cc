@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_overtaking/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/ and fresh_drift/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_overtaking/, fresh_overtaking2/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/ and fresh_drift/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -174,15 +174,22 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"abreast_28", "abreast_39"}) files.push_back({"fresh_abreast", name, "abreast"});
   for (const char* name : {"abreast_33", "abreast_37", "abreast_40"}) files.push_back({"fresh_abreast2", name, "abreast"});
   for (const char* name : {"abreast_26", "abreast_29", "abreast_34", "abreast_38"}) files.push_back({"fresh_abreast3", name, "abreast"});
+  for (const char* name : {"abreast_22", "abreast_27", "abreast_31", "abreast_39"}) files.push_back({"fresh_abreast4", name, "abreast"});
   for (const char* name : {"far_ship_130", "far_ship_180"}) files.push_back({"fresh_ghost", name, "far_ship"});
   for (const char* name : {"drift_3", "drift_6"}) files.push_back({"fresh_ghost", name, "drift"});
   for (const char* name : {"far_ship_110", "far_ship_150", "far_ship_190"}) files.push_back({"fresh_farsrc", name, "far_ship"});
   for (const char* name : {"far_ship_120", "far_ship_170"}) files.push_back({"fresh_ghost2", name, "far_ship"});
+  for (const char* name : {"far_ship_105", "far_ship_147", "far_ship_160", "far_ship_185"}) {
+    files.push_back({"fresh_farsrc2", name, "far_ship"});
+  }
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});
   for (const char* name : {"drift_2", "drift_3", "drift_4_two"}) files.push_back({"fresh_drift", name, "drift"});
   files.push_back({"fresh_drift", "drift_6_farship", "far_ship"});  // and drifting: checked below
+  for (const char* name : {"overtaking_ne", "overtaking_n14", "overtaking_wsw19", "overtaking_e5"}) {
+    files.push_back({"fresh_overtaking2", name, "overtaking"});
+  }
   for (const auto& [set, file, kind] : files) {
     {
       SCOPED_TRACE(set + "/" + file);
@@ -246,7 +253,8 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         };
         EXPECT_LT(along(fa), along(same_t(fa.t_s)));
         EXPECT_GT(along(fb), along(same_t(fb.t_s)));
-        EXPECT_LE(closest_pair, 12.0);
+        // fresh_overtaking2 passes 5-20 m apart; the older sets 8-12 m.
+        EXPECT_LE(closest_pair, set == "fresh_overtaking2" ? 20.0 : 12.0);
       } else if (k == "far_ship") {
         ASSERT_EQ(f.truth.size(), 2u);
         // The ship passes 100–200 m off the grid (from its nearest sensor),

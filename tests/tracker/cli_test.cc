@@ -279,6 +279,10 @@ TEST(TrackCli, NothingToTrackGivesAnEmptyTrackFileAndExitZero) {
     EXPECT_EQ(t.params.at("summary").rfind("no track: too few strong single-sample fixes to initialise", 0), 0u)
         << t.params.at("summary");
     EXPECT_EQ(t.params.count("track"), 0u);
+    // And what the far source did (on by default; 4 sensors, no ship: every
+    // fit refused, nothing removed).
+    EXPECT_NE(t.params.at("summary").find("far source: "), std::string::npos) << t.params.at("summary");
+    EXPECT_NE(t.params.at("summary").find("(0 accepted, "), std::string::npos) << t.params.at("summary");
   }
   // The window summary also carries the multi-tracker's counts.
   const EmptyTrackFile w = ReadEmptyTrackFile(dir + "/far_window.csv");

@@ -93,6 +93,26 @@ TEST(TrackLifeCycle, EndsWhenMissedForMaxMiss) {
   EXPECT_EQ(why, "missed");
 }
 
+// Misses excused once a second (a fit beside the track explains them:
+// pair_beside.h `waiting`) never make 2 s in a row; the "lost" rule still
+// ends the track 10 s after its last detection.
+TEST(TrackLifeCycle, ExcusedMissesDoNotEndItButLostStillDoes) {
+  const TrackManagementOptions opt;
+  TrackLifeCycle life = Confirmed(opt);
+  std::string why;
+  int k_end = -1;
+  for (int k = 0; k < 200 && k_end < 0; ++k) {
+    const double t = 1.0 + kDt * (k + 1);
+    if (k % 8 == 7) life.ExcuseMisses();  // once per second
+    life.OnAssociation(t, false, true, true);
+    life.OnEstimate(t, true, 0.5);
+    if (life.Decide(t, &why) == Decision::kEnd) k_end = k;
+  }
+  EXPECT_EQ(why, "lost");
+  EXPECT_EQ(k_end, 79);  // 11 s: 10 s after the last detection at 1 s
+  // Not excused: "missed" at 3.125 s (EndsWhenMissedForMaxMiss).
+}
+
 TEST(TrackLifeCycle, EndsWhenLostForMaxCoast) {
   const TrackManagementOptions opt;
   TrackLifeCycle life = Confirmed(opt);

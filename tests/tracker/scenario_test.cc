@@ -347,6 +347,28 @@ TEST(HarbourScenario, WindowStartsTheWeakVesselInTheResidualBesideItsNeighbour) 
   EXPECT_LE(s.rms[1], 1.5 * 0.0482);  // m, measured 0.0482
 }
 
+// The batch over all the evidence for a vessel started in the residual
+// (issue 24 items 2 and 5; MultiTrackerOptions::batch_weak_init):
+// fresh_sigma/abreast_s's vessel 1 (peak tensor SNR 12, below the field's
+// start SNR 20) is started in the residual beside vessel 2. Its batch solve
+// found no fix at SNR 20 to initialise from, so its batch rows were its
+// window rows (coverage 0.854, RMS 0.0474 m: both fail below); initialised
+// at the residual start's SNR 10 and refined over its own samples, the
+// neighbour's field removed: 1.00, 0.0204 m. Not blind (looked at for the
+// residual start and for this change).
+TEST(HarbourScenario, BatchRefinesTheVesselStartedInTheResidual) {
+  const auto s = ScoreBatch(
+      cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/fresh_sigma/abreast_s.toml"),
+      "abreast_s, defaults");
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.9) << "vessel " << v + 1;  // the issue's; measured 1.000 / 1.000 (0.854 / 1.000 before)
+  }
+  EXPECT_LE(s.rms[0], 1.5 * 0.0204);  // m, measured 0.0204 (0.0474 before: its window rows)
+  EXPECT_LE(s.rms[1], 1.5 * 0.0119);  // m, measured 0.0119 (0.0164 before)
+}
+
 TEST(HarbourScenario, BatchTracksTheFreshAbreastPair) {
   const auto s = ScoreBatch(FreshAbreast("abreast_20"), "fresh abreast 20 m");
   // Measured 0 false rows (220, 7.8 %, on main; 274, 10 %, without the partner rule).
@@ -410,6 +432,44 @@ TEST(HarbourScenario, BatchKeepsBothVesselsOfAnOvertaking) {
   }
   EXPECT_LE(s.rms[0], 1.5 * 0.0115);  // m, measured 0.0115
   EXPECT_LE(s.rms[1], 1.5 * 0.0093);  // m, measured 0.0093
+}
+
+// A slow vessel's track kept while a fast one, still weak, closes on it
+// (issue 24, branch overtake2): fresh_sigma2/overtaking_s2 (1.5 m/s past
+// 0.6 m/s, 11 m apart, southward) cut to its first 90 s (the window is
+// causal: the same rows up to then). The fast vessel's B spoils the slow
+// one's fit from 37.8 s, 25 m behind it; the beside fit finds it there
+// (misfit 0.004, 1.5 m from its true line) but its tensor is 7.6 and 9.9 σ_T,
+// below the beside start's 10, and the slow vessel's track ended "missed"
+// at 39.5 s, 0.5 s before the fast one could be started beside it: a second
+// id (purity 0.80). With those misses excused while the fit beside explains
+// them (TrackManagementOptions::excuse_beside, on by default) the fast one is
+// started beside it at 40 s and each keeps one id. The counter-run with the
+// excuse off is asserted to give the slow vessel two ids, so the check
+// cannot pass without it. Not blind: this file was looked at for the change
+// (fresh_overtaking2/ is the blind check; docs/ACCURACY.md, "The slow
+// vessel of overtaking_s2").
+FieldScenario ShortOvertakingS2() {
+  FieldScenario sc = cli::ReadScenarioFile(magnav::testing::TestDataDir() +
+                                           "/generated/scenarios/fresh_sigma2/overtaking_s2.toml");
+  sc.vessels[0].segments = {{90.0, 0.0}};
+  sc.vessels[1].segments = {{90.0, 0.0}};
+  return sc;
+}
+
+TEST(HarbourScenario, WindowKeepsTheSlowVesselWhileAWeakOvertakerCloses) {
+  const auto s = ScoreWindow(ShortOvertakingS2(), "short overtaking_s2");
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the issue's; measured 0.917 / 1.000 (0.812 / 0.969 without)
+  }
+  EXPECT_LE(s.rms[0], 1.5 * 0.202);  // m, measured 0.202 (0.195 over its two ids without the excuse)
+  EXPECT_LE(s.rms[1], 1.5 * 0.0616);  // m, measured 0.0616 (0.0478)
+  MultiTrackerOptions off;
+  off.management.excuse_beside = false;
+  const auto g = ScoreWindow(ShortOvertakingS2(), "short overtaking_s2, misses not excused", nullptr, off);
+  EXPECT_GE(g.ids[0], 2u);  // measured 2
 }
 
 // No ghost track from a far ship or a drifting background (issue 24 items 1

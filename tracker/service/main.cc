@@ -80,12 +80,16 @@ int main(int argc, char** argv) {
       next_stats += period(stats_period_s);
       spdlog::info("magnav-tracker: {} samples in, {} estimates out, {} tracks ({} live), {} late, {} rejected, {} "
                    "bad samples, {} before B0, {} repeated, {} missing (sequence gaps), {} wild stamps or seqs; {} fixes "
-                   "in, {} skipped; {} already in the checkpoint",
+                   "in, {} skipped; {} already in the checkpoint{}",
                    tracker_node.received(), tracker_node.published(), tracker_node.num_tracks(),
                    tracker_node.num_live_tracks(), tracker_node.dropped_late(), tracker_node.rejected(),
                    tracker_node.bad_samples(), tracker_node.b0().waiting(), tracker_node.repeated(), tracker_node.missing(),
                    tracker_node.wild(),
-                   tracker_node.fixes_received(), tracker_node.fixes_rejected(), tracker_node.already_consumed());
+                   tracker_node.fixes_received(), tracker_node.fixes_rejected(), tracker_node.already_consumed(),
+                   [&] {
+                     const std::string far = tracker_node.far_source_report();
+                     return far.empty() ? far : "; " + far;
+                   }());
     }
     // The checkpoint of a clean stop is taken before the end-of-data flush
     // ends the live tracks: a restart goes on with them.

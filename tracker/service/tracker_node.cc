@@ -287,6 +287,12 @@ int TrackerNode::num_live_tracks() const {
   return tracker_.num_live_tracks();
 }
 
+std::string TrackerNode::far_source_report() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  const MultiSummary& sm = tracker_.summary();
+  return sm.far_source_enabled ? sm.far_source.BriefReport() : std::string();
+}
+
 void TrackerNode::Publish(const std::vector<TrackOutput>& estimates, bool unregister_ended) {
   // A track's start is logged before its first estimate goes out. Ended
   // tracks stay registered (late consumers, and the durable profile's store,

@@ -117,6 +117,8 @@ class TrackerNode {
   std::uint64_t fixes_rejected() const { return fixes_rejected_; }
   int num_tracks() const;  // confirmed so far
   int num_live_tracks() const;  // confirmed or tentative now
+  // The far source's activity (MultiSummary::far_source), "" when it is off.
+  std::string far_source_report() const;
 
  private:
   void OnSample(const dds::msg::GradiometerSample& m, const dds::fdds::SampleInfo& info);

@@ -5,7 +5,9 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <memory>
+#include <sstream>
 
 namespace magnav::tracker {
 namespace {
@@ -102,6 +104,37 @@ bool LinearMoment(const std::vector<FarSourceSample>& samples, const double* g, 
 
 }  // namespace
 
+const char* FarSourceRefusalName(FarSourceRefusal r) {
+  switch (r) {
+    case FarSourceRefusal::kNoFit:
+      return "no fit";
+    case FarSourceRefusal::kSmallMoment:
+      return "moment below a ship's";
+    case FarSourceRefusal::kAtBound:
+      return "at the bound";
+    case FarSourceRefusal::kWeakField:
+      return "field too weak";
+    case FarSourceRefusal::kNone:
+      break;
+  }
+  return "accepted";
+}
+
+std::string FarSourceStats::BriefReport() const {
+  std::ostringstream o;
+  o << "far source: " << num_fits << " fits (" << num_accepted << " accepted, "
+    << num_fits - num_accepted << " refused: " << num_refused_moment << " moment below a ship's, " << num_refused_bound
+    << " at the bound, " << num_refused_weak << " field too weak, " << num_refused_no_fit << " no fit; "
+    << num_grid_searches << " grid searches), its B removed for " << std::fixed << std::setprecision(1) << active_s
+    << " s of data";
+  if (has_accepted) {
+    o << "; last accepted at t " << last_t_s << " s: (" << last_p_W.x() << ", " << last_p_W.y() << ", "
+      << last_p_W.z() << ") m NED, " << last_range_m << " m from the sensors' centroid, " << std::setprecision(2)
+      << std::scientific << last_moment_Am2 << " A m^2";
+  }
+  return o.str();
+}
+
 bool FarSourceOptions::IsValid(std::string* error) const {
   if (!(window_s > 0.0) || !std::isfinite(window_s)) return Fail(error, "window_s must be > 0");
   if (!(solve_interval_s > 0.0) || !std::isfinite(solve_interval_s)) return Fail(error, "solve_interval_s must be > 0");
@@ -112,13 +145,19 @@ bool FarSourceOptions::IsValid(std::string* error) const {
   if (!(margin_m >= 0.0) || !std::isfinite(margin_m)) return Fail(error, "margin_m must be >= 0");
   if (!(max_range_m > 0.0) || !std::isfinite(max_range_m)) return Fail(error, "max_range_m must be > 0");
   if (!(max_height_m > 0.0) || !std::isfinite(max_height_m)) return Fail(error, "max_height_m must be > 0");
-  if (!(huber_sigmas > 0.0) || !std::isfinite(huber_sigmas)) return Fail(error, "huber_sigmas must be > 0");
+  if (!(loss_sigmas > 0.0) || !std::isfinite(loss_sigmas)) return Fail(error, "loss_sigmas must be > 0");
   if (!(tensor_gate > 0.0)) return Fail(error, "tensor_gate must be > 0");
   if (!(occupied_tensor_snr >= 0.0)) return Fail(error, "occupied_tensor_snr must be >= 0 (0 = off)");
   if (!(model_share >= 0.0) || !std::isfinite(model_share)) return Fail(error, "model_share must be >= 0");
   if (!(min_field_T >= 0.0) || !std::isfinite(min_field_T)) return Fail(error, "min_field_T must be >= 0");
   if (!(min_moment_Am2 >= 0.0) || !std::isfinite(min_moment_Am2)) return Fail(error, "min_moment_Am2 must be >= 0");
   if (!(bound_slack_m >= 0.0) || !std::isfinite(bound_slack_m)) return Fail(error, "bound_slack_m must be >= 0");
+  if (!(max_interval_s >= solve_interval_s) || !std::isfinite(max_interval_s)) {
+    return Fail(error, "max_interval_s must be >= solve_interval_s (equal: no back-off)");
+  }
+  if (!(along_extent_m >= 0.0) || !std::isfinite(along_extent_m)) return Fail(error, "along_extent_m must be >= 0");
+  if (!(along_step_m > 0.0) || !std::isfinite(along_step_m)) return Fail(error, "along_step_m must be > 0");
+  if (along_extent_m / along_step_m > 100.0) return Fail(error, "along_extent_m / along_step_m must be <= 100");
   return drift.IsValid(error);
 }
 
@@ -146,8 +185,10 @@ double FarSourceMinRange(const std::vector<Eigen::Vector3d>& sensors, const FarS
 }
 
 FarSourceModel FitFarSource(const std::vector<FarSourceSample>& samples, const std::vector<Eigen::Vector3d>& sensors,
-                            const FarSourceOptions& options, const FarSourceModel* warm) {
+                            const FarSourceOptions& options, const FarSourceModel* warm, bool search_grid,
+                            bool* searched) {
   FarSourceModel out;
+  if (searched != nullptr) *searched = false;
   if (samples.size() < 10 || sensors.size() < kMinSensors) return out;
   Eigen::Vector2d c;
   const double r_min = FarSourceMinRange(sensors, options, &c);
@@ -161,74 +202,140 @@ FarSourceModel FitFarSource(const std::vector<FarSourceSample>& samples, const s
     t1 = std::max(t1, s.t_s);
   }
   const double t_ref = t1;  // the newest sample: what is removed next is near it
-  // Starts: a grid of lines (moment solved at each) on every 4th sample,
-  // and the previous fit moved to this t_ref.
+  // Starts: a grid of lines (moment solved at each) on a coarse subset (every
+  // 4th sample, at most ~200: the grid only ranks starts), and the previous
+  // fit moved to this t_ref.
   std::vector<FarSourceSample> coarse;
-  for (std::size_t i = 0; i < samples.size(); i += 4) coarse.push_back(samples[i]);
-  double best_g[5] = {0, 0, 0, 0, 0};
-  double best_cost = std::numeric_limits<double>::infinity();
-  const auto consider = [&](const double* g) {
-    Eigen::Vector3d m;
+  const std::size_t stride = std::max<std::size_t>(4, (samples.size() + 199) / 200);
+  for (std::size_t i = 0; i < samples.size(); i += stride) coarse.push_back(samples[i]);
+  struct Start {
+    double g[5];
     double cost;
-    if (LinearMoment(coarse, g, c, t_ref, &m, &cost) && cost < best_cost) {
-      best_cost = cost;
-      std::copy(g, g + 5, best_g);
-    }
   };
-  const double z0 = std::clamp(cz - 12.0, cz - options.max_height_m, cz + options.max_height_m);
+  std::vector<Start> starts;  // the warm start (if any) first, then the grid's best
+  const auto cost_of = [&](const double* g, double* cost) {
+    Eigen::Vector3d m;
+    return LinearMoment(coarse, g, c, t_ref, &m, cost);
+  };
+  const double z_hi = cz + options.max_height_m;
+  const double z0 = std::clamp(cz - 12.0, cz - options.max_height_m, z_hi);
+  bool warm_fits = false;
   if (warm != nullptr && warm->valid) {
     // The same line at this t_ref: the along-track position moves with u.
     double d = std::clamp(warm->d_m, r_min, r_max);
-    double g[5] = {d, warm->theta_rad, warm->a0_m + warm->u_mps * (t_ref - warm->t_ref_s), warm->u_mps,
-                   std::clamp(warm->z_m, cz - options.max_height_m, cz + options.max_height_m)};
-    consider(g);
+    Start st{{d, warm->theta_rad, warm->a0_m + warm->u_mps * (t_ref - warm->t_ref_s), warm->u_mps,
+              std::clamp(warm->z_m, cz - options.max_height_m, z_hi)},
+             0.0};
+    if (cost_of(st.g, &st.cost)) {
+      starts.push_back(st);
+      // A far ship's line changes little from one fit to the next: it still
+      // fits when its whitened RMS per axis is at most 1.5 on these samples.
+      warm_fits = st.cost <= 1.5 * 1.5 * 3.0 * static_cast<double>(coarse.size());
+    }
   }
-  // The grid only when there is no previous fit or it no longer fits (its
-  // whitened RMS per axis above 1.5 on these samples): a far ship's line
-  // changes little from one fit to the next.
-  const bool warm_fits = std::isfinite(best_cost) && best_cost <= 1.5 * 1.5 * 3.0 * static_cast<double>(coarse.size());
-  constexpr int kAngles = 16;
-  for (int k = 0; k < kAngles && !warm_fits; ++k) {
-    const double th = 2.0 * M_PI * k / kAngles;
-    for (double dd : {20.0, 70.0, 150.0}) {
-      const double d = std::min(r_min + dd, r_max);
-      for (double a0 : {-120.0, -60.0, 0.0, 60.0, 120.0}) {
-        for (double u : {-3.0, 0.0, 3.0}) {
-          const double g[5] = {d, th, a0, u, z0};
-          consider(g);
+  // The grid when there is no previous fit, it no longer fits, or it was
+  // refused (its basin may be a wrong one: a mirror of the ship, or a
+  // source pressed against the bound while the ship is still far along its
+  // line). Three grid nodes are refined: the best, the best whose line's
+  // normal differs from it by more than 45° (the other side of the array),
+  // and the best on about the same line whose along-line position differs by
+  // more than two grid steps (the other end of the line: a ship far along its
+  // line and its mirror about the line's closest point fit nearly alike).
+  if (!warm_fits || search_grid) {
+    if (searched != nullptr) *searched = true;
+    constexpr int kAngles = 16;
+    const int n_along = static_cast<int>(std::floor(options.along_extent_m / options.along_step_m + 1e-9));
+    std::vector<Start> grid;
+    for (int k = 0; k < kAngles; ++k) {
+      const double th = 2.0 * M_PI * k / kAngles;
+      for (double dd : {20.0, 70.0, 150.0}) {
+        const double d = std::min(r_min + dd, r_max);
+        for (int ia = -n_along; ia <= n_along; ++ia) {
+          for (double u : {-3.0, 0.0, 3.0}) {
+            Start st{{d, th, ia * options.along_step_m, u, z0}, 0.0};
+            if (cost_of(st.g, &st.cost)) grid.push_back(st);
+          }
         }
       }
     }
+    std::sort(grid.begin(), grid.end(), [](const Start& a, const Start& b) { return a.cost < b.cost; });
+    if (!grid.empty()) {
+      const Start& best = grid.front();
+      starts.push_back(best);
+      bool other_side = false, other_end = false;
+      for (const Start& st : grid) {
+        const bool turned = std::abs(std::remainder(st.g[1] - best.g[1], 2.0 * M_PI)) > M_PI / 4.0 + 1e-9;
+        if (turned && !other_side) {
+          starts.push_back(st);
+          other_side = true;
+        } else if (!turned && !other_end && std::abs(st.g[2] - best.g[2]) > 2.0 * options.along_step_m + 1e-9) {
+          starts.push_back(st);
+          other_end = true;
+        }
+        if (other_side && other_end) break;
+      }
+    }
   }
+  if (starts.empty()) return out;
+  // Refines a start (g, and the moment solved linearly from it) over `set`;
+  // its final cost, +inf if it failed.
+  const auto refine = [&](const std::vector<FarSourceSample>& set, double* g, double* mu) {
+    Eigen::Vector3d m;
+    double cost0;
+    if (!LinearMoment(set, g, c, t_ref, &m, &cost0)) return std::numeric_limits<double>::infinity();
+    mu[0] = m.x() / kMomentUnit;
+    mu[1] = m.y() / kMomentUnit;
+    mu[2] = m.z() / kMomentUnit;
+    ceres::Problem::Options popt;
+    popt.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    ceres::Problem problem(popt);
+    ceres::HuberLoss huber(options.loss_sigmas);
+    ceres::CauchyLoss cauchy(options.loss_sigmas);
+    ceres::LossFunction* loss = nullptr;  // trivial
+    if (options.loss == LossType::kHuber) loss = &huber;
+    if (options.loss == LossType::kCauchy) loss = &cauchy;
+    for (const FarSourceSample& s : set) {
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<FarSampleCost, 3, 5, 3>(new FarSampleCost(s, c, t_ref)), loss, g, mu);
+    }
+    // The bound that keeps the source out of the array: a hard bound of the
+    // solver (its steps are projected onto it), not a penalty.
+    problem.SetParameterLowerBound(g, 0, r_min);
+    problem.SetParameterUpperBound(g, 0, r_max);
+    problem.SetParameterLowerBound(g, 4, cz - options.max_height_m);
+    problem.SetParameterUpperBound(g, 4, z_hi);
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_QR;
+    so.max_num_iterations = 30;
+    so.num_threads = 1;
+    so.logging_type = ceres::SILENT;
+    ceres::Solver::Summary sum;
+    ceres::Solve(so, &problem, &sum);
+    if (!(sum.final_cost >= 0.0) || !std::isfinite(sum.final_cost)) return std::numeric_limits<double>::infinity();
+    return sum.final_cost;
+  };
+  // One start: refined over every sample. Several: each refined over the
+  // coarse subset, and the one of lowest cost then over every sample.
+  double best_g[5];
+  double best_mu[3];
+  double best_cost = std::numeric_limits<double>::infinity();
+  if (starts.size() > 1) {
+    for (const Start& st : starts) {
+      double g[5], mu[3];
+      std::copy(st.g, st.g + 5, g);
+      const double cost = refine(coarse, g, mu);
+      if (cost < best_cost) {
+        best_cost = cost;
+        std::copy(g, g + 5, best_g);
+      }
+    }
+  } else {
+    std::copy(starts.front().g, starts.front().g + 5, best_g);
+  }
+  best_cost = refine(samples, best_g, best_mu);
   if (!std::isfinite(best_cost)) return out;
-  double g[5];
-  std::copy(best_g, best_g + 5, g);
-  Eigen::Vector3d m;
-  double cost0;
-  if (!LinearMoment(samples, g, c, t_ref, &m, &cost0)) return out;
-  double mu[3] = {m.x() / kMomentUnit, m.y() / kMomentUnit, m.z() / kMomentUnit};
-  ceres::Problem::Options popt;
-  popt.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(popt);
-  ceres::HuberLoss loss(options.huber_sigmas);
-  for (const FarSourceSample& s : samples) {
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<FarSampleCost, 3, 5, 3>(new FarSampleCost(s, c, t_ref)), &loss, g, mu);
-  }
-  // The bound that keeps the source out of the array: a hard bound of the
-  // solver (its steps are projected onto it), not a penalty.
-  problem.SetParameterLowerBound(g, 0, r_min);
-  problem.SetParameterUpperBound(g, 0, r_max);
-  problem.SetParameterLowerBound(g, 4, cz - options.max_height_m);
-  problem.SetParameterUpperBound(g, 4, cz + options.max_height_m);
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = 30;
-  so.num_threads = 1;
-  so.logging_type = ceres::SILENT;
-  ceres::Solver::Summary sum;
-  ceres::Solve(so, &problem, &sum);
-  if (!(sum.final_cost >= 0.0) || !std::isfinite(sum.final_cost)) return out;
+  const double* g = best_g;
+  const double* mu = best_mu;
   out.valid = true;
   out.t_ref_s = t_ref;
   out.centroid = c;
@@ -255,6 +362,8 @@ bool FarSourceEstimator::WantsEpoch(double t_s) const {
 void FarSourceEstimator::AddEpoch(double t_s, const std::vector<FarSourceSample>& used,
                                   const std::vector<Eigen::Vector3d>& sensors) {
   if (!options_.enabled) return;
+  // The time its B was removed from: the kept epochs' spacing while active.
+  if (active_ && std::isfinite(last_kept_t_) && t_s > last_kept_t_) stats_.active_s += t_s - last_kept_t_;
   last_kept_t_ = t_s;
   if (!sensors.empty()) sensors_ = sensors;
   kept_.push_back({t_s, used});
@@ -269,7 +378,8 @@ void FarSourceEstimator::AddEpoch(double t_s, const std::vector<FarSourceSample>
 
 bool FarSourceEstimator::StepIfDue(double t_s) {
   if (!options_.enabled || kept_.empty()) return false;
-  if (t_s - last_fit_t_ < options_.solve_interval_s - 1e-6) return false;
+  if (interval_s_ < 0.0) interval_s_ = options_.solve_interval_s;
+  if (t_s - last_fit_t_ < interval_s_ - 1e-6) return false;
   if (kept_.back().t_s - kept_.front().t_s < options_.min_span_s) return false;
   last_fit_t_ = t_s;
   std::vector<FarSourceSample> all;
@@ -300,13 +410,50 @@ bool FarSourceEstimator::StepIfDue(double t_s) {
     }
     all.swap(thinned);
   }
-  const FarSourceModel fit = FitFarSource(all, sensors_, options_, model_.valid ? &model_ : nullptr);
+  // A refused previous fit is a start, but the grid is searched as well: its
+  // basin may be the wrong one.
+  const bool search_grid = options_.grid_when_refused && model_.valid && !active_;
+  bool searched = false;
+  const FarSourceModel fit =
+      FitFarSource(all, sensors_, options_, model_.valid ? &model_ : nullptr, search_grid, &searched);
   model_ = fit;
   active_ = false;
-  if (model_.valid && model_.m_W.norm() >= options_.min_moment_Am2 &&
-      model_.d_m >= model_.min_range_m + options_.bound_slack_m) {
+  ++stats_.num_fits;
+  if (searched) ++stats_.num_grid_searches;
+  if (!model_.valid) {
+    refusal_ = FarSourceRefusal::kNoFit;
+  } else if (model_.m_W.norm() < options_.min_moment_Am2) {
+    refusal_ = FarSourceRefusal::kSmallMoment;
+  } else if (model_.d_m < model_.min_range_m + options_.bound_slack_m) {
+    refusal_ = FarSourceRefusal::kAtBound;
+  } else {
     for (const auto& p : sensors_) active_ = active_ || model_.BAt(p, model_.t_last_s).norm() >= options_.min_field_T;
+    refusal_ = active_ ? FarSourceRefusal::kNone : FarSourceRefusal::kWeakField;
   }
+  switch (refusal_) {
+    case FarSourceRefusal::kNone:
+      ++stats_.num_accepted;
+      stats_.has_accepted = true;
+      stats_.last_t_s = model_.t_last_s;
+      stats_.last_p_W = model_.PositionAt(model_.t_last_s);
+      stats_.last_range_m = model_.RangeAt(model_.t_last_s);
+      stats_.last_moment_Am2 = model_.m_W.norm();
+      break;
+    case FarSourceRefusal::kNoFit:
+      ++stats_.num_refused_no_fit;
+      break;
+    case FarSourceRefusal::kSmallMoment:
+      ++stats_.num_refused_moment;
+      break;
+    case FarSourceRefusal::kAtBound:
+      ++stats_.num_refused_bound;
+      break;
+    case FarSourceRefusal::kWeakField:
+      ++stats_.num_refused_weak;
+      break;
+  }
+  // The back-off: the interval doubles after each refused fit.
+  interval_s_ = active_ ? options_.solve_interval_s : std::min(2.0 * interval_s_, options_.max_interval_s);
   return true;
 }
 

@@ -546,21 +546,31 @@ bool PairCovariances(const std::vector<PairSample>& samples, const PairParams& x
 std::vector<InitialTrack> PairTracks(const std::vector<PairSample>& samples, double signal, double cost,
                                      const PairParams& best_x, const Eigen::Matrix<double, 6, 1>& best_m,
                                      double t_ref, double t_min, double t_max, const TrackerOptions& options,
-                                     double min_separation_m) {
+                                     double min_separation_m, PairFitReport* report = nullptr) {
   const InitOptions& io = options.init;
-  if (!(std::sqrt(cost / signal) <= io.max_dipole_misfit)) return {};
   const Eigen::Vector2d a = best_x.segment<2>(0), b = best_x.segment<2>(5);
-  if ((a - b).norm() < min_separation_m) return {};
-  // Each dipole strong on its own somewhere (not a small correction).
+  // Each dipole's own strongest tensor (the strength gate below).
+  double max_snr[2] = {0.0, 0.0};
   for (int k = 0; k < 2; ++k) {
-    double max_snr = 0.0;
     for (const PairSample& s : samples) {
       Eigen::Vector3d B;
       Eigen::Matrix3d T;
       DipoleBT(s.p_S - PairPosition(best_x, k, s.dt), best_m.segment<3>(3 * k), &B, &T);
-      max_snr = std::max(max_snr, T.norm() / s.st);
+      max_snr[k] = std::max(max_snr[k], T.norm() / s.st);
     }
-    if (!(max_snr >= io.min_tensor_snr)) return {};
+  }
+  if (report != nullptr) {
+    report->fitted = true;
+    report->misfit = std::sqrt(cost / signal);
+    report->separation_m = (a - b).norm();
+    report->max_tensor_snr[0] = max_snr[0];
+    report->max_tensor_snr[1] = max_snr[1];
+  }
+  if (!(std::sqrt(cost / signal) <= io.max_dipole_misfit)) return {};
+  if ((a - b).norm() < min_separation_m) return {};
+  // Each dipole strong on its own somewhere (not a small correction).
+  for (int k = 0; k < 2; ++k) {
+    if (!(max_snr[k] >= io.min_tensor_snr)) return {};
   }
   std::vector<InitialTrack> out(2);
   for (int k = 0; k < 2; ++k) {
@@ -689,7 +699,8 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
 
 std::vector<InitialTrack> RefitPair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                     const TrackerOptions& options, const InitialTrack& a, const InitialTrack& b,
-                                    double min_separation_m) {
+                                    double min_separation_m, PairFitReport* report) {
+  if (report != nullptr) *report = PairFitReport{};
   const InitOptions& io = options.init;
   if (!(io.max_dipole_misfit > 0.0) || epochs.empty()) return {};
   const double t_ref = 0.5 * (epochs.front().t_s + epochs.back().t_s);
@@ -722,6 +733,6 @@ std::vector<InitialTrack> RefitPair(const std::vector<Epoch>& epochs, const Eige
   const double signal = PairSignal(samples);
   Eigen::Matrix<double, 6, 1> m;
   const double cost = FitPair(samples, &x, &m);
-  return PairTracks(samples, signal, cost, x, m, t_ref, t_min, t_max, options, min_separation_m);
+  return PairTracks(samples, signal, cost, x, m, t_ref, t_min, t_max, options, min_separation_m, report);
 }
 }  // namespace magnav::tracker

@@ -233,7 +233,7 @@ void TrimOutOfReach(const std::vector<Epoch>& epochs, const MultiTrackerOptions&
 std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                                 const MultiTrackerOptions& options,
                                                 const std::vector<DipoleFix>* fixes,
-                                                const BatchProgress& progress) {
+                                                const BatchProgress& progress, MultiSummary* finder_summary) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("multi-tracker options: " + why);
   // 1. The causal pass finds the vessels.
@@ -276,6 +276,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     if (progress) progress("finding tracks", static_cast<std::size_t>(&e - epochs.data()) + 1, epochs.size());
   }
   take(finder.Flush());
+  if (finder_summary != nullptr) *finder_summary = finder.summary();
   std::vector<MultiTrackEstimate> result;
   // Each track's span: its window estimates'; a track that ended because its
   // sensors stopped fitting it (an untracked vessel came, or it was lost)
@@ -328,6 +329,10 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   if (options.batch_turn_loss_scale_sigma > 0.0) {
     topt.process.turn_rate_loss_scale_sigma = options.batch_turn_loss_scale_sigma;
   }
+  // A track the field's start SNR cannot initialise (batch_weak_init).
+  const bool weak_init = options.batch_weak_init && options.management.residual_start.tensor_snr > 0.0 &&
+                         options.management.residual_start.tensor_snr < topt.init.min_tensor_snr;
+  const TrackerOptions weak_topt = ResidualStartTrackerOptions(topt, options.management.residual_start);
   bool grew = true;
   const int max_rounds = std::max(options.batch_rounds, MultiTrackerOptions::kMaxBatchRounds);
   for (int round = 0; round < max_rounds && (round < options.batch_rounds || grew); ++round) {
@@ -440,6 +445,12 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
         starts.push_back([path, max_gap](double t) { return path->At(t, max_gap); });
       }
       TrackEstimate est = SolveBatch(mine, B0_W, topt, &track_fixes, &starts);
+      if (!est.summary.initialized && weak_init) {
+        // Too few fixes at the field's start SNR: a vessel started in the
+        // residual (batch_weak_init).
+        est = SolveBatch(mine, B0_W, weak_topt, &track_fixes, &starts);
+        if (est.summary.initialized) est.summary.message += " (initialised at the residual start's SNR)";
+      }
       const bool ok = est.summary.initialized && est.summary.usable &&
                       std::any_of(est.epochs.begin(), est.epochs.end(), [](const EpochEstimate& e) { return e.usable; });
       if (ok) {

@@ -103,6 +103,7 @@ std::string MultiSummary::BriefReport() const {
     << " ended, " << num_tentative_dropped << " tentative dropped, " << num_starts_refused
     << " starts refused (too close to a track)";
   if (num_rejected_samples > 0) o << ", " << num_rejected_samples << " bad samples left out";
+  if (far_source_enabled) o << "; " << far_source.BriefReport();
   return o.str();
 }
 
@@ -436,6 +437,7 @@ struct MultiTracker::Impl {
     }
     far.AddEpoch(raw.t_s, used, sensors);
     far.StepIfDue(raw.t_s);
+    summary.far_source = far.stats();
   }
 
   // Each sensor's background takes the raw sample minus every live track's
@@ -724,8 +726,14 @@ struct MultiTracker::Impl {
       now.state = *pa;
       now.m_B_Am2 = a.engine->m_B_Am2();
       const std::vector<Epoch> epochs = RecentWithout(i, i);
-      const std::vector<InitialTrack> pair =
-          InitializeBeside(epochs, B0_W, options.track, now, mg().min_separation_m);
+      bool waiting = false;
+      const std::vector<InitialTrack> pair = InitializeBeside(epochs, B0_W, options.track, now, mg().min_separation_m,
+                                                              mg().confirm_tensor_snr, &waiting);
+      if (waiting && mg().excuse_beside) {
+        // A vessel beside it, too weak yet to start, spoils its fit: its
+        // misses are not its own (pair_beside.h).
+        a.life.ExcuseMisses();
+      }
       if (pair.size() != 2) continue;
       // The newcomer is not another live track.
       const CtState<double> b_now = PropagateCoordinatedTurn(pair[1].state, t - pair[1].t_ref_s);
@@ -1165,6 +1173,7 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   impl_->background = SensorBackgrounds(B0_W, options.background);
   impl_->cluster = internal::WindowClusterBackground(B0_W, options);
   impl_->far = FarSourceEstimator(options.far_source);
+  impl_->summary.far_source_enabled = options.far_source.enabled;
 }
 
 MultiTracker::~MultiTracker() = default;
@@ -1457,6 +1466,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.background = SensorBackgrounds(m.B0_W, m.options.background);
   m.background.RestoreState(r);
   m.far = FarSourceEstimator(m.options.far_source);  // not in the checkpoint: fitted again
+  m.summary.far_source_enabled = m.options.far_source.enabled;
+  m.summary.far_source = {};
   m.cluster = internal::WindowClusterBackground(m.B0_W, m.options);
   if (m.cluster.enabled()) {
     m.cluster.RestoreState(r);

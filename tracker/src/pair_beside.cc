@@ -31,7 +31,8 @@ InitialTrack Shifted(const InitialTrack& a, double along_m, double side_m, doubl
 
 std::vector<InitialTrack> InitializeBeside(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                            const TrackerOptions& options, const InitialTrack& tracked,
-                                           double min_separation_m) {
+                                           double min_separation_m, double seen_tensor_snr, bool* waiting) {
+  if (waiting != nullptr) *waiting = false;
   if (epochs.empty() || !(options.init.max_dipole_misfit > 0.0) || !tracked.m_B_Am2.allFinite()) return {};
   std::vector<InitialTrack> starts;
   // 1. The newcomer's own line, once the tracked vessel's field is out.
@@ -59,10 +60,18 @@ std::vector<InitialTrack> InitializeBeside(const std::vector<Epoch>& epochs, con
   // The fit's samples and the newcomer's strength gate at kBesideMinTensorSnr.
   TrackerOptions weak = options;
   weak.init.min_tensor_snr = std::min(options.init.min_tensor_snr, kBesideMinTensorSnr);
+  bool seen = false;
   for (const InitialTrack& b : starts) {
-    std::vector<InitialTrack> pair = RefitPair(epochs, B0_W, weak, tracked, b, min_separation_m);
+    PairFitReport report;
+    std::vector<InitialTrack> pair = RefitPair(epochs, B0_W, weak, tracked, b, min_separation_m, &report);
     if (pair.size() == 2) return pair;
+    // Refused only because the newcomer is still weak (pair_beside.h).
+    seen = seen || (report.fitted && report.misfit <= weak.init.max_dipole_misfit &&
+                    report.separation_m >= min_separation_m &&
+                    report.max_tensor_snr[0] >= weak.init.min_tensor_snr &&
+                    report.max_tensor_snr[1] >= seen_tensor_snr && seen_tensor_snr > 0.0);
   }
+  if (waiting != nullptr) *waiting = seen;
   return {};
 }
 

@@ -143,8 +143,9 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.I64(static_cast<std::int64_t>(f.enabled));
   w.I64(static_cast<std::int64_t>(f.max_samples));
   for (double d : {f.window_s, f.solve_interval_s, f.sample_interval_s, f.min_span_s, f.extent_factor, f.margin_m,
-                   f.max_range_m, f.max_height_m, f.huber_sigmas, f.tensor_gate, f.occupied_tensor_snr, f.model_share,
-                   f.min_field_T, f.min_moment_Am2, f.bound_slack_m}) {
+                   f.max_range_m, f.max_height_m, f.loss_sigmas, f.tensor_gate, f.occupied_tensor_snr, f.model_share,
+                   f.min_field_T, f.min_moment_Am2, f.bound_slack_m, f.max_interval_s, f.along_extent_m,
+                   f.along_step_m}) {
     w.F64(d);
   }
   w.I64(static_cast<std::int64_t>(f.drift.enabled));
@@ -154,11 +155,14 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
                    f.drift.sample_interval_s}) {
     w.F64(d);
   }
+  w.I64(static_cast<std::int64_t>(f.grid_when_refused));
+  w.I64(static_cast<std::int64_t>(f.loss));
   const VarianceFactorOptions& v = o.variance_factor;
   w.I64(static_cast<std::int64_t>(v.enabled));
   w.I64(static_cast<std::int64_t>(v.statistic));
   w.F64(v.quantile);
   w.F64(v.max_factor);
+  w.I64(static_cast<std::int64_t>(g.excuse_beside));
   return w.bytes();
 }
 

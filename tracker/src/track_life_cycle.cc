@@ -33,6 +33,8 @@ void TrackLifeCycle::OnAssociation(double t_s, bool detected, bool missed, bool 
   }
 }
 
+void TrackLifeCycle::ExcuseMisses() { miss_since_ = kNaN; }
+
 void TrackLifeCycle::OnReach(double t_s, bool in_reach) {
   if (in_reach) {
     out_of_reach_since_ = kNaN;

@@ -91,12 +91,15 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "afpf: lost while the innovation CUSUM g exceeds this (0 = off)");
   opt("--settled-sigma", &f->settled_sigma_deg,
       "pf, afpf: after a re-initialisation stay lost until the cloud's 1-sigma spread is below this, deg; 0 = off");
+  opt("--settle-updates", &f->settle_updates,
+      "pf, afpf: status 'converging' (not ok) until the cloud's 1-sigma spread has stayed below --settled-sigma "
+      "for this many updates in a row (from the start, after a re-initialisation or a widening); 0 = off");
   opt("--reinitialize-when-lost", &f->reinitialize_when_lost,
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   opt("--lost-covariance-is-prior", &f->lost_covariance_is_prior,
       "pf, afpf: while lost publish at least the prior square's covariance (1) or the cloud's (0)");
   opt("--offset-slide-updates", &f->offset_slide_updates,
-      "pf, afpf (magnav match's summary only): a run whose estimate slid against the INS over this many last "
+      "pf, afpf (magnav match's summary, magnav-matcher's fixes): a run whose estimate slid against the INS over this many last "
       "updates beyond the drift model and its cloud's covariance (chi2 > --offset-slide-chi2) is not converged; 0 = off");
   opt("--offset-slide-chi2", &f->offset_slide_chi2, "pf, afpf: threshold of the offset-slide test (chi2, 2 dof)");
   opt("--subclouds", &f->subclouds,
@@ -118,6 +121,24 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "afpf: an offspring's weight pays its fission move as drift (1) or not, as the paper (0)");
   opt("--fission-lambda", &f->fission_lambda, "afpf: offspring variance scale lambda (the paper: 0.001)");
   opt("--fission-mu", &f->fission_mu_deg2, "afpf: parents' sampling variance mu, deg^2 (the paper: 1.6454e-4)");
+}
+
+// Options `magnav match` has for every method and `magnav-matcher` for its filters (one text,
+// one meaning): the status review's plausible correction and the outlier gate.
+inline void AddMaxCorrectionOption(CLI::App& app, double* max_correction_deg) {
+  app.add_option("--max-correction", *max_correction_deg,
+                 "largest correction (deg) a result may make and still be called converged (the prior on the "
+                 "INS error); 0 = the method's own: 2 x --search-window, 2 x the pf/afpf prior half-width, else "
+                 "the INS path's size")
+      ->capture_default_str();
+}
+
+inline void AddOutlierSigmasOption(CLI::App& app, double* outlier_sigmas) {
+  app.add_option("--outlier-sigmas", *outlier_sigmas,
+                 "robust residuals of every method: a reading whose residual is beyond this many robust sigmas "
+                 "(1.4826 MAD) is left out (counted as outliers in the summary); pf/afpf: a reading beyond this "
+                 "many sigmas of the whole cloud's prediction is skipped; 0 = off")
+      ->capture_default_str();
 }
 
 }  // namespace magnav::cli

@@ -27,6 +27,8 @@ struct TrackerFlags {
   // which it is exclusive.
   std::string far_source = "auto";
   std::string far_drift = tracker::SensorDriftOptions{}.enabled ? "on" : "off";
+  std::string far_grid_when_refused = "on";
+  std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
@@ -130,6 +132,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "beside a live track, start a vessel from the residual (every track's field removed) at this tensor "
                  "SNR, jointly with the track (0 = off)")
       ->capture_default_str();
+  app.add_option("--excuse-beside", m.excuse_beside,
+                 "a track's misses do not count while a two-dipole fit beside it explains its samples with a "
+                 "newcomer seen in the tensor but too weak yet to start (0/1)")
+      ->capture_default_str();
   app.add_option("--min-new-share", m.min_new_share,
                  "residual below this share of a track's predicted tensor is not offered to the initiator")
       ->capture_default_str();
@@ -197,6 +203,21 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "removed (on), or the fixed B0 (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--far-max-interval", fs.max_interval_s,
+                 "far source: while its fits are refused (no ship-like source), the interval to the next fit doubles "
+                 "up to this, s (1 = a fit every second, no back-off)")
+      ->capture_default_str();
+  app.add_option("--far-along", fs.along_extent_m,
+                 "far source: its start grid's along-line positions reach this far from the line's closest point, m")
+      ->capture_default_str();
+  app.add_option("--far-grid-when-refused", f->far_grid_when_refused,
+                 "far source: after a refused fit, search the start grid again (on) or only when the previous fit "
+                 "no longer fits (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--far-loss", f->far_loss,
+                 "far source: the fit's robust loss on the whitened B residual (cauchy, huber or trivial)")
+      ->capture_default_str();
 }
 
 // The options the flags give. Throws InputError naming the flag for a bad
@@ -218,6 +239,10 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
                             ? tracker::FarSourceOptions{}.enabled && !o.background.enabled && !o.cluster_background.enabled
                             : f.far_source == "on";
   o.far_source.drift.enabled = f.far_drift == "on";
+  o.far_source.grid_when_refused = f.far_grid_when_refused == "on";
+  if (!tracker::ParseLossType(f.far_loss, &o.far_source.loss)) {
+    throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");
+  }
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals

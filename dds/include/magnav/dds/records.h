@@ -38,6 +38,7 @@ enum class MapFixStatus : std::uint32_t {
   kLost = 2,     // the lost-track detector is raised: do not use the position
   kOffMap = 3,   // every particle off the map: dead-reckoning on the INS
   kPartlyObservable = 4,  // the map knows less than the INS prior along its least observed direction
+  kConverging = 5,        // the filter has not settled yet: the position is not a trusted fix
 };
 // TrackEstimate.state (the wire's TrackState; tracker::TrackState in the library).
 enum class TrackState : std::uint32_t {

@@ -111,16 +111,35 @@ struct FastMsdOptions {
   // linearisation) is computed by forward-backward along the path, and each
   // point's covariance gets the second moment of the posterior mass outside
   // its published basin (beyond the 99 % ellipse of the linearised one).
-  // Changes the covariance only, never the positions. 0 = off. At most 400
+  // Changes the covariance only, and the positions through basin_mean_shift
+  // (below). 0 = off (and no shift). At most 400
   // offsets each side: a wider half width for the map's step coarsens the grid.
   double basin_half_width_deg = 0.012;
   double basin_step_cells = 0.25;
+  // Positions from the other basins (issue 25 item 6; docs/ACCURACY.md, "Fast
+  // MSD: single paths above 0.001°"; needs basin_half_width_deg > 0): each
+  // point moves to the mean of that posterior mixture — the published basin's
+  // mass at the published point, the other basins' mass where it lies — i.e.
+  // by far_mean = Σ_outside p(d) d (fast_msd_basins.h), and its covariance is
+  // the mixture's second moment about the moved point, C_i + S_i − far_mean
+  // far_meanᵀ (S_i the outside second moment; never narrower than C_i). Where
+  // the posterior holds no mass outside the published basin nothing moves.
+  // Nothing moves either when the posterior's mass on the offset grid's
+  // outermost ring reaches 1 % at some point (the grid truncates it there, so
+  // its mean is not the posterior's; notes: "not moved to the posterior mean").
+  // Not applied when the result is ambiguous (ambiguity_ratio: the covariance
+  // covers the second peak about the rounds' positions, as before). On by
+  // default since 2026-11-26 evening: held-out paths 601-640 at 0.5 nT, every
+  // path ≤ 0.001° (2 of 40 above before). false = the rounds' positions (the
+  // covariance as above, about them).
+  bool basin_mean_shift = true;
 
   bool IsValid(std::string* error) const;
 };
 
+// Positions: the rounds' path, each point then moved to the other basins' posterior mean (basin_mean_shift).
 // iterations = Jacobi iterations over all rounds (direct solver: one per round); score = MSD (nT²) at the
-// matched points on the map, outliers left out; converged = every round's Jacobi met epsilon and the
+// published points on the map, outliers left out; converged = every round's Jacobi met epsilon and the
 // coarse stage's best minimum is not ambiguous (ambiguity_ratio).
 // Covariance (MatchResult::cov_*, per point, deg² in (lat, lon)): the error
 // covariance of the smoother (mapmatch/src/fast_msd_covariance.h) — the fixed

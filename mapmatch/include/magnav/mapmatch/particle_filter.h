@@ -367,6 +367,20 @@ struct ParticleFilterOptions {
   // basins and must not be trusted; before, the flag cleared at once and a
   // re-acquisition that locked onto a wrong basin was never flagged. 0 = off.
   double settled_sigma_deg = 0.003;
+  // The converging status (issue 25 items 3, 4; StepDiagnostics::converging, StatusOf): a filter
+  // says it has not settled yet, so that a wide cloud's mean is never published as a trusted fix
+  // (OK). A step is converging — unless lost — from the first step, and again after a
+  // re-initialisation or whenever the cloud widens, until the cloud has been settled for
+  // settle_updates updates in a row: its 1-σ spread √(cloud_cov_lat_lat + cloud_cov_lon_lon) below
+  // settled_sigma_deg (the re-acquisition's settle criterion above) after each of them; with
+  // subclouds > 1, every sub-cloud settled and the pooled cloud (which holds their disagreement)
+  // too. settle_updates = acquisition_min_updates (6): the acquisition test (below) then has had
+  // its minimum window of innovations from the settled cloud to judge before the fix is called OK,
+  // so a wrong-basin collapse goes from converging to lost, not through OK. Not chosen on any run
+  // (both constants predate the status); its effect measured in docs/ACCURACY.md ("A converging
+  // status"). Status only: the estimates, the covariances and the lost flags are unchanged.
+  // 0 = off (never converging).
+  int settle_updates = 6;
   // On by default: on the crustal 0.01°/3 nT path 1 of 20 AFPF seeds locks
   // onto a wrong basin early; the rule flags it and a fresh prior finds the
   // track (docs/ACCURACY.md).
@@ -377,8 +391,8 @@ struct ParticleFilterOptions {
   // place says nothing of the error (issue 25 item 4; docs/ACCURACY.md).
   bool lost_covariance_is_prior = true;
   // The offset-slide test (issue 25 item 3, "no converged that is not"; docs/ACCURACY.md, "Dense
-  // readings III"): a status rule of MatchParticleFilter (`magnav match`'s summary), flag only — the
-  // estimates and the per-step lost flags are unchanged; magnav-matcher does not use it. The
+  // readings III"): a status rule of RunStatus (run_status.h: `magnav match`'s summary and
+  // magnav-matcher's fixes), flag only — the estimates and the per-step lost flags are unchanged. The
   // particles move with the INS increments plus the drift noise, so the estimate's offset from the
   // INS, Δ_k = x̂_k − ins_k, changes between two steps by the drift the filter's own model allows
   // plus the change of its cloud. Over the last offset_slide_updates updates (from the step of the
@@ -494,6 +508,12 @@ struct Particle {
 // kSpaced: the reading left out, the INS has moved less than min_update_spacing_m since the last one used.
 enum class StepUpdate { kUpdated, kBadMeasurement, kAllOffMap, kOutlier, kSpaced };
 
+// The status of a run as of a step (RunStatus, run_status.h, says which rule each names).
+enum class RunVerdict { kConverged, kLost, kOffMap, kSigmaCapped, kSlid, kUnsettled, kImplausible, kNonFinite, kConverging };
+// "converged", "lost", "off_map", "sigma_capped", "slid", "unsettled", "implausible", "non_finite",
+// "converging".
+const char* RunVerdictName(RunVerdict v);
+
 // Diagnostics after one step.
 struct StepDiagnostics {
   double lat_deg = 0.0, lon_deg = 0.0;                    // weighted mean
@@ -534,11 +554,24 @@ struct StepDiagnostics {
   bool ins_glitch = false;
   StepUpdate update = StepUpdate::kUpdated;
   bool lost = false;
+  // Not lost and not settled yet (settle_updates): the cloud still wide, or settled for fewer than
+  // settle_updates updates since the start, a re-initialisation or its last widening.
+  bool converging = false;
   // The map knows less than the INS prior along its least observed direction
   // at this step (StepObservability, observability.h; set by magnav-matcher,
   // which then floors cov_* there; the filters and Match leave it false).
   bool partly_observable = false;
+  // The run's status as of this step, had it ended here (RunStatus, run_status.h: set by
+  // MatchParticleFilter and magnav-matcher, the same rules; the filters leave kConverged).
+  RunVerdict run_status = RunVerdict::kConverged;
 };
+
+// A step's status as published (`magnav match`'s `status` column, magnav-matcher's MapFix.status):
+// lost (StepDiagnostics::lost) outranks off the map (every particle off the map at this step), which
+// outranks converging (StepDiagnostics::converging); else ok.
+enum class StepStatus { kOk, kConverging, kLost, kOffMap };
+StepStatus StatusOf(const StepDiagnostics& d);
+const char* StepStatusName(StepStatus s);  // "ok", "converging", "lost", "off_map"
 
 struct FilterCounters {
   int steps = 0, updates = 0, bad_measurements = 0, all_off_map = 0, ins_jumps = 0, resamples = 0,
@@ -547,6 +580,7 @@ struct FilterCounters {
   int ins_glitches = 0;      // INS increments beyond ins_glitch_ratio (each starts ins_glitch_hold lost steps)
   int subcloud_reseeds = 0;  // subclouds > 1: sub-clouds replaced by a copy of the best (subcloud_reseed_nats)
   int spaced = 0;            // readings left out by min_update_spacing_m
+  int converging_steps = 0;  // steps with StepDiagnostics::converging
 };
 
 // The common interface of the PF and the AFPF.
@@ -576,11 +610,15 @@ std::unique_ptr<SequentialMatcher> MakeParticleFilter(ParticleFilterKind kind, c
 // half or more of its last 40 updates (the innovations beyond the largest
 // noise it allows; docs/ACCURACY.md, "Dense readings II"), and for both filters on
 // dense readings the estimate not slid against the INS beyond the drift model and
-// the cloud (offset_slide_updates, offset_slide_chi2; "Dense readings III"); points_used =
+// the cloud (offset_slide_updates, offset_slide_chi2; "Dense readings III"), no estimate
+// further from its INS position than max_correction_deg (0 = 2 × prior_half_width_deg), and not
+// converging at the last step (settle_updates: a filter that has not settled never says
+// "converged"): the rules of RunStatus (run_status.h), which magnav-matcher applies at every fix;
+// points_used =
 // updates; off map = all-off-map steps.
-// `steps` (optional) receives every step's diagnostics.
+// `steps` (optional) receives every step's diagnostics, run_status the run's status as of it.
 MatchResult MatchParticleFilter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
                                 const MatchPath& path, const ParticleFilterOptions& options,
-                                std::vector<StepDiagnostics>* steps = nullptr);
+                                std::vector<StepDiagnostics>* steps = nullptr, double max_correction_deg = 0.0);
 
 }  // namespace magnav::mapmatch

@@ -15,11 +15,14 @@
 // penalty that data can outweigh): every point of the line, at every time,
 // is at least min_range_m from the centroid. A near vessel's 1/r³ bell at
 // one sensor cannot be fitted by a source that far, and is not absorbed.
-// Parameters: d, θ, a0, u, z, m_W (8); fitted by Ceres (Huber loss on the
-// whitened residual) over the samples given, each sample's B minus B0 minus
-// every track's predicted B. The moment is linear: the start is a grid over
-// (θ, d, u) with the moment solved by least squares at each node, the best
-// refined (with the previous fit, warm, as one more candidate).
+// Parameters: d, θ, a0, u, z, m_W (8); fitted by Ceres (a robust loss,
+// Cauchy by default, on the whitened residual) over the samples given, each
+// sample's B minus B0 minus every track's predicted B. The moment is linear:
+// the start is the previous fit (warm) and, when there is none, it no longer
+// fits or it was refused, a grid over (θ, d, a0, u) with the moment solved by
+// least squares at each node; its three best distinct nodes and the warm start
+// are refined on a coarse subset, the best over every sample. While fits are
+// refused the estimator backs off (fits less often).
 //
 // On by default since 2026-11-26 (MultiTrackerOptions::far_source;
 // docs/ACCURACY.md, "A far ship as a dipole outside the array": the measured
@@ -35,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "magnav/core/loss.h"
 #include "magnav/tracker/sensor_drift.h"
 
 namespace magnav::tracker {
@@ -65,8 +69,16 @@ struct FarSourceOptions {
   double max_range_m = 1000.0;
   // Its height range about the sensors' mean z (m, either way).
   double max_height_m = 50.0;
-  // Huber loss scale on the whitened B residual (per axis).
-  double huber_sigmas = 3.0;
+  // The robust loss on the whitened B residual (per axis) and its scale.
+  // Cauchy: an untracked or poorly predicted near vessel's B at the sensors
+  // beside it (7–30 nT at 20–30 m from an AUV, its tensor below the noise, so
+  // the sample rules below let it in) weighs little; with Huber (its first
+  // form) those samples outweighed a ship still 200–300 m along its line (2–6
+  // nT) and the fit went to a wrong basin or against the bound while the AUV
+  // passed (docs/ACCURACY.md, "The far source's fit while the ship is far
+  // along its line").
+  LossType loss = LossType::kCauchy;
+  double loss_sigmas = 3.0;
   // Sample rules (as the cluster background's): a sample enters the fit
   // only if its residual tensor (sample minus the tracks' predicted tensor,
   // whitened, ‖·‖²/9) is at most tensor_gate (no untracked near source) and
@@ -100,8 +112,50 @@ struct FarSourceOptions {
   // previous fit's far source for the drift); both removed. Off by default
   // (sensor_drift.h says why).
   SensorDriftOptions drift;
+  // Back-off: while fits are refused (no ship-like source: the rules above)
+  // or there are no samples, the interval to the next fit doubles after each
+  // refused one, up to max_interval_s (s); an accepted fit sets it back to
+  // solve_interval_s. max_interval_s = solve_interval_s: no back-off. A ship
+  // that appears is found at most max_interval_s later (its B changes by
+  // < 1 nT in 8 s at 100–200 m).
+  double max_interval_s = 8.0;
+  // The start grid's along-line positions of the source at the newest sample
+  // reach ±along_extent_m from the line's closest point to the centroid
+  // (step along_step_m): a ship 150 m off at 3 m/s is 250–300 m along its
+  // line when its B (~5 nT) first matters.
+  double along_extent_m = 300.0;
+  double along_step_m = 60.0;
+  // After a refused fit the next one searches the start grid as well (the
+  // refused fit's basin may be a wrong one: a mirror of the ship, or a source
+  // pressed against the bound while the ship is still far along its line);
+  // false: the grid only when the previous fit no longer fits (its first form).
+  bool grid_when_refused = true;
 
   bool IsValid(std::string* error) const;
+};
+
+// Why the newest fit was not removed (kNone: it was, or no fit yet).
+enum class FarSourceRefusal { kNone, kNoFit, kSmallMoment, kAtBound, kWeakField };
+const char* FarSourceRefusalName(FarSourceRefusal r);
+
+// What the far source did over the data so far: a user must see when it
+// acted (magnav track's summary, magnav-tracker's stats line).
+struct FarSourceStats {
+  int num_fits = 0;               // fits made
+  int num_accepted = 0;           // fits whose source was removed
+  int num_refused_no_fit = 0;     // too few samples or sensors, or the solver failed
+  int num_refused_moment = 0;     // moment below min_moment_Am2
+  int num_refused_bound = 0;      // line within bound_slack_m of the bound
+  int num_refused_weak = 0;       // its B below min_field_T at every sensor
+  int num_grid_searches = 0;      // fits that searched the start grid
+  double active_s = 0.0;          // time of data from which its B was removed (s)
+  bool has_accepted = false;      // the last accepted fit:
+  double last_t_s = 0.0;          //   its newest sample's time (s)
+  Eigen::Vector3d last_p_W = Eigen::Vector3d::Zero();  // its position then (world NED, m)
+  double last_range_m = 0.0;      //   horizontal distance from the sensors' centroid (m)
+  double last_moment_Am2 = 0.0;   //   |m| (A·m²)
+  // "far source: F fits (A accepted, R refused: ...), its B removed for T s; last at ..."
+  std::string BriefReport() const;
 };
 
 // One sample's residual B (sample − B0 − every track's predicted B; world
@@ -140,10 +194,14 @@ double FarSourceMinRange(const std::vector<Eigen::Vector3d>& sensors, const FarS
 
 // Fits the model to `samples` (any order); `sensors`: the sensors' positions
 // (for the centroid and the bound). `warm` (may be null): a previous fit, one
-// more start. Invalid model if there are fewer than 10 samples or fewer than
-// 4 sensors (an array's model).
+// more start; the start grid is searched too when there is none, when it no
+// longer fits, or when `search_grid` (the previous fit was refused: its basin
+// may be the wrong one). Invalid model if there are fewer than 10 samples or
+// fewer than 4 sensors (an array's model). `searched` (may be null): whether
+// the grid was searched.
 FarSourceModel FitFarSource(const std::vector<FarSourceSample>& samples, const std::vector<Eigen::Vector3d>& sensors,
-                            const FarSourceOptions& options, const FarSourceModel* warm = nullptr);
+                            const FarSourceOptions& options, const FarSourceModel* warm = nullptr,
+                            bool search_grid = false, bool* searched = nullptr);
 
 // The streaming side: residuals of recent epochs in, a fit every
 // solve_interval_s, the far source's B at a sample out.
@@ -166,6 +224,11 @@ class FarSourceEstimator {
   const FarSourceModel& model() const { return model_; }
   const SensorDrift& drift() const { return drift_; }
   bool active() const { return active_; }
+  FarSourceRefusal refusal() const { return refusal_; }
+  const FarSourceStats& stats() const { return stats_; }
+  // The interval to the next fit (s): solve_interval_s, or longer while
+  // fits are refused (the back-off).
+  double interval_s() const { return interval_s_; }
 
  private:
   FarSourceOptions options_;
@@ -182,6 +245,9 @@ class FarSourceEstimator {
   FarSourceModel model_;
   bool active_ = false;
   SensorDrift drift_;
+  FarSourceRefusal refusal_ = FarSourceRefusal::kNone;
+  double interval_s_ = -1.0;  // < 0: solve_interval_s (set on the first fit)
+  FarSourceStats stats_;
 };
 
 }  // namespace magnav::tracker

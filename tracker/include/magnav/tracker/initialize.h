@@ -118,10 +118,17 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
 // cluster gates (horizontally) of either line; `epochs` are the samples with
 // every other track's field removed. The same gates as InitializePair's;
 // the result in the order a, b, with t_ref the middle of the epochs. Empty
-// if a gate fails.
+// if a gate fails. `report` (optional): what the fit found, whether or not
+// its gates passed (PairFitReport).
+struct PairFitReport {
+  bool fitted = false;  // enough strong samples over min_span_s: the fit was made
+  double misfit = 0.0;  // √(Σr²/Σm²) of the pair, as max_dipole_misfit
+  double separation_m = 0.0;  // horizontal distance of the two lines at t_ref (m)
+  double max_tensor_snr[2] = {0.0, 0.0};  // each dipole's own tensor SNR, at its strongest sample (a, b)
+};
 std::vector<InitialTrack> RefitPair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                     const TrackerOptions& options, const InitialTrack& a, const InitialTrack& b,
-                                    double min_separation_m);
+                                    double min_separation_m, PairFitReport* report = nullptr);
 
 // Why InitializeTrack gave no track, for a user: `have_external_fixes` as
 // its external_fixes != nullptr.

@@ -197,6 +197,16 @@ struct TrackManagementOptions {
   // fresh_abreast/abreast_28 (starts 6 s apart) failing (docs/ACCURACY.md,
   // "Two vessels started one by one: the joint start").
   double joint_start_s = 20.0;
+  // A confirmed track's misses are excused while the two-dipole fit beside
+  // it explains its samples with a newcomer seen in the tensor (at least
+  // confirm_tensor_snr) but still below the beside start's SNR
+  // (pair_beside.h, `waiting`; TrackLifeCycle::ExcuseMisses): the track
+  // does not end "missed" before the vessel that spoils its fit can be
+  // started beside it (issue 24, fresh_sigma2/overtaking_s2: the slow
+  // vessel's track ended 0.5 s before the fast one's tensor reached the
+  // beside start's 10 σ_T, and it got a second id). Needs pair_refit_s > 0
+  // (the beside start) and confirm_tensor_snr > 0. On by default.
+  bool excuse_beside = true;
   // The back-filled start (issue 24, branch coverage): a start needs
   // min_span_s of strong fixes and then confirm_m of confirm_n detections,
   // so a vessel's first rows came ≈ 6 s after its first strong sample (one
@@ -288,6 +298,19 @@ struct MultiTrackerOptions {
   // which re-solves its turn rate as the data come, is a start from another
   // basin than the batch's own turn-rate restarts.
   bool batch_restart_from_window = true;
+  // Batch: a track whose solve finds too few fixes at the field's start SNR
+  // (track.init.min_tensor_snr, 20) to initialise — a vessel started in the
+  // residual beside its neighbour (management.residual_start), whose tensor
+  // never reaches 20 — is initialised again at the residual start's SNR
+  // (ResidualStartTrackerOptions, 10), from the fixes its window track
+  // gives (only its initialisation changes), and refined over its own
+  // samples as any track: each round with the neighbour's refined field
+  // removed, the neighbour's with its own (the rounds alternate, so the two
+  // overlapping fields are fitted together), its span grown over every
+  // epoch where it is seen. Off (or residual start off): such a track keeps
+  // its window estimates, and its window field is what the neighbour's
+  // refinement removes.
+  bool batch_weak_init = true;
   // Batch: the Cauchy scale of the turn-rate changes in each track's solve,
   // in σ of one step (0 = track.process.turn_rate_loss_scale_sigma, 2, as
   // the window and the single-target SolveBatch). A 0.015 rad/s onset under
@@ -398,6 +421,11 @@ struct MultiSummary {
   int num_clusters = 0;
   int num_cluster_tracks = 0;
   int max_cluster_tracks = 0;
+  // The far source (far_source.h), when on: its fits accepted and refused,
+  // the time its B was removed, its position at the last accepted fit. Not
+  // in the checkpoint (nor is its fit): counted again after a restart.
+  bool far_source_enabled = false;
+  FarSourceStats far_source;
   std::string BriefReport() const;
 };
 
@@ -494,12 +522,14 @@ struct MultiTrackEstimate {
 // vessel was found. `progress`, if given, is called from the calling thread
 // after every epoch of the window pass ("finding tracks", epochs done, of
 // all) and before each track's refinement ("refining track N, round R", 0,
-// 0): a long pass can say how far it is (magnav track).
+// 0): a long pass can say how far it is (magnav track). `finder_summary`, if
+// given, gets the causal pass's summary (its far source's activity).
 using BatchProgress = std::function<void(const std::string& stage, std::size_t done, std::size_t total)>;
 std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                                 const MultiTrackerOptions& options,
                                                 const std::vector<DipoleFix>* fixes = nullptr,
-                                                const BatchProgress& progress = {});
+                                                const BatchProgress& progress = {},
+                                                MultiSummary* finder_summary = nullptr);
 
 // Predicted field of a dipole vessel at a sensor (T, T/m).
 void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2, const Eigen::Vector3d& p_SinW,

@@ -35,6 +35,18 @@
 // Returned: {the tracked vessel's refitted line, the newcomer's}, each with
 // the joint fit's covariances (InitialTrack::has_pair_covariance); empty if
 // no start passes.
+//
+// `seen_tensor_snr` and `waiting` (optional; issue 24, fresh_sigma2/
+// overtaking_s2): when no start passes but one start's fit explains the
+// samples (the misfit and separation gates pass, the tracked line strong)
+// with the newcomer's own tensor seen (≥ seen_tensor_snr σ_T at a sample)
+// but below the init SNR above, *waiting is set: a vessel beside the track,
+// too weak yet to be started, whose field spoils the track's fit. The
+// multi-tracker then does not count the track's misses (TrackLifeCycle::
+// ExcuseMisses) until the newcomer can be started. On overtaking_s2 the
+// fit found the fast vessel 25 m behind the slow one 1.5 m from its true
+// position (misfit 0.004) while its tensor was 7.6 and 9.9 σ_T, and the slow
+// vessel's track ended "missed" (2 s of poor fits) before it reached 10.
 #pragma once
 
 #include <vector>
@@ -51,6 +63,7 @@ namespace magnav::tracker {
 // predicted field at each sample is `tracked`'s (for start 1).
 std::vector<InitialTrack> InitializeBeside(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                            const TrackerOptions& options, const InitialTrack& tracked,
-                                           double min_separation_m);
+                                           double min_separation_m, double seen_tensor_snr = 0.0,
+                                           bool* waiting = nullptr);
 
 }  // namespace magnav::tracker

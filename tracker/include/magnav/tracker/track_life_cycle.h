@@ -10,7 +10,7 @@
 //    confirmed") once more than confirm_n − confirm_m of them are not, or
 //    max_coast_s after it was created.
 //  - Confirmed, ends (first rule that holds, in this order): "missed" (missed
-//    for max_miss_s in a row), "out_of_reach" (out of the sensors' reach,
+//    for max_miss_s in a row, not counting misses excused by ExcuseMisses), "out_of_reach" (out of the sensors' reach,
 //    OnReach, for out_of_reach_s in a row; 0 = off), "lost" (not detected
 //    for max_coast_s),
 //    "uncertain" (horizontal 1-σ above max_sigma_horizontal_m), "unusable"
@@ -51,6 +51,11 @@ class TrackLifeCycle {
   // reason) or keep. A kConfirm must be followed by Confirm().
   Decision Decide(double t_s, std::string* reason) const;
   void Confirm() { confirmed_ = true; }
+  // The misses up to now are explained by a vessel beside the track that
+  // is too weak yet to be started (pair_beside.h, `waiting`): the "missed"
+  // streak starts again from the next miss. The "lost" rule (no detection
+  // for max_coast_s) still holds.
+  void ExcuseMisses();
   // Whether the track is within min_separation_m of an older live track at
   // t_s; true if it ends for it ("duplicate").
   bool OnDuplicateCheck(double t_s, bool close_to_older);
