@@ -11,6 +11,7 @@
 #include "magnav/core/option_check.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/multi_tracker.h"
+#include "quiet_sample.h"
 #include "state_io.h"
 
 namespace magnav::tracker {
@@ -185,7 +186,7 @@ ClusterStepStats EstimateClusterOffsets(const std::vector<const Epoch*>& epochs,
     stats.cluster_sensors.push_back(static_cast<int>(s.size()));
   }
   if (wanted.empty()) return stats;
-  const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+  const internal::QuietRule rule{options.occupied_tensor_snr, options.tensor_gate, options.track_field_share};
   std::map<std::uint32_t, std::vector<OffsetSample>> series;
   std::vector<std::optional<CtState<double>>> at(tracks.size());
   for (const Epoch* e : epochs) {
@@ -205,22 +206,14 @@ ClusterStepStats EstimateClusterOffsets(const std::vector<const Epoch*>& epochs,
         B_tracks += B;
         T_tracks += T;
       }
-      const double sb = SigmaB(smp, track_options), st = SigmaT(smp, track_options);
-      if (options.occupied_tensor_snr > 0.0 && T_tracks.norm() >= options.occupied_tensor_snr * st) {
-        ++stats.num_samples_occupied;
-        series[smp.sensor_id].push_back({e->t_s, Eigen::Vector3d::Zero(), 0.0});  // no measurement
-        continue;
-      }
-      const double st2 = st * st + rel * rel * T_tracks.squaredNorm() / 9.0;
-      if ((smp.T - T_tracks).squaredNorm() / st2 / 9.0 > options.tensor_gate) {
-        ++stats.num_samples_gated;
+      const internal::QuietSample q = internal::QuietResidual(smp, B_tracks, T_tracks, B0_W, track_options, rule);
+      if (q.use != internal::QuietUse::kUsed) {
+        ++(q.use == internal::QuietUse::kOccupied ? stats.num_samples_occupied : stats.num_samples_gated);
         series[smp.sensor_id].push_back({e->t_s, Eigen::Vector3d::Zero(), 0.0});  // no measurement
         continue;
       }
       ++stats.num_samples_used;
-      const double share = options.track_field_share;
-      const double var = sb * sb + share * share * B_tracks.squaredNorm() / 3.0;
-      series[smp.sensor_id].push_back({e->t_s, smp.B - B0_W - B_tracks, var});
+      series[smp.sensor_id].push_back({e->t_s, q.r_W, q.var_T2});
     }
   }
   for (auto& [id, s] : series) {

@@ -158,7 +158,7 @@ bool FarSourceOptions::IsValid(std::string* error) const {
   if (!(along_extent_m >= 0.0) || !std::isfinite(along_extent_m)) return Fail(error, "along_extent_m must be >= 0");
   if (!(along_step_m > 0.0) || !std::isfinite(along_step_m)) return Fail(error, "along_step_m must be > 0");
   if (along_extent_m / along_step_m > 100.0) return Fail(error, "along_extent_m / along_step_m must be <= 100");
-  return true;
+  return drift.IsValid(error);
 }
 
 Eigen::Vector3d FarSourceModel::PositionAt(double t_s) const {
@@ -368,6 +368,12 @@ void FarSourceEstimator::AddEpoch(double t_s, const std::vector<FarSourceSample>
   if (!sensors.empty()) sensors_ = sensors;
   kept_.push_back({t_s, used});
   while (!kept_.empty() && t_s - kept_.front().t_s > options_.window_s) kept_.pop_front();
+  const SensorDriftOptions& d = options_.drift;
+  if (d.enabled && t_s - last_drift_kept_t_ >= d.sample_interval_s - 1e-6) {
+    last_drift_kept_t_ = t_s;
+    drift_kept_.push_back({t_s, used});
+    while (!drift_kept_.empty() && t_s - drift_kept_.front().t_s > d.window_s) drift_kept_.pop_front();
+  }
 }
 
 bool FarSourceEstimator::StepIfDue(double t_s) {
@@ -378,6 +384,21 @@ bool FarSourceEstimator::StepIfDue(double t_s) {
   last_fit_t_ = t_s;
   std::vector<FarSourceSample> all;
   for (const Kept& k : kept_) all.insert(all.end(), k.used.begin(), k.used.end());
+  if (drift_.enabled()) {
+    // The drift on the samples minus the previous far source (if removed),
+    // then the far source on the samples minus the drift: one block step of
+    // each per fit, over successive fits a block coordinate descent.
+    std::vector<DriftSample> ds;
+    for (const Kept& k : drift_kept_) {
+      for (const FarSourceSample& s : k.used) {
+        if (s.tracks_B_T > options_.drift.occupied_B_sigmas * s.sigma_T) continue;  // a tracked vessel's B there
+        const Eigen::Vector3d far = active_ ? model_.BAt(s.p_SinW, s.t_s) : Eigen::Vector3d::Zero();
+        ds.push_back({s.sensor_id, s.t_s, s.r_W - far, s.sigma_T});
+      }
+    }
+    drift_.Fit(ds);
+    for (FarSourceSample& s : all) s.r_W -= drift_.At(s.sensor_id, s.t_s);
+  }
   if (static_cast<int>(all.size()) > options_.max_samples) {
     // An even stride over the samples, the newest kept (what is removed next
     // is near it).
@@ -436,11 +457,19 @@ bool FarSourceEstimator::StepIfDue(double t_s) {
   return true;
 }
 
-Eigen::Vector3d FarSourceEstimator::B(const Eigen::Vector3d& p_SinW, double t_s, double* sigma_T) const {
+Eigen::Vector3d FarSourceEstimator::B(std::uint32_t sensor_id, const Eigen::Vector3d& p_SinW, double t_s,
+                                      double* sigma_T) const {
   if (sigma_T != nullptr) *sigma_T = 0.0;
-  if (!active_) return Eigen::Vector3d::Zero();
-  const Eigen::Vector3d b = model_.BAt(p_SinW, t_s);
-  if (sigma_T != nullptr) *sigma_T = options_.model_share * b.norm() / std::sqrt(3.0);
+  if (!options_.enabled) return Eigen::Vector3d::Zero();
+  double s_drift = 0.0;
+  Eigen::Vector3d b = drift_.At(sensor_id, t_s, &s_drift);
+  double s_far = 0.0;
+  if (active_) {
+    const Eigen::Vector3d far = model_.BAt(p_SinW, t_s);
+    s_far = options_.model_share * far.norm() / std::sqrt(3.0);
+    b += far;
+  }
+  if (sigma_T != nullptr) *sigma_T = std::hypot(s_far, s_drift);
   return b;
 }
 

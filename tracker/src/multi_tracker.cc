@@ -1,5 +1,6 @@
 #include "magnav/tracker/multi_tracker.h"
 #include "cluster_window.h"
+#include "quiet_sample.h"
 #include "state_io.h"
 
 #include <Eigen/Eigenvalues>
@@ -396,20 +397,20 @@ struct MultiTracker::Impl {
     if (!far.enabled()) return e;
     for (GradiometerSample& s : e.samples) {
       double sf = 0.0;
-      s.B -= far.B(s.p_SinW, e.t_s, &sf);
+      s.B -= far.B(s.sensor_id, s.p_SinW, e.t_s, &sf);
       if (sf > 0.0) s.sigma_B = std::hypot(SigmaB(s, options.track), sf);
     }
     return e;
   }
 
-  // The far source takes the raw sample minus B0 and every live track's
-  // predicted B (their model error in its σ) where no untracked near source
-  // (residual tensor) and no tracked vessel (predicted tensor) is; a fit
-  // when due.
+  // The far source (and the sensors' drift) takes the raw sample minus B0
+  // and every live track's predicted B (their model error in its σ) where no
+  // untracked near source (residual tensor) and no tracked vessel (predicted
+  // tensor) is (quiet_sample.h); a fit when due.
   void UpdateFarSource(const Epoch& raw, const std::vector<TrackPrediction>& pred) {
     if (!far.enabled() || !far.WantsEpoch(raw.t_s)) return;
-    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
     const FarSourceOptions& fo = options.far_source;
+    const internal::QuietRule rule{fo.occupied_tensor_snr, fo.tensor_gate, MultiTrackerOptions::kOtherFieldRelativeError};
     std::vector<FarSourceSample> used;
     std::vector<Eigen::Vector3d> sensors;
     for (std::size_t j = 0; j < raw.samples.size(); ++j) {
@@ -423,15 +424,15 @@ struct MultiTracker::Impl {
         B_tracks += p.at[j].B;
         T_tracks += p.at[j].T;
       }
-      const double sb = SigmaB(s, options.track), st = SigmaT(s, options.track);
-      if (fo.occupied_tensor_snr > 0.0 && T_tracks.norm() / st >= fo.occupied_tensor_snr) continue;
-      const double st2 = st * st + rel * rel * T_tracks.squaredNorm() / 9.0;
-      if ((s.T - T_tracks).squaredNorm() / st2 / 9.0 > fo.tensor_gate) continue;
+      const internal::QuietSample q = internal::QuietResidual(s, B_tracks, T_tracks, B0_W, options.track, rule);
+      if (q.use != internal::QuietUse::kUsed) continue;
       FarSourceSample f;
+      f.sensor_id = s.sensor_id;
       f.t_s = raw.t_s;
       f.p_SinW = s.p_SinW;
-      f.r_W = s.B - B0_W - B_tracks;
-      f.sigma_T = std::sqrt(sb * sb + rel * rel * B_tracks.squaredNorm() / 3.0);
+      f.r_W = q.r_W;
+      f.sigma_T = std::sqrt(q.var_T2);
+      f.tracks_B_T = B_tracks.norm();
       used.push_back(f);
     }
     far.AddEpoch(raw.t_s, used, sensors);
@@ -1480,10 +1481,12 @@ void MultiTracker::RestoreState(const std::string& payload) {
 const MultiSummary& MultiTracker::summary() const { return impl_->summary; }
 
 Eigen::Vector3d MultiTracker::FarSourceB(const GradiometerSample& s, double* sigma_T) const {
-  return impl_->far.B(s.p_SinW, s.t_s, sigma_T);
+  return impl_->far.B(s.sensor_id, s.p_SinW, s.t_s, sigma_T);
 }
 
 const FarSourceModel& MultiTracker::FarSource() const { return impl_->far.model(); }
+
+const SensorDrift& MultiTracker::Drift() const { return impl_->far.drift(); }
 
 BackgroundEstimate MultiTracker::Background(std::uint32_t sensor_id, double t_s) const {
   const Impl& m = *impl_;

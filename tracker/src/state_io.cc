@@ -148,6 +148,13 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
                    f.along_step_m}) {
     w.F64(d);
   }
+  w.I64(static_cast<std::int64_t>(f.drift.enabled));
+  w.I64(static_cast<std::int64_t>(f.drift.min_samples));
+  for (double d : {f.drift.rate_prior_sigma_T_per_s, f.drift.huber_sigmas, f.drift.reject_sigmas, f.drift.max_rate_T_per_s,
+                   f.drift.occupied_B_sigmas, f.drift.min_span_s, f.drift.window_s,
+                   f.drift.sample_interval_s}) {
+    w.F64(d);
+  }
   w.I64(static_cast<std::int64_t>(f.grid_when_refused));
   w.I64(static_cast<std::int64_t>(f.loss));
   const VarianceFactorOptions& v = o.variance_factor;

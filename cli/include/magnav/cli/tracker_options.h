@@ -26,6 +26,7 @@ struct TrackerFlags {
   // auto: the library default (on) unless a background model is chosen, with
   // which it is exclusive.
   std::string far_source = "auto";
+  std::string far_drift = tracker::SensorDriftOptions{}.enabled ? "on" : "off";
   std::string far_grid_when_refused = "on";
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
@@ -197,6 +198,11 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--far-share", fs.model_share,
                  "far source: its removed B taken as uncertain by this share of its norm (added to sigma_B)")
       ->capture_default_str();
+  app.add_option("--far-drift", f->far_drift,
+                 "far source: each sensor's drift (a line in time over the far source's window) fitted with it and "
+                 "removed (on), or the fixed B0 (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--far-max-interval", fs.max_interval_s,
                  "far source: while its fits are refused (no ship-like source), the interval to the next fit doubles "
                  "up to this, s (1 = a fit every second, no back-off)")
@@ -232,6 +238,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.far_source.enabled = f.far_source == "auto"
                             ? tracker::FarSourceOptions{}.enabled && !o.background.enabled && !o.cluster_background.enabled
                             : f.far_source == "on";
+  o.far_source.drift.enabled = f.far_drift == "on";
   o.far_source.grid_when_refused = f.far_grid_when_refused == "on";
   if (!tracker::ParseLossType(f.far_loss, &o.far_source.loss)) {
     throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");

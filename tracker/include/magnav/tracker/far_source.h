@@ -39,6 +39,7 @@
 #include <vector>
 
 #include "magnav/core/loss.h"
+#include "magnav/tracker/sensor_drift.h"
 
 namespace magnav::tracker {
 
@@ -105,6 +106,12 @@ struct FarSourceOptions {
   // kept; 100 sensors would have 12 000, whose refit every second cost
   // 0.11 CPU s per s of data (docs/BENCHMARKS.md), 3× the whole tracker.
   int max_samples = 1500;
+  // Each sensor's drift (sensor_drift.h), fitted on the same kind of samples
+  // (over its own, longer window) minus the far source's B, the far source
+  // then on its samples minus the drift (one block step each per fit; the
+  // previous fit's far source for the drift); both removed. Off by default
+  // (sensor_drift.h says why).
+  SensorDriftOptions drift;
   // Back-off: while fits are refused (no ship-like source: the rules above)
   // or there are no samples, the interval to the next fit doubles after each
   // refused one, up to max_interval_s (s); an accepted fit sets it back to
@@ -154,10 +161,12 @@ struct FarSourceStats {
 // One sample's residual B (sample − B0 − every track's predicted B; world
 // NED, T) at a sensor position (world NED, m) and time (s), its σ per axis (T).
 struct FarSourceSample {
+  std::uint32_t sensor_id = 0;  // for the drift (sensor_drift.h)
   double t_s = 0.0;
   Eigen::Vector3d p_SinW = Eigen::Vector3d::Zero();
   Eigen::Vector3d r_W = Eigen::Vector3d::Zero();
   double sigma_T = 1e-9;
+  double tracks_B_T = 0.0;  // ‖Σ tracks' predicted B‖ there (T): the drift's occupied rule
 };
 
 // A fitted far source (see the model above).
@@ -198,7 +207,7 @@ FarSourceModel FitFarSource(const std::vector<FarSourceSample>& samples, const s
 // solve_interval_s, the far source's B at a sample out.
 class FarSourceEstimator {
  public:
-  explicit FarSourceEstimator(const FarSourceOptions& options = {}) : options_(options) {}
+  explicit FarSourceEstimator(const FarSourceOptions& options = {}) : options_(options), drift_(options.drift) {}
   bool enabled() const { return options_.enabled; }
   // Whether an epoch at t_s is kept for the fit (one per sample_interval_s).
   bool WantsEpoch(double t_s) const;
@@ -207,10 +216,13 @@ class FarSourceEstimator {
   void AddEpoch(double t_s, const std::vector<FarSourceSample>& used, const std::vector<Eigen::Vector3d>& sensors);
   // Refits when due at t_s; returns whether it did.
   bool StepIfDue(double t_s);
-  // The far source's B to remove at a sensor at t_s and its σ per axis (T);
-  // zero and 0 while there is no fit or its field is below min_field_T.
-  Eigen::Vector3d B(const Eigen::Vector3d& p_SinW, double t_s, double* sigma_T) const;
+  // The far source's B and the sensor's drift to remove at a sensor at t_s,
+  // and their σ per axis (T, in quadrature); the far source's part zero while
+  // there is no fit or its field is below min_field_T, the drift's while the
+  // sensor has none.
+  Eigen::Vector3d B(std::uint32_t sensor_id, const Eigen::Vector3d& p_SinW, double t_s, double* sigma_T) const;
   const FarSourceModel& model() const { return model_; }
+  const SensorDrift& drift() const { return drift_; }
   bool active() const { return active_; }
   FarSourceRefusal refusal() const { return refusal_; }
   const FarSourceStats& stats() const { return stats_; }
@@ -225,11 +237,14 @@ class FarSourceEstimator {
     std::vector<FarSourceSample> used;
   };
   std::deque<Kept> kept_;
+  std::deque<Kept> drift_kept_;  // the drift's window (sensor_drift.h)
+  double last_drift_kept_t_ = -std::numeric_limits<double>::infinity();
   std::vector<Eigen::Vector3d> sensors_;
   double last_kept_t_ = -std::numeric_limits<double>::infinity();
   double last_fit_t_ = -std::numeric_limits<double>::infinity();
   FarSourceModel model_;
   bool active_ = false;
+  SensorDrift drift_;
   FarSourceRefusal refusal_ = FarSourceRefusal::kNone;
   double interval_s_ = -1.0;  // < 0: solve_interval_s (set on the first fit)
   FarSourceStats stats_;

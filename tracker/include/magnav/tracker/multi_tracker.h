@@ -465,12 +465,14 @@ class MultiTracker {
   // Sensor `sensor_id`'s background prior at t_s (B0 while the background
   // is off or the sensor not seen yet). World NED, T.
   BackgroundEstimate Background(std::uint32_t sensor_id, double t_s) const;
-  // The far source's B (T, world NED) that the next epoch's sample `s` will
-  // have removed, and its σ per axis (T); zero while the far source is off
-  // or has no fit.
+  // The far source's B plus the sensor's drift (T, world NED) that the next
+  // epoch's sample `s` will have removed, and its σ per axis (T); zero while
+  // the far source is off or has no fit.
   Eigen::Vector3d FarSourceB(const GradiometerSample& s, double* sigma_T) const;
   // The far source's current fit (valid = false: none).
   const FarSourceModel& FarSource() const;
+  // The sensors' drift lines fitted with it (sensor_drift.h).
+  const SensorDrift& Drift() const;
 
   // Checkpoint (tracker/checkpoint.h; docs/RELIABILITY.md): a payload with
   // the configuration it was made for (B0, every option the results depend
