@@ -304,6 +304,10 @@ void AddTrackCommand(CLI::App& app) {
                   "window: a track started by a two-dipole fit also gets its start's rows from its first strong "
                   "epoch (state start: the window's smoothed estimates, output up to --window late; 0/1)")
       ->capture_default_str();
+  cmd->add_option("--start-rows-single", args->flags.options.management.backfill_single,
+                  "window: with --start-rows, a track made by a single start (its own fixes) gets its start's rows "
+                  "too, from its first fix (0/1)")
+      ->capture_default_str();
   cmd->add_option("--start-rows-older", args->flags.options.management.residual_start.backfill_older,
                   "window: with --start-rows, the older track of a joint start (a single start confirmed before the "
                   "other vessel's start made them a pair) gets its start's rows too (0/1)")

@@ -347,6 +347,28 @@ TEST(HarbourScenario, WindowStartsTheWeakVesselInTheResidualBesideItsNeighbour) 
   EXPECT_LE(s.rms[1], 1.5 * 0.0482);  // m, measured 0.0482
 }
 
+// A vessel started in the residual gets its start's rows (issue 24, branch
+// winstart): fresh_abreast4/abreast_31's vessel 2 (peak tensor SNR 14, below
+// the field's start SNR 20) is started in the residual at SNR 10 at 76.6 s,
+// 30 s after it came within 15 m of a sensor. Its start was back-filled
+// from the first epoch its window predicts the field's SNR 20, which it
+// never reaches, so it was not back-filled at all (window coverage 0.668);
+// from the residual start's SNR 10 (the lowest any start rule accepts), not
+// before its first fix: 56.8 s on, coverage 0.842. Not blind any more
+// (looked at for this change; blind for the residual start's batch).
+TEST(HarbourScenario, WindowBackFillsTheVesselStartedInTheResidual) {
+  const auto s = ScoreWindow(
+      cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/fresh_abreast4/abreast_31.toml"),
+      "abreast_31, defaults");
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the issue's; measured 0.969 / 0.842 (0.969 / 0.668 before)
+  }
+  EXPECT_LE(s.rms[0], 1.5 * 0.0268);  // m, measured 0.0268
+  EXPECT_LE(s.rms[1], 1.5 * 0.0823);  // m, measured 0.0823 (0.089 before)
+}
+
 // The batch over all the evidence for a vessel started in the residual
 // (issue 24 items 2 and 5; MultiTrackerOptions::batch_weak_init):
 // fresh_sigma/abreast_s's vessel 1 (peak tensor SNR 12, below the field's

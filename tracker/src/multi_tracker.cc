@@ -275,9 +275,8 @@ struct MultiTracker::Impl {
     // tentative (its estimates were dropped then; the live rows begin after
     // it).
     std::string backfilled;
-    if (mg().backfill_start && tr.has_newest && tr.started_with != 0) {
-      const double from =
-          std::max(tr.engine->FirstStrongEpoch(options.track.init.min_tensor_snr), tr.t_evidence_s);
+    if (mg().backfill_start && tr.has_newest && (tr.started_with != 0 || mg().backfill_single)) {
+      const double from = std::max(tr.engine->FirstStrongEpoch(BackfillSnr()), tr.t_evidence_s);
       if (std::isfinite(from) && from <= tr.newest.t_s) {
         tr.backfill_pending = true;
         tr.backfill_from_s = from;
@@ -819,7 +818,7 @@ struct MultiTracker::Impl {
         tr.backfill_pending || !(tr.backfill_until_s > 0.0)) {
       return;
     }
-    const double from = std::max(tr.engine->FirstStrongEpoch(options.track.init.min_tensor_snr), tr.t_evidence_s);
+    const double from = std::max(tr.engine->FirstStrongEpoch(BackfillSnr()), tr.t_evidence_s);
     if (!std::isfinite(from) || from > tr.backfill_until_s) return;
     tr.backfill_pending = true;
     tr.backfill_from_s = from;
@@ -875,6 +874,18 @@ struct MultiTracker::Impl {
       << FormatNumber(weak.init.min_tensor_snr) << "), fitted jointly with it";
     tracks.back().origin = o.str();
     return true;
+  }
+
+  // The tensor SNR from which a confirmed track's start is back-filled: the
+  // lowest any start rule accepts (the start in the residual's, if on, else
+  // the field's init.min_tensor_snr). A vessel started in the residual never
+  // reaches the field's SNR (fresh_abreast4/abreast_31's vessel 2 peaks at
+  // 14 sigma_T), so at the field's SNR its start was never back-filled; the
+  // back-fill still goes no farther back than the start's first evidence.
+  double BackfillSnr() const {
+    const double rs = mg().residual_start.tensor_snr;
+    const double field = options.track.init.min_tensor_snr;
+    return rs > 0.0 && rs < field ? rs : field;
   }
 
   // The first evidence of a start made at t: its first single-sample fix,

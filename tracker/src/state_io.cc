@@ -163,6 +163,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.F64(v.quantile);
   w.F64(v.max_factor);
   w.I64(static_cast<std::int64_t>(g.excuse_beside));
+  w.I64(static_cast<std::int64_t>(g.backfill_single));
   return w.bytes();
 }
 

@@ -215,9 +215,11 @@ struct TrackManagementOptions {
   // the confirmation of a track started by a two-dipole fit (a pair start,
   // a joint start, a start beside a track: its start explained its
   // neighbour's field) marks its start's epochs for output: from the
-  // first epoch where its window predicts a tensor of at least
-  // init.min_tensor_snr · σ_T at one of its sensors (the strength a start
-  // fix needs), but not before its start's first evidence (the first fix it
+  // first epoch where its window predicts a tensor of at least the lowest
+  // start SNR (residual_start.tensor_snr if on, else init.min_tensor_snr)
+  // · σ_T at one of its sensors (a vessel started in the residual never
+  // reaches the field's SNR: fresh_abreast4/abreast_31's vessel 2 was not
+  // back-filled at all), but not before its start's first evidence (the first fix it
   // was started from; min_span_s before a two-dipole start, which has no
   // fix), to the newest epoch its engine solved while it was tentative
   // (those estimates were dropped; the live rows follow it). They are
@@ -236,6 +238,12 @@ struct TrackManagementOptions {
   // node (magnav-tracker) turns it off: it publishes in time order and the
   // wire's TrackState has no value for such a row.
   bool backfill_start = true;
+  // With backfill_start, a track made by a single start (one dipole, from
+  // its own fixes) is back-filled too, from its first fix (issue 24,
+  // branch winstart: the start's ≈ 6 s of min_span_s and confirm_m of
+  // confirm_n are never output for a lone vessel, e.g.
+  // fresh_farsrc2/far_ship_147's window coverage 0.77). Off by default.
+  bool backfill_single = false;
   // A vessel too weak for the field's start SNR beside a tracked neighbour
   // (residual_start.h): a start in the residual at a lower SNR, jointly with
   // the neighbour; and the older track of a joint start back-filled.
