@@ -61,7 +61,9 @@ class ConvergingCovariance {
 class Filter final : public SequentialMatcher {
  public:
   Filter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer, const ParticleFilterOptions& o)
-      : kind_(kind), grid_(grid), layer_(layer), o_(o), rng_(o.seed), converging_cov_(o.converging_covariance_mixture) {
+      : kind_(kind), grid_(grid), layer_(layer), o_(o), rng_(o.seed),
+        converging_cov_(kind == ParticleFilterKind::kPf ? o.converging_covariance_mixture
+                                                   : o.afpf_converging_covariance_mixture) {
     if (layer >= grid.layer_names().size()) throw InputError(std::string(Name()) + ": layer index not in the map");
     std::string why;
     if (!o.IsValid(&why)) throw InputError(std::string(Name()) + " options: " + why);

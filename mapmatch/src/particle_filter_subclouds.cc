@@ -22,7 +22,9 @@ constexpr std::uint64_t kSeedStep = 0x9E3779B97F4A7C15ULL;  // 2^64 / the golden
 class SubClouds final : public SequentialMatcher {
  public:
   SubClouds(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer, const ParticleFilterOptions& o)
-      : kind_(kind), grid_(grid), o_(o), converging_cov_(o.converging_covariance_mixture) {
+      : kind_(kind), grid_(grid), o_(o),
+        converging_cov_(kind == ParticleFilterKind::kPf ? o.converging_covariance_mixture
+                                                   : o.afpf_converging_covariance_mixture) {
     std::string why;
     if (!o.IsValid(&why)) throw InputError(std::string(ParticleFilterKindName(kind)) + " options: " + why);
     const int k = o.subclouds;
