@@ -206,11 +206,13 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
       reacquiring_ = o_.settled_sigma_deg > 0.0;
       reacquiring_steps_ = 0;
       settle_count_ = 0;
+      converging_cov_.Clear();
     }
   }
   d.converging = !d.lost && o_.settle_updates > 0 && o_.settled_sigma_deg > 0.0 && settle_count_ < o_.settle_updates;
   if (d.converging) ++counters_.converging_steps;
   PublishCovariance(&d);
+  converging_cov_.Publish(ins_lat, ins_lon, &d);
   last_ = d;
   return last_;
 }

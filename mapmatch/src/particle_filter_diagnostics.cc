@@ -323,6 +323,41 @@ void Filter::PublishCovariance(StepDiagnostics* d) const {
   d->cov_lon_lon = v;
 }
 
+// The converging covariance (converging_covariance_mixture): the equal mixture of the episode's clouds'
+// Gaussians in offsets from the INS (the cloud of the step before the episode, then each converging
+// step's), its covariance about the current offset o:
+// (1/n) Σ_i [C_i + (o_i − o)(o_i − o)ᵀ] = (1/n) [Σ C_i + Σ o_i o_iᵀ − (Σ o_i) oᵀ − o (Σ o_i)ᵀ] + o oᵀ.
+void ConvergingCovariance::Publish(double ins_lat, double ins_lon, StepDiagnostics* d) {
+  if (!on_) return;
+  const std::array<double, 5> now = {d->lat_deg - ins_lat, d->lon_deg - ins_lon, d->cloud_cov_lat_lat,
+                                     d->cloud_cov_lat_lon, d->cloud_cov_lon_lon};
+  bool finite = true;
+  for (double v : now) finite = finite && std::isfinite(v);
+  if (!d->converging || d->lost) {  // the episode ends; this step's cloud would begin the next one
+    Clear();
+    has_prev_ = finite;
+    prev_ = now;
+    return;
+  }
+  if (!finite) return;  // an INS or estimate not finite: nothing to record or publish
+  if (n_ == 0 && has_prev_) Add(prev_);
+  has_prev_ = false;
+  Add(now);
+  const double a = now[0], b = now[1], k = static_cast<double>(n_);
+  const double ll = (c_[0] + oo_[0] - 2.0 * o_[0] * a) / k + a * a;
+  const double ln = (c_[1] + oo_[1] - o_[0] * b - o_[1] * a) / k + a * b;
+  const double nn = (c_[2] + oo_[2] - 2.0 * o_[1] * b) / k + b * b;
+  if (!(ll + nn > d->cov_lat_lat + d->cov_lon_lon)) return;
+  d->cov_lat_lat = ll, d->cov_lat_lon = ln, d->cov_lon_lon = nn;
+}
+
+void ConvergingCovariance::Add(const std::array<double, 5>& h) {
+  ++n_;
+  c_[0] += h[2], c_[1] += h[3], c_[2] += h[4];
+  o_[0] += h[0], o_[1] += h[1];
+  oo_[0] += h[0] * h[0], oo_[1] += h[0] * h[1], oo_[2] += h[1] * h[1];
+}
+
 }  // namespace internal
 
 StepStatus StatusOf(const StepDiagnostics& d) {

@@ -34,10 +34,36 @@
 
 namespace magnav::mapmatch::internal {
 
+// The published covariance while converging (ParticleFilterOptions::converging_covariance_mixture,
+// particle_filter_diagnostics.cc): running sums over the converging episode's clouds (the cloud of the
+// step before it, then every converging step's), as offsets from their INS positions o_i (deg) with
+// their covariances C_i (deg²): n, Σ C_i, Σ o_i, Σ o_i o_iᵀ.
+class ConvergingCovariance {
+ public:
+  explicit ConvergingCovariance(bool on) : on_(on) {}
+  void Clear() { n_ = 0, c_ = {}, o_ = {}, oo_ = {}; }
+  // A step not converging (or lost) ends the episode and is kept as the next one's start; a
+  // converging one joins the episode (the first one after that start) and widens d->cov_* to the
+  // mixture's covariance about the current mean when its trace is larger. Uses d->lat_deg/lon_deg
+  // and d->cloud_cov_*.
+  void Publish(double ins_lat, double ins_lon, StepDiagnostics* d);
+
+ private:
+  void Add(const std::array<double, 5>& h);  // (offset lat, lon, cloud cov lat-lat, lat-lon, lon-lon)
+  bool on_;
+  bool has_prev_ = false;
+  std::array<double, 5> prev_{};  // the last step not converging: its cloud, the next episode's start
+  long long n_ = 0;
+  std::array<double, 3> c_{}, oo_{};  // Σ C_i and Σ o_i o_iᵀ (lat-lat, lat-lon, lon-lon)
+  std::array<double, 2> o_{};         // Σ o_i
+};
+
 class Filter final : public SequentialMatcher {
  public:
   Filter(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer, const ParticleFilterOptions& o)
-      : kind_(kind), grid_(grid), layer_(layer), o_(o), rng_(o.seed) {
+      : kind_(kind), grid_(grid), layer_(layer), o_(o), rng_(o.seed),
+        converging_cov_(kind == ParticleFilterKind::kPf ? o.converging_covariance_mixture
+                                                   : o.afpf_converging_covariance_mixture) {
     if (layer >= grid.layer_names().size()) throw InputError(std::string(Name()) + ": layer index not in the map");
     std::string why;
     if (!o.IsValid(&why)) throw InputError(std::string(Name()) + " options: " + why);
@@ -149,6 +175,7 @@ class Filter final : public SequentialMatcher {
   double sigma_ = 0.0;
   bool adaptive_ = false;  // PF: adaptive_sigma; AFPF: afpf_sigma_factor > 0
   int unique_ = 0;
+  ConvergingCovariance converging_cov_;
   FilterCounters counters_;
   StepDiagnostics last_;
 };

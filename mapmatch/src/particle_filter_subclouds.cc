@@ -22,7 +22,9 @@ constexpr std::uint64_t kSeedStep = 0x9E3779B97F4A7C15ULL;  // 2^64 / the golden
 class SubClouds final : public SequentialMatcher {
  public:
   SubClouds(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer, const ParticleFilterOptions& o)
-      : kind_(kind), grid_(grid), o_(o) {
+      : kind_(kind), grid_(grid), o_(o),
+        converging_cov_(kind == ParticleFilterKind::kPf ? o.converging_covariance_mixture
+                                                   : o.afpf_converging_covariance_mixture) {
     std::string why;
     if (!o.IsValid(&why)) throw InputError(std::string(ParticleFilterKindName(kind)) + " options: " + why);
     const int k = o.subclouds;
@@ -57,6 +59,8 @@ class SubClouds final : public SequentialMatcher {
   int disagree_run_ = 0;  // steps in a row with D > subcloud_chi2
   std::vector<std::deque<double>> evidence_;  // per sub-cloud: log evidence of the last subcloud_window updates
   std::uint64_t reseeds_ = 0;
+  ConvergingCovariance converging_cov_;  // the pooled cloud's history (converging_covariance_mixture)
+  int reinitialisations_seen_ = 0;
   FilterCounters counters_;
   StepDiagnostics last_;
 };
@@ -131,6 +135,11 @@ const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double me
   if (d.lost && o_.lost_covariance_is_prior && d.cov_lat_lat + d.cov_lon_lon < 2.0 * v) {
     d.cov_lat_lat = v, d.cov_lat_lon = 0.0, d.cov_lon_lon = v;
   }
+  // While converging, the recent pooled clouds' mixture (as one filter's); a re-initialisation of any
+  // sub-cloud starts its history again.
+  if (counters_.reinitialisations != reinitialisations_seen_) converging_cov_.Clear();
+  reinitialisations_seen_ = counters_.reinitialisations;
+  converging_cov_.Publish(ins_lat, ins_lon, &d);
   last_ = d;
   if (d.subclouds_disagree && o_.subcloud_reseed_nats > 0.0) Reseed();
   return last_;

@@ -98,6 +98,11 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "pf, afpf: spread the prior again around the INS position when lost (1) or stay lost (0)");
   opt("--lost-covariance-is-prior", &f->lost_covariance_is_prior,
       "pf, afpf: while lost publish at least the prior square's covariance (1) or the cloud's (0)");
+  opt("--converging-covariance-mixture", &f->converging_covariance_mixture,
+      "pf: while converging publish the covariance of the mixture of the clouds held since it started "
+      "converging (offsets from the INS, about the current mean) when wider than the cloud's (1), or the cloud's (0)");
+  opt("--afpf-converging-covariance-mixture", &f->afpf_converging_covariance_mixture,
+      "afpf: the same (default 0: the cloud's covariance while converging)");
   opt("--offset-slide-updates", &f->offset_slide_updates,
       "pf, afpf (magnav match's summary, magnav-matcher's fixes): a run whose estimate slid against the INS over this many last "
       "updates beyond the drift model and its cloud's covariance (chi2 > --offset-slide-chi2) is not converged; 0 = off");

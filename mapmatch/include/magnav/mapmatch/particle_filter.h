@@ -378,7 +378,8 @@ struct ParticleFilterOptions {
   // its minimum window of innovations from the settled cloud to judge before the fix is called OK,
   // so a wrong-basin collapse goes from converging to lost, not through OK. Not chosen on any run
   // (both constants predate the status); its effect measured in docs/ACCURACY.md ("A converging
-  // status"). Status only: the estimates, the covariances and the lost flags are unchanged.
+  // status"). Status only: the estimates and the lost flags are unchanged (the published covariance
+  // of a converging step: converging_covariance_mixture).
   // 0 = off (never converging).
   int settle_updates = 6;
   // On by default: on the crustal 0.01°/3 nT path 1 of 20 AFPF seeds locks
@@ -390,6 +391,25 @@ struct ParticleFilterOptions {
   // (h = prior_half_width_deg), not the cloud's: a cloud collapsed on a wrong
   // place says nothing of the error (issue 25 item 4; docs/ACCURACY.md).
   bool lost_covariance_is_prior = true;
+  // While converging (StepDiagnostics::converging), the published covariance covers every cloud the
+  // filter has held since it started converging (issue 25 item 4), not only the current one: the
+  // covariance, about the current mean, of the equal mixture of those steps' cloud Gaussians, each
+  // taken as an offset from its own step's INS position (so the INS motion does not count, only how
+  // the filter's belief about the INS error moved): (1/n) Σ_i [C_i + (o_i − o)(o_i − o)ᵀ] over the
+  // cloud of the step before the episode (the last ok or lost step's; none at the run's start) and
+  // the n − 1 converging steps so far, published when its trace exceeds the cloud's. A filter that has not
+  // settled has not shown that its latest cloud, rather than those it held before, holds the truth:
+  // a wide cloud that collapsed onto one basin keeps the spread of the clouds before the collapse
+  // until it has settled, a cloud migrating between basins the spread of its path. The episode
+  // starts again at each step that is not converging (ok, lost) and at a re-initialisation. No
+  // constant: each step's covariance from the filter's own clouds (not a global factor).
+  // false = the cloud's own (as before). The estimates, the lost flags and the statuses do not
+  // depend on it (cloud_cov_* keep the cloud's own). Measured in docs/ACCURACY.md ("The converging
+  // regime's covariance"). The PF's (on); the AFPF's is afpf_converging_covariance_mixture (off: its
+  // converging steps were calibrated with the cloud's own — harness ANEES 2.3 and 1.59 — and the
+  // mixture made them 0.52 and 0.27, below 0.5 × dof).
+  bool converging_covariance_mixture = true;
+  bool afpf_converging_covariance_mixture = false;
   // The offset-slide test (issue 25 item 3, "no converged that is not"; docs/ACCURACY.md, "Dense
   // readings III"): a status rule of RunStatus (run_status.h: `magnav match`'s summary and
   // magnav-matcher's fixes), flag only — the estimates and the per-step lost flags are unchanged. The
@@ -518,7 +538,8 @@ const char* RunVerdictName(RunVerdict v);
 struct StepDiagnostics {
   double lat_deg = 0.0, lon_deg = 0.0;                    // weighted mean
   // The published covariance, deg²: the cloud's (weighted), or while lost at least the prior
-  // square's (lost_covariance_is_prior); the cloud's own in cloud_cov_*.
+  // square's (lost_covariance_is_prior), while converging the mixture of the clouds since it
+  // started converging (converging_covariance_mixture); the cloud's own in cloud_cov_*.
   double cov_lat_lat = 0.0, cov_lat_lon = 0.0, cov_lon_lon = 0.0;
   double cloud_cov_lat_lat = 0.0, cloud_cov_lat_lon = 0.0, cloud_cov_lon_lon = 0.0;
   double bias_nT = 0.0, bias_sigma_nT = 0.0;                       // weighted mean and sd of the map bias
