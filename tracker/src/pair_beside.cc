@@ -29,15 +29,9 @@ InitialTrack Shifted(const InitialTrack& a, double along_m, double side_m, doubl
 
 }  // namespace
 
-TrackerOptions BesideFitOptions(const TrackerOptions& options) {
-  TrackerOptions weak = options;
-  weak.init.min_tensor_snr = std::min(options.init.min_tensor_snr, kBesideMinTensorSnr);
-  return weak;
-}
-
 std::vector<InitialTrack> InitializeBeside(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                            const TrackerOptions& options, const InitialTrack& tracked,
-                                           double min_separation_m, double seen_snr, bool* waiting) {
+                                           double min_separation_m, double seen_tensor_snr, bool* waiting) {
   if (waiting != nullptr) *waiting = false;
   if (epochs.empty() || !(options.init.max_dipole_misfit > 0.0) || !tracked.m_B_Am2.allFinite()) return {};
   std::vector<InitialTrack> starts;
@@ -64,7 +58,8 @@ std::vector<InitialTrack> InitializeBeside(const std::vector<Epoch>& epochs, con
     starts.push_back(Shifted(tracked, kBesideAlongM, side, 0.5));
   }
   // The fit's samples and the newcomer's strength gate at kBesideMinTensorSnr.
-  const TrackerOptions weak = BesideFitOptions(options);
+  TrackerOptions weak = options;
+  weak.init.min_tensor_snr = std::min(options.init.min_tensor_snr, kBesideMinTensorSnr);
   bool seen = false;
   for (const InitialTrack& b : starts) {
     PairFitReport report;
@@ -74,7 +69,7 @@ std::vector<InitialTrack> InitializeBeside(const std::vector<Epoch>& epochs, con
     seen = seen || (report.fitted && report.misfit <= weak.init.max_dipole_misfit &&
                     report.separation_m >= min_separation_m &&
                     report.max_tensor_snr[0] >= weak.init.min_tensor_snr &&
-                    report.max_signal_snr[1] >= seen_snr && seen_snr > 0.0);
+                    report.max_tensor_snr[1] >= seen_tensor_snr && seen_tensor_snr > 0.0);
   }
   if (waiting != nullptr) *waiting = seen;
   return {};
