@@ -545,6 +545,18 @@ static int fix_same(const void *sample, size_t r, void *ctx) {
   return same;
 }
 
+/* Waits up to 30 s for a writer of `topic` to match the reader rd; 1 when one has. */
+static int wait_for_writer(dds_entity_t rd, const char *topic) {
+  dds_subscription_matched_status_t st = {0};
+  const dds_time_t match_deadline = dds_time() + DDS_SECS(30);
+  while (st.current_count < 1 && dds_time() < match_deadline) {
+    dds_get_subscription_matched_status(rd, &st);
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  if (st.current_count < 1) fprintf(stderr, "cyclone_peer: no writer of %s within 30 s\n", topic);
+  return st.current_count >= 1;
+}
+
 static int expect_fixes(const char *path, double timeout_s) {
   table_t t;
   if (read_table(path, &t) != 0) return 2;
@@ -571,16 +583,7 @@ static int expect_fixes(const char *path, double timeout_s) {
    * holds the last 1000 fixes per sensor, so a reader that matches only after a
    * 2001-sample burst gets the last 1000 (seen in CI after other tests had
    * slowed discovery). */
-  dds_subscription_matched_status_t st = {0};
-  const dds_time_t match_deadline = dds_time() + DDS_SECS(30);
-  while (st.current_count < 1 && dds_time() < match_deadline) {
-    dds_get_subscription_matched_status(rd, &st);
-    dds_sleepfor(DDS_MSECS(10));
-  }
-  if (st.current_count < 1) {
-    fprintf(stderr, "cyclone_peer: no writer of magnav/dipole_fix within 30 s\n");
-    return 1;
-  }
+  if (!wait_for_writer(rd, "magnav/dipole_fix")) return 1;
   printf("ready\n");
   fflush(stdout);
 
@@ -602,14 +605,7 @@ static int collect_map_fixes(const char *out_path, size_t n, double timeout_s) {
   const dds_entity_t pp = participant();
   const dds_entity_t rd = reader_on(pp, &magnav_msg_MapFix_desc, "magnav/map_fix", 1);
   const dds_entity_t ws = waitset_for(pp, rd);
-  dds_subscription_matched_status_t st = {0};
-  const dds_time_t match_deadline = dds_time() + DDS_SECS(30);
-  while (st.current_count < 1 && dds_time() < match_deadline) {
-    dds_get_subscription_matched_status(rd, &st);
-    dds_sleepfor(DDS_MSECS(10));
-  }
-  if (st.current_count < 1) {
-    fprintf(stderr, "cyclone_peer: no writer of magnav/map_fix within 30 s\n");
+  if (!wait_for_writer(rd, "magnav/map_fix")) {
     fclose(out);
     return 1;
   }
