@@ -39,7 +39,7 @@ InsErrorPrior PriorOf(const MatcherNodeOptions& o) {
 MatcherNode::MatcherNode(dds::Node& node, const GeoGrid& grid, std::size_t layer, const MatcherNodeOptions& options)
     : options_(Checked(options)),
       filter_(MakeParticleFilter(options.kind, grid, layer, options.filter)),
-      status_(options.kind, options.filter, options.max_correction_deg),
+      status_(options.kind, options.filter, options.max_correction_deg, RunStatusMemory::kRecent),
       observe_(grid, layer, PriorOf(options_), options_.observability),
       schedule_(options.fix_every_m, options.filter.max_step_deg) {
   repeats_.SetLogName("magnav-matcher: magnav/magnetometer sensor");

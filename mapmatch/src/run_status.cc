@@ -33,11 +33,13 @@ const char* RunVerdictName(RunVerdict v) {
   return "?";
 }
 
-RunStatus::RunStatus(ParticleFilterKind kind, const ParticleFilterOptions& options, double max_correction_deg)
+RunStatus::RunStatus(ParticleFilterKind kind, const ParticleFilterOptions& options, double max_correction_deg,
+                     RunStatusMemory memory)
     : kind_(kind),
       o_(options),
       max_correction_deg_(max_correction_deg > 0.0 ? max_correction_deg : 2.0 * options.prior_half_width_deg),
-      slide_(std::make_unique<internal::OffsetSlideTest>(options)) {}
+      slide_(std::make_unique<internal::OffsetSlideTest>(options)),
+      memory_(memory) {}
 
 RunStatus::~RunStatus() = default;
 
@@ -63,19 +65,42 @@ void RunStatus::Add(double ins_lat, double ins_lon, const StepDiagnostics& d, co
   }
   slide_->Add(ins_lat, ins_lon, d, c.reinitialisations);
   spaced_ = c.spaced;
+  // kRecent: an episode that has passed its window clean is forgotten before this step counts.
+  if (memory_ == RunStatusMemory::kRecent) {
+    if (any_non_finite_ && !non_finite_now()) any_non_finite_ = false, first_non_finite_ = -1;
+    if (any_implausible_ && !implausible_now()) any_implausible_ = false, moved_deg_ = 0.0;
+  }
   if (!std::isfinite(d.lat_deg) || !std::isfinite(d.lon_deg)) {
     if (first_non_finite_ < 0) first_non_finite_ = k;
+    any_non_finite_ = true;
+    last_non_finite_step_ = p;
   } else {
     const double moved = std::hypot(d.lat_deg - ins_lat, d.lon_deg - ins_lon);
     if (moved > moved_deg_) moved_deg_ = moved;  // NaN (an INS jump to NaN) never counts
+    if (max_correction_deg_ > 0.0 && moved > max_correction_deg_) {
+      any_implausible_ = true;
+      last_implausible_step_ = p;
+    }
   }
+}
+
+std::size_t RunStatus::settle_steps() const { return 2 * static_cast<std::size_t>(o_.divergence_window); }
+
+bool RunStatus::non_finite_now() const {
+  if (!any_non_finite_) return false;
+  return memory_ == RunStatusMemory::kWholeRun || steps_ - 1 - last_non_finite_step_ < settle_steps();
+}
+
+bool RunStatus::implausible_now() const {
+  if (!any_implausible_) return false;
+  return memory_ == RunStatusMemory::kWholeRun || steps_ - 1 - last_implausible_step_ < settle_steps();
 }
 
 double RunStatus::slide_chi2() const { return slide_->Chi2(); }
 
 RunVerdict RunStatus::verdict() const {
-  if (first_non_finite_ >= 0) return RunVerdict::kNonFinite;
-  const std::size_t settle = 2 * static_cast<std::size_t>(o_.divergence_window);
+  if (non_finite_now()) return RunVerdict::kNonFinite;
+  const std::size_t settle = settle_steps();
   const bool unsettled = last_lost_ >= 0 && steps_ - 1 - last_lost_step_ < settle;
   // AFPF on dense readings (some readings spaced out, min_update_spacing_m): its σ is 3× the
   // innovations' σ, capped at afpf_max_sigma_nT; at the cap in at least half of the last 40 updates,
@@ -93,7 +118,7 @@ RunVerdict RunStatus::verdict() const {
   if (sigma_capped) return RunVerdict::kSigmaCapped;
   if (slid) return RunVerdict::kSlid;
   if (unsettled) return RunVerdict::kUnsettled;
-  if (max_correction_deg_ > 0.0 && moved_deg_ > max_correction_deg_) return RunVerdict::kImplausible;
+  if (implausible_now()) return RunVerdict::kImplausible;
   // A filter converging at this step (settle_updates) has not settled: never "converged".
   if (converging_) return RunVerdict::kConverging;
   return RunVerdict::kConverged;
@@ -105,7 +130,10 @@ std::string RunStatus::reason() const {
   const std::size_t settle = 2 * static_cast<std::size_t>(options.divergence_window);
   switch (verdict()) {
     case RunVerdict::kNonFinite:
-      return "non-finite position in the result (k = " + std::to_string(first_non_finite_) + ")";
+      return "non-finite position in the result (k = " + std::to_string(first_non_finite_) + ")" +
+             (memory_ == RunStatusMemory::kRecent
+                  ? " within the last " + std::to_string(settle_steps()) + " steps"
+                  : std::string());
     case RunVerdict::kOffMap:
       return "off the map at the end: every particle off the map for the last " + std::to_string(off_at_end_) +
              " step(s)" + " (dead-reckoning on the INS)" +
@@ -148,7 +176,10 @@ std::string RunStatus::reason() const {
              ", not settled by the end (fewer than " + std::to_string(settle) + " steps since)";
     case RunVerdict::kImplausible:
       return "implausible: moved a point " + FormatNumber(moved_deg_) + " deg, beyond the plausible correction of " +
-             FormatNumber(max_correction_deg_) + " deg (max_correction_deg, --max-correction)";
+             FormatNumber(max_correction_deg_) + " deg (max_correction_deg, --max-correction)" +
+             (memory_ == RunStatusMemory::kRecent
+                  ? " within the last " + std::to_string(settle_steps()) + " steps"
+                  : std::string());
     case RunVerdict::kConverging:
       return "converging at the end: the cloud's 1-sigma spread " +
              FormatNumber(std::round(spread_deg_ * 1e5) / 1e5) + " deg, settled below " +

@@ -16,10 +16,12 @@
 //                 the cloud (offset_slide_updates, offset_slide_chi2; "Dense readings III")
 //   unsettled     lost at a step fewer than 2 × divergence_window steps ago (a re-initialised
 //                 cloud that has not had two windows to settle)
-//   implausible   some estimate so far lies further from its INS position than the plausible
-//                 correction (max_correction_deg; 0 = 2 × prior_half_width_deg, as
-//                 PlausibleCorrectionDeg for pf/afpf; Match's ReviewResult makes the same check)
-//   non_finite    some estimate so far is not finite
+//   implausible   an estimate lies further from its INS position than the plausible correction
+//                 (max_correction_deg; 0 = 2 × prior_half_width_deg, as PlausibleCorrectionDeg for
+//                 pf/afpf; Match's ReviewResult makes the same check): any estimate of the run
+//                 (RunStatusMemory::kWholeRun), or one of the last 2 × divergence_window steps (kRecent)
+//   non_finite    an estimate is not finite: any of the run (kWholeRun) or of the last
+//                 2 × divergence_window steps (kRecent)
 //   converging    the filter has not settled at this step (StepDiagnostics::converging,
 //                 settle_updates: its cloud still wider than settled_sigma_deg, or narrower for fewer
 //                 than settle_updates updates): not "converged", and not an alarm (magnav-matcher
@@ -44,10 +46,19 @@ class OffsetSlideTest;
 
 // RunVerdict and RunVerdictName are in particle_filter.h (StepDiagnostics::run_status).
 
+// How long an implausible or non-finite estimate counts against the run.
+//   kWholeRun  for ever: the verdict on a finished run whose every row is written
+//              (`magnav match`: one such row spoils the result file)
+//   kRecent    for the last 2 × divergence_window steps, as a lost alarm does (unsettled): a live
+//              matcher (magnav-matcher) runs for months; one bad estimate must not make every
+//              later fix LOST until a restart
+enum class RunStatusMemory { kWholeRun, kRecent };
+
 class RunStatus {
  public:
   // max_correction_deg: the plausible correction (deg); 0 = 2 × options.prior_half_width_deg.
-  RunStatus(ParticleFilterKind kind, const ParticleFilterOptions& options, double max_correction_deg = 0.0);
+  RunStatus(ParticleFilterKind kind, const ParticleFilterOptions& options, double max_correction_deg = 0.0,
+            RunStatusMemory memory = RunStatusMemory::kWholeRun);
   ~RunStatus();
   RunStatus(const RunStatus&) = delete;
   RunStatus& operator=(const RunStatus&) = delete;
@@ -81,8 +92,16 @@ class RunStatus {
   double spread_deg_ = 0.0;  // the last step's cloud 1-σ spread (deg)
   int converging_steps_ = 0;
   int spaced_ = 0;
+  RunStatusMemory memory_;
+  // The largest correction (deg) and the first non-finite estimate: of the whole run (kWholeRun),
+  // or of the steps since the last one (kRecent; both reset once the window has passed clean).
   double moved_deg_ = 0.0;
   long long first_non_finite_ = -1;
+  std::size_t last_implausible_step_ = 0, last_non_finite_step_ = 0;
+  bool any_implausible_ = false, any_non_finite_ = false;
+  std::size_t settle_steps() const;
+  bool non_finite_now() const;
+  bool implausible_now() const;
 };
 
 }  // namespace magnav::mapmatch
