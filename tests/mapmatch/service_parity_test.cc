@@ -11,7 +11,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -19,6 +18,7 @@
 #include <gtest/gtest.h>
 
 #include "crustal_path_run.h"
+#include "matcher_peer.h"
 #include "magnav/core/csv.h"
 #include "magnav/dds/convert.h"
 #include "magnav/dds/node.h"
@@ -32,10 +32,7 @@ namespace {
 using namespace std::chrono_literals;
 namespace msg = ::magnav::msg;
 
-// |F0| of the crustal map (tests/data/reference/README.md §4b), as service_test.cc.
-const double kReferenceField_nT =
-    std::sqrt(22838.121767602996 * 22838.121767602996 + 1452.8242542037194 * 1452.8242542037194 +
-              41845.01475649571 * 41845.01475649571);
+const double kReferenceField_nT = testing::kCrustalReferenceField_nT;
 
 // What the wire says of a step whose run status offline is `run_status` (the diagnostics' name).
 std::string WireStatusOf(const std::string& run_status) {
@@ -109,34 +106,20 @@ TEST(MatcherParity, ADensePathsFixesAndStatusEqualMagnavMatchs) {
   dds::NodeOptions no;
   no.name = "matcher_parity_test";
   no.domain_id = domain;
-  dds::Node peer(no);
-  std::mutex mu;
-  std::vector<msg::MapFix> fixes;
-  auto reader = peer.CreateReader<msg::MapFix>([&](const msg::MapFix& m, const auto&) {
-    std::lock_guard<std::mutex> lk(mu);
-    fixes.push_back(m);
-  });
-  auto navs = peer.CreateWriter<msg::VesselNav>();
-  auto samples = peer.CreateWriter<msg::MagnetometerSample>();
-  ASSERT_TRUE(navs->WaitForMatched(1, 30s));
-  ASSERT_TRUE(samples->WaitForMatched(1, 30s));
-  ASSERT_TRUE(reader->WaitForMatched(1, 30s));
-  auto received = [&] {
-    std::lock_guard<std::mutex> lk(mu);
-    return fixes.size();
-  };
+  testing::MatcherPeer peer(no);
+  ASSERT_TRUE(peer.WaitForService(30s));
   // In batches of 8 steps, each waited for (its 8 fixes back): the fix topic keeps the last 10.
   constexpr std::size_t kBatch = 8;
   const std::uint64_t s = 1000000000ULL;
   for (std::size_t i = 0; i < n;) {
     const std::size_t end = std::min(n, i + kBatch);
     for (; i < end; ++i) {
-      ASSERT_TRUE(navs->Write(dds::InsNavMsg(0, (i + 1) * s, run.path.lat_deg[i], run.path.lon_deg[i])));
-      ASSERT_TRUE(samples->Write(dds::AnomalySampleMsg(0, (i + 1) * s, i, run.path.measured_nT[i], kReferenceField_nT)));
+      ASSERT_TRUE(peer.navs->Write(dds::InsNavMsg(0, (i + 1) * s, run.path.lat_deg[i], run.path.lon_deg[i])));
+      ASSERT_TRUE(peer.samples->Write(dds::AnomalySampleMsg(0, (i + 1) * s, i, run.path.measured_nT[i], kReferenceField_nT)));
     }
     const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while (received() < end && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(200us);
-    ASSERT_EQ(received(), end) << "fixes back after step " << end;
+    while (peer.received() < end && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(200us);
+    ASSERT_EQ(peer.received(), end) << "fixes back after step " << end;
   }
   matcher.Signal(SIGTERM);
   ASSERT_EQ(matcher.Wait(30s), 0);
@@ -144,7 +127,7 @@ TEST(MatcherParity, ADensePathsFixesAndStatusEqualMagnavMatchs) {
   EXPECT_NE(log.find(std::to_string(n) + " steps"), std::string::npos) << log;
   EXPECT_NE(log.find("status slid: the estimate slid"), std::string::npos) << log;
 
-  std::lock_guard<std::mutex> lk(mu);
+  const std::vector<msg::MapFix> fixes = peer.fixes();
   ASSERT_EQ(fixes.size(), n);
   std::size_t lost_by_the_run = 0, mismatched = 0;
   for (std::size_t i = 0; i < n; ++i) {

@@ -6,10 +6,8 @@
 // the same stream with the same seed, at the steps the schedule names.
 #include <signal.h>
 
-#include <atomic>
 #include <cmath>
 #include <functional>
-#include <mutex>
 #include <vector>
 #include <thread>
 
@@ -22,6 +20,7 @@
 #include "magnav/mapmatch/match.h"
 #include "magnav/mapmatch/particle_filter.h"
 #include "matcher_node.h"
+#include "matcher_peer.h"
 #include "stock_relay.h"
 #include "subprocess.h"
 #include "test_data.h"
@@ -32,10 +31,7 @@ namespace {
 using namespace std::chrono_literals;
 namespace msg = ::magnav::msg;
 
-// |F0| of the crustal map (tests/data/reference/README.md §4b).
-const double kReferenceField_nT =
-    std::sqrt(22838.121767602996 * 22838.121767602996 + 1452.8242542037194 * 1452.8242542037194 +
-              41845.01475649571 * 41845.01475649571);
+const double kReferenceField_nT = testing::kCrustalReferenceField_nT;
 
 struct Expected {
   std::vector<std::size_t> steps;  // path index of each fix
@@ -188,15 +184,12 @@ TEST(MatcherService, TheDoorIgnoresSkipsAndCounts) {
   o.filter.num_particles = 500;
   o.fix_every_m = 0.0;  // a fix every step
   o.reference_field_nT = kReferenceField_nT;
-  dds::Node service_node(no), peer(no);
+  dds::Node service_node(no);
   MatcherNode matcher(service_node, g, 0, o);
-  std::atomic<int> fixes{0};
-  auto reader = peer.CreateReader<msg::MapFix>([&](const msg::MapFix&, const auto&) { ++fixes; });
-  auto navs = peer.CreateWriter<msg::VesselNav>();
-  auto samples = peer.CreateWriter<msg::MagnetometerSample>();
-  ASSERT_TRUE(navs->WaitForMatched(1, 20s));
-  ASSERT_TRUE(samples->WaitForMatched(1, 20s));
-  ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+  testing::MatcherPeer peer(no);
+  ASSERT_TRUE(peer.WaitForService(20s));
+  auto& navs = peer.navs;
+  auto& samples = peer.samples;
   auto until = [](const std::function<bool()>& done) {
     for (int i = 0; i < 200 && !done(); ++i) std::this_thread::sleep_for(25ms);
     return done();
@@ -219,7 +212,8 @@ TEST(MatcherService, TheDoorIgnoresSkipsAndCounts) {
   ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 4 * s, 3, v, kReferenceField_nT)));  // not later: skipped
   ASSERT_TRUE(navs->Write(InsNavMsg(0, 6 * s, lat + 0.0018, lon)));
   ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, 6 * s, 4, g.Sample(0, lat + 0.0018, lon)->value_nT, kReferenceField_nT)));
-  ASSERT_TRUE(until([&] { return matcher.steps() == 3 && fixes == 3; })) << matcher.steps() << " " << fixes;
+  ASSERT_TRUE(until([&] { return matcher.steps() == 3 && peer.received() == 3; }))
+      << matcher.steps() << " " << peer.received();
   EXPECT_EQ(matcher.skipped(), 3u);  // before the first fix, no geodetic, not later
   EXPECT_EQ(matcher.ignored(), 3u);  // GNSS, another vehicle, another sensor
   const FilterCounters c = matcher.filter_counters();
@@ -247,19 +241,12 @@ TEST(MatcherService, APlaneMapPublishesPartlyObservableAndThePriorAlongItsIsoLin
   o.filter.num_particles = 300;
   o.fix_every_m = 0.0;  // a fix every step
   o.reference_field_nT = kReferenceField_nT;
-  dds::Node service_node(no), peer(no);
+  dds::Node service_node(no);
   MatcherNode matcher(service_node, g, 0, o);
-  std::mutex mu;
-  std::vector<msg::MapFix> fixes;
-  auto reader = peer.CreateReader<msg::MapFix>([&](const msg::MapFix& m, const auto&) {
-    std::lock_guard<std::mutex> lk(mu);
-    fixes.push_back(m);
-  });
-  auto navs = peer.CreateWriter<msg::VesselNav>();
-  auto samples = peer.CreateWriter<msg::MagnetometerSample>();
-  ASSERT_TRUE(navs->WaitForMatched(1, 20s));
-  ASSERT_TRUE(samples->WaitForMatched(1, 20s));
-  ASSERT_TRUE(reader->WaitForMatched(1, 20s));
+  testing::MatcherPeer peer(no);
+  ASSERT_TRUE(peer.WaitForService(20s));
+  auto& navs = peer.navs;
+  auto& samples = peer.samples;
   constexpr int kSteps = 20;
   const std::uint64_t s = 1000000000ULL;
   for (int k = 0; k < kSteps; ++k) {  // north-east at 0.0005° a step, the INS on the truth
@@ -268,13 +255,10 @@ TEST(MatcherService, APlaneMapPublishesPartlyObservableAndThePriorAlongItsIsoLin
     ASSERT_TRUE(samples->Write(AnomalySampleMsg(0, (k + 1) * s, k, g.Sample(0, lat, lon)->value_nT, kReferenceField_nT)));
   }
   for (int i = 0; i < 400; ++i) {
-    {
-      std::lock_guard<std::mutex> lk(mu);
-      if (fixes.size() >= static_cast<std::size_t>(kSteps) - 1) break;  // the last waits for a later vessel_nav
-    }
+    if (peer.received() >= static_cast<std::size_t>(kSteps) - 1) break;  // the last waits for a later vessel_nav
     std::this_thread::sleep_for(25ms);
   }
-  std::lock_guard<std::mutex> lk(mu);
+  const std::vector<msg::MapFix> fixes = peer.fixes();
   ASSERT_GE(fixes.size(), static_cast<std::size_t>(kSteps) - 1);
   const double iso_lat = -kGlon / std::hypot(kGlat, kGlon), iso_lon = kGlat / std::hypot(kGlat, kGlon);
   const InsErrorPrior prior = ParticleFilterInsPrior(o.filter);
@@ -307,12 +291,12 @@ TEST(MatcherService, BuffersStayBoundedWhenItsSensorNeverSends) {
   o.reference_field_nT = kReferenceField_nT;
   o.sensor_id = 9;  // nobody sends sensor 9
   o.max_buffered = 50;
-  dds::Node service_node(no), peer(no);
+  dds::Node service_node(no);
   MatcherNode matcher(service_node, g, 0, o);
-  auto navs = peer.CreateWriter<msg::VesselNav>();
-  auto samples = peer.CreateWriter<msg::MagnetometerSample>();
-  ASSERT_TRUE(navs->WaitForMatched(1, 20s));
-  ASSERT_TRUE(samples->WaitForMatched(1, 20s));
+  testing::MatcherPeer peer(no);
+  ASSERT_TRUE(peer.WaitForService(20s));
+  auto& navs = peer.navs;
+  auto& samples = peer.samples;
   const std::uint64_t s = 1000000000ULL;
   for (std::uint64_t k = 0; k < 400; ++k) {
     ASSERT_TRUE(navs->Write(InsNavMsg(0, (k + 1) * s, 45.0 + 1e-5 * static_cast<double>(k), 10.0)));
