@@ -162,7 +162,11 @@ const StepDiagnostics& Filter::Step(double ins_lat, double ins_lon, double measu
   }
   d.innovation_cusum = cusum_g_;  // held over steps without an update
   Estimate(&d);
-  if (o_.track_check_window > 0) CheckTrack(ins_lat, ins_lon, measured_nT, &d);
+  // (track_check_acquisition_only: only in the acquisition phase, as CheckAcquisitionBias's)
+  if (o_.track_check_window > 0 && (!o_.track_check_acquisition_only || settled_at_ < 0 ||
+                                    counters_.steps - 1 < settled_at_ + o_.acquisition_steps)) {
+    CheckTrack(ins_lat, ins_lon, measured_nT, &d);
+  }
   if (kind_ == ParticleFilterKind::kAfpf) AdaptCount(d);
   d.particles = static_cast<int>(p_.size());
   d.unique_particles = std::min(d.unique_particles, d.particles);  // after the AFPF's trim

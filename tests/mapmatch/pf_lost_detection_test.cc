@@ -163,6 +163,46 @@ TEST(PfLostDetection, TheAcquisitionTestIgnoresACollapsingCloudsInnovations) {
   }
 }
 
+// Strict-detection round (track_check_acquisition_only, an option: off by default): the track check
+// (window 20, threshold 40) run only during acquisition. Tuning path 396 (kidnap regime, 3 nT, filter
+// seed 1; its kidnap at step 72 comes after what is asserted here) collapses on a wrong basin at step 9
+// and the default rules first flag it at step 32 (seventh round): with the check during acquisition it
+// is flagged within 20 steps of the loss's start (measured: step 19); not with the defaults. Clean tuning
+// path 339 (3 nT, seed 1): the check at every step flags it (measured: step 64, a chance fit on a settled
+// track); during acquisition only, no flag. Both measured offline from --diagnostics first
+// (docs/ACCURACY.md, "PF/AFPF strict lost-track detection: the missed losses by kind").
+TEST(PfLostDetection, TheTrackCheckDuringAcquisitionOnly) {
+  auto run_with = [](const PathRun& run, int window, bool acquisition_only) {
+    ParticleFilterOptions o;
+    o.seed = 1;
+    o.track_check_window = window;
+    o.track_check_acquisition_only = acquisition_only;
+    std::vector<StepDiagnostics> steps;
+    MatchParticleFilter(ParticleFilterKind::kPf, Map(), 0, run.path, o, &steps);
+    return steps;
+  };
+  const PathRun lost = Generated(396, "3", "3");
+  const std::vector<StepDiagnostics> on = run_with(lost, 20, true), off = run_with(lost, 0, false);
+  const std::optional<std::size_t> start = LossStart(lost, on);
+  ASSERT_TRUE(start.has_value());
+  EXPECT_LE(*start, 20u);  // an acquisition loss (measured: from step 9)
+  EXPECT_EQ(LossStart(lost, off), start) << "the check flags only: the same estimates";
+  EXPECT_TRUE(FlaggedIn(on, *start, *start + 20)) << "loss from step " << *start;
+  EXPECT_FALSE(FlaggedIn(off, *start, *start + 20)) << "the defaults flag it within 20 steps already";
+  bool track_flag = false;
+  for (std::size_t k = *start; k <= *start + 20 && k < on.size(); ++k) {
+    track_flag = track_flag || on[k].track_check_failed;
+  }
+  EXPECT_TRUE(track_flag) << "flagged, but not by the track check";
+
+  const PathRun clean = Generated(339, "3", "3");
+  const std::vector<StepDiagnostics> every = run_with(clean, 20, false), acq = run_with(clean, 20, true);
+  ASSERT_FALSE(LossStart(clean, acq).has_value()) << "a clean run";
+  EXPECT_TRUE(FlaggedIn(every, 0, every.size() - 1))
+      << "the check at every step no longer flags this clean run: the test shows nothing";
+  EXPECT_FALSE(FlaggedIn(acq, 0, acq.size() - 1));
+}
+
 TEST(PfLostDetection, CleanRunsRaiseNoAlarm) {
   std::vector<std::pair<std::string, PathRun>> runs;
   for (const char* name : {"mappath_crustal_off0p01deg_noise0p5nT.csv", "mappath_crustal_off0p1deg_noise5nT.csv"}) {

@@ -61,6 +61,9 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "pf, afpf: lost when the best shift lowers the track's squared residuals, against the best within 3 sigma, "
       "by more than this x max(sigma_n^2, best residual mean square)");
   opt("--track-check-step", &f->track_check_step_deg, "pf, afpf: the track check's coarse offset grid, deg");
+  opt("--track-check-acquisition-only", &f->track_check_acquisition_only,
+      "pf, afpf: run the track check only during acquisition (until --acquisition-steps after the cloud first "
+      "settled) (1), or at every step (0)");
   opt("--bias-test-window", &f->bias_test_window,
       "pf, afpf: updates in the innovation-bias test (lost when (sum r)^2 / sum(sigma_n^2 + V) > --bias-test-chi2); "
       "0 = off");
