@@ -550,13 +550,16 @@ std::vector<InitialTrack> PairTracks(const std::vector<PairSample>& samples, dou
   const InitOptions& io = options.init;
   const Eigen::Vector2d a = best_x.segment<2>(0), b = best_x.segment<2>(5);
   // Each dipole's own strongest tensor (the strength gate below).
-  double max_snr[2] = {0.0, 0.0};
+  // And its whole field's (B and tensor, as a track's gate SNR): the report.
+  double max_snr[2] = {0.0, 0.0}, max_signal_snr[2] = {0.0, 0.0};
   for (int k = 0; k < 2; ++k) {
     for (const PairSample& s : samples) {
       Eigen::Vector3d B;
       Eigen::Matrix3d T;
       DipoleBT(s.p_S - PairPosition(best_x, k, s.dt), best_m.segment<3>(3 * k), &B, &T);
       max_snr[k] = std::max(max_snr[k], T.norm() / s.st);
+      const double snr = std::sqrt(B.squaredNorm() / (s.sb * s.sb) + T.squaredNorm() / (s.st * s.st));
+      if (std::isfinite(snr)) max_signal_snr[k] = std::max(max_signal_snr[k], snr);
     }
   }
   if (report != nullptr) {
@@ -565,6 +568,18 @@ std::vector<InitialTrack> PairTracks(const std::vector<PairSample>& samples, dou
     report->separation_m = (a - b).norm();
     report->max_tensor_snr[0] = max_snr[0];
     report->max_tensor_snr[1] = max_snr[1];
+    report->max_signal_snr[0] = max_signal_snr[0];
+    report->max_signal_snr[1] = max_signal_snr[1];
+    for (int k = 0; k < 2; ++k) {
+      const auto q = best_x.segment<5>(5 * k);
+      const double heading = std::atan2(q(4), q(3));
+      InitialTrack& line = report->line[k];
+      line.t_ref_s = t_ref;
+      line.t_first_s = t_min;
+      line.t_last_s = t_max;
+      line.state = CtState<double>{q(0), q(1), q(2), std::hypot(q(3), q(4)), heading, 0.0};
+      line.m_B_Am2 = HeadingRotation(heading).transpose() * best_m.segment<3>(3 * k);
+    }
   }
   if (!(std::sqrt(cost / signal) <= io.max_dipole_misfit)) return {};
   if ((a - b).norm() < min_separation_m) return {};

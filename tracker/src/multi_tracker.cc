@@ -177,6 +177,9 @@ struct Track {
   // poor_fit): a confirmed track then tries a pair start beside it
   // (pair_beside.h).
   double t_poor_fit = -std::numeric_limits<double>::infinity();
+  // Its pair was started beside it (TryBeside): the pair's refit fits the
+  // samples and gates the strength as that start did (BesideFitOptions).
+  bool pair_beside = false;
   // The back-filled start (TrackManagementOptions::backfill_start), set at
   // its confirmation: the rows of [backfill_from_s, backfill_until_s] (its
   // first strong epoch to the newest one its engine had solved while it was
@@ -750,6 +753,7 @@ struct MultiTracker::Impl {
       Restart(tracks[i], pair[0], pair[1], epochs, out);
       tracks.back().origin = "from a two-dipole fit beside track " + std::to_string(tracks[i].id);
       MakePair(t, tracks[i], pair[0], tracks.back(), pair[1]);
+      tracks[i].pair_beside = tracks.back().pair_beside = true;
       return;
     }
   }
@@ -958,8 +962,10 @@ struct MultiTracker::Impl {
       now_a.t_ref_s = now_b.t_ref_s = t;
       now_a.state = *pa;
       now_b.state = *pb;
-      const std::vector<InitialTrack> refit =
-          RefitPair(epochs, B0_W, options.track, now_a, now_b, mg().min_separation_m);
+      // A pair started beside a track: with that start's init SNR (its
+      // newcomer was weak; at the field's, its samples barely enter the fit).
+      const TrackerOptions fit = a.pair_beside || b.pair_beside ? BesideFitOptions(options.track) : options.track;
+      const std::vector<InitialTrack> refit = RefitPair(epochs, B0_W, fit, now_a, now_b, mg().min_separation_m);
       if (refit.size() != 2) continue;
       Restart(a, refit[0], refit[1], epochs, out);
       Restart(b, refit[1], refit[0], epochs, out);
@@ -1338,6 +1344,7 @@ std::string MultiTracker::SaveState() const {
     w.Matrix(tr.pair_excess);
     w.F64(tr.pair_excess_until_s);
     w.F64(tr.t_poor_fit);
+    w.U8(tr.pair_beside ? 1 : 0);
     w.F64(tr.t_started_s);
     w.U8(tr.backfill_pending ? 1 : 0);
     for (double v : {tr.backfill_from_s, tr.backfill_until_s, tr.backfill_due_s, tr.t_evidence_s}) w.F64(v);
@@ -1431,6 +1438,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.pair_excess = internal::GetMatrix(r, 6, 6);
     tr.pair_excess_until_s = r.F64();
     tr.t_poor_fit = r.F64();
+    tr.pair_beside = r.U8() != 0;
     tr.t_started_s = r.F64();
     tr.backfill_pending = r.U8() != 0;
     for (double* v : {&tr.backfill_from_s, &tr.backfill_until_s, &tr.backfill_due_s, &tr.t_evidence_s}) *v = r.F64();

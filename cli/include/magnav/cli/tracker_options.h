@@ -134,7 +134,7 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
       ->capture_default_str();
   app.add_option("--excuse-beside", m.excuse_beside,
                  "a track's misses do not count while a two-dipole fit beside it explains its samples with a "
-                 "newcomer seen in the tensor but too weak yet to start (0/1)")
+                 "newcomer seen (its B and tensor, with tensor evidence) but too weak yet to start (0/1)")
       ->capture_default_str();
   app.add_option("--min-new-share", m.min_new_share,
                  "residual below this share of a track's predicted tensor is not offered to the initiator")

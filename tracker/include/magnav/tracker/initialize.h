@@ -125,6 +125,8 @@ struct PairFitReport {
   double misfit = 0.0;  // √(Σr²/Σm²) of the pair, as max_dipole_misfit
   double separation_m = 0.0;  // horizontal distance of the two lines at t_ref (m)
   double max_tensor_snr[2] = {0.0, 0.0};  // each dipole's own tensor SNR, at its strongest sample (a, b)
+  double max_signal_snr[2] = {0.0, 0.0};  // each dipole's own field SNR (B and tensor whitened, as a track's gate), at its strongest sample
+  InitialTrack line[2];  // the two fitted lines (state at t_ref, body moment), whether or not the gates passed
 };
 std::vector<InitialTrack> RefitPair(const std::vector<Epoch>& epochs, const Eigen::Vector3d& B0_W,
                                     const TrackerOptions& options, const InitialTrack& a, const InitialTrack& b,

@@ -198,13 +198,20 @@ struct TrackManagementOptions {
   // "Two vessels started one by one: the joint start").
   double joint_start_s = 20.0;
   // A confirmed track's misses are excused while the two-dipole fit beside
-  // it explains its samples with a newcomer seen in the tensor (at least
-  // confirm_tensor_snr) but still below the beside start's SNR
+  // it explains its samples with a newcomer seen (its field, B and tensor
+  // whitened, at least confirm_tensor_snr at a sample, and its tensor
+  // evidence as a tentative track's: at some sample its predicted tensor at
+  // least confirm_tensor_snr and reducing the tensor χ² there) but its
+  // tensor still below the beside start's SNR
   // (pair_beside.h, `waiting`; TrackLifeCycle::ExcuseMisses): the track
   // does not end "missed" before the vessel that spoils its fit can be
   // started beside it (issue 24, fresh_sigma2/overtaking_s2: the slow
   // vessel's track ended 0.5 s before the fast one's tensor reached the
-  // beside start's 10 σ_T, and it got a second id). Needs pair_refit_s > 0
+  // beside start's 10 σ_T, and it got a second id; fresh_overtaking2/
+  // overtaking_n14: the fast vessel's B spoiled the slow one's fit while its
+  // tensor was 1–1.5 σ_T at the fit's samples, hence the field and not the
+  // tensor alone; the tensor evidence, since a far ship's B alone also fits
+  // a far second line). Needs pair_refit_s > 0
   // (the beside start) and confirm_tensor_snr > 0. On by default.
   bool excuse_beside = true;
   // The back-filled start (issue 24, branch coverage): a start needs
