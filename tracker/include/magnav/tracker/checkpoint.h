@@ -3,7 +3,7 @@
 // container (header, checksum, field writer/reader, atomic write) is
 // core/checkpoint.h's; this is the tracker's kind of it:
 //
-//   magic "MAGNAVTC", format version 5 (kTrackerCheckpointVersion), payload
+//   magic "MAGNAVTC", format version 6 (kTrackerCheckpointVersion), payload
 //   written by the service node: its stream position and counters around
 //   MultiTracker::SaveState (configuration, tracks, records, initiator).
 #pragma once
@@ -31,7 +31,11 @@ namespace magnav::tracker {
 // since when it is out of the sensors' reach (the "out_of_reach" end rule),
 // and the options of the tensor evidence for confirmation and of that end
 // rule; a version-4 file is refused.
-inline constexpr std::uint32_t kTrackerCheckpointVersion = 5;
+// Version 6 (2026-11-27): per live track whether the lone start started it
+// (its start's rows back-filled), and the lone start's options
+// (ResidualStartOptions::lone_min_fixes, lone_min_span_s); a version-5 file
+// is refused.
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 6;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 
 // Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).
