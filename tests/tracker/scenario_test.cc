@@ -375,16 +375,13 @@ TEST(HarbourScenario, WindowBackFillsTheVesselStartedInTheResidual) {
 // start SNR 20 until 85 s, with no live track for the start in the
 // residual to act beside: its single start came at 90.6 s (window coverage
 // 0.663). The lone start (≥ 40 fixes over ≥ 10 s at the residual start's
-// SNR 10, no live track) starts it at 62.6 s and its start's rows are
+// SNR 10, no live track; on by default) starts it at 62.6 s and its start's rows are
 // back-filled from its first fix. Not blind (looked at for this change);
 // the far ship 110 m off is in the file, so is its far-source fit.
 TEST(HarbourScenario, WindowStartsTheLoneWeakVessel) {
-  MultiTrackerOptions o;
-  o.management.residual_start.lone_min_fixes = 40;
-  o.management.residual_start.lone_min_span_s = 10.0;
   const auto s = ScoreWindow(
       cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/fresh_farsrc/far_ship_110.toml"),
-      "far_ship_110, lone start", nullptr, o);
+      "far_ship_110, defaults (the lone start on)");
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
   EXPECT_EQ(s.ids[0], 1u);
   EXPECT_GE(s.coverage[0], 0.8);  // the issue's; measured 1.000 (0.663 without the lone start)

@@ -885,7 +885,9 @@ struct MultiTracker::Impl {
   // SNR. True if started.
   bool StartLone(double t) {
     const ResidualStartOptions& ro = mg().residual_start;
-    if (ro.lone_min_fixes <= 0 || !(ro.tensor_snr > 0.0) || !(ro.tensor_snr < options.track.init.min_tensor_snr)) {
+    // Only external fixes may start a track (--init-from dipole_fix): not this one.
+    if (ro.lone_min_fixes <= 0 || !(ro.tensor_snr > 0.0) || !(ro.tensor_snr < options.track.init.min_tensor_snr) ||
+        options.track.init.source == InitSource::kExternal) {
       return false;
     }
     for (const Track& tr : tracks) {

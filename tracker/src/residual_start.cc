@@ -26,7 +26,9 @@ TrackerOptions LoneStartTrackerOptions(const TrackerOptions& track, const Residu
   TrackerOptions lone = ResidualStartTrackerOptions(track, o);
   lone.init.min_fixes = std::max(track.init.min_fixes, o.lone_min_fixes);
   lone.init.min_span_s = std::max(track.init.min_span_s, o.lone_min_span_s);
-  lone.init.source = InitSource::kSamples;
+  // The tracker's own fixes, unless only external fixes may start a track
+  // (then StartLone does not run).
+  if (lone.init.source != InitSource::kExternal) lone.init.source = InitSource::kSamples;
   return lone;
 }
 

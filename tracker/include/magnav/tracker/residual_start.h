@@ -70,8 +70,10 @@ struct ResidualStartOptions {
   // least lone_min_span_s (the strong start's InitOptions::min_fixes 20 over
   // min_span_s 5 s: twice the fixes over twice the time, so a weak line is
   // accepted only when twice as much of it is consistent with one straight
-  // motion). lone_min_fixes 0 = off.
-  int lone_min_fixes = 0;
+  // motion). lone_min_fixes 0 = off. On by default since 2026-11-27 (every
+  // target met on the 17 scenario sets stays met; docs/ACCURACY.md, "A lone
+  // vessel below the start SNR: the lone start").
+  int lone_min_fixes = 40;
   double lone_min_span_s = 10.0;
 
   bool IsValid(std::string* error) const;
@@ -83,7 +85,8 @@ TrackerOptions ResidualStartTrackerOptions(const TrackerOptions& track, const Re
 
 // The engine options of the lone start: ResidualStartTrackerOptions with
 // init.min_fixes = max(its own, o.lone_min_fixes) and init.min_span_s =
-// max(its own, o.lone_min_span_s), the tracker's own fixes only.
+// max(its own, o.lone_min_span_s), the tracker's own fixes (InitSource::kSamples) unless the
+// source is kExternal (kept: the lone start does not run then).
 TrackerOptions LoneStartTrackerOptions(const TrackerOptions& track, const ResidualStartOptions& o);
 
 // The start in the residual: `residual` (the initiator's buffer, every live
