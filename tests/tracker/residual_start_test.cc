@@ -82,6 +82,29 @@ TEST(ResidualStart, OptionsAndTheirCheck) {
   MultiTrackerOptions m;
   m.management.residual_start.tensor_snr = -1.0;
   EXPECT_FALSE(m.IsValid(&error));
+  // The lone start: twice the strong start's fixes over twice its span, at
+  // the residual start's SNR, from the tracker's own fixes; never fewer.
+  ResidualStartOptions lone;
+  lone.lone_min_fixes = 40;
+  lone.lone_min_span_s = 10.0;
+  EXPECT_TRUE(lone.IsValid(&error)) << error;
+  track.init.min_fixes = 20;
+  track.init.min_span_s = 5.0;
+  track.init.source = InitSource::kAuto;
+  const TrackerOptions l = LoneStartTrackerOptions(track, lone);
+  EXPECT_EQ(l.init.min_tensor_snr, 10.0);
+  EXPECT_EQ(l.init.min_fixes, 40);
+  EXPECT_EQ(l.init.min_span_s, 10.0);
+  EXPECT_EQ(l.init.source, InitSource::kSamples);
+  track.init.source = InitSource::kExternal;  // only external fixes start tracks: kept (no lone start then)
+  EXPECT_EQ(LoneStartTrackerOptions(track, lone).init.source, InitSource::kExternal);
+  track.init.min_fixes = 60;
+  EXPECT_EQ(LoneStartTrackerOptions(track, lone).init.min_fixes, 60);
+  lone.lone_min_fixes = -1;
+  EXPECT_FALSE(lone.IsValid(&error));
+  lone.lone_min_fixes = 40;
+  lone.lone_min_span_s = std::nan("");
+  EXPECT_FALSE(lone.IsValid(&error));
 }
 
 }  // namespace

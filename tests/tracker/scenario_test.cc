@@ -369,6 +369,25 @@ TEST(HarbourScenario, WindowBackFillsTheVesselStartedInTheResidual) {
   EXPECT_LE(s.rms[1], 1.5 * 0.0823);  // m, measured 0.0823 (0.089 before)
 }
 
+// The lone start (issue 24; ResidualStartOptions::lone_min_fixes):
+// fresh_farsrc/far_ship_110's AUV passes its first sensor 14–15 m off, in
+// reach from 54.8 s at tensor SNR 11–13 (noise-free), below the field's
+// start SNR 20 until 85 s, with no live track for the start in the
+// residual to act beside: its single start came at 90.6 s (window coverage
+// 0.663). The lone start (≥ 40 fixes over ≥ 10 s at the residual start's
+// SNR 10, no live track; on by default) starts it at 62.6 s and its start's rows are
+// back-filled from its first fix. Not blind (looked at for this change);
+// the far ship 110 m off is in the file, so is its far-source fit.
+TEST(HarbourScenario, WindowStartsTheLoneWeakVessel) {
+  const auto s = ScoreWindow(
+      cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/fresh_farsrc/far_ship_110.toml"),
+      "far_ship_110, defaults (the lone start on)");
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
+  EXPECT_EQ(s.ids[0], 1u);
+  EXPECT_GE(s.coverage[0], 0.8);  // the issue's; measured 1.000 (0.663 without the lone start)
+  EXPECT_LE(s.rms[0], 1.5 * 0.0943);  // m, measured 0.0943
+}
+
 // The batch over all the evidence for a vessel started in the residual
 // (issue 24 items 2 and 5; MultiTrackerOptions::batch_weak_init):
 // fresh_sigma/abreast_s's vessel 1 (peak tensor SNR 12, below the field's

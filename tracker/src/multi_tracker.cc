@@ -160,6 +160,9 @@ struct Track {
   double pair_start_t_s = 0.0;
   // The pair's key, kept after the refit (TrackRecord::partner_id).
   std::uint64_t started_with = 0;
+  // Started by the lone start (StartLone): its start's rows are back-filled
+  // at its confirmation, as a pair start's.
+  bool lone_start = false;
   // A pair start's rows until its refit (or window_s after the start without
   // one): the engine solves this track on the samples minus the partner's
   // field, so its covariance is conditional on the partner's start; what the
@@ -278,7 +281,7 @@ struct MultiTracker::Impl {
     // tentative (its estimates were dropped then; the live rows begin after
     // it).
     std::string backfilled;
-    if (mg().backfill_start && tr.has_newest && (tr.started_with != 0 || mg().backfill_single)) {
+    if (mg().backfill_start && tr.has_newest && (tr.started_with != 0 || tr.lone_start || mg().backfill_single)) {
       const double from = std::max(tr.engine->FirstStrongEpoch(BackfillSnr()), tr.t_evidence_s);
       if (std::isfinite(from) && from <= tr.newest.t_s) {
         tr.backfill_pending = true;
@@ -647,7 +650,7 @@ struct MultiTracker::Impl {
       if (!TryStart(t, &out)) {
         const std::size_t before = tracks.size();
         TryBeside(t, &out);
-        if (tracks.size() == before) StartInResidual(t, &out);
+        if (tracks.size() == before && !StartInResidual(t, &out)) StartLone(t);
       }
     }
     return out;
@@ -877,6 +880,35 @@ struct MultiTracker::Impl {
     o << "from " << init->fixes.size() << " fixes in the residual beside a live track (tensor SNR >= "
       << FormatNumber(weak.init.min_tensor_snr) << "), fitted jointly with it";
     tracks.back().origin = o.str();
+    return true;
+  }
+
+  // A lone vessel too weak for the field's start SNR with no live track to
+  // start beside (ResidualStartOptions::lone_min_fixes): a single start
+  // from twice the strong start's fixes and span at the residual start's
+  // SNR. True if started.
+  bool StartLone(double t) {
+    const ResidualStartOptions& ro = mg().residual_start;
+    // Only external fixes may start a track (--init-from dipole_fix): not this one.
+    if (ro.lone_min_fixes <= 0 || !(ro.tensor_snr > 0.0) || !(ro.tensor_snr < options.track.init.min_tensor_snr) ||
+        options.track.init.source == InitSource::kExternal) {
+      return false;
+    }
+    for (const Track& tr : tracks) {
+      if (!tr.ended) return false;
+    }
+    const TrackerOptions lone = LoneStartTrackerOptions(options.track, ro);
+    const std::optional<InitialTrack> init =
+        InitializeTrack(std::vector<Epoch>(buffer.begin(), buffer.end()), B0_W, lone, nullptr);
+    if (!init) return false;
+    const std::size_t before = tracks.size();
+    if (!StartTrack(t, *init, nullptr) || tracks.size() == before) return false;
+    std::ostringstream o;
+    o << "from " << init->fixes.size() << " fixes of its own TED+EGT, no live track (lone start, tensor SNR >= "
+      << FormatNumber(lone.init.min_tensor_snr) << ", >= " << lone.init.min_fixes << " fixes over >= "
+      << FormatNumber(lone.init.min_span_s) << " s)";
+    tracks.back().origin = o.str();
+    tracks.back().lone_start = true;
     return true;
   }
 
@@ -1347,6 +1379,7 @@ std::string MultiTracker::SaveState() const {
     w.U8(tr.pair_beside ? 1 : 0);
     w.F64(tr.t_started_s);
     w.U8(tr.backfill_pending ? 1 : 0);
+    w.U8(tr.lone_start ? 1 : 0);
     for (double v : {tr.backfill_from_s, tr.backfill_until_s, tr.backfill_due_s, tr.t_evidence_s}) w.F64(v);
   }
   w.U64(m.records.size());
@@ -1441,6 +1474,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     tr.pair_beside = r.U8() != 0;
     tr.t_started_s = r.F64();
     tr.backfill_pending = r.U8() != 0;
+    tr.lone_start = r.U8() != 0;
     for (double* v : {&tr.backfill_from_s, &tr.backfill_until_s, &tr.backfill_due_s, &tr.t_evidence_s}) *v = r.F64();
     m.tracks.push_back(std::move(tr));
   }

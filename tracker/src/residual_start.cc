@@ -15,7 +15,21 @@ bool ResidualStartOptions::IsValid(std::string* error) const {
   if (!(max_track_shift_m > 0.0) || !std::isfinite(max_track_shift_m)) {
     return Fail(error, "residual_start.max_track_shift_m must be > 0");
   }
+  if (lone_min_fixes < 0) return Fail(error, "residual_start.lone_min_fixes must be >= 0");
+  if (!(lone_min_span_s >= 0.0) || !std::isfinite(lone_min_span_s)) {
+    return Fail(error, "residual_start.lone_min_span_s must be >= 0");
+  }
   return true;
+}
+
+TrackerOptions LoneStartTrackerOptions(const TrackerOptions& track, const ResidualStartOptions& o) {
+  TrackerOptions lone = ResidualStartTrackerOptions(track, o);
+  lone.init.min_fixes = std::max(track.init.min_fixes, o.lone_min_fixes);
+  lone.init.min_span_s = std::max(track.init.min_span_s, o.lone_min_span_s);
+  // The tracker's own fixes, unless only external fixes may start a track
+  // (then StartLone does not run).
+  if (lone.init.source != InitSource::kExternal) lone.init.source = InitSource::kSamples;
+  return lone;
 }
 
 TrackerOptions ResidualStartTrackerOptions(const TrackerOptions& track, const ResidualStartOptions& o) {

@@ -132,6 +132,13 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "beside a live track, start a vessel from the residual (every track's field removed) at this tensor "
                  "SNR, jointly with the track (0 = off)")
       ->capture_default_str();
+  app.add_option("--lone-start-fixes", m.residual_start.lone_min_fixes,
+                 "with no live track, start a lone vessel at the residual start's tensor SNR from at least this many "
+                 "single-sample fixes (0 = off)")
+      ->capture_default_str();
+  app.add_option("--lone-start-span", m.residual_start.lone_min_span_s,
+                 "... spanning at least this many seconds")
+      ->capture_default_str();
   app.add_option("--excuse-beside", m.excuse_beside,
                  "a track's misses do not count while a two-dipole fit beside it explains its samples with a "
                  "newcomer seen (its B and tensor, with tensor evidence) but too weak yet to start (0/1)")

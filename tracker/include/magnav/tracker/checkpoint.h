@@ -34,7 +34,11 @@ namespace magnav::tracker {
 // Version 6 (2026-11-26): per live track whether its pair was started beside
 // it (the pair's refit then uses that start's options); a version-5 file is
 // refused.
-inline constexpr std::uint32_t kTrackerCheckpointVersion = 6;
+// Version 7 (2026-11-27): per live track whether the lone start started it
+// (its start's rows back-filled), and the lone start's options
+// (ResidualStartOptions::lone_min_fixes, lone_min_span_s); a version-6 file
+// is refused.
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 7;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 
 // Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).

@@ -62,6 +62,19 @@ struct ResidualStartOptions {
   // first strong epoch to its confirmation) from its engine restarted from
   // the joint fit. Off: only the track the two-dipole fit started.
   bool backfill_older = true;
+  // The lone start (issue 24, fresh_farsrc/far_ship_110: a lone AUV at
+  // tensor SNR 11–20 for 30 s in reach, below the field's start SNR 20,
+  // with no live track for the start above to act beside): when no track
+  // is live, InitializeTrack on the buffer at tensor_snr, as a single start,
+  // but only from at least lone_min_fixes single-sample fixes spanning at
+  // least lone_min_span_s (the strong start's InitOptions::min_fixes 20 over
+  // min_span_s 5 s: twice the fixes over twice the time, so a weak line is
+  // accepted only when twice as much of it is consistent with one straight
+  // motion). lone_min_fixes 0 = off. On by default since 2026-11-27 (every
+  // target met on the 17 scenario sets stays met; docs/ACCURACY.md, "A lone
+  // vessel below the start SNR: the lone start").
+  int lone_min_fixes = 40;
+  double lone_min_span_s = 10.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -69,6 +82,12 @@ struct ResidualStartOptions {
 // The engine options of the start in the residual: `track` with
 // init.min_tensor_snr lowered to o.tensor_snr (never raised).
 TrackerOptions ResidualStartTrackerOptions(const TrackerOptions& track, const ResidualStartOptions& o);
+
+// The engine options of the lone start: ResidualStartTrackerOptions with
+// init.min_fixes = max(its own, o.lone_min_fixes) and init.min_span_s =
+// max(its own, o.lone_min_span_s), the tracker's own fixes (InitSource::kSamples) unless the
+// source is kExternal (kept: the lone start does not run then).
+TrackerOptions LoneStartTrackerOptions(const TrackerOptions& track, const ResidualStartOptions& o);
 
 // The start in the residual: `residual` (the initiator's buffer, every live
 // track's field removed), each sample's tensor zeroed where it is below
