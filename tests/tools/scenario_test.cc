@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/ and fresh_drift/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_drift/ and fresh_drift2/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -187,6 +187,11 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});
   for (const char* name : {"drift_2", "drift_3", "drift_4_two"}) files.push_back({"fresh_drift", name, "drift"});
   files.push_back({"fresh_drift", "drift_6_farship", "far_ship"});  // and drifting: checked below
+  // fresh_drift2: every file drifts (checked below) and is of the kind its second word says.
+  files.push_back({"fresh_drift2", "drift_5_one", "drift"});
+  files.push_back({"fresh_drift2", "drift_4_crossing", "crossing"});
+  files.push_back({"fresh_drift2", "drift_3_abreast", "abreast"});
+  files.push_back({"fresh_drift2", "drift_7_farship", "far_ship"});
   for (const char* name : {"overtaking_ne", "overtaking_n14", "overtaking_wsw19", "overtaking_e5"}) {
     files.push_back({"fresh_overtaking2", name, "overtaking"});
   }
@@ -272,7 +277,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship) drifts too
+      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/) drifts too
         ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
         const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
         EXPECT_GE(per_min, 2.0);

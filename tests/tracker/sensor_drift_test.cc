@@ -106,6 +106,9 @@ TEST(SensorDrift, TakesLittleOfANearVesselsBell) {
 TEST(SensorDrift, TooFewSamplesKeepTheLine) {
   SensorDriftOptions on;
   on.enabled = true;  // off by default
+  on.min_span_s = 10.0;               // a minute of samples below
+  on.confirm_min_rate_T_per_s = 0.0;  // a flat line removed too
+  on.confirm_rate_sigmas = 0.0;
   SensorDrift d(on);
   const auto flat = [](double) -> Eigen::Vector3d { return Eigen::Vector3d(3.0, 0.0, 0.0) * kNt; };
   d.Fit(Series(flat, 0.0, 60.0, 1, 0.5));
@@ -118,6 +121,32 @@ TEST(SensorDrift, TooFewSamplesKeepTheLine) {
   SensorDrift o;  // off
   o.Fit(Series(flat, 0.0, 60.0, 1));
   EXPECT_EQ(o.At(7, 60.0), Eigen::Vector3d::Zero());
+}
+
+// A line is removed only once its trend is confirmed (rate ≥ 1.5 nT/min
+// and ≥ 5 σ of its own): not a flat offset, nor the 0.6–1.2 nT/min that
+// vessels' B tails leave in lines on files with no drift; a 2 nT/min drift is.
+TEST(SensorDrift, OnlyAConfirmedTrendIsRemoved) {
+  SensorDriftOptions on;
+  on.enabled = true;
+  for (const auto& [rate_nt_per_min, removed] : {std::pair{0.0, false}, {1.0, false}, {2.0, true}, {6.0, true}}) {
+    SCOPED_TRACE(rate_nt_per_min);
+    SensorDrift d(on);
+    const double r = rate_nt_per_min;
+    d.Fit(Series([r](double t) -> Eigen::Vector3d { return Eigen::Vector3d(3.0 + r * t / 60.0, 0.0, 0.0) * kNt; },
+                 0.0, 180.0, 3));
+    ASSERT_EQ(d.lines().count(7), 1u);  // fitted (a warm start) either way
+    const Eigen::Vector3d at = d.At(7, 180.0);
+    if (removed) {
+      EXPECT_NEAR(at.x(), (3.0 + r * 3.0) * kNt, 0.6 * kNt);
+    } else {
+      EXPECT_EQ(at, Eigen::Vector3d::Zero());
+    }
+  }
+  // A minute of samples is too short a span for the default (60 s): no line.
+  SensorDrift d(on);
+  d.Fit(Series([](double t) -> Eigen::Vector3d { return Eigen::Vector3d(5.0 * t / 60.0, 0.0, 0.0) * kNt; }, 0.0, 50.0, 4));
+  EXPECT_EQ(d.lines().count(7), 0u);
 }
 
 TEST(SensorDrift, OptionsAreChecked) {

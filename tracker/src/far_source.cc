@@ -392,6 +392,10 @@ bool FarSourceEstimator::StepIfDue(double t_s) {
     for (const Kept& k : drift_kept_) {
       for (const FarSourceSample& s : k.used) {
         if (s.tracks_B_T > options_.drift.occupied_B_sigmas * s.sigma_T) continue;  // a tracked vessel's B there
+        // An untracked near source's B there: its sensor's mean residual tensor.
+        if (options_.drift.tensor_mean_window_s > 0.0 && s.residual_tensor_mean_z > options_.drift.tensor_mean_gate) {
+          continue;
+        }
         const Eigen::Vector3d far = active_ ? model_.BAt(s.p_SinW, s.t_s) : Eigen::Vector3d::Zero();
         ds.push_back({s.sensor_id, s.t_s, s.r_W - far, s.sigma_T});
       }

@@ -11,6 +11,7 @@
 #include "magnav/tracker/cluster_background.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/multi_tracker.h"
+#include "magnav/tracker/sensor_drift.h"
 #include "other_fields.h"
 
 namespace magnav::tracker {
@@ -260,6 +261,12 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
   std::vector<std::vector<BackgroundEstimate>> background(options.background.enabled ? epochs.size() : 0);
   // The same for the far source's B (far_source.h): what the finder removed.
   std::vector<std::vector<std::pair<Eigen::Vector3d, double>>> far(options.far_source.enabled ? epochs.size() : 0);
+  // With the drift refitted over the whole pass (SensorDriftOptions::
+  // batch_refit), the far source's B alone (the finder's minus its drift
+  // line then) and its σ.
+  const SensorDriftOptions& drift_opt = options.far_source.drift;
+  const bool drift_refit = options.far_source.enabled && drift_opt.enabled && drift_opt.batch_refit;
+  std::vector<std::vector<std::pair<Eigen::Vector3d, double>>> far_only(drift_refit ? epochs.size() : 0);
   for (const Epoch& e : epochs) {
     for (const auto& s : e.samples) {
       if (options.background.enabled) background[&e - epochs.data()].push_back(finder.Background(s.sensor_id, e.t_s));
@@ -267,6 +274,11 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
         double sf = 0.0;
         const Eigen::Vector3d b = finder.FarSourceB(s, &sf);
         far[&e - epochs.data()].emplace_back(b, sf);
+        if (drift_refit) {
+          double sd = 0.0;
+          const Eigen::Vector3d d = finder.Drift().At(s.sensor_id, e.t_s, &sd);
+          far_only[&e - epochs.data()].emplace_back(b - d, std::sqrt(std::max(0.0, sf * sf - sd * sd)));
+        }
       }
     }
     while (fixes != nullptr && next_fix < fixes->size() && (*fixes)[next_fix].t_s <= e.t_s) {
@@ -375,6 +387,53 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
       for (const Epoch& e : epochs) all.push_back(&e);
       EstimateClusterOffsets(all, ct, B0_W, topt, options.cluster_background, nullptr, &offsets);
     }
+    // The drift refitted over the whole pass given the tracks as they are
+    // now (sensor_drift.h, batch_refit): each sensor's line on its samples
+    // where no track's field is (every track's predicted B, in its span or
+    // extrapolated up to max_gap beyond it, below occupied_B_sigmas σ_B)
+    // and the residual tensor is within the far source's tensor_gate, minus
+    // B0, the far source and the tracks' B; one epoch per sample_interval_s.
+    std::map<std::uint32_t, DriftLine> lines;
+    if (drift_refit) {
+      std::map<std::uint32_t, std::vector<DriftSample>> series;
+      double last_t = -std::numeric_limits<double>::infinity();
+      const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+      for (const Epoch& e : epochs) {
+        if (e.t_s - last_t < drift_opt.sample_interval_s - 1e-6) continue;
+        last_t = e.t_s;
+        std::vector<std::optional<CtState<double>>> at(result.size());
+        for (std::size_t k = 0; k < result.size(); ++k) at[k] = now[k].At(e.t_s, max_gap);
+        for (std::size_t j = 0; j < e.samples.size(); ++j) {
+          const GradiometerSample& smp = e.samples[j];
+          if (CheckSample(smp) != SampleDefect::kNone) continue;
+          Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
+          Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
+          double B_near = 0.0;
+          for (std::size_t k = 0; k < result.size(); ++k) {
+            if (!at[k]) continue;
+            Eigen::Vector3d B;
+            Eigen::Matrix3d T;
+            PredictedField(*at[k], now[k].m_B, smp.p_SinW, &B, &T);
+            B_near += B.norm();
+            if (e.t_s >= spans[k].first && e.t_s <= spans[k].second) {
+              B_tracks += B;
+              T_tracks += T;
+            }
+          }
+          const double sb = SigmaB(smp, topt), st = SigmaT(smp, topt);
+          if (B_near > drift_opt.occupied_B_sigmas * sb) continue;
+          const double st2 = st * st + rel * rel * T_tracks.squaredNorm() / 9.0;
+          if ((smp.T - T_tracks).squaredNorm() / st2 / 9.0 > options.far_source.tensor_gate) continue;
+          const auto& [b_far, s_far] = far_only[&e - epochs.data()][j];
+          series[smp.sensor_id].push_back(
+              {smp.sensor_id, e.t_s, smp.B - B0_W - b_far - B_tracks, std::hypot(sb, s_far)});
+        }
+      }
+      for (const auto& [id, ser] : series) {
+        DriftLine line;
+        if (FitDriftLine(ser, drift_opt, &line, nullptr) && line.Confirmed(drift_opt)) lines[id] = line;
+      }
+    }
     for (std::size_t i = 0; i < result.size(); ++i) {
       if (progress) {
         progress("refining track " + std::to_string(result[i].track_id) + ", round " + std::to_string(round + 1) +
@@ -403,7 +462,14 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           GradiometerSample s0 = e.samples[j];
           if (CheckSample(s0) != SampleDefect::kNone) continue;
           if (options.cluster_background.enabled) s0.B -= offsets.At(s0.sensor_id, e.t_s);
-          if (options.far_source.enabled) {
+          const auto line = lines.find(s0.sensor_id);
+          if (drift_refit && line != lines.end()) {
+            // The far source's B and this round's drift line.
+            const auto& [b_far, s_far] = far_only[&e - epochs.data()][j];
+            const double sd = line->second.SigmaAt(e.t_s);
+            s0.sigma_B = std::hypot(SigmaB(s0, topt), std::hypot(s_far, sd));
+            s0.B -= b_far + line->second.At(e.t_s);
+          } else if (options.far_source.enabled) {
             const auto& [b_far, s_far] = far[&e - epochs.data()][j];
             if (s_far > 0.0) s0.sigma_B = std::hypot(SigmaB(s0, topt), s_far);
             s0.B -= b_far;

@@ -1,6 +1,7 @@
 #include "magnav/tracker/multi_tracker.h"
 #include "cluster_window.h"
 #include "quiet_sample.h"
+#include "residual_tensor_mean.h"
 #include "state_io.h"
 
 #include <Eigen/Eigenvalues>
@@ -212,6 +213,9 @@ struct MultiTracker::Impl {
   SensorBackgrounds background{Eigen::Vector3d::Zero(), BackgroundOptions{}};
   internal::WindowClusterBackground cluster{Eigen::Vector3d::Zero(), MultiTrackerOptions{}};
   FarSourceEstimator far;
+  // Each sensor's residual tensor over the drift's recent seconds (its
+  // near-source rule, sensor_drift.h); not in the checkpoint, like the far source.
+  internal::ResidualTensorMean tensor_mean;
   const TrackManagementOptions& mg() const { return options.management; }
   std::vector<Track> tracks;  // live (confirmed and tentative)
   std::vector<TrackRecord> records;  // confirmed, by id - 1
@@ -413,7 +417,22 @@ struct MultiTracker::Impl {
   // untracked near source (residual tensor) and no tracked vessel (predicted
   // tensor) is (quiet_sample.h); a fit when due.
   void UpdateFarSource(const Epoch& raw, const std::vector<TrackPrediction>& pred) {
-    if (!far.enabled() || !far.WantsEpoch(raw.t_s)) return;
+    if (!far.enabled()) return;
+    if (far.drift().enabled() && tensor_mean.window_s() > 0.0) {
+      // Every epoch's residual tensor at each sensor, for the drift's mean.
+      const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+      for (std::size_t j = 0; j < raw.samples.size(); ++j) {
+        const GradiometerSample& s = raw.samples[j];
+        if (CheckSample(s) != SampleDefect::kNone) continue;
+        Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
+        for (const TrackPrediction& p : pred) {
+          if (p.valid) T_tracks += p.at[j].T;
+        }
+        const double st = SigmaT(s, options.track);
+        tensor_mean.Add(s.sensor_id, raw.t_s, s.T - T_tracks, st * st + rel * rel * T_tracks.squaredNorm() / 9.0);
+      }
+    }
+    if (!far.WantsEpoch(raw.t_s)) return;
     const FarSourceOptions& fo = options.far_source;
     const internal::QuietRule rule{fo.occupied_tensor_snr, fo.tensor_gate, MultiTrackerOptions::kOtherFieldRelativeError};
     std::vector<FarSourceSample> used;
@@ -438,6 +457,7 @@ struct MultiTracker::Impl {
       f.r_W = q.r_W;
       f.sigma_T = std::sqrt(q.var_T2);
       f.tracks_B_T = B_tracks.norm();
+      f.residual_tensor_mean_z = tensor_mean.Z(s.sensor_id);
       used.push_back(f);
     }
     far.AddEpoch(raw.t_s, used, sensors);
@@ -1222,6 +1242,7 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   impl_->background = SensorBackgrounds(B0_W, options.background);
   impl_->cluster = internal::WindowClusterBackground(B0_W, options);
   impl_->far = FarSourceEstimator(options.far_source);
+  impl_->tensor_mean = internal::ResidualTensorMean(options.far_source.drift.tensor_mean_window_s);
   impl_->summary.far_source_enabled = options.far_source.enabled;
 }
 
@@ -1519,6 +1540,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.background = SensorBackgrounds(m.B0_W, m.options.background);
   m.background.RestoreState(r);
   m.far = FarSourceEstimator(m.options.far_source);  // not in the checkpoint: fitted again
+  m.tensor_mean = internal::ResidualTensorMean(m.options.far_source.drift.tensor_mean_window_s);
   m.summary.far_source_enabled = m.options.far_source.enabled;
   m.summary.far_source = {};
   m.cluster = internal::WindowClusterBackground(m.B0_W, m.options);

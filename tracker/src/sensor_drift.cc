@@ -28,12 +28,27 @@ bool SensorDriftOptions::IsValid(std::string* error) const {
   if (min_samples < 2) return Fail(error, "min_samples must be >= 2");
   if (!(max_rate_T_per_s > 0.0)) return Fail(error, "max_rate_T_per_s must be > 0");
   if (!(occupied_B_sigmas > 0.0)) return Fail(error, "occupied_B_sigmas must be > 0");
+  if (!(tensor_mean_window_s >= 0.0) || !std::isfinite(tensor_mean_window_s)) {
+    return Fail(error, "tensor_mean_window_s must be >= 0 (0 = off)");
+  }
+  if (!(tensor_mean_gate > 0.0)) return Fail(error, "tensor_mean_gate must be > 0");
   if (!(window_s > 0.0) || !std::isfinite(window_s)) return Fail(error, "window_s must be > 0");
   if (!(sample_interval_s >= 0.0) || !std::isfinite(sample_interval_s)) {
     return Fail(error, "sample_interval_s must be >= 0");
   }
   if (!(min_span_s >= 0.0) || !std::isfinite(min_span_s)) return Fail(error, "min_span_s must be >= 0");
+  if (!(confirm_min_rate_T_per_s >= 0.0) || !std::isfinite(confirm_min_rate_T_per_s)) {
+    return Fail(error, "confirm_min_rate_T_per_s must be >= 0");
+  }
+  if (!(confirm_rate_sigmas >= 0.0) || !std::isfinite(confirm_rate_sigmas)) {
+    return Fail(error, "confirm_rate_sigmas must be >= 0");
+  }
   return true;
+}
+
+bool DriftLine::Confirmed(const SensorDriftOptions& options) const {
+  const double r = rate_W.norm();
+  return r >= options.confirm_min_rate_T_per_s && r >= options.confirm_rate_sigmas * std::sqrt(std::max(0.0, var_rate));
 }
 
 double DriftLine::SigmaAt(double t_s) const {
@@ -122,14 +137,19 @@ void SensorDrift::Fit(const std::vector<DriftSample>& samples) {
   for (const auto& [id, series] : by_sensor) {
     DriftLine line;
     const auto it = lines_.find(id);
-    if (FitDriftLine(series, options_, &line, it != lines_.end() ? &it->second : nullptr)) lines_[id] = line;
+    // From the median, not from the previous line: a line once pulled by a
+    // vessel's B, warm-started, keeps the samples that agree with it and
+    // rejects the newer ones (docs/ACCURACY.md, "The drift lines kept off an
+    // untracked vessel's B").
+    const DriftLine* warm = options_.warm_start && it != lines_.end() ? &it->second : nullptr;
+    if (FitDriftLine(series, options_, &line, warm)) lines_[id] = line;
   }
 }
 
 Eigen::Vector3d SensorDrift::At(std::uint32_t sensor_id, double t_s, double* sigma_T) const {
   if (sigma_T != nullptr) *sigma_T = 0.0;
   const auto it = lines_.find(sensor_id);
-  if (!options_.enabled || it == lines_.end()) return Eigen::Vector3d::Zero();
+  if (!options_.enabled || it == lines_.end() || !it->second.Confirmed(options_)) return Eigen::Vector3d::Zero();
   if (sigma_T != nullptr) *sigma_T = it->second.SigmaAt(t_s);
   return it->second.At(t_s);
 }

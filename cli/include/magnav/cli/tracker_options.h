@@ -27,6 +27,7 @@ struct TrackerFlags {
   // which it is exclusive.
   std::string far_source = "auto";
   std::string far_drift = tracker::SensorDriftOptions{}.enabled ? "on" : "off";
+  std::string far_drift_batch = tracker::SensorDriftOptions{}.batch_refit ? "on" : "off";
   std::string far_grid_when_refused = "on";
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
@@ -210,6 +211,26 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "removed (on), or the fixed B0 (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--far-drift-tensor-window", fs.drift.tensor_mean_window_s,
+                 "far source's drift: a sample enters a sensor's line only while that sensor's residual tensor, "
+                 "averaged over this many seconds, is within --far-drift-tensor-gate (an untracked near vessel), s "
+                 "(0 = off)")
+      ->capture_default_str();
+  app.add_option("--far-drift-batch", f->far_drift_batch,
+                 "far source's drift: the batch refits each sensor's line over the whole pass with its refined tracks "
+                 "(on) or removes the finder's causal line (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--far-drift-min-span", fs.drift.min_span_s,
+                 "far source's drift: a sensor's line is fitted (and removed) only once its quiet samples span this "
+                 "long, s")
+      ->capture_default_str();
+  app.add_option("--far-drift-confirm-rate", fs.drift.confirm_min_rate_T_per_s,
+                 "far source's drift: a sensor's line is removed only once its rate is at least this, T/s (0 = any)")
+      ->capture_default_str();
+  app.add_option("--far-drift-tensor-gate", fs.drift.tensor_mean_gate,
+                 "far source's drift: the gate on that mean (whitened, |sum|^2 / sum of variances / 9; noise alone ~ 1)")
+      ->capture_default_str();
   app.add_option("--far-max-interval", fs.max_interval_s,
                  "far source: while its fits are refused (no ship-like source), the interval to the next fit doubles "
                  "up to this, s (1 = a fit every second, no back-off)")
@@ -246,6 +267,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
                             ? tracker::FarSourceOptions{}.enabled && !o.background.enabled && !o.cluster_background.enabled
                             : f.far_source == "on";
   o.far_source.drift.enabled = f.far_drift == "on";
+  o.far_source.drift.batch_refit = f.far_drift_batch == "on";
   o.far_source.grid_when_refused = f.far_grid_when_refused == "on";
   if (!tracker::ParseLossType(f.far_loss, &o.far_source.loss)) {
     throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");

@@ -167,6 +167,9 @@ struct FarSourceSample {
   Eigen::Vector3d r_W = Eigen::Vector3d::Zero();
   double sigma_T = 1e-9;
   double tracks_B_T = 0.0;  // ‖Σ tracks' predicted B‖ there (T): the drift's occupied rule
+  // z of the sensor's residual tensor averaged over the drift's
+  // tensor_mean_window_s (sensor_drift.h): the drift's near-source rule.
+  double residual_tensor_mean_z = 0.0;
 };
 
 // A fitted far source (see the model above).

@@ -12,7 +12,8 @@
 // t_ref, the newest sample; ṙ_s: its rate, T/s). It is fitted per sensor by
 // weighted least squares on the residual B (sample − B0 − the tracks'
 // predicted B − the far source's B), with a Huber loss (iteratively
-// reweighted on the whitened residual's norm, from the previous line) that
+// reweighted on the whitened residual's norm, from the median; warm_start:
+// from the previous line) that
 // leaves out the samples far from the line, and a zero-mean Gaussian
 // prior on the rate (rate_prior_sigma_T_per_s per axis) — the offset's prior
 // is flat: the level comes from the data.
@@ -43,10 +44,10 @@ namespace magnav::tracker {
 
 struct SensorDriftOptions {
   // Off (the default): the fixed B0. On (with the far source, which it is
-  // part of): each sensor's line fitted and removed. Not the default: on the
-  // tuning drift file a line is still pulled by a vessel's rising B before
-  // it is tracked, and on the far-ship file it takes the ship's B from the
-  // far source (docs/ACCURACY.md, "A per-sensor drift with the far source").
+  // part of): each sensor's line fitted and removed. Not the default: a line
+  // is still pulled by the B tails of vessels 35–65 m off before they are
+  // tracked (tensor below the noise), which breaks vessels near each other
+  // (docs/ACCURACY.md, "The drift lines kept off an untracked vessel's B").
   bool enabled = false;
   // Zero-mean prior on each axis of a sensor's rate (T/s, 1 σ): 20 nT/min,
   // wide against the drifts asked for (a few nT/min) and a far ship's
@@ -67,6 +68,26 @@ struct SensorDriftOptions {
   // the sample does not enter the drift (a tracked vessel's B there: its
   // model error is the track's; the far source's rule is on the tensor).
   double occupied_B_sigmas = 3.0;
+  // A sample does not enter the drift while its sensor's residual tensor
+  // (sample minus every live track's predicted tensor), averaged over the
+  // last tensor_mean_window_s (s) of every epoch, is above the noise:
+  // z = ‖Σ e‖²/Σ σ²/9 > tensor_mean_gate (under noise alone z ~ χ²₉/9; 2.5:
+  // p ≈ 0.007). An untracked vessel 25–50 m from a sensor, whose tensor is
+  // below one sample's gate while its B (3–30 nT) pulls a line, is seen by
+  // its mean; a drift has no tensor (docs/ACCURACY.md, "The drift lines kept
+  // off an untracked vessel's B"). 0: off (the single-sample rule alone).
+  double tensor_mean_window_s = 10.0;
+  double tensor_mean_gate = 2.5;
+  // The batch (SolveBatchMulti) refits each sensor's line over the whole
+  // pass in every refinement round, given the tracks as they are then (their
+  // B subtracted, the samples near any of them left out), and removes that
+  // line instead of the finder's causal one: a vessel's B before its track
+  // started no longer pulls it.
+  bool batch_refit = true;
+  // Each refit starts from the sensor's previous line (on) or from the
+  // median (off, the default: a pulled line, warm-started, keeps the samples
+  // that agree with it and rejects the newer ones).
+  bool warm_start = false;
   // The span of recent samples a line is fitted over (s), one epoch kept
   // every sample_interval_s (s): 600 per sensor.
   double window_s = 600.0;
@@ -74,7 +95,15 @@ struct SensorDriftOptions {
   // A sensor is (re)fitted only with at least this many samples spanning at
   // least min_span_s (s) in the window.
   int min_samples = 20;
-  double min_span_s = 10.0;
+  double min_span_s = 60.0;
+  // A fitted line is removed only once its trend is confirmed: its rate
+  // (norm) at least confirm_min_rate_T_per_s (1.5 nT/min, below the drifts
+  // asked for, 2–8 nT/min, above the 0.6–1.2 nT/min that the B tails of
+  // vessels 50–75 m off leave in lines on files with no drift) and at least
+  // confirm_rate_sigmas of its own σ; an unconfirmed line is kept (a warm
+  // start) but not removed. 0: every fitted line removed.
+  double confirm_min_rate_T_per_s = 1.5e-9 / 60.0;
+  double confirm_rate_sigmas = 5.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -97,6 +126,8 @@ struct DriftLine {
   int num_samples = 0;
 
   Eigen::Vector3d At(double t_s) const { return offset_W + rate_W * (t_s - t_ref_s); }
+  // Whether its trend is confirmed (SensorDriftOptions::confirm_*).
+  bool Confirmed(const SensorDriftOptions& options) const;
   // σ per axis of At(t_s) (T).
   double SigmaAt(double t_s) const;
 };
@@ -116,7 +147,7 @@ class SensorDrift {
   // keep their line.
   void Fit(const std::vector<DriftSample>& samples);
   // The drift to remove at a sensor at t_s and its σ per axis (T): zero
-  // and 0 for a sensor never fitted.
+  // and 0 for a sensor never fitted or whose line is not confirmed.
   Eigen::Vector3d At(std::uint32_t sensor_id, double t_s, double* sigma_T = nullptr) const;
   const std::map<std::uint32_t, DriftLine>& lines() const { return lines_; }
 
