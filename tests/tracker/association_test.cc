@@ -130,6 +130,36 @@ TEST(Association, ASharedSensorIsGivenToEachTrackWithTheOthersFieldRemoved) {
   }
 }
 
+// The departing track's B where another track is (TrackManagementOptions::reach_shared_b_snr):
+// its largest predicted B SNR at a sensor the other track gates, and 0 where no other track gates.
+TEST(Association, SharedBSnrIsADepartingTracksBAtTheSensorsAnotherTrackGates) {
+  const MultiTrackerOptions opt;
+  // Sensor 0 under track 1 (5 m above it); the departing track 2 is 40 m away from
+  // sensor 0 (its B there well above σ_B, its tensor below the reach) and 400 m from sensor 1.
+  Epoch e{1.0, {Sensor(0, {0, 0, 0}), Sensor(1, {400, 0, 0})}};
+  const auto x1 = At(1, 0, -5), x2 = At(-40, 0, -5);
+  const TrackPrediction p1 = Predict(x1, e, opt), p2 = Predict(x2, e, opt);
+  ASSERT_GE(p1.at[0].snr, opt.management.gate_snr);
+  const double b_snr = p2.at[0].B.norm() / 1e-9;
+  ASSERT_GT(b_snr, 3.0);
+  ASSERT_LT(p2.at[0].T.norm() / 1.4e-9, opt.management.reach_tensor_snr);
+  const auto both = AssociateEpoch(e, {p1, p2}, kB0, opt);
+  EXPECT_NEAR(both[1].max_shared_b_snr, b_snr, 1e-9 * b_snr);
+  // Track 1's: its B SNR at sensor 0 if track 2 gates sensor 0, else 0 (sensor 1 is nobody's).
+  const double want1 = p2.at[0].snr >= opt.management.gate_snr ? p1.at[0].B.norm() / 1e-9 : 0.0;
+  EXPECT_NEAR(both[0].max_shared_b_snr, want1, 1e-9 * want1);
+  // Alone, track 2 shares no sensor with anyone.
+  const auto alone = AssociateEpoch(e, {p2}, kB0, opt);
+  EXPECT_EQ(alone[0].max_shared_b_snr, 0.0);
+  // The option: off by default, checked by IsValid.
+  EXPECT_EQ(opt.management.reach_shared_b_snr, 0.0);
+  MultiTrackerOptions bad = opt;
+  bad.management.reach_shared_b_snr = -1.0;
+  EXPECT_FALSE(bad.management.IsValid(nullptr));
+  bad.management.reach_shared_b_snr = 3.0;
+  EXPECT_TRUE(bad.management.IsValid(nullptr));
+}
+
 TEST(Association, MissedWhereThePredictedFieldIsAbsentOrExplainsTooLittle) {
   const MultiTrackerOptions opt;
   const auto x = At(1, 0, -5);

@@ -41,6 +41,12 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
         const double st0 = SigmaT(epoch.samples[j], options.track);
         const double t_snr = predictions[i].at[j].T.norm() / st0;
         if (std::isfinite(t_snr)) a.max_tensor_snr = std::max(a.max_tensor_snr, t_snr);
+        for (std::size_t k = 0; k < predictions.size(); ++k) {
+          if (k == i || !predictions[k].valid || !(predictions[k].at[j].snr >= mg.gate_snr)) continue;
+          const double b_snr = predictions[i].at[j].B.norm() / SigmaB(epoch.samples[j], options.track);
+          if (std::isfinite(b_snr)) a.max_shared_b_snr = std::max(a.max_shared_b_snr, b_snr);
+          break;
+        }
         if (!(predictions[i].at[j].snr >= mg.gate_snr)) continue;
         GradiometerSample s = epoch.samples[j];
         Eigen::Vector3d B_others = Eigen::Vector3d::Zero();

@@ -43,6 +43,9 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
     return Fail(error, "confirm_tensor_snr must be finite and >= 0");
   }
   if (!PositiveFinite(reach_tensor_snr)) return Fail(error, "reach_tensor_snr must be > 0");
+  if (!(reach_shared_b_snr >= 0.0) || !std::isfinite(reach_shared_b_snr)) {
+    return Fail(error, "reach_shared_b_snr must be finite and >= 0");
+  }
   if (!(out_of_reach_s >= 0.0) || !std::isfinite(out_of_reach_s)) {
     return Fail(error, "out_of_reach_s must be finite and >= 0");
   }
@@ -569,7 +572,8 @@ struct MultiTracker::Impl {
         // Within reach: its tensor seen at a sensor, or inside the array.
         const Eigen::Vector2d h = Horizontal(tr.pred);
         const bool inside = (h.array() >= box_lo.array()).all() && (h.array() <= box_hi.array()).all();
-        tr.life.OnReach(t, inside || a.max_tensor_snr >= mg().reach_tensor_snr);
+        tr.life.OnReach(t, inside || a.max_tensor_snr >= mg().reach_tensor_snr ||
+                               (mg().reach_shared_b_snr > 0.0 && a.max_shared_b_snr >= mg().reach_shared_b_snr));
       }
       if (a.poor_fit) tr.t_poor_fit = t;
       tr.verdicts.emplace_back(t, a.detected && !outbid);

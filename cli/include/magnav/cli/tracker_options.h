@@ -116,6 +116,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
       ->capture_default_str();
   app.add_option("--out-of-reach", m.out_of_reach_s, "... and ends after this long out of reach, s (0 = off)")
       ->capture_default_str();
+  app.add_option("--reach-shared-b-snr", m.reach_shared_b_snr,
+                 "... unless its predicted B SNR is at least this at a sensor another live track gates (its field "
+                 "still in that track's samples; 0 = off)")
+      ->capture_default_str();
   app.add_option("--max-sigma-h", m.max_sigma_horizontal_m, "a track whose horizontal 1-sigma exceeds this ends, m")
       ->capture_default_str();
   app.add_option("--min-separation", m.min_separation_m,

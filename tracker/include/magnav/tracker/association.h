@@ -75,6 +75,10 @@ struct TrackAssociation {
   // largest at its own sensors, and ½ Σ (‖T‖² − ‖T − T̂‖²)/σ_T² over them.
   double max_tensor_snr = 0.0;
   double max_own_tensor_snr = 0.0;
+  // Its largest predicted B SNR ‖B̂‖/σ_B at a sensor another valid track
+  // gates (that track's predicted SNR ≥ gate_snr there); 0 if none
+  // (TrackManagementOptions::reach_shared_b_snr).
+  double max_shared_b_snr = 0.0;
   double tensor_llr = 0.0;
   bool tensor_evidence = false;  // max_own_tensor_snr ≥ confirm_tensor_snr and tensor_llr > 0 (or the rule off)
   bool poor_fit = false;

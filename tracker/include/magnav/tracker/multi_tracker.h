@@ -152,6 +152,13 @@ struct TrackManagementOptions {
   // rule beyond the reach by default").
   double reach_tensor_snr = 3.0;
   double out_of_reach_s = 2.0;
+  // A departing track is kept within reach while its predicted B SNR
+  // ‖B̂‖/σ_B is at least reach_shared_b_snr at a sensor another live track
+  // gates (its field still in that track's samples: ended, it would no
+  // longer be removed from them and would spoil that track's fit;
+  // docs/ACCURACY.md, "Single passes and σ cells on the merged defaults",
+  // overtaking). 0 = off (the tensor and the box only, as before 2026-11-27).
+  double reach_shared_b_snr = 0.0;
   // End rules (s, m): see above.
   double max_miss_s = 2.0;
   double max_coast_s = 10.0;
