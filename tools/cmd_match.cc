@@ -231,6 +231,9 @@ void AddMatchCommand(CLI::App& app) {
                   "fast-msd: half width (deg) of the offset grid whose posterior (forward-backward along the path) "
                   "adds the other basins' spread to each point's covariance; 0 = off (the linearised basin only); "
                   "0 also turns off the basin mean shift (--no-basin-mean-shift)");
+  cmd->add_option("--basin-max-half-width", o.fast_msd.basin_max_half_width_deg,
+                  "fast-msd: while the posterior's mass on the offset grid's edge reaches 1 %, the grid's half width "
+                  "doubles up to this (deg); <= --basin-half-width = never widen");
   cmd->add_flag("--no-basin-mean-shift", args->no_basin_mean_shift,
                 "fast-msd: keep the rounds' positions (by default each point moves to the mean of the other-basins "
                 "posterior, the published basin's mass at the rounds' position, unless the result is ambiguous or "

@@ -141,6 +141,9 @@ bool FastMsdOptions::IsValid(std::string* error) const {
     return Fail(error, "basin_half_width_deg must be finite and >= 0 (0 = off)");
   }
   if (!PositiveFinite(basin_step_cells)) return Fail(error, "basin_step_cells must be finite and > 0");
+  if (!(std::isfinite(basin_max_half_width_deg) && basin_max_half_width_deg >= 0.0)) {
+    return Fail(error, "basin_max_half_width_deg must be finite and >= 0 (<= basin_half_width_deg = never widen)");
+  }
   return true;
 }
 
@@ -350,20 +353,36 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
       // At most kMaxBasinRadius offsets each side (the grid's memory and time grow as its square): a wider
       // half width for the map's step coarsens the grid instead.
       constexpr int kMaxBasinRadius = 400;
-      double step = options.basin_step_cells * std::min(grid.lat().step_deg, grid.lon().step_deg);
-      int radius = std::max(1, static_cast<int>(std::ceil(options.basin_half_width_deg / step)));
-      if (radius > kMaxBasinRadius) {
-        radius = kMaxBasinRadius;
-        step = options.basin_half_width_deg / radius;
-      }
       std::vector<Eigen::Matrix2d> cov(n);
       for (std::size_t i = 0; i < n; ++i) cov[i] << c.lat_lat[i], c.lat_lon[i], c.lat_lon[i], c.lon_lon[i];
       const double cap = options.outlier_sigmas > 0.0 ? options.outlier_sigmas * readings.sigma
                                                       : std::numeric_limits<double>::infinity();
-      const internal::BasinSpread bs = internal::FastMsdBasinSpread(
-          grid, layer, r.lat_deg, r.lon_deg, path.measured_nT, final_lin.data, e_lat, e_lon, cov, c.s2_nT2,
-          map_var, c.tau2_deg2, cap, step, radius);
-      for (double x : bs.edge_mass) max_edge_mass = std::max(max_edge_mass, x);
+      // The grid over ± half_width; while the posterior's mass on its outermost ring reaches kMaxEdgeMass
+      // (the grid truncates it), twice as wide, up to basin_max_half_width_deg (fast_msd.h).
+      const auto spread_over = [&](double half_width) {
+        double step = options.basin_step_cells * std::min(grid.lat().step_deg, grid.lon().step_deg);
+        int radius = std::max(1, static_cast<int>(std::ceil(half_width / step)));
+        if (radius > kMaxBasinRadius) {
+          radius = kMaxBasinRadius;
+          step = half_width / radius;
+        }
+        internal::BasinSpread spread = internal::FastMsdBasinSpread(
+            grid, layer, r.lat_deg, r.lon_deg, path.measured_nT, final_lin.data, e_lat, e_lon, cov, c.s2_nT2,
+            map_var, c.tau2_deg2, cap, step, radius);
+        max_edge_mass = 0.0;
+        for (double x : spread.edge_mass) max_edge_mass = std::max(max_edge_mass, x);
+        return spread;
+      };
+      double half_width = options.basin_half_width_deg;
+      internal::BasinSpread bs = spread_over(half_width);
+      while (max_edge_mass >= kMaxEdgeMass && half_width < options.basin_max_half_width_deg) {
+        half_width = std::min(2.0 * half_width, options.basin_max_half_width_deg);
+        bs = spread_over(half_width);
+      }
+      if (half_width > options.basin_half_width_deg) {
+        r.notes += std::string(r.notes.empty() ? "" : "; ") + "offset grid widened to " + FormatNumber(half_width) +
+                   " deg (the posterior reached its edge)";
+      }
       // The mixture's mean (applied by MatchFastMsd, after the ambiguity check). The mean of a posterior the
       // grid truncates is not the posterior's mean: no point moves when the mass on the grid's outermost
       // ring reaches kMaxEdgeMass anywhere along the path (fast_msd.h).

@@ -394,6 +394,12 @@ TEST(Options, DefaultsAreValidAndBadValuesAreRefused) {
   basins.basin_step_cells = 0.0;
   EXPECT_FALSE(basins.IsValid(&why));
   EXPECT_NE(why.find("basin_step_cells"), std::string::npos);
+  basins.basin_step_cells = 0.25;
+  basins.basin_max_half_width_deg = 0.0;  // never widen
+  EXPECT_TRUE(basins.IsValid(&why)) << why;
+  basins.basin_max_half_width_deg = std::nan("");
+  EXPECT_FALSE(basins.IsValid(&why));
+  EXPECT_NE(why.find("basin_max_half_width_deg"), std::string::npos);
   IcpOptions i;
   i.field_scale_deg_per_nT = std::nan("");
   EXPECT_FALSE(i.IsValid(&why));

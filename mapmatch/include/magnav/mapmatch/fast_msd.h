@@ -116,6 +116,15 @@ struct FastMsdOptions {
   // offsets each side: a wider half width for the map's step coarsens the grid.
   double basin_half_width_deg = 0.012;
   double basin_step_cells = 0.25;
+  // The widest the offset grid grows to (deg; issue 25 item 6; docs/ACCURACY.md,
+  // "Fast MSD: the posterior the offset grid truncated"): while the posterior's
+  // mass on the grid's outermost ring reaches 1 % somewhere on the path, the
+  // half width doubles (same step), up to this; the notes say "offset grid
+  // widened to W deg". A posterior still at the edge then moves nothing
+  // (basin_mean_shift). ≤ basin_half_width_deg = never widen (before
+  // 2026-11-27). Default 0.048 (two doublings; within the coarse stage's
+  // ±0.15° window): paths whose start lies beyond 0.012° of the truth.
+  double basin_max_half_width_deg = 0.048;
   // Positions from the other basins (issue 25 item 6; docs/ACCURACY.md, "Fast
   // MSD: single paths above 0.001°"; needs basin_half_width_deg > 0): each
   // point moves to the mean of that posterior mixture — the published basin's
