@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_drift/ and fresh_drift2/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_drift/ and fresh_drift2/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -175,6 +175,9 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"abreast_33", "abreast_37", "abreast_40"}) files.push_back({"fresh_abreast2", name, "abreast"});
   for (const char* name : {"abreast_26", "abreast_29", "abreast_34", "abreast_38"}) files.push_back({"fresh_abreast3", name, "abreast"});
   for (const char* name : {"abreast_22", "abreast_27", "abreast_31", "abreast_39"}) files.push_back({"fresh_abreast4", name, "abreast"});
+  for (const char* name : {"abreast_23", "abreast_27", "abreast_26_diag", "drift_abreast_28"}) {
+    files.push_back({"fresh_abreast5", name, "abreast"});  // drift_abreast_28 drifts too: checked below
+  }
   for (const char* name : {"far_ship_130", "far_ship_180"}) files.push_back({"fresh_ghost", name, "far_ship"});
   for (const char* name : {"drift_3", "drift_6"}) files.push_back({"fresh_ghost", name, "drift"});
   for (const char* name : {"far_ship_110", "far_ship_150", "far_ship_190"}) files.push_back({"fresh_farsrc", name, "far_ship"});
@@ -277,7 +280,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/) drifts too
+      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/, fresh_abreast5/drift_abreast_28) drifts too
         ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
         const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
         EXPECT_GE(per_min, 2.0);

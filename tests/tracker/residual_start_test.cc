@@ -100,6 +100,12 @@ TEST(ResidualStart, OptionsAndTheirCheck) {
   EXPECT_EQ(LoneStartTrackerOptions(track, lone).init.source, InitSource::kExternal);
   track.init.min_fixes = 60;
   EXPECT_EQ(LoneStartTrackerOptions(track, lone).init.min_fixes, 60);
+  // The lone pair start: on by default (it takes the lone start's options);
+  // off is valid too.
+  EXPECT_TRUE(ResidualStartOptions{}.lone_pair);
+  lone.lone_pair = false;
+  EXPECT_TRUE(lone.IsValid(&error)) << error;
+  lone.lone_pair = true;
   lone.lone_min_fixes = -1;
   EXPECT_FALSE(lone.IsValid(&error));
   lone.lone_min_fixes = 40;

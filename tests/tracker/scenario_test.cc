@@ -388,6 +388,36 @@ TEST(HarbourScenario, WindowStartsTheLoneWeakVessel) {
   EXPECT_LE(s.rms[0], 1.5 * 0.0943);  // m, measured 0.0943
 }
 
+// Two weak vessels abreast with no live track (issue 24, branch pairstart):
+// fresh_drift2/drift_3_abreast without its drift (two AUVs southward 26 m
+// apart, 13 m either side of the middle column; each one's own tensor peaks
+// at 17.8 / 13.4 sigma_T, their sum at 28 at the column's sensors), cut to
+// 80 s from 24 m before the first sensor. No track without the lone pair
+// start: every single-sample fix is spoiled by the other vessel's field
+// (the lone start finds at most 28 of its 40 fixes) and the field's pair
+// start fits the two within 0.5 m but refuses them, each dipole's own tensor
+// below 20. With it (ResidualStartOptions::lone_pair, on by default; the
+// pair start at the lone start's SNR 10, fixes 40 and span 10 s) both are
+// tracked. Not blind:
+// drift_3_abreast was run once blind (no track) and diagnosed here.
+TEST(HarbourScenario, WindowStartsTwoWeakVesselsAbreastWithNoLiveTrack) {
+  FieldScenario sc = cli::ReadScenarioFile(magnav::testing::TestDataDir() +
+                                           "/generated/scenarios/fresh_drift2/drift_3_abreast.toml");
+  sc.background_drift_Tps.clear();
+  for (FieldVessel& v : sc.vessels) {
+    v.start_position.x() = 60.0;
+    v.segments = {{80.0, 0.0}};
+  }
+  const auto s = ScoreWindow(sc, "drift_3_abreast without drift, 80 s, defaults (the lone pair start on)");
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0
+  for (std::size_t v = 0; v < 2; ++v) {
+    EXPECT_EQ(s.ids[v], 1u) << "vessel " << v + 1;
+    EXPECT_GE(s.coverage[v], 0.8) << "vessel " << v + 1;  // the issue's; measured 0.953 / 0.953 (no track when off)
+  }
+  EXPECT_LE(s.rms[0], 1.5 * 0.1030);  // m, measured 0.1030
+  EXPECT_LE(s.rms[1], 1.5 * 0.1029);  // m, measured 0.1029
+}
+
 // The batch over all the evidence for a vessel started in the residual
 // (issue 24 items 2 and 5; MultiTrackerOptions::batch_weak_init):
 // fresh_sigma/abreast_s's vessel 1 (peak tensor SNR 12, below the field's

@@ -924,7 +924,7 @@ struct MultiTracker::Impl {
     const TrackerOptions lone = LoneStartTrackerOptions(options.track, ro);
     const std::optional<InitialTrack> init =
         InitializeTrack(std::vector<Epoch>(buffer.begin(), buffer.end()), B0_W, lone, nullptr);
-    if (!init) return false;
+    if (!init) return ro.lone_pair && StartLonePair(t, lone);
     const std::size_t before = tracks.size();
     if (!StartTrack(t, *init, nullptr) || tracks.size() == before) return false;
     std::ostringstream o;
@@ -934,6 +934,25 @@ struct MultiTracker::Impl {
     tracks.back().origin = o.str();
     tracks.back().lone_start = true;
     return true;
+  }
+
+  // Two weak vessels abreast with no live track and no one-dipole line
+  // (ResidualStartOptions::lone_pair): the pair start with the lone start's
+  // options `lone`, both started as a pair (as TryStart's). True if started.
+  bool StartLonePair(double t, const TrackerOptions& lone) {
+    const std::vector<InitialTrack> pair =
+        InitializePair(std::vector<Epoch>(buffer.begin(), buffer.end()), B0_W, lone, mg().min_separation_m);
+    if (pair.size() != 2) return false;
+    const std::size_t before = tracks.size();
+    const bool first = StartTrack(t, pair[0], &pair[1]);
+    const bool second = StartTrack(t, pair[1], first ? nullptr : &pair[0]);
+    if (first && second) MakePair(t, tracks[tracks.size() - 2], pair[0], tracks.back(), pair[1]);
+    std::ostringstream o;
+    o << "from a two-dipole fit, no live track (lone pair start, tensor SNR >= "
+      << FormatNumber(lone.init.min_tensor_snr) << ", >= " << lone.init.min_fixes << " samples over >= "
+      << FormatNumber(lone.init.min_span_s) << " s)";
+    for (std::size_t k = before; k < tracks.size(); ++k) tracks[k].origin = o.str();
+    return tracks.size() > before;
   }
 
   // The tensor SNR from which a confirmed track's start is back-filled: the

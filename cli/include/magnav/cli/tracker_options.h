@@ -144,6 +144,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--lone-start-span", m.residual_start.lone_min_span_s,
                  "... spanning at least this many seconds")
       ->capture_default_str();
+  app.add_option("--lone-pair-start", m.residual_start.lone_pair,
+                 "with no live track and no lone start, start two weak vessels abreast by the two-dipole fit with "
+                 "the lone start's SNR, fixes and span (0/1)")
+      ->capture_default_str();
   app.add_option("--excuse-beside", m.excuse_beside,
                  "a track's misses do not count while a two-dipole fit beside it explains its samples with a "
                  "newcomer seen (its B and tensor, with tensor evidence) but too weak yet to start (0/1)")
