@@ -56,7 +56,8 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                "sigma_nT", "likelihood_exponent", "track_check_chi2", "innovation_nT", "predicted_spread_nT", "innovation_bias_chi2",
                "reacquiring", "cloud_cov_lat_lat", "cloud_cov_lat_lon", "cloud_cov_lon_lon", "track_check_failed",
                "subcloud_chi2", "subclouds_disagree", "innovation_cusum", "ins_step_ratio", "ins_glitch", "run_status",
-               "converging", "status"},
+               "converging", "status", "ensemble_chi2", "ensemble_separation_deg", "ensemble_evidence_nats",
+               "ensemble_disagree"},
               {{"frame", "estimate lat/lon deg, covariance deg^2 (published; cloud_cov_*: the cloud's own; particle_filter.h StepDiagnostics)"},
                {"run_status", "the run's status had it ended at this step (run_status.h; magnav-matcher publishes it: converged = ok, "
                               "off_map = off_map, converging = converging, any other = lost)"},
@@ -75,7 +76,9 @@ void WriteDiagnostics(const std::string& file, const mapmatch::MatchPath& path,
                 d.track_check_failed ? "1" : "0", FormatNumber(d.subcloud_chi2), d.subclouds_disagree ? "1" : "0",
                 FormatNumber(d.innovation_cusum), FormatNumber(d.ins_step_ratio), d.ins_glitch ? "1" : "0",
                 mapmatch::RunVerdictName(d.run_status), d.converging ? "1" : "0",
-                mapmatch::StepStatusName(mapmatch::StatusOf(d))});
+                mapmatch::StepStatusName(mapmatch::StatusOf(d)), FormatNumber(d.ensemble_chi2),
+                FormatNumber(d.ensemble_separation_deg), FormatNumber(d.ensemble_evidence_nats),
+                d.ensemble_disagree ? "1" : "0"});
   }
   w.Close();
 }

@@ -126,6 +126,19 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(subcloud_reseed_nats) && subcloud_reseed_nats >= 0.0)) {
     return Fail(error, "subcloud_reseed_nats must be finite and >= 0 (0 = off)");
   }
+  if (acquisition_ensemble < 1 || acquisition_ensemble > 8) {
+    return Fail(error, "acquisition_ensemble must be in [1, 8] (1 = off)");
+  }
+  if (!PositiveFinite(acquisition_ensemble_chi2)) return Fail(error, "acquisition_ensemble_chi2 must be finite and > 0");
+  if (acquisition_ensemble_hold < 1 || acquisition_ensemble_window < 1) {
+    return Fail(error, "acquisition_ensemble_hold and acquisition_ensemble_window must be >= 1");
+  }
+  if (!(std::isfinite(acquisition_ensemble_nats) && acquisition_ensemble_nats >= 0.0)) {
+    return Fail(error, "acquisition_ensemble_nats must be finite and >= 0");
+  }
+  if (acquisition_ensemble > 1 && subclouds > 1) {
+    return Fail(error, "acquisition_ensemble > 1 and subclouds > 1 cannot be combined");
+  }
   return true;
 }
 
@@ -410,6 +423,7 @@ void Filter::Update(double z, StepDiagnostics* d) {
 std::unique_ptr<SequentialMatcher> MakeParticleFilter(ParticleFilterKind kind, const GeoGrid& grid,
                                                       std::size_t layer, const ParticleFilterOptions& options) {
   if (options.subclouds > 1) return internal::MakeSubClouds(kind, grid, layer, options);
+  if (options.acquisition_ensemble > 1) return internal::MakeAcquisitionEnsemble(kind, grid, layer, options);
   return std::make_unique<internal::Filter>(kind, grid, layer, options);
 }
 

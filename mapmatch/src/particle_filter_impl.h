@@ -13,6 +13,8 @@
 //                                   the run's status (MatchParticleFilter)
 //   particle_filter_subclouds.cc    K independent sub-clouds pooled, their
 //                                   disagreement test (MakeSubClouds)
+//   particle_filter_ensemble.cc     shadow clouds during acquisition, their
+//                                   disagreement flag (MakeAcquisitionEnsemble)
 //   particle_filter_slide.cc        the offset-slide status rule of
 //                                   MatchParticleFilter (particle_filter_slide.h)
 // Units and frames as in particle_filter.h (deg, nT, deg²).
@@ -187,5 +189,9 @@ int OccupiedCells(const GeoGrid& grid, const std::vector<Particle>& particles, s
 // particle_filter_subclouds.cc: K = options.subclouds independent filters pooled (particle_filter.h).
 std::unique_ptr<SequentialMatcher> MakeSubClouds(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer,
                                                  const ParticleFilterOptions& options);
+
+// particle_filter_ensemble.cc: the filter and acquisition_ensemble − 1 shadows during acquisition (particle_filter.h).
+std::unique_ptr<SequentialMatcher> MakeAcquisitionEnsemble(ParticleFilterKind kind, const GeoGrid& grid,
+                                                           std::size_t layer, const ParticleFilterOptions& options);
 
 }  // namespace magnav::mapmatch::internal

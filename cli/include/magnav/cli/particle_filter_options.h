@@ -117,6 +117,21 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
       "pf, afpf with --subclouds > 1: lost when two sub-cloud means differ by more than this (chi-square, 2 dof, "
       "against their summed covariances) for --subcloud-hold steps");
   opt("--subcloud-hold", &f->subcloud_hold, "pf, afpf with --subclouds > 1: steps the disagreement must last");
+  opt("--acquisition-ensemble", &f->acquisition_ensemble,
+      "pf, afpf: K clouds in all: run K-1 independently seeded shadow filters beside the filter while it acquires "
+      "(until --acquisition-steps after its first ok step) and flag lost when a shadow's mean and the filter's "
+      "disagree (--acquisition-ensemble-chi2) and the readings do not favour the filter "
+      "(--acquisition-ensemble-nats); the estimate is the filter's, unchanged; 1 = off");
+  opt("--acquisition-ensemble-chi2", &f->acquisition_ensemble_chi2,
+      "pf, afpf with --acquisition-ensemble > 1: lost when the filter's and a shadow's means differ by more than "
+      "this (chi-square, 2 dof, against their summed cloud covariances) for --acquisition-ensemble-hold steps");
+  opt("--acquisition-ensemble-hold", &f->acquisition_ensemble_hold,
+      "pf, afpf with --acquisition-ensemble > 1: steps the disagreement must last");
+  opt("--acquisition-ensemble-window", &f->acquisition_ensemble_window,
+      "pf, afpf with --acquisition-ensemble > 1: readings in each cloud's summed log evidence");
+  opt("--acquisition-ensemble-nats", &f->acquisition_ensemble_nats,
+      "pf, afpf with --acquisition-ensemble > 1: a disagreeing shadow counts unless its summed log evidence is "
+      "below the filter's by more than this (the shadow is then the one lost)");
   opt("--subcloud-window", &f->subcloud_window,
       "pf, afpf with --subclouds > 1: updates in each sub-cloud's summed log evidence (re-seeding)");
   opt("--subcloud-reseed", &f->subcloud_reseed_nats,

@@ -488,6 +488,34 @@ struct ParticleFilterOptions {
   int subcloud_hold = 8;
   int subcloud_window = 10;
   double subcloud_reseed_nats = 3.0;
+  // Ensemble disagreement during acquisition (a lost-track flag for the acquisition kind of loss;
+  // issue 25 item 3; particle_filter_ensemble.cc). acquisition_ensemble = K > 1 runs K − 1 shadow
+  // filters of the same kind beside the filter, each with its own particles and seed (the
+  // sub-clouds' seeds), on the same readings, only while the filter acquires: from its first step
+  // (and again from a re-initialisation) until acquisition_steps after its first ok step (not lost,
+  // not converging). The filter's estimate, cloud and own flags are published unchanged (the
+  // shadows are not pooled, unlike subclouds); the step is flagged lost while the filter's mean and
+  // some shadow's differ beyond their summed cloud covariances,
+  //   E = max over shadows (m − m_s)ᵀ (C + C_s)⁻¹ (m − m_s) > acquisition_ensemble_chi2
+  // and the readings do not favour the filter over that shadow: its summed log evidence over the
+  // last acquisition_ensemble_window readings, Σ log Σ w N(z; m(x), σ²), is not below the filter's by
+  // more than acquisition_ensemble_nats (a shadow settled in a worse basin is the shadow's loss, not
+  // the filter's) — for acquisition_ensemble_hold steps in a row (a wrong-basin settle is a random event per
+  // cloud: an independently seeded cloud that settles elsewhere says the mode is ambiguous).
+  // Flag only: no re-spread. Cost: K − 1 more filters during acquisition only.
+  // K = 3, E > 50, hold 3, window 10, 0 nats: chosen on the tuning paths 301–420 and the calibration
+  // harness (PF losses flagged within 20 steps 45 → 48 of 51, clean runs flagged 2 of 54 either way;
+  // harness 3 of 6 either way, clean 4 → 5 of 34; the AFPF gains none, tuning clean 1 → 2 of 57;
+  // without the evidence condition, E > 13.8: 49 of 51 but 13 of 54 clean runs flagged — clean
+  // acquisitions' shadows settle in wrong basins as often as lost filters' shadows find the truth).
+  // Held out (541–660): PF 40 → 45 of 54, clean 1 → 3 of 48 (6 %); AFPF 46 → 47 of 52, clean 1 of 56.
+  // 1 = off (the default: clean alarms above item 3's 5 % held out and on the harness;
+  // docs/ACCURACY.md, "Ensemble disagreement during acquisition").
+  int acquisition_ensemble = 1;
+  double acquisition_ensemble_chi2 = 50.0;
+  int acquisition_ensemble_hold = 3;
+  int acquisition_ensemble_window = 10;
+  double acquisition_ensemble_nats = 0.0;
   // AFPF: λ (the paper: 0.001) and μ, the parents' sampling variance per axis
   // (the paper: 1.6454e-4 deg²).
   double fission_lambda = 0.001;
@@ -579,6 +607,14 @@ struct StepDiagnostics {
   // and whether it is above subcloud_chi2 at this step (lost once held subcloud_hold steps).
   double subcloud_chi2 = 0.0;
   bool subclouds_disagree = false;
+  // acquisition_ensemble > 1: the largest disagreement E of the filter's mean with a shadow's (0 while
+  // the shadows do not run), that shadow's distance from the filter (deg), and whether the step
+  // disagrees (E above acquisition_ensemble_chi2, that shadow not worse by acquisition_ensemble_nats;
+  // lost once held acquisition_ensemble_hold steps).
+  double ensemble_chi2 = 0.0;
+  double ensemble_separation_deg = 0.0;
+  double ensemble_evidence_nats = 0.0;  // that shadow's windowed log evidence less the filter's
+  bool ensemble_disagree = false;
   bool resampled = false;
   bool ins_jump = false;
   // The INS increment's departure from the recent ones over max(√(L̄² + D̄²), a quarter cell)
@@ -615,6 +651,7 @@ struct FilterCounters {
   int subcloud_reseeds = 0;  // subclouds > 1: sub-clouds replaced by a copy of the best (subcloud_reseed_nats)
   int spaced = 0;            // readings left out by min_update_spacing_m
   int converging_steps = 0;  // steps with StepDiagnostics::converging
+  int ensemble_lost_steps = 0;  // acquisition_ensemble > 1: steps lost by the ensemble disagreement alone
 };
 
 // The common interface of the PF and the AFPF.

@@ -1,0 +1,166 @@
+// Ensemble disagreement during acquisition (ParticleFilterOptions::acquisition_ensemble;
+// particle_filter.h says what and why): the filter runs as it would alone, and K − 1 shadow filters
+// of its kind, independently seeded, run beside it on the same readings while it acquires. Their
+// means settling apart beyond their clouds' covariances flags the step lost. The filter's estimate,
+// cloud and own flags are published unchanged. Units as in particle_filter.h (deg, nT, deg²).
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <deque>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "particle_filter_impl.h"
+
+namespace magnav::mapmatch::internal {
+namespace {
+
+constexpr std::uint64_t kSeedStep = 0x9E3779B97F4A7C15ULL;  // 2^64 / the golden ratio (as the sub-clouds')
+
+class AcquisitionEnsemble final : public SequentialMatcher {
+ public:
+  AcquisitionEnsemble(ParticleFilterKind kind, const GeoGrid& grid, std::size_t layer, const ParticleFilterOptions& o)
+      : kind_(kind), grid_(grid), layer_(layer), o_(o) {
+    std::string why;
+    if (!o.IsValid(&why)) throw InputError(std::string(ParticleFilterKindName(kind)) + " options: " + why);
+    ParticleFilterOptions s = o;
+    s.acquisition_ensemble = 1;
+    main_ = std::make_unique<Filter>(kind, grid, layer, s);
+    StartShadows();
+  }
+
+  const StepDiagnostics& Step(double ins_lat, double ins_lon, double measured_nT) override;
+  const std::vector<Particle>& particles() const override { return main_->particles(); }
+  const FilterCounters& counters() const override { return counters_; }
+  const StepDiagnostics& last() const override { return last_; }
+  ParticleFilterKind kind() const override { return kind_; }
+
+ private:
+  void StartShadows();
+  static double Disagreement(const StepDiagnostics& a, const StepDiagnostics& b);
+  void Record(std::deque<double>* window, const StepDiagnostics& s) const;
+  static double Sum(const std::deque<double>& window);
+
+  ParticleFilterKind kind_;
+  const GeoGrid& grid_;
+  std::size_t layer_;
+  ParticleFilterOptions o_;
+  std::unique_ptr<Filter> main_;
+  std::vector<std::unique_ptr<Filter>> shadows_;  // empty once the acquisition is over
+  // Log evidence of the last acquisition_ensemble_window readings: the filter's, each shadow's.
+  std::deque<double> main_evidence_;
+  std::vector<std::deque<double>> shadow_evidence_;
+  std::uint64_t starts_ = 0;                      // shadow sets started (their seeds)
+  long long step_ = -1;                           // this step's index
+  long long first_ok_at_ = -1;                    // the filter's first ok step since the shadows started
+  int disagree_run_ = 0;                          // steps in a row with E > acquisition_ensemble_chi2
+  int reinitialisations_seen_ = 0;
+  int extra_lost_ = 0, fewer_converging_ = 0;     // the counters' changes by the ensemble's flag
+  FilterCounters counters_;
+  StepDiagnostics last_;
+};
+
+// K − 1 fresh shadows (their first step spreads their prior around that step's INS position, as the
+// filter's first step and a re-initialisation do).
+void AcquisitionEnsemble::StartShadows() {
+  ParticleFilterOptions s = o_;
+  s.acquisition_ensemble = 1;
+  shadows_.clear();
+  main_evidence_.clear();
+  shadow_evidence_.assign(static_cast<std::size_t>(o_.acquisition_ensemble - 1), {});
+  for (int i = 1; i < o_.acquisition_ensemble; ++i) {
+    s.seed = o_.seed + (starts_ * static_cast<std::uint64_t>(o_.acquisition_ensemble) + static_cast<std::uint64_t>(i)) *
+                           kSeedStep;
+    shadows_.push_back(std::make_unique<Filter>(kind_, grid_, layer_, s));
+  }
+  ++starts_;
+  first_ok_at_ = -1;
+  disagree_run_ = 0;
+}
+
+// (m_a − m_b)ᵀ (C_a + C_b)⁻¹ (m_a − m_b) with the clouds' own covariances (cloud_cov_*), as the
+// sub-clouds' D; a degenerate sum gets 1e-14 deg² (≈ 1 cm²).
+double AcquisitionEnsemble::Disagreement(const StepDiagnostics& a, const StepDiagnostics& b) {
+  const double e0 = a.lat_deg - b.lat_deg, e1 = a.lon_deg - b.lon_deg;
+  const double s00 = a.cloud_cov_lat_lat + b.cloud_cov_lat_lat + 1e-14;
+  const double s01 = a.cloud_cov_lat_lon + b.cloud_cov_lat_lon;
+  const double s11 = a.cloud_cov_lon_lon + b.cloud_cov_lon_lon + 1e-14;
+  const double det = s00 * s11 - s01 * s01;
+  if (!(det > 0.0)) return 0.0;
+  return (s11 * e0 * e0 - 2.0 * s01 * e0 * e1 + s00 * e1 * e1) / det;
+}
+
+// A step's log evidence of its reading, log Σ w N(z; m(x), σ²) = −NIS/2 − ln σ (the constant dropped; as
+// the sub-clouds' re-seeding): 0 when no reading was weighed.
+void AcquisitionEnsemble::Record(std::deque<double>* window, const StepDiagnostics& s) const {
+  const bool weighed = (s.update == StepUpdate::kUpdated || s.update == StepUpdate::kOutlier) && s.sigma_nT > 0.0;
+  window->push_back(weighed && std::isfinite(s.nis) ? -0.5 * s.nis - std::log(s.sigma_nT) : 0.0);
+  if (static_cast<int>(window->size()) > o_.acquisition_ensemble_window) window->pop_front();
+}
+
+double AcquisitionEnsemble::Sum(const std::deque<double>& window) {
+  double sum = 0.0;
+  for (double e : window) sum += e;
+  return sum;
+}
+
+const StepDiagnostics& AcquisitionEnsemble::Step(double ins_lat, double ins_lon, double measured_nT) {
+  ++step_;
+  StepDiagnostics d = main_->Step(ins_lat, ins_lon, measured_nT);
+  // A re-initialised filter acquires again: so do fresh shadows (from the next step).
+  const bool reinitialised = main_->counters().reinitialisations != reinitialisations_seen_;
+  reinitialisations_seen_ = main_->counters().reinitialisations;
+  bool flag = false;
+  if (!shadows_.empty()) {
+    // The shadow furthest from the filter (largest E): its separation, and its windowed log evidence less
+    // the filter's (> 0: the readings favour the shadow).
+    Record(&main_evidence_, d);
+    double e = -1.0, sep = 0.0, gap = 0.0;
+    for (std::size_t i = 0; i < shadows_.size(); ++i) {
+      const StepDiagnostics& s = shadows_[i]->Step(ins_lat, ins_lon, measured_nT);
+      Record(&shadow_evidence_[i], s);
+      const double ei = Disagreement(d, s);
+      if (ei > e) {
+        e = ei;
+        sep = std::hypot(d.lat_deg - s.lat_deg, d.lon_deg - s.lon_deg);
+        gap = Sum(shadow_evidence_[i]) - Sum(main_evidence_);
+      }
+    }
+    d.ensemble_chi2 = e, d.ensemble_separation_deg = sep, d.ensemble_evidence_nats = gap;
+    d.ensemble_disagree = e > o_.acquisition_ensemble_chi2 && gap > -o_.acquisition_ensemble_nats;
+    disagree_run_ = d.ensemble_disagree ? disagree_run_ + 1 : 0;
+    flag = disagree_run_ >= o_.acquisition_ensemble_hold;
+    if (first_ok_at_ < 0 && !d.lost && !d.converging) first_ok_at_ = step_;
+    if (first_ok_at_ >= 0 && step_ >= first_ok_at_ + o_.acquisition_steps) shadows_.clear();  // acquired
+  }
+  if (flag && !d.lost) {
+    d.lost = true;
+    ++extra_lost_;
+    if (d.converging) ++fewer_converging_;
+    d.converging = false;
+    // The published covariance of a lost step (as the filter's own, lost_covariance_is_prior): at least
+    // the prior square's; the cloud's own stays in cloud_cov_*.
+    const double v = o_.prior_half_width_deg * o_.prior_half_width_deg / 3.0;
+    if (o_.lost_covariance_is_prior && d.cloud_cov_lat_lat + d.cloud_cov_lon_lon < 2.0 * v) {
+      d.cov_lat_lat = v, d.cov_lat_lon = 0.0, d.cov_lon_lon = v;
+    }
+  }
+  if (reinitialised) StartShadows();
+  counters_ = main_->counters();
+  counters_.lost_steps += extra_lost_;
+  counters_.converging_steps -= fewer_converging_;
+  counters_.ensemble_lost_steps = extra_lost_;
+  last_ = d;
+  return last_;
+}
+
+}  // namespace
+
+std::unique_ptr<SequentialMatcher> MakeAcquisitionEnsemble(ParticleFilterKind kind, const GeoGrid& grid,
+                                                           std::size_t layer, const ParticleFilterOptions& options) {
+  return std::make_unique<AcquisitionEnsemble>(kind, grid, layer, options);
+}
+
+}  // namespace magnav::mapmatch::internal
