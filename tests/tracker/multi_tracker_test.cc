@@ -118,7 +118,7 @@ TEST(MultiTracker, FarShipArrivingWhileAnAuvIsTracked) {
 // An overtaking pair built here (not a scored scenario file): the fast AUV
 // leaves the 3x3 grid first and its window track ends "out_of_reach" while its
 // B is still tens of σ_B at the sensors the slow track uses. Without the ghost
-// field (TrackManagementOptions::ghost_field_s, off by default) that B is in
+// field (TrackManagementOptions::ghost_field_s = 0; 30 s by default) that B is in
 // the slow track's samples unmodelled and its error grows; with it the ended
 // track's predicted field is subtracted from them (and nothing is published
 // for it). The slow vessel's RMS over the 15 s after the fast track's end:

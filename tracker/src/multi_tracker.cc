@@ -82,6 +82,12 @@ MultiTrackerOptions::MultiTrackerOptions() {
   // error outside the reach and while coasting (docs/ACCURACY.md, "Tracker σ
   // over 20 draws, and the depth walk on by default").
   track.process.depth_weak_m_per_sqrt_s = kFieldDepthWeakMPerSqrtS;
+  // The ghost field of a track ended out of reach (TrackManagementOptions::
+  // ghost_field_s), on for 30 s at most (set before any run) since
+  // 2026-11-27: the overtaking window's σ cell "outside" 7.73 -> 1.73 and no
+  // row of the 20 scenario sets worse against a target (docs/ACCURACY.md,
+  // "The ended track's field subtracted as a ghost").
+  management.ghost_field_s = 30.0;
 }
 
 bool MultiTrackerOptions::IsValid(std::string* error) const {

@@ -171,8 +171,8 @@ struct TrackManagementOptions {
   // propagated with the window's process noise as the evidence gate's)
   // through the field's position Jacobian (B: −T; T: ≈ 4‖T‖/r). Dropped
   // too once a confirmed track is within min_separation_m of it (its vessel
-  // tracked again). ghost_field_s 0 = off (docs/ACCURACY.md, "The ended
-  // track's field subtracted as a ghost").
+  // tracked again). 0 = off; MultiTrackerOptions() sets 30 s, on (ACCURACY.md,
+  // "The ended track's field subtracted as a ghost"; set before any run).
   double ghost_field_s = 0.0;
   double ghost_b_snr = 3.0;
   // End rules (s, m): see above.
