@@ -229,6 +229,56 @@ TEST(TrackerCheckpoint, OvertakingRestoredBeforeTheStartBesideATrackGoesOnBitFor
   }
 }
 
+// The ghost field of a track ended out of reach (TrackManagementOptions::ghost_field_s) is in the checkpoint:
+// cut 1 s after the fast vessel's track ends on an overtaking field, its ghost still subtracted, the restored
+// tracker goes on bit for bit.
+TEST(TrackerCheckpoint, GhostFieldRestoredGoesOnBitForBit) {
+  FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/overtaking.toml");
+  sc.vessels[0].start_position.x() = -20.0;
+  sc.vessels[0].segments = {{85.0, 0.0}};
+  sc.vessels[1].start_position.x() = -65.0;
+  sc.vessels[1].segments = {{85.0, 0.0}};
+  const SimulatedField f = SimulateField(sc);
+  MultiTrackerOptions options;
+  options.management.ghost_field_s = 30.0;
+  MultiTracker t(sc.B0, options);
+  Outputs whole;
+  std::size_t cut = 0, outputs_before_cut = 0;
+  double t_end = -1.0;
+  std::string payload;
+  for (std::size_t i = 0; i < f.samples.size(); ++i) {
+    const bool boundary = i > 0 && f.samples[i].t_s != f.samples[i - 1].t_s;
+    if (cut == 0 && boundary && t_end > 0.0 && f.samples[i].t_s >= t_end + 1.0) {
+      ASSERT_EQ(t.num_ghost_fields(), 1);
+      cut = i;
+      payload = t.SaveState();
+      outputs_before_cut = whole.out.size();
+    }
+    Take(t, t.AddSample(f.samples[i]), &whole);
+    for (const TrackEvent& e : whole.events) {
+      if (t_end < 0.0 && e.kind == TrackEvent::Kind::kEnded && e.reason == "out_of_reach") t_end = e.t_s;
+    }
+  }
+  Take(t, t.Flush(), &whole);
+  ASSERT_GT(cut, 0u) << "no track ended out of reach";
+  MultiTracker restored(sc.B0, options);
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload)));
+  EXPECT_EQ(restored.num_ghost_fields(), 1);
+  Outputs after;
+  for (std::size_t i = cut; i < f.samples.size(); ++i) Take(restored, restored.AddSample(f.samples[i]), &after);
+  Take(restored, restored.Flush(), &after);
+  std::printf("track ended out of reach at %.1f s, checkpoint at %.1f s: the %zu outputs after it compared\n", t_end,
+              f.samples[cut].t_s, after.out.size());
+  EXPECT_EQ(restored.summary().num_ghosts, t.summary().num_ghosts);
+  ASSERT_EQ(after.out.size(), whole.out.size() - outputs_before_cut);
+  ASSERT_GT(after.out.size(), 0u);
+  for (std::size_t k = 0; k < after.out.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after.out[k], whole.out[outputs_before_cut + k]);
+    if (HasFailure()) break;
+  }
+}
+
 // RestoreState(DecodeTrackerCheckpoint(file)) into a new tracker with `options`:
 // the CheckpointError's message, or "" if it was taken.
 std::string Refusal(const std::string& file, const MultiTrackerOptions& options, const Eigen::Vector3d& B0) {

@@ -120,6 +120,13 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "... unless its predicted B SNR is at least this at a sensor another live track gates (its field "
                  "still in that track's samples; 0 = off)")
       ->capture_default_str();
+  app.add_option("--ghost-field", m.ghost_field_s,
+                 "a track ended out of reach leaves its predicted field (a ghost: no row, no track) subtracted from "
+                 "every sample, its uncertainty in their sigma, for at most this long, s (0 = off)")
+      ->capture_default_str();
+  app.add_option("--ghost-b-snr", m.ghost_b_snr,
+                 "... while its predicted B SNR is at least this at some sensor")
+      ->capture_default_str();
   app.add_option("--max-sigma-h", m.max_sigma_horizontal_m, "a track whose horizontal 1-sigma exceeds this ends, m")
       ->capture_default_str();
   app.add_option("--min-separation", m.min_separation_m,

@@ -3,7 +3,7 @@
 // container (header, checksum, field writer/reader, atomic write) is
 // core/checkpoint.h's; this is the tracker's kind of it:
 //
-//   magic "MAGNAVTC", format version 6 (kTrackerCheckpointVersion), payload
+//   magic "MAGNAVTC", format version 8 (kTrackerCheckpointVersion), payload
 //   written by the service node: its stream position and counters around
 //   MultiTracker::SaveState (configuration, tracks, records, initiator).
 #pragma once
@@ -38,7 +38,11 @@ namespace magnav::tracker {
 // (its start's rows back-filled), and the lone start's options
 // (ResidualStartOptions::lone_min_fixes, lone_min_span_s); a version-6 file
 // is refused.
-inline constexpr std::uint32_t kTrackerCheckpointVersion = 7;
+// Version 8 (2026-11-27): the ghost fields of tracks ended out of reach
+// (TrackManagementOptions::ghost_field_s, ghost_b_snr, also in the
+// configuration): each one's track id, end time, newest estimate and moment;
+// a version-7 file is refused.
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 8;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 
 // Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).

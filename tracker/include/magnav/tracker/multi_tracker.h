@@ -159,6 +159,22 @@ struct TrackManagementOptions {
   // docs/ACCURACY.md, "Single passes and σ cells on the merged defaults",
   // overtaking). 0 = off (the tensor and the box only, as before 2026-11-27).
   double reach_shared_b_snr = 0.0;
+  // The ghost field of a track ended out of reach: its field stays
+  // subtracted from every epoch's samples (so from every other track's
+  // samples, the initiator's buffer and the pair refits) — its newest
+  // estimate propagated by the coordinated-turn model, moment as at its end —
+  // while its predicted B SNR ‖B̂‖/σ_B is at least ghost_b_snr at some sensor
+  // and for at most ghost_field_s after its end. It is not a track: no row,
+  // no association, no event of its own. Its uncertainty widens the samples'
+  // σ: the field's model error as another track's (kOtherFieldRelativeError)
+  // in quadrature with its position covariance (the window's newest,
+  // propagated with the window's process noise as the evidence gate's)
+  // through the field's position Jacobian (B: −T; T: ≈ 4‖T‖/r). Dropped
+  // too once a confirmed track is within min_separation_m of it (its vessel
+  // tracked again). 0 = off; MultiTrackerOptions() sets 30 s, on (ACCURACY.md,
+  // "The ended track's field subtracted as a ghost"; set before any run).
+  double ghost_field_s = 0.0;
+  double ghost_b_snr = 3.0;
   // End rules (s, m): see above.
   double max_miss_s = 2.0;
   double max_coast_s = 10.0;
@@ -443,6 +459,9 @@ struct MultiSummary {
   int num_clusters = 0;
   int num_cluster_tracks = 0;
   int max_cluster_tracks = 0;
+  // Ghost fields made (TrackManagementOptions::ghost_field_s): tracks ended
+  // out of reach whose predicted field was then subtracted.
+  int num_ghosts = 0;
   // The far source (far_source.h), when on: its fits accepted and refused,
   // the time its B was removed, its position at the last accepted fit. Not
   // in the checkpoint (nor is its fit): counted again after a restart.
@@ -483,6 +502,7 @@ class MultiTracker {
   // Every confirmed track so far, in track_id order.
   std::vector<TrackRecord> Tracks() const;
   int num_live_tracks() const;  // confirmed + tentative
+  int num_ghost_fields() const;  // ghosts still subtracted (TrackManagementOptions::ghost_field_s)
   const MultiSummary& summary() const;
   // Sensor `sensor_id`'s background prior at t_s (B0 while the background
   // is off or the sensor not seen yet). World NED, T.
