@@ -43,6 +43,14 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
     a.mine.t_s = epoch.t_s;
     double fit_m2 = 0.0, fit_r2 = 0.0;  // the poor-fit test's sums without the others' samples
     int num_others = 0;
+    // foreign_b_ratio acts on a track held by its tensor: seen at the
+    // residual start's tensor SNR at one of the epoch's sensors.
+    bool held = false;
+    if (predictions[i].valid && mg.foreign_b_ratio > 0.0) {
+      for (std::size_t j = 0; j < n; ++j) {
+        held = held || predictions[i].at[j].T.norm() >= mg.residual_start.tensor_snr * SigmaT(epoch.samples[j], options.track);
+      }
+    }
     if (predictions[i].valid) {
       for (std::size_t j = 0; j < n; ++j) {
         const double st0 = SigmaT(epoch.samples[j], options.track);
@@ -79,7 +87,7 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
         const double own_t_snr = p.T.norm() / st;
         // Another source's B where this track is not seen in the tensor
         // (TrackManagementOptions::foreign_b_ratio): not this track's sample.
-        if (ForeignB(dB, p.B, p.T, sb, st, mg)) {
+        if (held && ForeignB(dB, p.B, p.T, sb, st, mg)) {
           ++a.num_foreign;
           continue;
         }

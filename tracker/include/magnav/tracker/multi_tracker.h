@@ -124,8 +124,12 @@ struct TrackManagementOptions {
   // foreign_b_ratio × ‖B̂‖: more than its whole field there is unexplained,
   // another source's B (an untracked vessel overtaking it, beyond the
   // reach or too weak to start) — not in its solve, its detection or its
-  // poor-fit test. 0 = off. docs/ACCURACY.md, "The overtaker's B at the
-  // slow vessel's far sensors".
+  // poor-fit test. Only for a track held by its tensor at that epoch (its
+  // predicted tensor SNR reaches residual_start.tensor_snr, 10, at one of
+  // the sensors): a track at the reach's edge, seen by its B alone, keeps
+  // its B samples. 0 = off (the default: on, it breaks
+  // fresh_abreast4/abreast_31's window). docs/ACCURACY.md, "The overtaker's
+  // B at the slow vessel's far sensors".
   double foreign_b_ratio = 0.0;
   // The initiator is not offered a sample whose residual tensor (the sample
   // minus every track's field) is below this share of the strongest track's
