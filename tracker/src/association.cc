@@ -26,6 +26,13 @@ FieldPrediction PredictAtSample(const CtState<double>& state, const Eigen::Vecto
   return p;
 }
 
+bool ForeignB(const Eigen::Vector3d& dB, const Eigen::Vector3d& B_hat, const Eigen::Matrix3d& T_hat, double sigma_B,
+              double sigma_T, const TrackManagementOptions& mg) {
+  if (!(mg.foreign_b_ratio > 0.0) || !(T_hat.norm() < mg.reach_tensor_snr * sigma_T)) return false;
+  const double rb = (dB - B_hat).norm();
+  return rb >= mg.gate_snr * sigma_B && rb > mg.foreign_b_ratio * B_hat.norm();
+}
+
 std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vector<TrackPrediction>& predictions,
                                              const Eigen::Vector3d& B0_W, const MultiTrackerOptions& options) {
   const TrackManagementOptions& mg = options.management;
@@ -36,6 +43,14 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
     a.mine.t_s = epoch.t_s;
     double fit_m2 = 0.0, fit_r2 = 0.0;  // the poor-fit test's sums without the others' samples
     int num_others = 0;
+    // foreign_b_ratio acts on a track held by its tensor: seen at the
+    // residual start's tensor SNR at one of the epoch's sensors.
+    bool held = false;
+    if (predictions[i].valid && mg.foreign_b_ratio > 0.0) {
+      for (std::size_t j = 0; j < n; ++j) {
+        held = held || predictions[i].at[j].T.norm() >= mg.residual_start.tensor_snr * SigmaT(epoch.samples[j], options.track);
+      }
+    }
     if (predictions[i].valid) {
       for (std::size_t j = 0; j < n; ++j) {
         const double st0 = SigmaT(epoch.samples[j], options.track);
@@ -70,6 +85,12 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
         const double m2 = dB.squaredNorm() / (sb * sb) + mt2;
         const double r2 = (dB - p.B).squaredNorm() / (sb * sb) + rt2;
         const double own_t_snr = p.T.norm() / st;
+        // Another source's B where this track is not seen in the tensor
+        // (TrackManagementOptions::foreign_b_ratio): not this track's sample.
+        if (held && ForeignB(dB, p.B, p.T, sb, st, mg)) {
+          ++a.num_foreign;
+          continue;
+        }
         if (std::isfinite(mt2) && std::isfinite(rt2)) {
           a.tensor_llr += 0.5 * (mt2 - rt2);
           a.max_own_tensor_snr = std::max(a.max_own_tensor_snr, own_t_snr);

@@ -56,6 +56,9 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(init_interval_s)) return Fail(error, "init_interval_s must be > 0");
   if (!PositiveFinite(max_chi2_per_dof)) return Fail(error, "max_chi2_per_dof must be > 0");
   if (!(max_unexplained > 0.0 && max_unexplained <= 1.0)) return Fail(error, "max_unexplained must be in (0, 1]");
+  if (!(foreign_b_ratio >= 0.0) || !std::isfinite(foreign_b_ratio)) {
+    return Fail(error, "foreign_b_ratio must be finite and >= 0");
+  }
   if (!(poor_fit_tensor_snr >= 0.0) || !std::isfinite(poor_fit_tensor_snr)) {
     return Fail(error, "poor_fit_tensor_snr must be finite and >= 0");
   }

@@ -127,6 +127,11 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--ghost-b-snr", m.ghost_b_snr,
                  "... while its predicted B SNR is at least this at some sensor")
       ->capture_default_str();
+  app.add_option("--foreign-b-ratio", m.foreign_b_ratio,
+                 "a track held by its tensor (SNR >= --residual-start-snr at a sensor) does not take a sample where its "
+                 "predicted tensor SNR is below --reach-tensor-snr and the B it leaves there is >= --gate-snr sigma_B "
+                 "and more than this times its predicted B (another source's; 0 = off)")
+      ->capture_default_str();
   app.add_option("--max-sigma-h", m.max_sigma_horizontal_m, "a track whose horizontal 1-sigma exceeds this ends, m")
       ->capture_default_str();
   app.add_option("--min-separation", m.min_separation_m,

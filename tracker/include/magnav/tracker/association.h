@@ -80,11 +80,22 @@ struct TrackAssociation {
   // (TrackManagementOptions::reach_shared_b_snr).
   double max_shared_b_snr = 0.0;
   double tensor_llr = 0.0;
+  // Samples in its gate left out as another source's B
+  // (TrackManagementOptions::foreign_b_ratio).
+  int num_foreign = 0;
   bool tensor_evidence = false;  // max_own_tensor_snr ≥ confirm_tensor_snr and tensor_llr > 0 (or the rule off)
   bool poor_fit = false;
   bool detected = false;
   bool missed = false;
 };
+
+// TrackManagementOptions::foreign_b_ratio: whether a sample in a track's
+// gate is another source's B — the track's predicted tensor T̂ below
+// reach_tensor_snr σ_T there, and what its predicted B̂ leaves of the
+// sample's dB = B − B0 (the other tracks' fields removed) at least gate_snr
+// σ_B and more than foreign_b_ratio ‖B̂‖. False when the rule is off (0).
+bool ForeignB(const Eigen::Vector3d& dB, const Eigen::Vector3d& B_hat, const Eigen::Matrix3d& T_hat, double sigma_B,
+              double sigma_T, const TrackManagementOptions& mg);
 
 // Per track (the order of `predictions`), its samples and score. Uses
 // options.management's gate_snr, detect_llr, max_chi2_per_dof and

@@ -117,6 +117,20 @@ struct TrackManagementOptions {
   // got no track but costs abreast RMS elsewhere (docs/ACCURACY.md, "Two
   // blind abreast files that got no track").
   double poor_fit_tensor_snr = 0.0;
+  // A track does not take a sample in its gate where its own predicted
+  // tensor SNR ‖T̂‖_F/σ_T is below reach_tensor_snr (it is seen there by
+  // its B alone) and the B its prediction leaves there, ‖B − B̂‖ (the other
+  // tracks' fields removed), is at least gate_snr σ_B and more than
+  // foreign_b_ratio × ‖B̂‖: more than its whole field there is unexplained,
+  // another source's B (an untracked vessel overtaking it, beyond the
+  // reach or too weak to start) — not in its solve, its detection or its
+  // poor-fit test. Only for a track held by its tensor at that epoch (its
+  // predicted tensor SNR reaches residual_start.tensor_snr, 10, at one of
+  // the sensors): a track at the reach's edge, seen by its B alone, keeps
+  // its B samples. 0 = off (the default: on, it breaks
+  // fresh_abreast4/abreast_31's window). docs/ACCURACY.md, "The overtaker's
+  // B at the slow vessel's far sensors".
+  double foreign_b_ratio = 0.0;
   // The initiator is not offered a sample whose residual tensor (the sample
   // minus every track's field) is below this share of the strongest track's
   // predicted tensor there: that residual is mostly the track's model error,
