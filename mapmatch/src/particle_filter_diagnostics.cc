@@ -358,6 +358,16 @@ void ConvergingCovariance::Add(const std::array<double, 5>& h) {
   oo_[0] += h[0] * h[0], oo_[1] += h[0] * h[1], oo_[2] += h[1] * h[1];
 }
 
+double CloudDisagreement(const StepDiagnostics& a, const StepDiagnostics& b) {
+  const double e0 = a.lat_deg - b.lat_deg, e1 = a.lon_deg - b.lon_deg;
+  const double s00 = a.cloud_cov_lat_lat + b.cloud_cov_lat_lat + 1e-14;
+  const double s01 = a.cloud_cov_lat_lon + b.cloud_cov_lat_lon;
+  const double s11 = a.cloud_cov_lon_lon + b.cloud_cov_lon_lon + 1e-14;
+  const double det = s00 * s11 - s01 * s01;
+  if (!(det > 0.0)) return 0.0;
+  return (s11 * e0 * e0 - 2.0 * s01 * e0 * e1 + s00 * e1 * e1) / det;
+}
+
 }  // namespace internal
 
 StepStatus StatusOf(const StepDiagnostics& d) {

@@ -39,7 +39,6 @@ class AcquisitionEnsemble final : public SequentialMatcher {
 
  private:
   void StartShadows();
-  static double Disagreement(const StepDiagnostics& a, const StepDiagnostics& b);
   void Record(std::deque<double>* window, const StepDiagnostics& s) const;
   static double Sum(const std::deque<double>& window);
 
@@ -80,17 +79,6 @@ void AcquisitionEnsemble::StartShadows() {
   disagree_run_ = 0;
 }
 
-// (m_a − m_b)ᵀ (C_a + C_b)⁻¹ (m_a − m_b) with the clouds' own covariances (cloud_cov_*), as the
-// sub-clouds' D; a degenerate sum gets 1e-14 deg² (≈ 1 cm²).
-double AcquisitionEnsemble::Disagreement(const StepDiagnostics& a, const StepDiagnostics& b) {
-  const double e0 = a.lat_deg - b.lat_deg, e1 = a.lon_deg - b.lon_deg;
-  const double s00 = a.cloud_cov_lat_lat + b.cloud_cov_lat_lat + 1e-14;
-  const double s01 = a.cloud_cov_lat_lon + b.cloud_cov_lat_lon;
-  const double s11 = a.cloud_cov_lon_lon + b.cloud_cov_lon_lon + 1e-14;
-  const double det = s00 * s11 - s01 * s01;
-  if (!(det > 0.0)) return 0.0;
-  return (s11 * e0 * e0 - 2.0 * s01 * e0 * e1 + s00 * e1 * e1) / det;
-}
 
 // A step's log evidence of its reading, log Σ w N(z; m(x), σ²) = −NIS/2 − ln σ (the constant dropped; as
 // the sub-clouds' re-seeding): 0 when no reading was weighed.
@@ -121,7 +109,7 @@ const StepDiagnostics& AcquisitionEnsemble::Step(double ins_lat, double ins_lon,
     for (std::size_t i = 0; i < shadows_.size(); ++i) {
       const StepDiagnostics& s = shadows_[i]->Step(ins_lat, ins_lon, measured_nT);
       Record(&shadow_evidence_[i], s);
-      const double ei = Disagreement(d, s);
+      const double ei = CloudDisagreement(d, s);
       if (ei > e) {
         e = ei;
         sep = std::hypot(d.lat_deg - s.lat_deg, d.lon_deg - s.lon_deg);

@@ -36,6 +36,12 @@
 
 namespace magnav::mapmatch::internal {
 
+// How far apart two clouds' means are in their own spreads: (m_a − m_b)ᵀ (C_a + C_b)⁻¹ (m_a − m_b) with
+// the clouds' own covariances (cloud_cov_*: a lost cloud's published one is the prior's floor); a
+// degenerate sum (every particle of both on one point) gets 1e-14 deg² (≈ 1 cm²). The sub-clouds' D
+// (particle_filter_subclouds.cc) and the acquisition ensemble's E (particle_filter_ensemble.cc).
+double CloudDisagreement(const StepDiagnostics& a, const StepDiagnostics& b);
+
 // The published covariance while converging (ParticleFilterOptions::converging_covariance_mixture,
 // particle_filter_diagnostics.cc): running sums over the converging episode's clouds (the cloud of the
 // step before it, then every converging step's), as offsets from their INS positions o_i (deg) with

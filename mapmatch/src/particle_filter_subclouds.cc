@@ -46,7 +46,6 @@ class SubClouds final : public SequentialMatcher {
 
  private:
   void Pool(StepDiagnostics* d);
-  static double Disagreement(const StepDiagnostics& a, const StepDiagnostics& b);
   void Reseed();
 
   ParticleFilterKind kind_;
@@ -65,18 +64,6 @@ class SubClouds final : public SequentialMatcher {
   StepDiagnostics last_;
 };
 
-// (m_a − m_b)ᵀ (C_a + C_b)⁻¹ (m_a − m_b) with the sub-clouds' own covariances
-// (cloud_cov_*: a lost sub-cloud's published one is the prior's floor). A
-// degenerate sum (every particle of both on one point) gets 1e-14 deg² (≈ 1 cm²).
-double SubClouds::Disagreement(const StepDiagnostics& a, const StepDiagnostics& b) {
-  const double e0 = a.lat_deg - b.lat_deg, e1 = a.lon_deg - b.lon_deg;
-  const double s00 = a.cloud_cov_lat_lat + b.cloud_cov_lat_lat + 1e-14;
-  const double s01 = a.cloud_cov_lat_lon + b.cloud_cov_lat_lon;
-  const double s11 = a.cloud_cov_lon_lon + b.cloud_cov_lon_lon + 1e-14;
-  const double det = s00 * s11 - s01 * s01;
-  if (!(det > 0.0)) return 0.0;
-  return (s11 * e0 * e0 - 2.0 * s01 * e0 * e1 + s00 * e1 * e1) / det;
-}
 
 const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double measured_nT) {
   sd_.clear();
@@ -86,7 +73,7 @@ const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double me
   // The disagreement test: the largest pairwise D, held subcloud_hold steps.
   double dmax = 0.0;
   for (std::size_t i = 0; i < sd_.size(); ++i) {
-    for (std::size_t j = i + 1; j < sd_.size(); ++j) dmax = std::max(dmax, Disagreement(*sd_[i], *sd_[j]));
+    for (std::size_t j = i + 1; j < sd_.size(); ++j) dmax = std::max(dmax, CloudDisagreement(*sd_[i], *sd_[j]));
   }
   d.subcloud_chi2 = dmax;
   d.subclouds_disagree = dmax > o_.subcloud_chi2;
