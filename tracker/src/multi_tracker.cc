@@ -1,5 +1,6 @@
 #include "magnav/tracker/multi_tracker.h"
 #include "cluster_window.h"
+#include "other_fields.h"
 #include "quiet_sample.h"
 #include "residual_tensor_mean.h"
 #include "state_io.h"
@@ -440,7 +441,6 @@ struct MultiTracker::Impl {
   void RemoveGhosts(Epoch* e) {
     if (ghosts.empty()) return;
     const double t = e->t_s;
-    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
     std::vector<Eigen::Vector2d> confirmed;
     for (const Track& tr : tracks) {
       if (tr.ended || tr.id == 0) continue;
@@ -478,10 +478,8 @@ struct MultiTracker::Impl {
         const double r = (smp.p_SinW - p_V).norm();
         const double dT = 4.0 * T[j].norm() / std::max(r, 1e-3);
         const double var_T = dT * dT * P.trace() / 3.0 / 9.0;
-        smp.B -= B[j];
-        smp.T -= T[j];
-        smp.sigma_B = std::sqrt(sb * sb + rel * rel * B[j].squaredNorm() / 3.0 + var_B);
-        smp.sigma_T = std::sqrt(st * st + rel * rel * T[j].squaredNorm() / 9.0 + var_T);
+        // As another track's field (its model error), its position's spread added to the sample's own σ.
+        RemoveOtherFields(B[j], T[j], std::sqrt(sb * sb + var_B), std::sqrt(st * st + var_T), &smp);
       }
       kept.push_back(g);
     }
@@ -1008,9 +1006,9 @@ struct MultiTracker::Impl {
       if (!tr.ended) return false;
     }
     const TrackerOptions lone = LoneStartTrackerOptions(options.track, ro);
-    const std::optional<InitialTrack> init =
-        InitializeTrack(std::vector<Epoch>(buffer.begin(), buffer.end()), B0_W, lone, nullptr);
-    if (!init) return ro.lone_pair && StartLonePair(t, lone);
+    const std::vector<Epoch> epochs(buffer.begin(), buffer.end());
+    const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, lone, nullptr);
+    if (!init) return ro.lone_pair && StartLonePair(t, epochs, lone);
     const std::size_t before = tracks.size();
     if (!StartTrack(t, *init, nullptr) || tracks.size() == before) return false;
     std::ostringstream o;
@@ -1024,10 +1022,9 @@ struct MultiTracker::Impl {
 
   // Two weak vessels abreast with no live track and no one-dipole line
   // (ResidualStartOptions::lone_pair): the pair start with the lone start's
-  // options `lone`, both started as a pair (as TryStart's). True if started.
-  bool StartLonePair(double t, const TrackerOptions& lone) {
-    const std::vector<InitialTrack> pair =
-        InitializePair(std::vector<Epoch>(buffer.begin(), buffer.end()), B0_W, lone, mg().min_separation_m);
+  // options `lone` on the start buffer's `epochs`, both started as a pair (as TryStart's). True if started.
+  bool StartLonePair(double t, const std::vector<Epoch>& epochs, const TrackerOptions& lone) {
+    const std::vector<InitialTrack> pair = InitializePair(epochs, B0_W, lone, mg().min_separation_m);
     if (pair.size() != 2) return false;
     const std::size_t before = tracks.size();
     const bool first = StartTrack(t, pair[0], &pair[1]);
