@@ -358,6 +358,11 @@ void ConvergingCovariance::Add(const std::array<double, 5>& h) {
   oo_[0] += h[0] * h[0], oo_[1] += h[0] * h[1], oo_[2] += h[1] * h[1];
 }
 
+double StepLogEvidence(const StepDiagnostics& s) {
+  const bool weighed = (s.update == StepUpdate::kUpdated || s.update == StepUpdate::kOutlier) && s.sigma_nT > 0.0;
+  return weighed && std::isfinite(s.nis) ? -0.5 * s.nis - std::log(s.sigma_nT) : 0.0;
+}
+
 double CloudDisagreement(const StepDiagnostics& a, const StepDiagnostics& b) {
   const double e0 = a.lat_deg - b.lat_deg, e1 = a.lon_deg - b.lon_deg;
   const double s00 = a.cloud_cov_lat_lat + b.cloud_cov_lat_lat + 1e-14;

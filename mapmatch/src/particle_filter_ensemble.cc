@@ -79,12 +79,9 @@ void AcquisitionEnsemble::StartShadows() {
   disagree_run_ = 0;
 }
 
-
-// A step's log evidence of its reading, log Σ w N(z; m(x), σ²) = −NIS/2 − ln σ (the constant dropped; as
-// the sub-clouds' re-seeding): 0 when no reading was weighed.
+// The window of a cloud's log evidence (StepLogEvidence), at most acquisition_ensemble_window steps.
 void AcquisitionEnsemble::Record(std::deque<double>* window, const StepDiagnostics& s) const {
-  const bool weighed = (s.update == StepUpdate::kUpdated || s.update == StepUpdate::kOutlier) && s.sigma_nT > 0.0;
-  window->push_back(weighed && std::isfinite(s.nis) ? -0.5 * s.nis - std::log(s.sigma_nT) : 0.0);
+  window->push_back(StepLogEvidence(s));
   if (static_cast<int>(window->size()) > o_.acquisition_ensemble_window) window->pop_front();
 }
 

@@ -42,6 +42,11 @@ namespace magnav::mapmatch::internal {
 // (particle_filter_subclouds.cc) and the acquisition ensemble's E (particle_filter_ensemble.cc).
 double CloudDisagreement(const StepDiagnostics& a, const StepDiagnostics& b);
 
+// A step's log evidence of its reading, log Σ w N(z; m(x), σ²) = −NIS/2 − ln σ − ln √(2π) (NIS =
+// −2 ln Σ w exp(−r²/2σ²); the constant dropped): 0 when no reading was weighed. The sub-clouds' re-seeding
+// and the acquisition ensemble's evidence check sum it over their windows.
+double StepLogEvidence(const StepDiagnostics& s);
+
 // The published covariance while converging (ParticleFilterOptions::converging_covariance_mixture,
 // particle_filter_diagnostics.cc): running sums over the converging episode's clouds (the cloud of the
 // step before it, then every converging step's), as offsets from their INS positions o_i (deg) with

@@ -78,12 +78,9 @@ const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double me
   d.subcloud_chi2 = dmax;
   d.subclouds_disagree = dmax > o_.subcloud_chi2;
   disagree_run_ = d.subclouds_disagree ? disagree_run_ + 1 : 0;
-  // Each sub-cloud's log evidence of this reading, log Σ w N(z; m(x), σ²) = −NIS/2 − ln σ − ln √(2π)
-  // (NIS = −2 ln Σ w exp(−r²/2σ²); the constant is dropped): 0 when no reading was weighed.
+  // Each sub-cloud's log evidence of this reading (StepLogEvidence).
   for (std::size_t i = 0; i < sd_.size(); ++i) {
-    const StepDiagnostics& s = *sd_[i];
-    const bool weighed = (s.update == StepUpdate::kUpdated || s.update == StepUpdate::kOutlier) && s.sigma_nT > 0.0;
-    evidence_[i].push_back(weighed && std::isfinite(s.nis) ? -0.5 * s.nis - std::log(s.sigma_nT) : 0.0);
+    evidence_[i].push_back(StepLogEvidence(*sd_[i]));
     if (static_cast<int>(evidence_[i].size()) > o_.subcloud_window) evidence_[i].pop_front();
   }
   const bool disagree = disagree_run_ >= o_.subcloud_hold;
