@@ -1127,9 +1127,17 @@ struct MultiTracker::Impl {
       if (refit.size() != 2) continue;
       Restart(a, refit[0], refit[1], epochs, out);
       Restart(b, refit[1], refit[0], epochs, out);
-      // The refitted engines' rows: the start's excess no longer applies.
-      a.pair_excess_until_s = std::min(a.pair_excess_until_s, t);
-      b.pair_excess_until_s = std::min(b.pair_excess_until_s, t);
+      // The refitted engines' rows: the start's excess no longer applies;
+      // the refit's own for window_s if pair_refit_excess.
+      for (int k = 0; k < 2; ++k) {
+        Track& tr = k == 0 ? a : b;
+        if (mg().pair_refit_excess && refit[k].has_pair_covariance) {
+          SetPairExcess(tr, refit[k]);
+          tr.pair_excess_until_s = t + options.track.window_s;
+        } else {
+          tr.pair_excess_until_s = std::min(tr.pair_excess_until_s, t);
+        }
+      }
       a.pair = b.pair = 0;
     }
   }

@@ -167,6 +167,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.I64(static_cast<std::int64_t>(g.residual_start.lone_min_fixes));
   w.F64(g.residual_start.lone_min_span_s);
   w.I64(static_cast<std::int64_t>(g.residual_start.lone_pair));
+  w.I64(static_cast<std::int64_t>(g.pair_refit_excess));
   return w.bytes();
 }
 

@@ -127,6 +127,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--ghost-b-snr", m.ghost_b_snr,
                  "... while its predicted B SNR is at least this at some sensor")
       ->capture_default_str();
+  app.add_option("--pair-refit-excess", m.pair_refit_excess,
+                 "a pair's refit adds its coupling (the joint fit's marginal minus given-the-partner covariance) to "
+                 "each refitted track's covariance for --window s after it (0/1; on)")
+      ->capture_default_str();
   app.add_option("--foreign-b-ratio", m.foreign_b_ratio,
                  "a track held by its tensor (SNR >= --residual-start-snr at a sensor) does not take a sample where its "
                  "predicted tensor SNR is below --reach-tensor-snr and the B it leaves there is >= --gate-snr sigma_B "

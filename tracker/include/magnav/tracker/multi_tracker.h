@@ -218,6 +218,19 @@ struct TrackManagementOptions {
   // confirmed, then once per init_interval_s until it passes or window_s
   // has gone by. 0 = off.
   double pair_refit_s = 5.0;
+  // The refit's coupling in the refitted tracks' covariance (issue 24 item
+  // 6): each refitted engine's window takes its partner's field as known
+  // (its σ is the one given the partner), while the partner's estimate is
+  // as uncertain as the two-dipole fit says. With this on, the refit's
+  // excess — the line's marginal covariance in the joint fit minus the one
+  // given the partner (InitialTrack::cov_state_given_partner), the start's
+  // pair excess — is added to the refitted track's covariance (rows, gates,
+  // end rules) for window_s after the refit, as the start's is until the
+  // refit. On by default since 2026-11-27 (σ only: the scenario sets' rows
+  // are identical; docs/ACCURACY.md, "Two young tracks abreast: the pair
+  // refit's coupling in the window's σ"); false = the refitted engines' own
+  // covariance, as before.
+  bool pair_refit_excess = true;
   // Two vessels started one by one, close in time, that share a sensor
   // (issue 24, abreast_36): each single start is made with the other's
   // field unexplained at the shared sensors, and its moment and line carry
