@@ -2,8 +2,9 @@
 // one continues, from hand-made estimates (no field, no engine). The
 // numbers are those of fresh_overtaking4/overtaking_ne15 (window, main
 // 5555b6a): the slow vessel's track ended "missed" at 62 s, 0.8 m off with
-// σ 1.2 m, going 0.9 m/s at 0.6 rad; its new track confirmed at 66 s, σ
-// 0.1 m; the overtaker (2.1 m/s) 31 m behind.
+// σ 1.2 m (its last row's), going 0.9 m/s at 0.6 rad; its new track's
+// first row at 66 s, σ 0.1 m (taken here as its confirmation; it was
+// confirmed at 71.8 s); the overtaker (2.1 m/s) 31 m behind.
 #include <gtest/gtest.h>
 
 #include <cmath>
