@@ -303,6 +303,9 @@ void TrackerNode::Publish(const std::vector<TrackOutput>& estimates, bool unregi
   for (const TrackEvent& ev : tracker_.TakeEvents()) {
     if (ev.kind == TrackEvent::Kind::kStarted) {
       spdlog::info("magnav-tracker: track {} started at t = {} s ({})", ev.track_id, ev.t_s, ev.reason);
+      // A re-acquired track (reacquire.h) is live again under its id: no
+      // longer one of the ended ones to unregister.
+      ended_.erase(std::remove(ended_.begin(), ended_.end(), ev.track_id), ended_.end());
     } else {
       spdlog::info("magnav-tracker: track {} ended at t = {} s ({})", ev.track_id, ev.t_s, ev.reason);
       ended_.push_back(ev.track_id);

@@ -24,6 +24,7 @@
 #include "magnav/tracker/association.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/pair_beside.h"
+#include "magnav/tracker/reacquire.h"
 #include "magnav/tracker/track_life_cycle.h"
 
 namespace magnav::tracker {
@@ -51,6 +52,8 @@ bool TrackManagementOptions::IsValid(std::string* error) const {
     return Fail(error, "ghost_field_s must be finite and >= 0");
   }
   if (!PositiveFinite(ghost_b_snr)) return Fail(error, "ghost_b_snr must be > 0");
+  if (!(reacquire_s >= 0.0) || !std::isfinite(reacquire_s)) return Fail(error, "reacquire_s must be finite and >= 0");
+  if (!PositiveFinite(reacquire_gate_chi2)) return Fail(error, "reacquire_gate_chi2 must be > 0");
   if (!(out_of_reach_s >= 0.0) || !std::isfinite(out_of_reach_s)) {
     return Fail(error, "out_of_reach_s must be finite and >= 0");
   }
@@ -92,6 +95,12 @@ MultiTrackerOptions::MultiTrackerOptions() {
   // row of the 20 scenario sets worse against a target (docs/ACCURACY.md,
   // "The ended track's field subtracted as a ghost").
   management.ghost_field_s = 30.0;
+  // Re-acquisition (TrackManagementOptions::reacquire_s, reacquire.h): on
+  // since 2026-11-27 for the ghost's 30 s (how long an ended track's
+  // prediction is still used): the slow vessel of overtaking_ne15, s13, n16
+  // and w17 one id, no target of the 22 scenario sets lost (docs/ACCURACY.md,
+  // "Re-acquisition keeps the id").
+  management.reacquire_s = 30.0;
 }
 
 bool MultiTrackerOptions::IsValid(std::string* error) const {
@@ -122,6 +131,7 @@ std::string MultiSummary::BriefReport() const {
     << " starts refused (too close to a track)";
   if (num_rejected_samples > 0) o << ", " << num_rejected_samples << " bad samples left out";
   if (num_ghosts > 0) o << ", " << num_ghosts << " ended tracks' fields subtracted as ghosts";
+  if (num_reacquired > 0) o << ", " << num_reacquired << " tracks re-acquired (an ended track's id continued)";
   if (far_source_enabled) o << "; " << far_source.BriefReport();
   return o.str();
 }
@@ -247,6 +257,7 @@ struct MultiTracker::Impl {
   const TrackManagementOptions& mg() const { return options.management; }
   std::vector<Track> tracks;  // live (confirmed and tentative)
   std::vector<Ghost> ghosts;  // ended out of reach, field still subtracted
+  std::vector<EndedTrack> ended;  // ended within reacquire_s: may be continued (reacquire.h)
   std::vector<TrackRecord> records;  // confirmed, by id - 1
   std::uint32_t next_id = 1;
   std::vector<TrackEvent> events;
@@ -288,6 +299,15 @@ struct MultiTracker::Impl {
     r.t_last_detection_s = tr.life.t_last_detection_s();
     r.m_B_Am2 = tr.engine->m_B_Am2();
     r.cov_m_B = tr.engine->cov_m_B();
+    if (mg().reacquire_s > 0.0 && ReacquirableEnd(reason) && tr.has_newest && tr.newest.usable &&
+        tr.newest.has_covariance) {
+      // Its covariance as its rows give it: scaled by its window's
+      // a-posteriori variance factor (variance_factor.h), where its samples
+      // hold a field it does not model (the overtaker's B).
+      EndedTrack x{tr.id, reason, t_s, r.t_end_s, tr.newest};
+      ScaleCovariance(WindowVarianceFactor(*tr.engine, options.variance_factor), &x.newest);
+      ended.push_back(std::move(x));
+    }
     ++summary.num_ended;
     events.push_back({TrackEvent::Kind::kEnded, tr.id, t_s, reason});
   }
@@ -309,9 +329,7 @@ struct MultiTracker::Impl {
   void Confirm(Track& tr, double t_s) {
     tr.life.Confirm();
     tr.taken.clear();
-    tr.id = next_id++;
     TrackRecord r;
-    r.track_id = tr.id;
     r.t_start_s = t_s;
     // The back-filled start (TrackManagementOptions::backfill_start) of a
     // track started by a two-dipole fit: from the window's first strong
@@ -334,6 +352,12 @@ struct MultiTracker::Impl {
     } else if (tr.has_newest) {
       tr.backfill_until_s = tr.newest.t_s;  // not back-filled: a later joint start may (MarkOlderBackfill)
     }
+    // Re-acquisition (reacquire.h): the newcomer continues a track ended
+    // a few seconds before, under its id.
+    double chi2 = 0.0;
+    const std::optional<std::size_t> cont = Continued(tr, t_s, &chi2);
+    tr.id = cont ? ended[*cont].track_id : next_id++;
+    r.track_id = tr.id;
     for (const Track& other : tracks) {
       if (&other == &tr || tr.started_with == 0 || other.started_with != tr.started_with || other.id == 0) continue;
       r.partner_id = other.id;
@@ -341,9 +365,43 @@ struct MultiTracker::Impl {
     }
     r.t_end_s = t_s;
     r.t_last_detection_s = tr.life.t_last_detection_s();
+    if (cont) {
+      // Its record goes on: live again, its start and rows kept.
+      const EndedTrack& e = ended[*cont];
+      TrackRecord& old = records[tr.id - 1];
+      old.live = true;
+      old.end_reason.clear();
+      old.t_last_detection_s = r.t_last_detection_s;
+      if (r.partner_id != 0) old.partner_id = r.partner_id;
+      --summary.num_ended;
+      ++summary.num_reacquired;
+      std::ostringstream o;
+      o << "re-acquired: continues track " << tr.id << " (ended " << e.reason << " at " << FormatNumber(e.t_end_s)
+        << " s; chi2 " << FormatNumber(chi2) << "); " << tr.origin << backfilled;
+      events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, o.str()});
+      ended.erase(ended.begin() + static_cast<std::ptrdiff_t>(*cont));
+      return;
+    }
     records.push_back(r);
     ++summary.num_confirmed;
     events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed; " + tr.origin + backfilled});
+  }
+
+  // The ended track (index into `ended`) the newly confirmed `tr` continues
+  // (reacquire.h ChooseContinuation), or nullopt; `chi2`: its χ².
+  std::optional<std::size_t> Continued(const Track& tr, double t_s, double* chi2) const {
+    if (!(mg().reacquire_s > 0.0) || ended.empty() || !tr.has_newest) return std::nullopt;
+    const double first_row = tr.backfill_pending ? tr.backfill_from_s : tr.newest.t_s;
+    // Each estimate's covariance as its rows give it (variance_factor.h).
+    EpochEstimate newcomer = tr.newest;
+    ScaleCovariance(WindowVarianceFactor(*tr.engine, options.variance_factor), &newcomer);
+    std::vector<EpochEstimate> live;
+    for (const Track& other : tracks) {
+      if (&other == &tr || other.ended || other.id == 0 || !other.has_newest) continue;
+      live.push_back(other.newest);
+      ScaleCovariance(WindowVarianceFactor(*other.engine, options.variance_factor), &live.back());
+    }
+    return ChooseContinuation(ended, newcomer, first_row, live, t_s, options, chi2);
   }
 
   // Outputs a confirmed track's pending back-filled start (Track::
@@ -615,6 +673,9 @@ struct MultiTracker::Impl {
     Epoch e = WithoutFarSource(WithoutBackground(raw));
     RemoveGhosts(&e);
     const double t = e.t_s;
+    std::erase_if(ended, [&](const EndedTrack& x) {
+      return t - x.t_end_s > mg().reacquire_s + options.track.epoch_tolerance_s;
+    });
     const std::size_t n = e.samples.size();
     // 1. Prediction.
     std::vector<TrackPrediction> pred(tracks.size());
@@ -1537,6 +1598,14 @@ std::string MultiTracker::SaveState() const {
     PutEstimate(w, g.newest);
     w.Matrix(g.m_B);
   }
+  w.U64(m.ended.size());
+  for (const EndedTrack& x : m.ended) {
+    w.U32(x.track_id);
+    w.Bytes(x.reason);
+    w.F64(x.t_end_s);
+    w.F64(x.t_last_row_s);
+    PutEstimate(w, x.newest);
+  }
   w.U64(m.events.size());
   for (const TrackEvent& e : m.events) {
     w.U8(e.kind == TrackEvent::Kind::kStarted ? 0 : 1);
@@ -1547,7 +1616,7 @@ std::string MultiTracker::SaveState() const {
   const MultiSummary& sm = m.summary;
   for (int v : {sm.num_epochs, sm.num_rejected_samples, sm.num_tentative_dropped, sm.num_starts_refused,
                 sm.num_confirmed, sm.num_ended, sm.num_cluster_steps, sm.num_clusters, sm.num_cluster_tracks,
-                sm.max_cluster_tracks, sm.num_ghosts}) {
+                sm.max_cluster_tracks, sm.num_ghosts, sm.num_reacquired}) {
     w.I64(v);
   }
   internal::PutDeque(w, m.buffer);
@@ -1644,6 +1713,15 @@ void MultiTracker::RestoreState(const std::string& payload) {
     g.newest = GetEstimate(r);
     g.m_B = internal::GetMatrix(r, 3, 1);
   }
+  m.ended.resize(r.Count(internal::kMaxStateCount));
+  for (EndedTrack& x : m.ended) {
+    x.track_id = r.U32();
+    x.reason = r.Bytes(internal::kMaxStateCount);
+    x.t_end_s = r.F64();
+    x.t_last_row_s = r.F64();
+    x.newest = GetEstimate(r);
+    if (x.track_id == 0 || x.track_id > m.records.size()) throw CheckpointError("corrupt: an ended track without its record");
+  }
   m.events.resize(r.Count(internal::kMaxStateCount));
   for (TrackEvent& e : m.events) {
     e.kind = r.U8() == 0 ? TrackEvent::Kind::kStarted : TrackEvent::Kind::kEnded;
@@ -1654,7 +1732,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
   MultiSummary& sm = m.summary;
   for (int* v : {&sm.num_epochs, &sm.num_rejected_samples, &sm.num_tentative_dropped, &sm.num_starts_refused,
                  &sm.num_confirmed, &sm.num_ended, &sm.num_cluster_steps, &sm.num_clusters, &sm.num_cluster_tracks,
-                 &sm.max_cluster_tracks, &sm.num_ghosts}) {
+                 &sm.max_cluster_tracks, &sm.num_ghosts, &sm.num_reacquired}) {
     *v = static_cast<int>(r.I64());
   }
   internal::GetDeque(r, &m.buffer);

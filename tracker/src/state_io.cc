@@ -112,7 +112,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
         g.max_chi2_per_dof, g.max_unexplained, g.poor_fit_tensor_snr, g.min_new_share, g.max_miss_s, g.max_coast_s,
         g.max_sigma_horizontal_m, g.min_separation_m, g.init_interval_s, g.evidence_gate_chi2,
         g.evidence_min_tensor_snr, g.pair_refit_s, g.joint_start_s, g.confirm_tensor_snr, g.reach_tensor_snr,
-        g.out_of_reach_s, g.reach_shared_b_snr, g.ghost_field_s, g.ghost_b_snr, g.foreign_b_ratio, o.batch_gate_snr, o.batch_extension_step_s,
+        g.out_of_reach_s, g.reach_shared_b_snr, g.ghost_field_s, g.ghost_b_snr, g.foreign_b_ratio, g.reacquire_s, g.reacquire_gate_chi2, o.batch_gate_snr, o.batch_extension_step_s,
         o.background.rate_walk_T_per_s_per_sqrt_s, o.background.level_walk_T_per_sqrt_s,
         o.background.initial_sigma_T, o.background.initial_rate_sigma_T_per_s, o.background.gate_chi2,
         o.background.occupied_tensor_chi2, o.background.occupied_average_s, o.cluster_background.prior_sigma_T,

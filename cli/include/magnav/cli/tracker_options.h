@@ -136,6 +136,14 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "predicted tensor SNR is below --reach-tensor-snr and the B it leaves there is >= --gate-snr sigma_B "
                  "and more than this times its predicted B (another source's; 0 = off)")
       ->capture_default_str();
+  app.add_option("--reacquire", m.reacquire_s,
+                 "a newly confirmed track continues (takes the id of) a track ended at most this long before whose "
+                 "state (x, y, speed, heading, both propagated) it gates by chi-square, with no other live track "
+                 "closer to either, s (0 = off)")
+      ->capture_default_str();
+  app.add_option("--reacquire-gate", m.reacquire_gate_chi2,
+                 "... the gate: chi-square (4 dof) of the two states")
+      ->capture_default_str();
   app.add_option("--max-sigma-h", m.max_sigma_horizontal_m, "a track whose horizontal 1-sigma exceeds this ends, m")
       ->capture_default_str();
   app.add_option("--min-separation", m.min_separation_m,

@@ -3,7 +3,7 @@
 // container (header, checksum, field writer/reader, atomic write) is
 // core/checkpoint.h's; this is the tracker's kind of it:
 //
-//   magic "MAGNAVTC", format version 8 (kTrackerCheckpointVersion), payload
+//   magic "MAGNAVTC", format version 9 (kTrackerCheckpointVersion), payload
 //   written by the service node: its stream position and counters around
 //   MultiTracker::SaveState (configuration, tracks, records, initiator).
 #pragma once
@@ -42,7 +42,12 @@ namespace magnav::tracker {
 // (TrackManagementOptions::ghost_field_s, ghost_b_snr, also in the
 // configuration): each one's track id, end time, newest estimate and moment;
 // a version-7 file is refused.
-inline constexpr std::uint32_t kTrackerCheckpointVersion = 8;
+// Version 9 (2026-11-27): the tracks ended within reacquire_s that a new
+// track may continue (reacquire.h; TrackManagementOptions::reacquire_s,
+// reacquire_gate_chi2, also in the configuration): each one's id, end
+// reason and time, last row's time and newest estimate; and the summary's
+// count of re-acquired tracks; a version-8 file is refused.
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 9;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 
 // Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).

@@ -189,6 +189,19 @@ struct TrackManagementOptions {
   // "The ended track's field subtracted as a ghost"; set before any run).
   double ghost_field_s = 0.0;
   double ghost_b_snr = 3.0;
+  // Re-acquisition (reacquire.h): a newly confirmed track whose state
+  // ([x, y, speed, heading], both propagated to its confirmation) gates a
+  // confirmed track that ended at most reacquire_s before (not a
+  // "duplicate"), by χ² (4 dof) ≤ reacquire_gate_chi2, with no other live
+  // track closer to either, and whose first row comes after the ended
+  // track's last, continues that track: it takes its id (its rows and
+  // record, so the batch refines one path over both) instead of a new one.
+  // The covariances are the rows' (scaled by the window's a-posteriori
+  // variance factor, variance_factor.h). 0 = off; MultiTrackerOptions()
+  // sets 30 s, on (the ghost field's 30 s; ACCURACY.md "Re-acquisition
+  // keeps the id"); the gate is χ²(4) at 0.99.
+  double reacquire_s = 0.0;
+  double reacquire_gate_chi2 = 13.28;
   // End rules (s, m): see above.
   double max_miss_s = 2.0;
   double max_coast_s = 10.0;
@@ -489,6 +502,10 @@ struct MultiSummary {
   // Ghost fields made (TrackManagementOptions::ghost_field_s): tracks ended
   // out of reach whose predicted field was then subtracted.
   int num_ghosts = 0;
+  // Tracks re-acquired (TrackManagementOptions::reacquire_s): newly
+  // confirmed tracks that continued an ended track under its id (not in
+  // num_confirmed; their earlier end not in num_ended).
+  int num_reacquired = 0;
   // The far source (far_source.h), when on: its fits accepted and refused,
   // the time its B was removed, its position at the last accepted fit. Not
   // in the checkpoint (nor is its fit): counted again after a restart.
