@@ -144,6 +144,9 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (acquisition_ensemble_covariance != EnsembleCovariance::kOff && acquisition_ensemble < 2) {
     return Fail(error, "acquisition_ensemble_covariance needs acquisition_ensemble > 1 (the shadows)");
   }
+  if (acquisition_ensemble_isotropic && acquisition_ensemble_covariance == EnsembleCovariance::kOff) {
+    return Fail(error, "acquisition_ensemble_isotropic needs acquisition_ensemble_covariance (equal or evidence)");
+  }
   if (acquisition_ensemble > 1 && subclouds > 1) {
     return Fail(error, "acquisition_ensemble > 1 and subclouds > 1 cannot be combined");
   }

@@ -29,6 +29,7 @@ class AcquisitionEnsemble final : public SequentialMatcher {
     ParticleFilterOptions s = o;
     s.acquisition_ensemble = 1;
     s.acquisition_ensemble_covariance = ParticleFilterOptions::EnsembleCovariance::kOff;
+    s.acquisition_ensemble_isotropic = false;
     main_ = std::make_unique<Filter>(kind, grid, layer, s);
     StartShadows();
   }
@@ -71,6 +72,7 @@ void AcquisitionEnsemble::StartShadows() {
   ParticleFilterOptions s = o_;
   s.acquisition_ensemble = 1;
   s.acquisition_ensemble_covariance = ParticleFilterOptions::EnsembleCovariance::kOff;
+  s.acquisition_ensemble_isotropic = false;
   shadows_.clear();
   main_evidence_.clear();
   shadow_evidence_.assign(static_cast<std::size_t>(o_.acquisition_ensemble - 1), {});
@@ -174,9 +176,15 @@ void AcquisitionEnsemble::PublishMixtureCovariance(StepDiagnostics* d) const {
     const StepDiagnostics& c = i == 0 ? *d : shadow_steps_[i - 1];
     const bool own = i > 0 && c.lost;
     const double a = w[i] / wsum, dl = c.lat_deg - d->lat_deg, dn = c.lon_deg - d->lon_deg;
-    ll += a * ((own ? c.cloud_cov_lat_lat : c.cov_lat_lat) + dl * dl);
-    ln += a * ((own ? c.cloud_cov_lat_lon : c.cov_lat_lon) + dl * dn);
-    nn += a * ((own ? c.cloud_cov_lon_lon : c.cov_lon_lon) + dn * dn);
+    ll += a * (own ? c.cloud_cov_lat_lat : c.cov_lat_lat);
+    ln += a * (own ? c.cloud_cov_lat_lon : c.cov_lat_lon);
+    nn += a * (own ? c.cloud_cov_lon_lon : c.cov_lon_lon);
+    if (o_.acquisition_ensemble_isotropic) {  // the offsets' spread, half on each axis
+      ll += a * 0.5 * (dl * dl + dn * dn);
+      nn += a * 0.5 * (dl * dl + dn * dn);
+    } else {
+      ll += a * dl * dl, ln += a * dl * dn, nn += a * dn * dn;
+    }
   }
   if (std::isfinite(ll + ln + nn) && ll + nn > d->cov_lat_lat + d->cov_lon_lon) {
     d->cov_lat_lat = ll, d->cov_lat_lon = ln, d->cov_lon_lon = nn;

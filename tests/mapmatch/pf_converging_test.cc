@@ -178,8 +178,8 @@ TEST(PfConverging, AConvergingStepPublishesTheMixtureOfItsEpisodesClouds) {
 // cloud collapses on a wrong basin (a loss from step 9, published ok from step 19 with a 0.001° cloud
 // 0.1° off), two shadows (K = 3, flag off) settle elsewhere. Over the steps the shadows ran that published
 // converging or ok, the mean NEES (2 dof) of the published covariance: measured with the shadows'
-// spread 1.17 (equal weights) and 0.87 (by evidence), asserted below 2.5 and 2 (a 2× regression
-// fails); without it 5,051, asserted above 1,000. The estimates, lost flags, statuses and cloud_cov_* are
+// spread 1.17 (equal weights), 0.87 (by evidence) and 1.21 (equal, isotropic), asserted below 2.5, 2
+// and 2.5 (a 2× regression fails); without it 5,051, asserted above 1,000. The estimates, lost flags, statuses and cloud_cov_* are
 // the filter's alone (bit for bit those of the defaults, K = 1), and so is every covariance with the
 // shadows run but their spread off; a step the shadows ran publishes at least what it did without them.
 double MeanShadowedNees(const PathRun& run, const std::vector<StepDiagnostics>& steps, int* n_out) {
@@ -202,12 +202,13 @@ TEST(PfConverging, TheShadowsSpreadWidensAnAcquisitionsCovariance) {
   const GeoGrid& g = CrustalMap();
   const std::size_t layer = g.layer("anomaly_nT");
   const PathRun run = testing_paths::GeneratedPathRun(396, "3", "3");
-  auto run_with = [&](int k, Mode mode) {
+  auto run_with = [&](int k, Mode mode, bool isotropic = false) {
     ParticleFilterOptions o;
     o.seed = 1;
     o.acquisition_ensemble = k;
     o.acquisition_ensemble_flag = false;
     o.acquisition_ensemble_covariance = mode;
+    o.acquisition_ensemble_isotropic = isotropic;
     std::vector<StepDiagnostics> steps;
     MatchParticleFilter(ParticleFilterKind::kPf, g, layer, run.path, o, &steps);
     return steps;
@@ -220,11 +221,14 @@ TEST(PfConverging, TheShadowsSpreadWidensAnAcquisitionsCovariance) {
   EXPECT_GT(without, 1000.0);
   struct Case {
     Mode mode;
+    bool isotropic;
     double below;
   };
-  for (const Case& c : {Case{Mode::kEqual, 2.5}, Case{Mode::kEvidence, 2.0}}) {
-    SCOPED_TRACE(c.mode == Mode::kEqual ? "equal weights" : "evidence weights");
-    const std::vector<StepDiagnostics> with = run_with(3, c.mode);
+  for (const Case& c : {Case{Mode::kEqual, false, 2.5}, Case{Mode::kEvidence, false, 2.0},
+                        Case{Mode::kEqual, true, 2.5}}) {
+    const std::string name = std::string(c.mode == Mode::kEqual ? "equal" : "evidence") + (c.isotropic ? ", isotropic" : "");
+    SCOPED_TRACE(name);
+    const std::vector<StepDiagnostics> with = run_with(3, c.mode, c.isotropic);
     ASSERT_EQ(with.size(), alone.size());
     int widened = 0;
     for (std::size_t k = 0; k < with.size(); ++k) {
@@ -247,8 +251,7 @@ TEST(PfConverging, TheShadowsSpreadWidensAnAcquisitionsCovariance) {
     }
     EXPECT_GT(widened, 0);
     const double nees = MeanShadowedNees(run, with, &n);
-    std::printf("path 396: mean NEES with the shadows' spread (%s) %.4g\n",
-                c.mode == Mode::kEqual ? "equal" : "evidence", nees);
+    std::printf("path 396: mean NEES with the shadows' spread (%s) %.4g\n", name.c_str(), nees);
     EXPECT_LT(nees, c.below);
   }
 
@@ -259,6 +262,9 @@ TEST(PfConverging, TheShadowsSpreadWidensAnAcquisitionsCovariance) {
   EXPECT_TRUE(bad.IsValid(nullptr));
   bad.acquisition_ensemble_covariance = static_cast<Mode>(7);
   EXPECT_FALSE(bad.IsValid(nullptr));
+  bad.acquisition_ensemble_covariance = Mode::kOff;
+  bad.acquisition_ensemble_isotropic = true;
+  EXPECT_FALSE(bad.IsValid(nullptr)) << "isotropic without the shadows' spread";
 }
 
 TEST(PfConverging, StatusNamesAndOptions) {

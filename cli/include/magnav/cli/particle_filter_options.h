@@ -150,6 +150,9 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
               {"evidence", mapmatch::ParticleFilterOptions::EnsembleCovariance::kEvidence}},
           CLI::ignore_case))
       ->default_str("off");
+  opt("--acquisition-ensemble-isotropic", &f->acquisition_ensemble_isotropic,
+      "pf, afpf with --acquisition-ensemble-covariance: the clouds' offsets from the filter's mean spread evenly "
+      "over both axes (1) or as they lie (0)");
   opt("--subcloud-window", &f->subcloud_window,
       "pf, afpf with --subclouds > 1: updates in each sub-cloud's summed log evidence (re-seeding)");
   opt("--subcloud-reseed", &f->subcloud_reseed_nats,

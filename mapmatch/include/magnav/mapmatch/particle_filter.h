@@ -533,6 +533,11 @@ struct ParticleFilterOptions {
   // covariance; the estimates, cloud_cov_*, lost flags and statuses do not depend on it. kOff: as before.
   enum class EnsembleCovariance { kOff, kEqual, kEvidence };
   EnsembleCovariance acquisition_ensemble_covariance = EnsembleCovariance::kOff;
+  // With acquisition_ensemble_covariance: the offsets' term Σ w_i (m_i − m)(m_i − m)ᵀ replaced by its
+  // trace split evenly over the two axes, Σ w_i |m_i − m|² / 2 · I (K ≤ 3 offsets from the filter's mean
+  // span at most two directions, often one: the truth of a wrong-basin settle is rarely along it).
+  // false: the mixture's own (anisotropic) covariance.
+  bool acquisition_ensemble_isotropic = false;
   // AFPF: λ (the paper: 0.001) and μ, the parents' sampling variance per axis
   // (the paper: 1.6454e-4 deg²).
   double fission_lambda = 0.001;
