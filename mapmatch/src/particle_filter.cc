@@ -136,6 +136,17 @@ bool ParticleFilterOptions::IsValid(std::string* error) const {
   if (!(std::isfinite(acquisition_ensemble_nats) && acquisition_ensemble_nats >= 0.0)) {
     return Fail(error, "acquisition_ensemble_nats must be finite and >= 0");
   }
+  if (acquisition_ensemble_covariance != EnsembleCovariance::kOff &&
+      acquisition_ensemble_covariance != EnsembleCovariance::kEqual &&
+      acquisition_ensemble_covariance != EnsembleCovariance::kEvidence) {
+    return Fail(error, "acquisition_ensemble_covariance must be off, equal or evidence");
+  }
+  if (acquisition_ensemble_covariance != EnsembleCovariance::kOff && acquisition_ensemble < 2) {
+    return Fail(error, "acquisition_ensemble_covariance needs acquisition_ensemble > 1 (the shadows)");
+  }
+  if (acquisition_ensemble_isotropic && acquisition_ensemble_covariance == EnsembleCovariance::kOff) {
+    return Fail(error, "acquisition_ensemble_isotropic needs acquisition_ensemble_covariance (equal or evidence)");
+  }
   if (acquisition_ensemble > 1 && subclouds > 1) {
     return Fail(error, "acquisition_ensemble > 1 and subclouds > 1 cannot be combined");
   }

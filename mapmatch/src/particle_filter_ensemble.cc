@@ -1,8 +1,9 @@
 // Ensemble disagreement during acquisition (ParticleFilterOptions::acquisition_ensemble;
 // particle_filter.h says what and why): the filter runs as it would alone, and K − 1 shadow filters
 // of its kind, independently seeded, run beside it on the same readings while it acquires. Their
-// means settling apart beyond their clouds' covariances flags the step lost. The filter's estimate,
-// cloud and own flags are published unchanged. Units as in particle_filter.h (deg, nT, deg²).
+// means settling apart beyond their clouds' covariances flags the step lost (acquisition_ensemble_flag),
+// and their spread widens the published covariance of a converging or ok step (acquisition_ensemble_covariance).
+// The filter's estimate, cloud and own flags are published unchanged. Units as in particle_filter.h (deg, nT, deg²).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -27,6 +28,8 @@ class AcquisitionEnsemble final : public SequentialMatcher {
     if (!o.IsValid(&why)) throw InputError(std::string(ParticleFilterKindName(kind)) + " options: " + why);
     ParticleFilterOptions s = o;
     s.acquisition_ensemble = 1;
+    s.acquisition_ensemble_covariance = ParticleFilterOptions::EnsembleCovariance::kOff;
+    s.acquisition_ensemble_isotropic = false;
     main_ = std::make_unique<Filter>(kind, grid, layer, s);
     StartShadows();
   }
@@ -41,6 +44,7 @@ class AcquisitionEnsemble final : public SequentialMatcher {
   void StartShadows();
   void Record(std::deque<double>* window, const StepDiagnostics& s) const;
   static double Sum(const std::deque<double>& window);
+  void PublishMixtureCovariance(StepDiagnostics* d) const;
 
   ParticleFilterKind kind_;
   const GeoGrid& grid_;
@@ -51,6 +55,7 @@ class AcquisitionEnsemble final : public SequentialMatcher {
   // Log evidence of the last acquisition_ensemble_window readings: the filter's, each shadow's.
   std::deque<double> main_evidence_;
   std::vector<std::deque<double>> shadow_evidence_;
+  std::vector<StepDiagnostics> shadow_steps_;     // the shadows' diagnostics of this step (empty: not run)
   std::uint64_t starts_ = 0;                      // shadow sets started (their seeds)
   long long step_ = -1;                           // this step's index
   long long first_ok_at_ = -1;                    // the filter's first ok step since the shadows started
@@ -66,6 +71,8 @@ class AcquisitionEnsemble final : public SequentialMatcher {
 void AcquisitionEnsemble::StartShadows() {
   ParticleFilterOptions s = o_;
   s.acquisition_ensemble = 1;
+  s.acquisition_ensemble_covariance = ParticleFilterOptions::EnsembleCovariance::kOff;
+  s.acquisition_ensemble_isotropic = false;
   shadows_.clear();
   main_evidence_.clear();
   shadow_evidence_.assign(static_cast<std::size_t>(o_.acquisition_ensemble - 1), {});
@@ -98,6 +105,7 @@ const StepDiagnostics& AcquisitionEnsemble::Step(double ins_lat, double ins_lon,
   const bool reinitialised = main_->counters().reinitialisations != reinitialisations_seen_;
   reinitialisations_seen_ = main_->counters().reinitialisations;
   bool flag = false;
+  shadow_steps_.clear();
   if (!shadows_.empty()) {
     // The shadow furthest from the filter (largest E): its separation, and its windowed log evidence less
     // the filter's (> 0: the readings favour the shadow).
@@ -106,6 +114,7 @@ const StepDiagnostics& AcquisitionEnsemble::Step(double ins_lat, double ins_lon,
     for (std::size_t i = 0; i < shadows_.size(); ++i) {
       const StepDiagnostics& s = shadows_[i]->Step(ins_lat, ins_lon, measured_nT);
       Record(&shadow_evidence_[i], s);
+      shadow_steps_.push_back(s);
       const double ei = CloudDisagreement(d, s);
       if (ei > e) {
         e = ei;
@@ -116,7 +125,7 @@ const StepDiagnostics& AcquisitionEnsemble::Step(double ins_lat, double ins_lon,
     d.ensemble_chi2 = e, d.ensemble_separation_deg = sep, d.ensemble_evidence_nats = gap;
     d.ensemble_disagree = e > o_.acquisition_ensemble_chi2 && gap > -o_.acquisition_ensemble_nats;
     disagree_run_ = d.ensemble_disagree ? disagree_run_ + 1 : 0;
-    flag = disagree_run_ >= o_.acquisition_ensemble_hold;
+    flag = o_.acquisition_ensemble_flag && disagree_run_ >= o_.acquisition_ensemble_hold;
     if (first_ok_at_ < 0 && !d.lost && !d.converging) first_ok_at_ = step_;
     if (first_ok_at_ >= 0 && step_ >= first_ok_at_ + o_.acquisition_steps) shadows_.clear();  // acquired
   }
@@ -132,6 +141,7 @@ const StepDiagnostics& AcquisitionEnsemble::Step(double ins_lat, double ins_lon,
       d.cov_lat_lat = v, d.cov_lat_lon = 0.0, d.cov_lon_lon = v;
     }
   }
+  if (!shadow_steps_.empty() && !d.lost) PublishMixtureCovariance(&d);
   if (reinitialised) StartShadows();
   counters_ = main_->counters();
   counters_.lost_steps += extra_lost_;
@@ -139,6 +149,46 @@ const StepDiagnostics& AcquisitionEnsemble::Step(double ins_lat, double ins_lon,
   counters_.ensemble_lost_steps = extra_lost_;
   last_ = d;
   return last_;
+}
+
+// acquisition_ensemble_covariance: the mixture of the filter's published distribution (d on entry) and
+// the shadows' of this step, about the filter's mean, when its trace exceeds the published one.
+void AcquisitionEnsemble::PublishMixtureCovariance(StepDiagnostics* d) const {
+  using Mode = ParticleFilterOptions::EnsembleCovariance;
+  if (o_.acquisition_ensemble_covariance == Mode::kOff) return;
+  const std::size_t k = shadow_steps_.size() + 1;
+  // Weights: equal, or ∝ exp(windowed log evidence) (shifted by the largest for the exponentials).
+  std::vector<double> w(k, 1.0);
+  if (o_.acquisition_ensemble_covariance == Mode::kEvidence) {
+    std::vector<double> ev(k);
+    ev[0] = Sum(main_evidence_);
+    for (std::size_t i = 1; i < k; ++i) ev[i] = Sum(shadow_evidence_[i - 1]);
+    const double top = *std::max_element(ev.begin(), ev.end());
+    if (std::isfinite(top)) {  // else every cloud's is non-finite: equal weights
+      for (std::size_t i = 0; i < k; ++i) w[i] = std::isfinite(ev[i]) ? std::exp(ev[i] - top) : 0.0;
+    }
+  }
+  double wsum = 0.0;
+  for (double x : w) wsum += x;
+  double ll = 0.0, ln = 0.0, nn = 0.0;
+  for (std::size_t i = 0; i < k; ++i) {
+    // A lost shadow's published covariance is the prior square's floor, not its cloud's: its cloud's.
+    const StepDiagnostics& c = i == 0 ? *d : shadow_steps_[i - 1];
+    const bool own = i > 0 && c.lost;
+    const double a = w[i] / wsum, dl = c.lat_deg - d->lat_deg, dn = c.lon_deg - d->lon_deg;
+    ll += a * (own ? c.cloud_cov_lat_lat : c.cov_lat_lat);
+    ln += a * (own ? c.cloud_cov_lat_lon : c.cov_lat_lon);
+    nn += a * (own ? c.cloud_cov_lon_lon : c.cov_lon_lon);
+    if (o_.acquisition_ensemble_isotropic) {  // the offsets' spread, half on each axis
+      ll += a * 0.5 * (dl * dl + dn * dn);
+      nn += a * 0.5 * (dl * dl + dn * dn);
+    } else {
+      ll += a * dl * dl, ln += a * dl * dn, nn += a * dn * dn;
+    }
+  }
+  if (std::isfinite(ll + ln + nn) && ll + nn > d->cov_lat_lat + d->cov_lon_lon) {
+    d->cov_lat_lat = ll, d->cov_lat_lon = ln, d->cov_lon_lon = nn;
+  }
 }
 
 }  // namespace

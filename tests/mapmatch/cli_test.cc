@@ -206,6 +206,9 @@ TEST(MatchCli, ParticleFilterBadOptionsExit2) {
                         Case{{"--particles", "4000", "--max-particles", "3000"}, "afpf", "max_particles"},
                         Case{{"--sigma", "-1"}, "afpf", "measurement_sigma_nT"},
                         Case{{"--resample-ess", "2"}, "pf", "resample_ess_fraction"},
+                        Case{{"--acquisition-ensemble-covariance", "equal"}, "pf", "acquisition_ensemble_covariance"},
+                        Case{{"--acquisition-ensemble", "3", "--acquisition-ensemble-covariance", "mean"}, "pf",
+                             "--acquisition-ensemble-covariance"},
                         Case{{"--diagnostics", dir + "/d.csv"}, "icp", "--diagnostics"}}) {
     std::vector<std::string> args = Args(map, "anomaly_nT", path, "meas_nT", c.method, out);
     args.insert(args.end(), c.extra.begin(), c.extra.end());

@@ -5,6 +5,9 @@
 // magnav::mapmatch.
 #pragma once
 
+#include <map>
+#include <string>
+
 #include <CLI/CLI.hpp>
 
 #include "magnav/mapmatch/particle_filter.h"
@@ -132,6 +135,24 @@ inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOpti
   opt("--acquisition-ensemble-nats", &f->acquisition_ensemble_nats,
       "pf, afpf with --acquisition-ensemble > 1: a disagreeing shadow counts unless its summed log evidence is "
       "below the filter's by more than this (the shadow is then the one lost)");
+  opt("--acquisition-ensemble-flag", &f->acquisition_ensemble_flag,
+      "pf, afpf with --acquisition-ensemble > 1: flag lost on the shadows' disagreement (1) or only run them (0: "
+      "the lost flags are the filter's alone; for --acquisition-ensemble-covariance)");
+  app.add_option("--acquisition-ensemble-covariance", f->acquisition_ensemble_covariance,
+                 "pf, afpf with --acquisition-ensemble > 1: while the shadows run, a converging or ok step publishes "
+                 "the covariance, about the filter's mean, of the mixture of its cloud and the shadows' (weights "
+                 "equal, or by their summed log evidence over --acquisition-ensemble-window readings) when wider; "
+                 "off = the filter's own")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, mapmatch::ParticleFilterOptions::EnsembleCovariance>{
+              {"off", mapmatch::ParticleFilterOptions::EnsembleCovariance::kOff},
+              {"equal", mapmatch::ParticleFilterOptions::EnsembleCovariance::kEqual},
+              {"evidence", mapmatch::ParticleFilterOptions::EnsembleCovariance::kEvidence}},
+          CLI::ignore_case))
+      ->default_str("off");
+  opt("--acquisition-ensemble-isotropic", &f->acquisition_ensemble_isotropic,
+      "pf, afpf with --acquisition-ensemble-covariance: the clouds' offsets from the filter's mean spread evenly "
+      "over both axes (1) or as they lie (0)");
   opt("--subcloud-window", &f->subcloud_window,
       "pf, afpf with --subclouds > 1: updates in each sub-cloud's summed log evidence (re-seeding)");
   opt("--subcloud-reseed", &f->subcloud_reseed_nats,

@@ -516,6 +516,28 @@ struct ParticleFilterOptions {
   int acquisition_ensemble_hold = 3;
   int acquisition_ensemble_window = 10;
   double acquisition_ensemble_nats = 0.0;
+  // Whether the shadows' disagreement flags a step lost (the rule above). false: the shadows run
+  // (for acquisition_ensemble_covariance) and the diagnostics' ensemble_* are written, but no step is
+  // flagged by them: the lost flags, statuses and counters are the filter's alone.
+  bool acquisition_ensemble_flag = true;
+  // The published covariance while the shadows run (issue 25 item 4; docs/ACCURACY.md, "The PF's
+  // converging covariance from the shadows' spread"). A wrong-basin settle is a random event per cloud,
+  // so the shadows' spread is evidence of the multimodality the filter's own cloud hides. With
+  // acquisition_ensemble > 1 and this not kOff, a step the shadows ran at that is converging or ok
+  // (not lost) publishes, about the filter's mean m (the estimate stays the filter's), the covariance
+  // of the mixture of the K clouds' published distributions (mean m_i, covariance C_i, deg²; the
+  // filter's i = 0; a lost shadow's C_i is its cloud's, not the prior square's):
+  //   Σ_i w_i [C_i + (m_i − m)(m_i − m)ᵀ],  when its trace exceeds the published one.
+  // Weights: kEqual 1/K; kEvidence ∝ exp(the cloud's summed log evidence over the last
+  // acquisition_ensemble_window readings) (the flag's evidence statistic). Lost steps keep their
+  // covariance; the estimates, cloud_cov_*, lost flags and statuses do not depend on it. kOff: as before.
+  enum class EnsembleCovariance { kOff, kEqual, kEvidence };
+  EnsembleCovariance acquisition_ensemble_covariance = EnsembleCovariance::kOff;
+  // With acquisition_ensemble_covariance: the offsets' term Σ w_i (m_i − m)(m_i − m)ᵀ replaced by its
+  // trace split evenly over the two axes, Σ w_i |m_i − m|² / 2 · I (K ≤ 3 offsets from the filter's mean
+  // span at most two directions, often one: the truth of a wrong-basin settle is rarely along it).
+  // false: the mixture's own (anisotropic) covariance.
+  bool acquisition_ensemble_isotropic = false;
   // AFPF: λ (the paper: 0.001) and μ, the parents' sampling variance per axis
   // (the paper: 1.6454e-4 deg²).
   double fission_lambda = 0.001;
