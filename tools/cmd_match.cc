@@ -2,6 +2,7 @@
 // measured field against a geomagnetic map (mapmatch/): single points, ICP,
 // ICCP, MMA, MAD/MSD/PROD/NPROD correlation, fast MSD, and the sequential
 // particle filters (pf, afpf) run over the path.
+#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -241,6 +242,9 @@ void AddMatchCommand(CLI::App& app) {
                 "fast-msd: keep the rounds' positions (by default each point moves to the mean of the other-basins "
                 "posterior, the published basin's mass at the rounds' position, unless the result is ambiguous or "
                 "that posterior reaches the offset grid's edge; the covariance is taken about the published point)");
+  cmd->add_flag("--basin-full-mean", o.fast_msd.basin_full_mean,
+                "fast-msd: move each point to the whole offset posterior's mean (its own basin's mass where the "
+                "grid puts it) instead of the other basins' share only; off by default (docs/ACCURACY.md)");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "

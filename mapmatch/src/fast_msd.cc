@@ -141,6 +141,9 @@ bool FastMsdOptions::IsValid(std::string* error) const {
     return Fail(error, "basin_half_width_deg must be finite and >= 0 (0 = off)");
   }
   if (!PositiveFinite(basin_step_cells)) return Fail(error, "basin_step_cells must be finite and > 0");
+  if (basin_full_mean && !basin_mean_shift) {
+    return Fail(error, "basin_full_mean needs basin_mean_shift (it changes that shift's move)");
+  }
   if (!(std::isfinite(basin_max_half_width_deg) && basin_max_half_width_deg >= 0.0)) {
     return Fail(error, "basin_max_half_width_deg must be finite and >= 0 (<= basin_half_width_deg = never widen)");
   }
@@ -176,6 +179,8 @@ void MapHessian(const GeoGrid& grid, std::size_t layer, double lat_deg, double l
 struct MeanShift {
   std::vector<Eigen::Vector2d> d;
   std::vector<char> scored;
+  // The covariance about the moved point, deg² (basin_full_mean: the whole posterior's own spread).
+  std::vector<Eigen::Matrix2d> cov;
 };
 
 // The rounds (and the robust refit) from one start path; `r` carries the
@@ -386,9 +391,11 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
       // The mixture's mean (applied by MatchFastMsd, after the ambiguity check). The mean of a posterior the
       // grid truncates is not the posterior's mean: no point moves when the mass on the grid's outermost
       // ring reaches kMaxEdgeMass anywhere along the path (fast_msd.h).
-      if (mean_shift != nullptr && options.basin_mean_shift && max_edge_mass < kMaxEdgeMass) {
-        mean_shift->d = bs.far_mean;
+      const bool shift = mean_shift != nullptr && options.basin_mean_shift && max_edge_mass < kMaxEdgeMass;
+      if (shift) {
+        mean_shift->d = options.basin_full_mean ? bs.mean : bs.far_mean;
         mean_shift->scored = final_lin.data;
+        mean_shift->cov.assign(n, Eigen::Matrix2d::Zero());
       }
       for (std::size_t i = 0; i < n; ++i) {
         Eigen::Matrix2d m = cov[i] + bs.far_moment[i];
@@ -397,6 +404,17 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
         r.cov_lat_lon[i] = m(0, 1);
         r.cov_lon_lon[i] = m(1, 1);
         if (bs.far_mass[i] > 0.05) ++basin_points;
+        if (shift) {
+          // basin_mean_shift: the mixture's second moment about far_mean f, m − f fᵀ; basin_full_mean: the
+          // whole posterior's second moment about its mean (fast_msd.h).
+          const Eigen::Vector2d& f = bs.far_mean[i];
+          if (options.basin_full_mean) {
+            mean_shift->cov[i] = bs.spread[i];
+            internal::CapAtPrior(&mean_shift->cov[i], prior_var);
+          } else {
+            mean_shift->cov[i] = m - f * f.transpose();
+          }
+        }
       }
     }
     r.notes += std::string(r.notes.empty() ? "" : "; ") + "covariance: residual sigma " +
@@ -535,9 +553,9 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
       if (!grid.Contains(best.lat_deg[p], best.lon_deg[p])) --best.points_off_map;
       best.lat_deg[p] += d(0);
       best.lon_deg[p] += d(1);
-      best.cov_lat_lat[p] -= d(0) * d(0);
-      best.cov_lat_lon[p] -= d(0) * d(1);
-      best.cov_lon_lon[p] -= d(1) * d(1);
+      best.cov_lat_lat[p] = mean_shift.cov[p](0, 0);
+      best.cov_lat_lon[p] = mean_shift.cov[p](0, 1);
+      best.cov_lon_lon[p] = mean_shift.cov[p](1, 1);
       if (!grid.Contains(best.lat_deg[p], best.lon_deg[p])) ++best.points_off_map;
       if (!mean_shift.scored[p]) continue;
       if (const auto s = grid.Sample(layer, best.lat_deg[p], best.lon_deg[p])) {

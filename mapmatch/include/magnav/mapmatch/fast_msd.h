@@ -142,6 +142,21 @@ struct FastMsdOptions {
   // path ≤ 0.001° (2 of 40 above before). false = the rounds' positions (the
   // covariance as above, about them).
   bool basin_mean_shift = true;
+  // With basin_mean_shift: each point to the whole posterior's mean (issue 25
+  // item 6; docs/ACCURACY.md, "Fast MSD: the single paths above the target
+  // inside their basin"), Σ_all p(d) d over the offset grid — the published
+  // basin's mass where the grid puts it, not at the published point —, i.e.
+  // the posterior mean (MMSE point) of the covariance's model (σ², τ² from the
+  // EM, the map-error bound) without linearising, where basin_mean_shift
+  // moves only by the other basins' share. Its covariance: that posterior's
+  // own second moment about μ (each grid cell's h²/12 per axis included;
+  // capped at the search window's prior), not the linearised C_i of the
+  // rounds' λ (at 3 nT the mixture about μ gave ANEES 0.74-0.93, below
+  // [1, 4]). The same guards (not when ambiguous, not when the grid's edge
+  // holds ≥ 1 %). Off: at 3 nT it lowers every set's mean error by 25-30 %,
+  // but a few paths under the target rise above it (held-out 626 and 630 at
+  // 3 nT, blind2 4501 at 0.5 nT; docs/ACCURACY.md). false = basin_mean_shift's move.
+  bool basin_full_mean = false;
 
   bool IsValid(std::string* error) const;
 };
