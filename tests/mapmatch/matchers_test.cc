@@ -400,6 +400,12 @@ TEST(Options, DefaultsAreValidAndBadValuesAreRefused) {
   basins.basin_max_half_width_deg = std::nan("");
   EXPECT_FALSE(basins.IsValid(&why));
   EXPECT_NE(why.find("basin_max_half_width_deg"), std::string::npos);
+  basins.basin_max_half_width_deg = 0.048;
+  basins.basin_full_mean = true;  // changes basin_mean_shift's move: needs it
+  EXPECT_TRUE(basins.IsValid(&why)) << why;
+  basins.basin_mean_shift = false;
+  EXPECT_FALSE(basins.IsValid(&why));
+  EXPECT_NE(why.find("basin_full_mean"), std::string::npos);
   IcpOptions i;
   i.field_scale_deg_per_nT = std::nan("");
   EXPECT_FALSE(i.IsValid(&why));
