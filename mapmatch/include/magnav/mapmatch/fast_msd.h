@@ -41,6 +41,29 @@ struct FastMsdOptions {
   // Smoothness weight λ (nT²/deg²): ~1e7 suits the crustal reference map
   // (RMS gradient ≈ 1.2e4 nT/deg); larger = stiffer path.
   double lambda_nT2_per_deg2 = 1e7;
+  // λ from the path's own noise and drift (issue 25 item 6; docs/ACCURACY.md,
+  // "Fast MSD: the smoothing weight from the path's own noise and drift"):
+  // the rounds' fixed point is the MAP of readings with noise σ² and
+  // corrections that random-walk by τ² per point and axis when
+  // λ/2 = σ²/τ² (fast_msd_covariance.h: Σ w r² + (λ/2) Σ |e_{i+1} − e_i|²),
+  // so after the rounds (and the robust refit) σ² and τ² are estimated from
+  // the solution (the covariance's EM, internal::EstimatePathScales), λ is
+  // set to 2σ²/τ² clamped to [lambda_min, lambda_max], and the rounds run
+  // again from the same start with it (the continuation scaled with it);
+  // repeated up to lambda_from_path_iterations times, stopping once λ moves
+  // by less than 1 %. The covariance then uses that λ; the notes say which
+  // ("smoothing weight lambda ..."). 0 = off: lambda_nT2_per_deg2 as given.
+  int lambda_from_path_iterations = 0;
+  // The range the estimated λ is held to (nT²/deg²). The floor is the
+  // default λ (1e7): the EM's σ² is biased low by the non-linear rounds'
+  // closer fit (σ ≈ 0.3 nT for 0.5 nT readings, fast_msd_covariance.h), so
+  // at low noise 2σ²/τ² (2e6-6e6) would loosen a smoother the 0.5 nT tuning
+  // paths 501-520 do not gain from loosening (free, mean 0.00074 ->
+  // 0.00075°, 510 above 0.001°); with the floor the estimate only ever
+  // stiffens it. The ceiling is a guard against a degenerate EM (τ² → 0),
+  // not a tuned value: 2σ²/τ² for σ ≤ 10 nT, τ ≥ 4.5e-5° per point.
+  double lambda_min_nT2_per_deg2 = 1e7;
+  double lambda_max_nT2_per_deg2 = 1e11;
   // Continuation (not in the paper): round k of R uses
   // λ · factor^((R − 1 − k)/(R − 1)), i.e. a stiffer path (closer to a pure
   // translation) while the linearisation is still far off, and λ itself in the
