@@ -2,6 +2,7 @@
 // measured field against a geomagnetic map (mapmatch/): single points, ICP,
 // ICCP, MMA, MAD/MSD/PROD/NPROD correlation, fast MSD, and the sequential
 // particle filters (pf, afpf) run over the path.
+#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -241,6 +242,18 @@ void AddMatchCommand(CLI::App& app) {
                 "fast-msd: keep the rounds' positions (by default each point moves to the mean of the other-basins "
                 "posterior, the published basin's mass at the rounds' position, unless the result is ambiguous or "
                 "that posterior reaches the offset grid's edge; the covariance is taken about the published point)");
+  cmd->add_flag("--basin-full-mean", o.fast_msd.basin_full_mean,
+                "fast-msd: move each point to the whole offset posterior's mean (its own basin's mass where the "
+                "grid puts it) instead of the other basins' share only; off by default (docs/ACCURACY.md)");
+  cmd->add_option("--lambda-from-path", o.fast_msd.lambda_from_path_iterations,
+                  "fast-msd: set the smoothing weight from the path's own noise and drift, lambda = 2 sigma^2/tau^2 "
+                  "(the covariance's EM on the solution), and solve again, up to this many times (stops once lambda "
+                  "moves < 1 %); held to [--lambda-min, --lambda-max]; the notes say which lambda; 0 = off (--lambda as "
+                  "given; the default, docs/ACCURACY.md)");
+  cmd->add_option("--lambda-min", o.fast_msd.lambda_min_nT2_per_deg2,
+                  "fast-msd with --lambda-from-path: the smallest lambda it may set (nT^2/deg^2; default 1e7, the default lambda)");
+  cmd->add_option("--lambda-max", o.fast_msd.lambda_max_nT2_per_deg2,
+                  "fast-msd with --lambda-from-path: the largest lambda it may set (nT^2/deg^2; default 1e11)");
   cmd->add_option("--max-jacobi", o.fast_msd.max_iterations_per_round, "fast-msd: Jacobi iterations per round");
   cmd->add_option("--diagnostics", args->diagnostics,
                   "pf, afpf: write every step's estimate, covariance, ESS, particle count, unique particles, "

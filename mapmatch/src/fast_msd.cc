@@ -120,6 +120,11 @@ void DirectRound(const Linearisation& lin, double lambda, std::vector<double>* e
 
 bool FastMsdOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(lambda_nT2_per_deg2)) return Fail(error, "lambda_nT2_per_deg2 must be finite and > 0");
+  if (lambda_from_path_iterations < 0) return Fail(error, "lambda_from_path_iterations must be >= 0 (0 = off)");
+  if (!PositiveFinite(lambda_min_nT2_per_deg2) || !PositiveFinite(lambda_max_nT2_per_deg2) ||
+      lambda_min_nT2_per_deg2 > lambda_max_nT2_per_deg2) {
+    return Fail(error, "lambda_min_nT2_per_deg2 and lambda_max_nT2_per_deg2 must be finite, > 0 and min <= max");
+  }
   if (!(std::isfinite(lambda_first_round_factor) && lambda_first_round_factor >= 1.0)) {
     return Fail(error, "lambda_first_round_factor must be finite and >= 1");
   }
@@ -141,6 +146,9 @@ bool FastMsdOptions::IsValid(std::string* error) const {
     return Fail(error, "basin_half_width_deg must be finite and >= 0 (0 = off)");
   }
   if (!PositiveFinite(basin_step_cells)) return Fail(error, "basin_step_cells must be finite and > 0");
+  if (basin_full_mean && !basin_mean_shift) {
+    return Fail(error, "basin_full_mean needs basin_mean_shift (it changes that shift's move)");
+  }
   if (!(std::isfinite(basin_max_half_width_deg) && basin_max_half_width_deg >= 0.0)) {
     return Fail(error, "basin_max_half_width_deg must be finite and >= 0 (<= basin_half_width_deg = never widen)");
   }
@@ -176,6 +184,8 @@ void MapHessian(const GeoGrid& grid, std::size_t layer, double lat_deg, double l
 struct MeanShift {
   std::vector<Eigen::Vector2d> d;
   std::vector<char> scored;
+  // The covariance about the moved point, deg² (basin_full_mean: the whole posterior's own spread).
+  std::vector<Eigen::Matrix2d> cov;
 };
 
 // The rounds (and the robust refit) from one start path; `r` carries the
@@ -186,6 +196,8 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
                   const std::vector<double>& start_lon, MatchResult r, MeanShift* mean_shift) {
   const std::size_t n = path.size();
   std::vector<double> ref_lat = start_lat, ref_lon = start_lon;
+  // The last round's λ (nT²/deg²): the option's, or the path's own (lambda_from_path_iterations).
+  double final_lambda = options.lambda_nT2_per_deg2;
   // The rounds from the start with the points of `use` (returns whether every round converged).
   int rounds_done = 0;
   const auto run_rounds = [&](const std::vector<char>& use) {
@@ -225,7 +237,7 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
         break;
       }
       const double lambda =
-          options.lambda_nT2_per_deg2 *
+          final_lambda *
           (options.rounds > 1 ? std::pow(options.lambda_first_round_factor,
                                          static_cast<double>(options.rounds - 1 - round) / (options.rounds - 1))
                               : 1.0);
@@ -253,7 +265,7 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
                    std::to_string(options.max_iterations_per_round) + " iterations";
       }
       // Nothing left to re-linearise (only once λ has reached its final value).
-      if (lambda == options.lambda_nT2_per_deg2 && step2 / static_cast<double>(n) < options.epsilon_deg2) break;
+      if (lambda == final_lambda && step2 / static_cast<double>(n) < options.epsilon_deg2) break;
     }
     return all_converged;
   };
@@ -293,27 +305,63 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
                  " outlier" + (dropped == 1 ? "" : "s");
     }
   }
+  // The linearisation at the rounds' solution over the usable points on the map; residuals beyond
+  // k·σ_l have no data term (counted in *outliers).
+  const auto linearise_solution = [&](int* outliers) {
+    Linearisation lin(n);
+    for (std::size_t p : finite) {
+      if (!usable[p]) continue;
+      if (const auto s = grid.Sample(layer, ref_lat[p], ref_lon[p])) {
+        const double d = s->value_nT - path.measured_nT[p];
+        if (options.outlier_sigmas > 0.0 && std::abs(d) > options.outlier_sigmas * readings.sigma) {
+          ++*outliers;
+          continue;
+        }
+        lin.data[p] = 1;
+        lin.g_lat[p] = s->dvalue_dlat_nT_per_deg;
+        lin.g_lon[p] = s->dvalue_dlon_nT_per_deg;
+        lin.resid[p] = d;
+      }
+    }
+    return lin;
+  };
+  // λ from the path (fast_msd.h, lambda_from_path_iterations): λ = 2σ²/τ² from the solution, the rounds again.
+  int lambda_updates = 0;
+  bool lambda_clamped = false;
+  for (int k = 0; k < options.lambda_from_path_iterations; ++k) {
+    int ignored = 0;
+    const Linearisation lin = linearise_solution(&ignored);
+    std::vector<double> e_lat(n), e_lon(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      e_lat[i] = ref_lat[i] - start_lat[i];
+      e_lon[i] = ref_lon[i] - start_lon[i];
+    }
+    const internal::PathScales scales =
+        internal::EstimatePathScales(lin.g_lat, lin.g_lon, lin.resid, lin.data, e_lat, e_lon, final_lambda);
+    if (!(scales.s2_nT2 > 0.0) || !(scales.tau2_deg2 > 0.0)) break;
+    const double raw = 2.0 * scales.s2_nT2 / scales.tau2_deg2;
+    const double next = std::clamp(raw, options.lambda_min_nT2_per_deg2, options.lambda_max_nT2_per_deg2);
+    lambda_clamped = next != raw;
+    if (std::abs(next - final_lambda) < 0.01 * final_lambda) break;
+    final_lambda = next;
+    all_converged = run_rounds(usable);
+    ++lambda_updates;
+  }
+  if (options.lambda_from_path_iterations > 0) {
+    r.notes += std::string(r.notes.empty() ? "" : "; ") + "smoothing weight lambda " + FormatNumber(final_lambda) +
+               " nT^2/deg^2 (2 sigma^2/tau^2 from the path, " + std::to_string(lambda_updates) + " re-solve" +
+               (lambda_updates == 1 ? "" : "s") + (lambda_clamped ? ", held to its range" : "") + ")";
+  }
   r.lat_deg = ref_lat;
   r.lon_deg = ref_lon;
   // Score over the points on the map (the refit's outliers and residuals beyond k·σ_l left out, counted).
+  const Linearisation final_lin = linearise_solution(&r.points_outlier);  // at the solution, for the covariance
   double sum2 = 0.0;
   int on = 0;
-  Linearisation final_lin(n);  // at the solution, for the covariance
-  for (std::size_t p : finite) {
-    if (!usable[p]) continue;
-    if (const auto s = grid.Sample(layer, r.lat_deg[p], r.lon_deg[p])) {
-      const double d = s->value_nT - path.measured_nT[p];
-      if (options.outlier_sigmas > 0.0 && std::abs(d) > options.outlier_sigmas * readings.sigma) {
-        ++r.points_outlier;
-        continue;
-      }
-      final_lin.data[p] = 1;
-      final_lin.g_lat[p] = s->dvalue_dlat_nT_per_deg;
-      final_lin.g_lon[p] = s->dvalue_dlon_nT_per_deg;
-      final_lin.resid[p] = d;
-      sum2 += d * d;
-      ++on;
-    }
+  for (std::size_t p = 0; p < n; ++p) {
+    if (!final_lin.data[p]) continue;
+    sum2 += final_lin.resid[p] * final_lin.resid[p];
+    ++on;
   }
   // Covariance (fast_msd_covariance.h): the final λ smoother's error covariance, its noise and INS-drift
   // scales estimated from the path, with the map's curvature at each point.
@@ -341,7 +389,7 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
                                  : 0.0;
     const internal::ErrorCovariance c =
         internal::FastMsdErrorCovariance(final_lin.g_lat, final_lin.g_lon, final_lin.resid, final_lin.data, e_lat,
-                                         e_lon, h_ll, h_ln, h_nn, options.lambda_nT2_per_deg2, 6, prior_var,
+                                         e_lon, h_ll, h_ln, h_nn, final_lambda, 6, prior_var,
                                          map_var);
     r.cov_lat_lat = c.lat_lat;
     r.cov_lat_lon = c.lat_lon;
@@ -386,9 +434,11 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
       // The mixture's mean (applied by MatchFastMsd, after the ambiguity check). The mean of a posterior the
       // grid truncates is not the posterior's mean: no point moves when the mass on the grid's outermost
       // ring reaches kMaxEdgeMass anywhere along the path (fast_msd.h).
-      if (mean_shift != nullptr && options.basin_mean_shift && max_edge_mass < kMaxEdgeMass) {
-        mean_shift->d = bs.far_mean;
+      const bool shift = mean_shift != nullptr && options.basin_mean_shift && max_edge_mass < kMaxEdgeMass;
+      if (shift) {
+        mean_shift->d = options.basin_full_mean ? bs.mean : bs.far_mean;
         mean_shift->scored = final_lin.data;
+        mean_shift->cov.assign(n, Eigen::Matrix2d::Zero());
       }
       for (std::size_t i = 0; i < n; ++i) {
         Eigen::Matrix2d m = cov[i] + bs.far_moment[i];
@@ -397,6 +447,17 @@ MatchResult Refine(const GeoGrid& grid, std::size_t layer, const MatchPath& path
         r.cov_lat_lon[i] = m(0, 1);
         r.cov_lon_lon[i] = m(1, 1);
         if (bs.far_mass[i] > 0.05) ++basin_points;
+        if (shift) {
+          // basin_mean_shift: the mixture's second moment about far_mean f, m − f fᵀ; basin_full_mean: the
+          // whole posterior's second moment about its mean (fast_msd.h).
+          const Eigen::Vector2d& f = bs.far_mean[i];
+          if (options.basin_full_mean) {
+            mean_shift->cov[i] = bs.spread[i];
+            internal::CapAtPrior(&mean_shift->cov[i], prior_var);
+          } else {
+            mean_shift->cov[i] = m - f * f.transpose();
+          }
+        }
       }
     }
     r.notes += std::string(r.notes.empty() ? "" : "; ") + "covariance: residual sigma " +
@@ -535,9 +596,9 @@ MatchResult MatchFastMsd(const GeoGrid& grid, std::size_t layer, const MatchPath
       if (!grid.Contains(best.lat_deg[p], best.lon_deg[p])) --best.points_off_map;
       best.lat_deg[p] += d(0);
       best.lon_deg[p] += d(1);
-      best.cov_lat_lat[p] -= d(0) * d(0);
-      best.cov_lat_lon[p] -= d(0) * d(1);
-      best.cov_lon_lon[p] -= d(1) * d(1);
+      best.cov_lat_lat[p] = mean_shift.cov[p](0, 0);
+      best.cov_lat_lon[p] = mean_shift.cov[p](0, 1);
+      best.cov_lon_lon[p] = mean_shift.cov[p](1, 1);
       if (!grid.Contains(best.lat_deg[p], best.lon_deg[p])) ++best.points_off_map;
       if (!mean_shift.scored[p]) continue;
       if (const auto s = grid.Sample(layer, best.lat_deg[p], best.lon_deg[p])) {

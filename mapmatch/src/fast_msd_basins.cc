@@ -131,6 +131,8 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
   out.far_mean.assign(n, Eigen::Vector2d::Zero());
   out.far_mass.assign(n, 0.0);
   out.edge_mass.assign(n, 0.0);
+  out.mean.assign(n, Eigen::Vector2d::Zero());
+  out.spread.assign(n, Eigen::Matrix2d::Zero());
   if (n < 2 || !(tau2_deg2 > 0.0) || !(s2_nT2 > 0.0) || !(step_deg > 0.0) || radius < 1) return out;
   const int side = 2 * radius + 1;
   const double cap2 = cap_nT * cap_nT;
@@ -247,6 +249,7 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
     if (!inv.allFinite()) continue;
     // Σ p d dᵀ over the cells outside the published basin (dᵀ C⁻¹ d > chi2), with each cell's own h²/12.
     double saa = 0.0, sab = 0.0, sbb = 0.0, sa = 0.0, sb = 0.0, mass = 0.0, edge = 0.0;
+    double taa = 0.0, tab = 0.0, tbb = 0.0, ta = 0.0, tb = 0.0;  // the same sums over every cell
     for (int r = b.r0; r <= b.r1; ++r) {
       const double da = (r - radius) * step_deg;
       for (int c = b.c0; c <= b.c1; ++c) {
@@ -255,6 +258,11 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
         if (p == 0.0) continue;
         const double db = (c - radius) * step_deg;
         if (r == 0 || r == side - 1 || c == 0 || c == side - 1) edge += p;
+        taa += p * da * da;
+        tab += p * da * db;
+        tbb += p * db * db;
+        ta += p * da;
+        tb += p * db;
         if (inv(0, 0) * da * da + 2.0 * inv(0, 1) * da * db + inv(1, 1) * db * db <= chi2) continue;
         saa += p * da * da;
         sab += p * da * db;
@@ -269,6 +277,10 @@ BasinSpread FastMsdBasinSpread(const GeoGrid& grid, std::size_t layer, const std
     out.far_mean[i] << sa / sum, sb / sum;
     out.far_mass[i] = mass;
     out.edge_mass[i] = edge / sum;
+    const Eigen::Vector2d mu(ta / sum, tb / sum);
+    out.mean[i] = mu;
+    out.spread[i] << taa / sum - mu(0) * mu(0) + cell, tab / sum - mu(0) * mu(1), tab / sum - mu(0) * mu(1),
+        tbb / sum - mu(1) * mu(1) + cell;
   }
   return out;
 }

@@ -47,6 +47,11 @@ struct BasinSpread {
   // The posterior mass on the grid's outermost ring of offsets (|a| or |b| =
   // R): where it is not small the grid truncates the posterior.
   std::vector<double> edge_mass;
+  // The whole posterior's mean offset from the published point, Σ_all p(d) d (deg; the published basin's
+  // mass where the grid puts it, not at d = 0), and its second moment about that mean, each cell's own
+  // h²/12 per axis included (deg²): FastMsdOptions::basin_full_mean.
+  std::vector<Eigen::Vector2d> mean;
+  std::vector<Eigen::Matrix2d> spread;
   double step_deg = 0.0;
   int radius = 0;
 };

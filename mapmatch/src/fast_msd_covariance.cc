@@ -250,6 +250,31 @@ void EstimateScales(const std::vector<V2>& g, const std::vector<double>& w, cons
   *tau2_io = tau2;
 }
 
+// EstimateScales's inputs from a solution: per point with a data term its gradient g (nT/deg), weight w
+// (½ at the two ends, the smoother's) and pseudo-observation y = g·ê − r (nT); sw = Σ w.
+struct ScaleInputs {
+  std::vector<V2> g;
+  std::vector<double> w, y;
+  double sw = 0.0;
+};
+ScaleInputs MakeScaleInputs(const std::vector<double>& g_lat, const std::vector<double>& g_lon,
+                            const std::vector<double>& resid, const std::vector<char>& data,
+                            const std::vector<double>& e_lat, const std::vector<double>& e_lon) {
+  const std::size_t n = g_lat.size();
+  ScaleInputs in;
+  in.g.assign(n, V2::Zero());
+  in.w.assign(n, 0.0);
+  in.y.assign(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!data[i]) continue;
+    in.g[i] = V2(g_lat[i], g_lon[i]);
+    in.w[i] = (i == 0 || i == n - 1) ? 0.5 : 1.0;
+    in.y[i] = in.g[i].dot(V2(e_lat[i], e_lon[i])) - resid[i];
+    in.sw += in.w[i];
+  }
+  return in;
+}
+
 }  // namespace
 
 ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const std::vector<double>& g_lon,
@@ -274,18 +299,11 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
     return out;
   }
   const double h = 0.5 * lambda;
-  std::vector<V2> g(n, V2::Zero());
-  std::vector<double> w(n, 0.0), y(n, 0.0);
-  double sw = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!data[i]) continue;
-    g[i] = V2(g_lat[i], g_lon[i]);
-    w[i] = (i == 0 || i == n - 1) ? 0.5 : 1.0;
-    y[i] = g[i].dot(V2(e_lat[i], e_lon[i])) - resid[i];
-    sw += w[i];
-  }
+  const ScaleInputs in = MakeScaleInputs(g_lat, g_lon, resid, data, e_lat, e_lon);
+  const std::vector<V2>& g = in.g;
+  const std::vector<double>& w = in.w;
   double s2 = laplace.s2_nT2, tau2 = s2 / h;
-  EstimateScales(g, w, y, sw, &s2, &tau2);
+  EstimateScales(g, w, in.y, in.sw, &s2, &tau2);
   out.s2_nT2 = s2;
   out.tau2_deg2 = tau2;
   out.edf = laplace.edf;
@@ -305,6 +323,21 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
     out.lat_lon[i] = cov[i](0, 1);
     out.lon_lon[i] = cov[i](1, 1);
   }
+  return out;
+}
+
+PathScales EstimatePathScales(const std::vector<double>& g_lat, const std::vector<double>& g_lon,
+                              const std::vector<double>& resid, const std::vector<char>& data,
+                              const std::vector<double>& e_lat, const std::vector<double>& e_lon, double lambda) {
+  PathScales out;
+  const std::size_t n = g_lat.size();
+  const PathCovariance laplace = FastMsdCovariance(g_lat, g_lon, resid, data, lambda);
+  if (n < 2 || !(laplace.s2_nT2 > 0.0) || !std::isfinite(laplace.s2_nT2)) return out;
+  const ScaleInputs in = MakeScaleInputs(g_lat, g_lon, resid, data, e_lat, e_lon);
+  double s2 = laplace.s2_nT2, tau2 = s2 / (0.5 * lambda);
+  EstimateScales(in.g, in.w, in.y, in.sw, &s2, &tau2);
+  out.s2_nT2 = s2;
+  out.tau2_deg2 = tau2;
   return out;
 }
 

@@ -121,6 +121,17 @@ ErrorCovariance FastMsdErrorCovariance(const std::vector<double>& g_lat, const s
                                        int curvature_iterations = 6, double prior_var_deg2 = 0.0,
                                        const std::vector<double>& map_var_nT2 = {});
 
+// The path's two scales alone (the first step of FastMsdErrorCovariance, same inputs): σ² (nT²) and τ²
+// (deg² per point and axis) by the EM above, from the residual σ² of FastMsdCovariance and τ² = 2σ²/λ.
+// Both 0 when the path has no usable residual σ² (fewer than 2 points, no data term).
+struct PathScales {
+  double s2_nT2 = 0.0;
+  double tau2_deg2 = 0.0;
+};
+PathScales EstimatePathScales(const std::vector<double>& g_lat, const std::vector<double>& g_lon,
+                              const std::vector<double>& resid, const std::vector<char>& data,
+                              const std::vector<double>& e_lat, const std::vector<double>& e_lon, double lambda);
+
 // The bound of bilinear interpolation's error over a grid cell (nT) for the
 // field's Hessian H (nT/deg²) and the grid steps (deg):
 //   |f − I f| ≤ (Δlat²/8) |∂²f/∂lat²| + (Δlon²/8) |∂²f/∂lon²|

@@ -400,6 +400,24 @@ TEST(Options, DefaultsAreValidAndBadValuesAreRefused) {
   basins.basin_max_half_width_deg = std::nan("");
   EXPECT_FALSE(basins.IsValid(&why));
   EXPECT_NE(why.find("basin_max_half_width_deg"), std::string::npos);
+  basins.basin_max_half_width_deg = 0.048;
+  basins.basin_full_mean = true;  // changes basin_mean_shift's move: needs it
+  EXPECT_TRUE(basins.IsValid(&why)) << why;
+  basins.basin_mean_shift = false;
+  EXPECT_FALSE(basins.IsValid(&why));
+  EXPECT_NE(why.find("basin_full_mean"), std::string::npos);
+  FastMsdOptions from_path;
+  from_path.lambda_from_path_iterations = 2;
+  EXPECT_TRUE(from_path.IsValid(&why)) << why;
+  from_path.lambda_from_path_iterations = -1;
+  EXPECT_FALSE(from_path.IsValid(&why));
+  EXPECT_NE(why.find("lambda_from_path_iterations"), std::string::npos);
+  from_path.lambda_from_path_iterations = 1;
+  from_path.lambda_max_nT2_per_deg2 = 1e6;  // below the floor
+  EXPECT_FALSE(from_path.IsValid(&why));
+  EXPECT_NE(why.find("lambda_min_nT2_per_deg2"), std::string::npos);
+  from_path.lambda_max_nT2_per_deg2 = std::nan("");
+  EXPECT_FALSE(from_path.IsValid(&why));
   IcpOptions i;
   i.field_scale_deg_per_nT = std::nan("");
   EXPECT_FALSE(i.IsValid(&why));

@@ -41,6 +41,32 @@ struct FastMsdOptions {
   // Smoothness weight λ (nT²/deg²): ~1e7 suits the crustal reference map
   // (RMS gradient ≈ 1.2e4 nT/deg); larger = stiffer path.
   double lambda_nT2_per_deg2 = 1e7;
+  // λ from the path's own noise and drift (issue 25 item 6; docs/ACCURACY.md,
+  // "Fast MSD: the smoothing weight from the path's own noise and drift"):
+  // the rounds' fixed point is the MAP of readings with noise σ² and
+  // corrections that random-walk by τ² per point and axis when
+  // λ/2 = σ²/τ² (fast_msd_covariance.h: Σ w r² + (λ/2) Σ |e_{i+1} − e_i|²),
+  // so after the rounds (and the robust refit) σ² and τ² are estimated from
+  // the solution (the covariance's EM, internal::EstimatePathScales), λ is
+  // set to 2σ²/τ² clamped to [lambda_min, lambda_max], and the rounds run
+  // again from the same start with it (the continuation scaled with it);
+  // repeated up to lambda_from_path_iterations times, stopping once λ moves
+  // by less than 1 %. The covariance then uses that λ; the notes say which
+  // ("smoothing weight lambda ..."). Off: at 3 nT it lowers every set's mean
+  // error by 21-30 % (held out 0.00116 -> 0.00088°), but held-out 626 at
+  // 3 nT (its start 0.019° off) is re-solved into a wrong basin for its
+  // first points, 0.00192 -> 0.00440°. 0 = off: lambda_nT2_per_deg2 as given.
+  int lambda_from_path_iterations = 0;
+  // The range the estimated λ is held to (nT²/deg²). The floor is the
+  // default λ (1e7): the EM's σ² is biased low by the non-linear rounds'
+  // closer fit (σ ≈ 0.3 nT for 0.5 nT readings, fast_msd_covariance.h), so
+  // at low noise 2σ²/τ² (2e6-6e6) would loosen a smoother the 0.5 nT tuning
+  // paths 501-520 do not gain from loosening (free, mean 0.00074 ->
+  // 0.00075°, 510 above 0.001°); with the floor the estimate only ever
+  // stiffens it. The ceiling is a guard against a degenerate EM (τ² → 0),
+  // not a tuned value: 2σ²/τ² for σ ≤ 10 nT, τ ≥ 4.5e-5° per point.
+  double lambda_min_nT2_per_deg2 = 1e7;
+  double lambda_max_nT2_per_deg2 = 1e11;
   // Continuation (not in the paper): round k of R uses
   // λ · factor^((R − 1 − k)/(R − 1)), i.e. a stiffer path (closer to a pure
   // translation) while the linearisation is still far off, and λ itself in the
@@ -142,6 +168,21 @@ struct FastMsdOptions {
   // path ≤ 0.001° (2 of 40 above before). false = the rounds' positions (the
   // covariance as above, about them).
   bool basin_mean_shift = true;
+  // With basin_mean_shift: each point to the whole posterior's mean (issue 25
+  // item 6; docs/ACCURACY.md, "Fast MSD: the single paths above the target
+  // inside their basin"), Σ_all p(d) d over the offset grid — the published
+  // basin's mass where the grid puts it, not at the published point —, i.e.
+  // the posterior mean (MMSE point) of the covariance's model (σ², τ² from the
+  // EM, the map-error bound) without linearising, where basin_mean_shift
+  // moves only by the other basins' share. Its covariance: that posterior's
+  // own second moment about μ (each grid cell's h²/12 per axis included;
+  // capped at the search window's prior), not the linearised C_i of the
+  // rounds' λ (at 3 nT the mixture about μ gave ANEES 0.74-0.93, below
+  // [1, 4]). The same guards (not when ambiguous, not when the grid's edge
+  // holds ≥ 1 %). Off: at 3 nT it lowers every set's mean error by 25-30 %,
+  // but a few paths under the target rise above it (held-out 626 and 630 at
+  // 3 nT, blind2 4501 at 0.5 nT; docs/ACCURACY.md). false = basin_mean_shift's move.
+  bool basin_full_mean = false;
 
   bool IsValid(std::string* error) const;
 };
