@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_drift/ and fresh_drift2/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_drift/, fresh_drift2/ and fresh_drift3/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -195,6 +195,11 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   files.push_back({"fresh_drift2", "drift_4_crossing", "crossing"});
   files.push_back({"fresh_drift2", "drift_3_abreast", "abreast"});
   files.push_back({"fresh_drift2", "drift_7_farship", "far_ship"});
+  // fresh_drift3 (blind, branch driftbias): likewise.
+  files.push_back({"fresh_drift3", "drift_3_single", "drift"});
+  files.push_back({"fresh_drift3", "drift_5_crossing", "crossing"});
+  files.push_back({"fresh_drift3", "drift_2_abreast", "abreast"});
+  files.push_back({"fresh_drift3", "drift_4_farship", "far_ship"});
   for (const char* name : {"overtaking_ne", "overtaking_n14", "overtaking_wsw19", "overtaking_e5"}) {
     files.push_back({"fresh_overtaking2", name, "overtaking"});
   }
@@ -288,7 +293,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/, fresh_abreast5/drift_abreast_28) drifts too
+      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/, fresh_drift3/, fresh_abreast5/drift_abreast_28) drifts too
         ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
         const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
         EXPECT_GE(per_min, 2.0);

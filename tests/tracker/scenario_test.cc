@@ -726,3 +726,68 @@ TEST(HarbourScenario, WindowStartsNoGhostFromADrift) {
 
 }  // namespace
 }  // namespace magnav::tracker
+
+namespace magnav::tracker {
+namespace {
+
+// The per-sensor B offset in each track's solve (TrackerOptions::sensor_offset,
+// an option, off; docs/ACCURACY.md "A per-sensor B offset in each track's
+// solve"): on the held-out drift (5 nT/min) the window meets the issue's
+// targets, RMS 0.0655 m measured (0.436 m with the option off, main's row).
+TEST(HarbourScenario, WindowWithTheSensorOffsetMeetsTheTargetsOnTheHeldOutDrift) {
+  MultiTrackerOptions on;
+  on.track.sensor_offset.enabled = true;
+  const auto s = ScoreWindow(HeldOut("drift"), "held-out drift, sensor offset", nullptr, on);
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
+  EXPECT_GE(s.coverage[0], 0.8);  // measured 0.889
+  EXPECT_EQ(s.ids[0], 1u);
+  EXPECT_LE(s.rms[0], 2.0 * 0.0655);  // m, measured 0.0655
+}
+
+// The single-track batch (SolveBatch) with the offset on the held-out drift's
+// samples while the AUV is within 30 m of a sensor (the drift, since t = 0,
+// is in them): RMS against the truth at the epochs. (The multi-vessel batch
+// on the whole file, 4.8 s, is too long for CI: its row is in the doc.)
+TEST(HarbourScenario, BatchWithTheSensorOffsetOnTheHeldOutDriftsPass) {
+  const FieldScenario sc = HeldOut("drift");
+  const SimulatedField f = SimulateField(sc);
+  const auto near = [&](const Eigen::Vector3d& p) {
+    for (const auto& s : sc.sensors) {
+      if ((p - s).norm() <= 30.0) return true;
+    }
+    return false;
+  };
+  std::map<long long, Eigen::Vector3d> truth;
+  for (const auto& q : f.truth[0]) {
+    if (near(q.p_VinW)) truth[std::llround(q.t_s * sc.rate_hz)] = q.p_VinW;
+  }
+  ASSERT_FALSE(truth.empty());
+  std::vector<GradiometerSample> kept;
+  for (const auto& s : f.samples) {
+    if (truth.count(std::llround(s.t_s * sc.rate_hz))) kept.push_back(s);
+  }
+  TrackerOptions opt;
+  opt.sensor_offset.enabled = true;
+  opt.compute_covariance = false;
+  const TrackEstimate est = SolveBatch(GroupEpochs(kept, opt.epoch_tolerance_s), sc.B0, opt);
+  ASSERT_TRUE(est.summary.usable) << est.summary.message;
+  double sum = 0.0;
+  int n = 0;
+  for (const auto& e : est.epochs) {
+    const auto it = truth.find(std::llround(e.t_s * sc.rate_hz));
+    if (it == truth.end() || !e.usable) continue;
+    sum += (e.p_VinW - it->second).squaredNorm();
+    ++n;
+  }
+  ASSERT_GT(n, 0);
+  const double rms = std::sqrt(sum / n);
+  std::printf("held-out drift, single-track batch with the sensor offset: RMS %.4f m over %d epochs\n", rms, n);
+  EXPECT_GE(n, static_cast<int>(0.9 * static_cast<double>(truth.size())));
+  // m, measured 1.061 (2.860 with the option off: this single-track batch of
+  // the default TrackerOptions is far from the multi-vessel batch's 0.199 m
+  // either way; it checks the offset's rounds in SolveBatch alone).
+  EXPECT_LE(rms, 2.0 * 1.061);
+}
+
+}  // namespace
+}  // namespace magnav::tracker

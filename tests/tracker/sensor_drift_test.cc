@@ -3,6 +3,7 @@
 // B bell (hundreds of nT within seconds) — measured here with no sample
 // rule at all (in the tracker the bell's core does not even enter: its
 // tensor is above the gate). 1 nT noise per axis.
+#include "magnav/tracker/options.h"
 #include "magnav/tracker/sensor_drift.h"
 
 #include <gtest/gtest.h>
@@ -162,6 +163,27 @@ TEST(SensorDrift, OptionsAreChecked) {
   f.drift.huber_sigmas = -1.0;
   EXPECT_FALSE(f.IsValid(&why));
   EXPECT_NE(why.find("sensor_drift"), std::string::npos);
+}
+
+// The per-sensor B offset in a track's solve (TrackerOptions::sensor_offset):
+// its prior σ grows with the drift since B0 held, its options are checked.
+TEST(SensorOffset, PriorGrowsWithTheDriftAndOptionsAreChecked) {
+  SensorOffsetOptions o;
+  EXPECT_FALSE(o.enabled);  // an option, off
+  EXPECT_NEAR(o.PriorSigma(0.0), o.floor_T, 1e-15);
+  EXPECT_NEAR(o.PriorSigma(600.0), std::hypot(o.floor_T, 60e-9), 1e-12);  // 6 nT/min over 10 min
+  EXPECT_NEAR(o.StepSigma(), 2e-9, 1e-15);                                 // 6 nT/min over 20 s
+  std::string why;
+  EXPECT_TRUE(o.IsValid(&why)) << why;
+  o.passes = 0;
+  EXPECT_FALSE(o.IsValid(&why));
+  o = {};
+  o.segment_s = 0.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  TrackerOptions t;
+  t.sensor_offset.floor_T = -1.0;
+  EXPECT_FALSE(t.IsValid(&why));
+  EXPECT_NE(why.find("sensor_offset"), std::string::npos);
 }
 
 }  // namespace

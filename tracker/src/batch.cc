@@ -4,9 +4,13 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <iterator>
 #include <limits>
+#include <map>
+#include <utility>
 
 #include "factors.h"
+#include "sensor_offset.h"
 #include "magnav/core/error.h"
 #include "magnav/core/units.h"
 #include "magnav/tracker/cost_functions.h"
@@ -189,6 +193,67 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
   };
   internal::PassResult pr;
   bool r_final_pass = false;
+  // The per-sensor B offset (sensor_offset): one per sensor and segment of
+  // segment_s from the first epoch. After each stage's solve, up to `passes`
+  // rounds over the span: every offset set to its conditional mean given the
+  // track, then the track solved again; the rounds stop once no offset moves
+  // by more than tolerance_T. The restarts below keep the last offsets.
+  const SensorOffsetOptions& so = options.sensor_offset;
+  const double t_first = epochs.empty() ? 0.0 : epochs.front().t_s;
+  using OffsetKey = std::pair<std::uint32_t, long>;
+  const auto key_of = [&](const GradiometerSample& smp, double t_s) {
+    return OffsetKey{smp.sensor_id, static_cast<long>(std::floor((t_s - t_first) / so.segment_s))};
+  };
+  std::map<OffsetKey, Eigen::Vector3d> own;
+  const auto offset_rounds = [&](bool intermediate) {
+    for (int pass = 0; pass < so.batch_passes && r_final_pass && pr.last.IsSolutionUsable(); ++pass) {
+      std::map<OffsetKey, internal::SensorOffsetAccumulator> acc;
+      for (std::size_t k = i0; k <= i1; ++k) {
+        for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
+          const GradiometerSample& smp = epochs[k].samples[j];
+          const OffsetKey key = key_of(smp, epochs[k].t_s);
+          const auto it = own.find(key);
+          acc[key].Add(factors[k][j], SigmaB(smp, options), it == own.end() ? Eigen::Vector3d::Zero() : it->second);
+        }
+      }
+      // Per sensor, its segments from the first to the last with samples,
+      // joined by the random walk (SmoothOffsets).
+      double largest_change = 0.0;
+      for (auto first = acc.begin(); first != acc.end();) {
+        auto last = first;
+        while (std::next(last) != acc.end() && std::next(last)->first.first == first->first.first) ++last;
+        const long k0 = first->first.second, k1 = last->first.second;
+        std::vector<const internal::SensorOffsetAccumulator*> segments(static_cast<std::size_t>(k1 - k0 + 1), nullptr);
+        std::vector<double> sigma(segments.size());
+        for (long k = k0; k <= k1; ++k) sigma[k - k0] = so.PriorSigma(t_first + (static_cast<double>(k) + 0.5) * so.segment_s);
+        for (auto it = first; it != std::next(last); ++it) segments[it->first.second - k0] = &it->second;
+        const std::vector<Eigen::Vector3d> o = internal::SmoothOffsets(segments, sigma, so.StepSigma());
+        for (long k = k0; k <= k1; ++k) {
+          const OffsetKey key{first->first.first, k};
+          const auto it = own.find(key);
+          const Eigen::Vector3d& ok = o[k - k0];
+          largest_change = std::max(largest_change, (ok - (it == own.end() ? Eigen::Vector3d::Zero() : it->second)).norm());
+          own[key] = ok;
+        }
+        first = std::next(last);
+      }
+      for (std::size_t k = 0; k < epochs.size(); ++k) {
+        for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
+          const auto it = own.find(key_of(epochs[k].samples[j], epochs[k].t_s));
+          static_cast<MeasurementCost*>(factors[k][j].cost.get())
+              ->SetBackgroundOffset(it == own.end() ? Eigen::Vector3d::Zero() : it->second);
+        }
+      }
+      internal::PassResult r = internal::SolveWithContinuation(options, options.max_num_iterations, intermediate,
+                                                               measurements, false, build);
+      pr.iterations += r.iterations;
+      pr.solve_time_s += r.solve_time_s;
+      pr.last = r.last;
+      pr.final_loss = std::move(r.final_loss);
+      r_final_pass = r.reached_final_pass;
+      if (largest_change <= so.tolerance_T) break;
+    }
+  };
   for (int stage = 0;; ++stage) {
     measurements.clear();
     for (std::size_t k = i0; k <= i1; ++k) {
@@ -205,6 +270,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
     pr.last = r.last;
     pr.final_loss = std::move(r.final_loss);
     r_final_pass = r.reached_final_pass;
+    if (so.enabled) offset_rounds(!last_stage);
     if (i0 == 0 && i1 + 1 == epochs.size()) break;
     const double grow = (epochs[i1].t_s - epochs[i0].t_s) * (options.batch_growth_factor - 1.0) * 0.5 + 1.0;
     const std::size_t old0 = i0, old1 = i1;

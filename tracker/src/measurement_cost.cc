@@ -62,6 +62,15 @@ bool MeasurementCost::Evaluate(double const* const* parameters, double* residual
   return true;
 }
 
+Eigen::Vector3d MeasurementCost::BResidual(double const* const* parameters) const {
+  const double* state = parameters[0];
+  const Eigen::Vector3d m_B = moment_scale_ * Eigen::Map<const Eigen::Vector3d>(parameters[1]);
+  const Eigen::Vector3d m_W = HeadingRotation(state[4]) * m_B;
+  const Eigen::Vector3d r_DtoS = p_SinW_ - Eigen::Vector3d(state[0], state[1], state[2]);
+  const Measurement8 pred = DipoleMeasurement(r_DtoS, m_W, nullptr, nullptr);
+  return z_.head<3>() - pred.head<3>();
+}
+
 KinematicCost::KinematicCost(double dt_s, double sigma_p, double sigma_v, double sigma_h, double sigma_depth)
     : dt_(dt_s) {
   const double root_dt = std::sqrt(dt_s);

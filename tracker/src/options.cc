@@ -1,5 +1,6 @@
 #include "magnav/tracker/options.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <string>
@@ -72,12 +73,34 @@ bool InitOptions::IsValid(std::string* error) const {
   return true;
 }
 
+double SensorOffsetOptions::PriorSigma(double t_s) const {
+  const double drift = max_rate_T_per_s * std::max(0.0, t_s - b0_time_s);
+  return std::sqrt(floor_T * floor_T + drift * drift);
+}
+
+double SensorOffsetOptions::StepSigma() const { return std::max(max_rate_T_per_s * segment_s, 0.1 * floor_T); }
+
+bool SensorOffsetOptions::IsValid(std::string* error) const {
+  if (!(max_rate_T_per_s >= 0.0) || !std::isfinite(max_rate_T_per_s)) {
+    return Fail(error, "sensor_offset.max_rate_T_per_s must be finite and >= 0");
+  }
+  if (!PositiveFinite(floor_T)) return Fail(error, "sensor_offset.floor_T must be > 0");
+  if (!std::isfinite(b0_time_s)) return Fail(error, "sensor_offset.b0_time_s must be finite");
+  if (!PositiveFinite(segment_s)) return Fail(error, "sensor_offset.segment_s must be > 0");
+  if (passes < 1 || batch_passes < 1) return Fail(error, "sensor_offset.passes and batch_passes must be >= 1");
+  if (!(tolerance_T >= 0.0) || !std::isfinite(tolerance_T)) {
+    return Fail(error, "sensor_offset.tolerance_T must be finite and >= 0");
+  }
+  return true;
+}
+
 bool TrackerOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(default_sigma_B_T)) return Fail(error, "default_sigma_B_T must be > 0");
   if (!PositiveFinite(default_sigma_T_Tpm)) return Fail(error, "default_sigma_T_Tpm must be > 0");
   if (!PositiveFinite(measurement_loss_scale_sigma))
     return Fail(error, "measurement_loss_scale_sigma must be > 0");
   if (!process.IsValid(error) || !init.IsValid(error)) return false;
+  if (!sensor_offset.IsValid(error)) return false;
   if (!std::isfinite(epoch_tolerance_s) || epoch_tolerance_s < 0.0) {
     return Fail(error, "epoch_tolerance_s must be >= 0");
   }

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "factors.h"
+#include "sensor_offset.h"
 #include "state_io.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/dipole.h"
@@ -78,13 +79,44 @@ struct WindowTracker::Impl {
   bool chain_fresh = false;
   // Per-sensor background offsets added to B0 (SetBackgroundOffsets).
   WindowTracker::BackgroundOffsetFn offsets;
+  // The track's own per-sensor B offset over the window (world NED, T;
+  // TrackerOptions::sensor_offset), added to B0 and to `offsets`.
+  std::map<std::uint32_t, Eigen::Vector3d> own_offsets;
 
-  void ApplyOffsets(WindowEpoch& w) const {
-    if (!offsets) return;
+  Eigen::Vector3d OwnOffset(std::uint32_t sensor_id) const {
+    const auto it = own_offsets.find(sensor_id);
+    return it == own_offsets.end() ? Eigen::Vector3d::Zero() : it->second;
+  }
+
+  // `force`: set every factor's offset even with none (back to zero).
+  void ApplyOffsets(WindowEpoch& w, bool force = false) const {
+    if (!force && !offsets && own_offsets.empty()) return;
     for (std::size_t i = 0; i < w.measurements.size(); ++i) {
       auto* cost = static_cast<MeasurementCost*>(w.measurements[i].cost.get());
-      cost->SetBackgroundOffset(offsets(w.epoch.samples[i].sensor_id, w.epoch.t_s));
+      const std::uint32_t id = w.epoch.samples[i].sensor_id;
+      Eigen::Vector3d o = OwnOffset(id);
+      if (offsets) o += offsets(id, w.epoch.t_s);
+      cost->SetBackgroundOffset(o);
     }
+  }
+
+  // Every sensor's own offset set to its conditional mean given the window's
+  // track (sensor_offset.h), the prior σ at the window's middle time.
+  void UpdateOwnOffsets() {
+    std::map<std::uint32_t, internal::SensorOffsetAccumulator> acc;
+    for (const WindowEpoch& w : window) {
+      for (std::size_t i = 0; i < w.measurements.size(); ++i) {
+        const GradiometerSample& smp = w.epoch.samples[i];
+        acc[smp.sensor_id].Add(w.measurements[i], SigmaB(smp, options), OwnOffset(smp.sensor_id));
+      }
+    }
+    const double t_mid = 0.5 * (window.front().epoch.t_s + window.back().epoch.t_s);
+    const double sigma = options.sensor_offset.PriorSigma(t_mid);
+    std::map<std::uint32_t, Eigen::Vector3d> next;
+    for (const auto& [id, a] : acc) next[id] = a.Mean(sigma);
+    own_offsets = std::move(next);
+    for (WindowEpoch& w : window) ApplyOffsets(w, true);
+    chain_fresh = false;
   }
 
   void Append(const Epoch& e, const StateVector& x0) {
@@ -281,8 +313,19 @@ struct WindowTracker::Impl {
   }
 
   // Solves the window; `start` = first solve from the initialiser's guess
-  // (robust-loss continuation, more iterations).
+  // (robust-loss continuation, more iterations). With the per-sensor offset
+  // (sensor_offset), each solve is followed by sensor_offset.passes rounds of
+  // the offsets' update and a Gauss-Newton solve of the track given them.
   void Solve(bool start) {
+    SolveOnce(start);
+    if (!options.sensor_offset.enabled) return;
+    for (int pass = 0; pass < options.sensor_offset.passes && summary.usable; ++pass) {
+      UpdateOwnOffsets();
+      SolveOnce(false);
+    }
+  }
+
+  void SolveOnce(bool start) {
     const auto t0 = std::chrono::steady_clock::now();
     chain_fresh = false;
     ceres::Solver::Summary cs;
@@ -649,6 +692,13 @@ void WindowTracker::SaveState(StateWriter& w) const {
   w.F64(m.last_solve_t);
   w.I64(m.rejected_samples);
   w.I64(m.dropped_factors);
+  if (m.options.sensor_offset.enabled) {  // the options are the restoring tracker's too
+    w.U64(m.own_offsets.size());
+    for (const auto& [id, o] : m.own_offsets) {
+      w.U64(id);
+      w.Matrix(o);
+    }
+  }
   w.U8(m.chain_ok ? 1 : 0);
   w.U8(m.chain_fresh ? 1 : 0);
 }
@@ -689,6 +739,13 @@ void WindowTracker::RestoreState(StateReader& r) {
   m.last_solve_t = r.F64();
   m.rejected_samples = static_cast<int>(r.I64());
   m.dropped_factors = static_cast<int>(r.I64());
+  if (m.options.sensor_offset.enabled) {
+    for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
+      const auto id = static_cast<std::uint32_t>(r.U64());
+      m.own_offsets[id] = internal::GetMatrix(r, 3, 1);
+    }
+    for (WindowEpoch& e : m.window) m.ApplyOffsets(e, true);
+  }
   m.chain_ok = r.U8() != 0;
   // The factorisation is of the window at its current estimate: made again.
   if (r.U8() != 0 && !m.window.empty()) m.chain_fresh = internal::FactorizeChain(m.Chain(), &m.chain);
@@ -700,11 +757,7 @@ void WindowTracker::SetBackgroundOffsets(BackgroundOffsetFn offset) {
   Impl& m = *impl_;
   m.offsets = std::move(offset);
   for (WindowEpoch& w : m.window) {
-    if (m.offsets) {
-      m.ApplyOffsets(w);
-    } else {
-      for (auto& f : w.measurements) static_cast<MeasurementCost*>(f.cost.get())->SetBackgroundOffset(Eigen::Vector3d::Zero());
-    }
+    m.ApplyOffsets(w, true);
   }
   m.chain_fresh = false;  // the factorisation was of the old measurements
 }

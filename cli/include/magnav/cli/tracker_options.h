@@ -31,6 +31,7 @@ struct TrackerFlags {
   std::string far_grid_when_refused = "on";
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
+  std::string sensor_offset = tracker::SensorOffsetOptions{}.enabled ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
           ? "residuals"
@@ -275,6 +276,27 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "no longer fits (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--sensor-offset", f->sensor_offset,
+                 "each track's window and batch solve gives every sensor a B offset (world NED) as a nuisance, constant "
+                 "over the window or over one --sensor-offset-segment of the batch, with a zero-mean prior from the "
+                 "drift model (on), or takes B0 as it is (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--sensor-offset-rate", t.sensor_offset.max_rate_T_per_s,
+                 "sensor offset: the drift rate bound of its prior, sigma = hypot(--sensor-offset-floor, rate * "
+                 "(t - B0's time 0)), T/s per axis")
+      ->capture_default_str();
+  app.add_option("--sensor-offset-floor", t.sensor_offset.floor_T, "sensor offset: its prior's sigma at t = 0, T")
+      ->capture_default_str();
+  app.add_option("--sensor-offset-segment", t.sensor_offset.segment_s,
+                 "sensor offset: the batch's offsets are constant over segments this long, s")
+      ->capture_default_str();
+  app.add_option("--sensor-offset-passes", t.sensor_offset.passes,
+                 "sensor offset: rounds of the offsets' update and the track's solve after each window solve")
+      ->capture_default_str();
+  app.add_option("--sensor-offset-batch-passes", t.sensor_offset.batch_passes,
+                 "sensor offset: at most this many rounds after each stage of the batch's growing solve")
+      ->capture_default_str();
   app.add_option("--far-loss", f->far_loss,
                  "far source: the fit's robust loss on the whitened B residual (cauchy, huber or trivial)")
       ->capture_default_str();
@@ -304,6 +326,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   if (!tracker::ParseLossType(f.far_loss, &o.far_source.loss)) {
     throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");
   }
+  o.track.sensor_offset.enabled = f.sensor_offset == "on";
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals

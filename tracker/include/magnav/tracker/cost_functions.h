@@ -44,6 +44,9 @@ class MeasurementCost final : public ceres::SizedCostFunction<8, 6, 3> {
   // The sensor's background offset (world NED, T) added to B0 in this
   // factor's B (cluster_background.h); zero at construction.
   void SetBackgroundOffset(const Eigen::Vector3d& offset_W) { z_.head<3>() = B_minus_B0_ - offset_W; }
+  // The B part of the residual at the parameters, unwhitened: the sample's B
+  // minus B0 and the offset, minus the dipole's predicted B (world NED, T).
+  Eigen::Vector3d BResidual(double const* const* parameters) const;
 
  private:
   Eigen::Vector3d p_SinW_;

@@ -1,0 +1,63 @@
+#include "sensor_offset.h"
+
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "magnav/tracker/cost_functions.h"
+
+namespace magnav::tracker::internal {
+
+bool SensorOffsetAccumulator::Add(const Factor& f, double sigma_B_T, const Eigen::Vector3d& own_W) {
+  const auto* cost = dynamic_cast<const MeasurementCost*>(f.cost.get());
+  if (cost == nullptr || f.blocks.size() != 2 || !(sigma_B_T > 0.0)) return false;
+  const double* parameters[2] = {f.blocks[0], f.blocks[1]};
+  Eigen::Matrix<double, 8, 1> e;
+  if (!cost->Evaluate(parameters, e.data(), nullptr) || !e.allFinite()) return false;
+  double w = 1.0;
+  if (f.loss != nullptr) {
+    double rho[3];
+    f.loss->Evaluate(e.squaredNorm(), rho);
+    w = rho[1];
+  }
+  const Eigen::Vector3d r = cost->BResidual(parameters) + own_W;
+  if (!r.allFinite() || !(w >= 0.0)) return false;
+  const double inv_var = 1.0 / (sigma_B_T * sigma_B_T);
+  weighted_sum_ += w * inv_var * r;
+  information_ += w * inv_var;
+  return true;
+}
+
+Eigen::Vector3d SensorOffsetAccumulator::Mean(double prior_sigma_T) const {
+  const double prior_information = 1.0 / (prior_sigma_T * prior_sigma_T);
+  return weighted_sum_ / (information_ + prior_information);
+}
+
+std::vector<Eigen::Vector3d> SmoothOffsets(const std::vector<const SensorOffsetAccumulator*>& segments,
+                                           const std::vector<double>& prior_sigma_T, double step_sigma_T) {
+  const int n = static_cast<int>(segments.size());
+  // Normal equations, the same for the three axes: A o = b (A tridiagonal,
+  // solved densely: a pass has tens of segments per sensor).
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, 3);
+  const double step_information = 1.0 / (step_sigma_T * step_sigma_T);
+  for (int k = 0; k < n; ++k) {
+    A(k, k) += 1.0 / (prior_sigma_T[k] * prior_sigma_T[k]);
+    if (segments[k] != nullptr) {
+      A(k, k) += segments[k]->information();
+      b.row(k) = segments[k]->weighted_sum().transpose();
+    }
+    if (k + 1 < n) {
+      A(k, k) += step_information;
+      A(k + 1, k + 1) += step_information;
+      A(k, k + 1) -= step_information;
+      A(k + 1, k) -= step_information;
+    }
+  }
+  const Eigen::MatrixXd o = A.ldlt().solve(b);
+  std::vector<Eigen::Vector3d> out(n);
+  for (int k = 0; k < n; ++k) out[k] = o.row(k).transpose();
+  return out;
+}
+
+}  // namespace magnav::tracker::internal

@@ -1,0 +1,42 @@
+// Internal: the per-sensor B offset nuisance of a track's window and batch
+// solve (SensorOffsetOptions, options.h).
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "factors.h"
+
+namespace magnav::tracker::internal {
+
+// The samples that share one offset (one sensor over the window, or over a
+// batch segment): the offset's conditional mean given the track at the
+// current parameter values, under its zero-mean Gaussian prior.
+class SensorOffsetAccumulator {
+ public:
+  // One measurement factor (a MeasurementCost, blocks {state, moment}) whose
+  // sample has σ_B sigma_B_T and whose B currently has own_W (world NED, T)
+  // of this offset removed. False (nothing added) if it cannot be evaluated.
+  bool Add(const Factor& f, double sigma_B_T, const Eigen::Vector3d& own_W);
+  // Σ w_i r_i/σ_i² / (Σ w_i/σ_i² + 1/σ_o²): r_i the sample's B minus B0 (and
+  // any offset from outside) minus the track's predicted B; w_i the robust
+  // loss's weight ρ′(‖e_i‖²) (1 without a loss). World NED, T.
+  Eigen::Vector3d Mean(double prior_sigma_T) const;
+  // Σ w_i r_i/σ_i² (T⁻¹) and Σ w_i/σ_i² (T⁻²), for a joint solve of several.
+  const Eigen::Vector3d& weighted_sum() const { return weighted_sum_; }
+  double information() const { return information_; }
+
+ private:
+  Eigen::Vector3d weighted_sum_ = Eigen::Vector3d::Zero();  // T⁻¹
+  double information_ = 0.0;                                // T⁻²
+};
+
+// One sensor's offsets over consecutive segments o_0..o_{n−1} (world NED, T)
+// joined by a random walk: the minimiser of
+//   Σ_k [Σ_i∈k w_i‖r_i − o_k‖²/σ_i² + ‖o_k‖²/σ_k²] + Σ_k ‖o_{k+1} − o_k‖²/q²
+// (segments[k]: segment k's accumulator, absent = no sample; prior_sigma_T[k]
+// its prior σ_k; step_sigma_T = q, the most a drift moves between segments).
+std::vector<Eigen::Vector3d> SmoothOffsets(const std::vector<const SensorOffsetAccumulator*>& segments,
+                                           const std::vector<double>& prior_sigma_T, double step_sigma_T);
+
+}  // namespace magnav::tracker::internal
