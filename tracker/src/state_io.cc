@@ -168,6 +168,13 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.F64(g.residual_start.lone_min_span_s);
   w.I64(static_cast<std::int64_t>(g.residual_start.lone_pair));
   w.I64(static_cast<std::int64_t>(g.pair_refit_excess));
+  // The sensor offsets change every estimate, and the window's checkpoint
+  // holds them only when they are on.
+  const SensorOffsetOptions& so = t.sensor_offset;
+  w.I64(static_cast<std::int64_t>(so.enabled));
+  w.I64(static_cast<std::int64_t>(so.passes));
+  w.I64(static_cast<std::int64_t>(so.batch_passes));
+  for (double d : {so.max_rate_T_per_s, so.floor_T, so.b0_time_s, so.segment_s, so.tolerance_T}) w.F64(d);
   return w.bytes();
 }
 
