@@ -145,19 +145,28 @@ TrackGate PredictGate(const CtState<double>& predicted, double t_s, const EpochE
     g.cov_p_W = s * s * Eigen::Matrix3d::Identity();
     return g;
   }
-  const CtState<double> x{newest->p_VinW.x(), newest->p_VinW.y(), newest->p_VinW.z(),
-                          newest->speed_mps,  newest->heading_rad, newest->turn_rate_radps};
-  const double dt = t_s - newest->t_s;
+  CtState<double> x;
+  StateCovariance P;
+  PropagateEstimate(*newest, t_s, options, &x, &P);
+  g.cov_p_W = P.topLeftCorner<3, 3>();
+  g.valid = g.valid && g.cov_p_W.allFinite();
+  return g;
+}
+
+bool PropagateEstimate(const EpochEstimate& e, double t_s, const MultiTrackerOptions& options, CtState<double>* state,
+                       StateCovariance* P) {
+  if (!e.usable || !e.has_covariance || !e.cov_state.allFinite()) return false;
+  const CtState<double> x{e.p_VinW.x(), e.p_VinW.y(), e.p_VinW.z(), e.speed_mps, e.heading_rad, e.turn_rate_radps};
+  const double dt = t_s - e.t_s;
+  *state = PropagateCoordinatedTurn(x, dt);
   const Eigen::Matrix<double, 6, 6> F = CoordinatedTurnJacobian(x, dt);
   const ProcessNoise& q = options.track.process;
   Eigen::Matrix<double, 6, 1> w;
   w << q.position_m_per_sqrt_s, q.position_m_per_sqrt_s, q.depth_m_per_sqrt_s, q.speed_mps_per_sqrt_s,
       q.heading_rad_per_sqrt_s, q.window_turn_rate_radps_per_sqrt_s;
-  const StateCovariance P =
-      F * newest->cov_state * F.transpose() + Eigen::Matrix<double, 6, 1>(w.array().square() * std::abs(dt)).asDiagonal().toDenseMatrix();
-  g.cov_p_W = P.topLeftCorner<3, 3>();
-  g.valid = g.valid && g.cov_p_W.allFinite();
-  return g;
+  *P = F * e.cov_state * F.transpose();
+  P->diagonal() += w.array().square().matrix() * std::abs(dt);
+  return std::isfinite(state->x) && std::isfinite(state->y) && P->allFinite();
 }
 
 namespace {

@@ -6,30 +6,13 @@
 
 #include "magnav/core/motion.h"
 #include "magnav/core/units.h"
+#include "magnav/tracker/association.h"
 
 namespace magnav::tracker {
 
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// An estimate's state and covariance propagated to t_s (PredictGate's
-// model: the coordinated turn, the window's process noise).
-bool Propagate(const EpochEstimate& e, double t_s, const MultiTrackerOptions& options, CtState<double>* s,
-               StateCovariance* P) {
-  if (!e.usable || !e.has_covariance || !e.cov_state.allFinite()) return false;
-  const CtState<double> x{e.p_VinW.x(), e.p_VinW.y(), e.p_VinW.z(), e.speed_mps, e.heading_rad, e.turn_rate_radps};
-  const double dt = t_s - e.t_s;
-  *s = PropagateCoordinatedTurn(x, dt);
-  const Eigen::Matrix<double, 6, 6> F = CoordinatedTurnJacobian(x, dt);
-  const ProcessNoise& q = options.track.process;
-  Eigen::Matrix<double, 6, 1> w;
-  w << q.position_m_per_sqrt_s, q.position_m_per_sqrt_s, q.depth_m_per_sqrt_s, q.speed_mps_per_sqrt_s,
-      q.heading_rad_per_sqrt_s, q.window_turn_rate_radps_per_sqrt_s;
-  *P = F * e.cov_state * F.transpose();
-  P->diagonal() += w.array().square().matrix() * std::abs(dt);
-  return std::isfinite(s->x) && std::isfinite(s->y) && P->allFinite();
-}
 
 }  // namespace
 
@@ -38,7 +21,7 @@ bool ReacquirableEnd(const std::string& reason) { return reason != "duplicate" &
 double ContinuationChi2(const EpochEstimate& a, const EpochEstimate& b, double t_s, const MultiTrackerOptions& options) {
   CtState<double> sa, sb;
   StateCovariance Pa, Pb;
-  if (!Propagate(a, t_s, options, &sa, &Pa) || !Propagate(b, t_s, options, &sb, &Pb)) return kInf;
+  if (!PropagateEstimate(a, t_s, options, &sa, &Pa) || !PropagateEstimate(b, t_s, options, &sb, &Pb)) return kInf;
   // [x y speed heading] of the state order [x y z v h ω].
   const int idx[4] = {0, 1, 3, 4};
   Eigen::Matrix4d S;

@@ -123,6 +123,14 @@ struct TrackGate {
 TrackGate PredictGate(const CtState<double>& predicted, double t_s, const EpochEstimate* newest,
                       const MultiTrackerOptions& options);
 
+// An estimate's state and covariance propagated to t_s by the
+// coordinated-turn model, its covariance by the model's Jacobian with the
+// window's process noise (options.track.process, the window's turn-rate
+// walk) over |t_s − e.t_s| — PredictGate's propagation. False without a
+// usable estimate with a finite covariance, or if the result is not finite.
+bool PropagateEstimate(const EpochEstimate& e, double t_s, const MultiTrackerOptions& options, CtState<double>* state,
+                       StateCovariance* P);
+
 // One piece of evidence: a fix (world NED, m) of one sample, with its
 // covariance (m²; not finite: taken as exact, the track's covariance alone
 // gates it).
