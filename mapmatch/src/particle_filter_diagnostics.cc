@@ -347,7 +347,11 @@ void ConvergingCovariance::Publish(double ins_lat, double ins_lon, StepDiagnosti
   const double ll = (c_[0] + oo_[0] - 2.0 * o_[0] * a) / k + a * a;
   const double ln = (c_[1] + oo_[1] - o_[0] * b - o_[1] * a) / k + a * b;
   const double nn = (c_[2] + oo_[2] - 2.0 * o_[1] * b) / k + b * b;
-  if (!(ll + nn > d->cov_lat_lat + d->cov_lon_lon)) return;
+  PublishIfWider(ll, ln, nn, d);
+}
+
+void PublishIfWider(double ll, double ln, double nn, StepDiagnostics* d) {
+  if (!std::isfinite(ll + ln + nn) || !(ll + nn > d->cov_lat_lat + d->cov_lon_lon)) return;
   d->cov_lat_lat = ll, d->cov_lat_lon = ln, d->cov_lon_lon = nn;
 }
 

@@ -186,9 +186,7 @@ void AcquisitionEnsemble::PublishMixtureCovariance(StepDiagnostics* d) const {
       ll += a * dl * dl, ln += a * dl * dn, nn += a * dn * dn;
     }
   }
-  if (std::isfinite(ll + ln + nn) && ll + nn > d->cov_lat_lat + d->cov_lon_lon) {
-    d->cov_lat_lat = ll, d->cov_lat_lon = ln, d->cov_lon_lon = nn;
-  }
+  PublishIfWider(ll, ln, nn, d);
 }
 
 }  // namespace

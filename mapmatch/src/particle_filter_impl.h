@@ -47,6 +47,10 @@ double CloudDisagreement(const StepDiagnostics& a, const StepDiagnostics& b);
 // and the acquisition ensemble's evidence check sum it over their windows.
 double StepLogEvidence(const StepDiagnostics& s);
 
+// A mixture's covariance (deg²) published in place of the step's if it is finite and wider (its trace
+// larger): the converging episode's mixture and the acquisition shadows' never narrow what the filter says.
+void PublishIfWider(double ll, double ln, double nn, StepDiagnostics* d);
+
 // The published covariance while converging (ParticleFilterOptions::converging_covariance_mixture,
 // particle_filter_diagnostics.cc): running sums over the converging episode's clouds (the cloud of the
 // step before it, then every converging step's), as offsets from their INS positions o_i (deg) with

@@ -217,7 +217,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
         }
       }
       // Per sensor, its segments from the first to the last with samples,
-      // joined by the random walk (SmoothOffsets).
+      // joined by the random walk (SegmentOffsets).
       double largest_change = 0.0;
       for (auto first = acc.begin(); first != acc.end();) {
         auto last = first;
@@ -227,7 +227,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
         std::vector<double> sigma(segments.size());
         for (long k = k0; k <= k1; ++k) sigma[k - k0] = so.PriorSigma(t_first + (static_cast<double>(k) + 0.5) * so.segment_s);
         for (auto it = first; it != std::next(last); ++it) segments[it->first.second - k0] = &it->second;
-        const std::vector<Eigen::Vector3d> o = internal::SmoothOffsets(segments, sigma, so.StepSigma());
+        const std::vector<Eigen::Vector3d> o = internal::SegmentOffsets(segments, sigma, so.StepSigma());
         for (long k = k0; k <= k1; ++k) {
           const OffsetKey key{first->first.first, k};
           const auto it = own.find(key);

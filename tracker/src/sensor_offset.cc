@@ -33,7 +33,7 @@ Eigen::Vector3d SensorOffsetAccumulator::Mean(double prior_sigma_T) const {
   return weighted_sum_ / (information_ + prior_information);
 }
 
-std::vector<Eigen::Vector3d> SmoothOffsets(const std::vector<const SensorOffsetAccumulator*>& segments,
+std::vector<Eigen::Vector3d> SegmentOffsets(const std::vector<const SensorOffsetAccumulator*>& segments,
                                            const std::vector<double>& prior_sigma_T, double step_sigma_T) {
   const int n = static_cast<int>(segments.size());
   // Normal equations, the same for the three axes: A o = b (A tridiagonal,

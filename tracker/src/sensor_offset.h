@@ -32,11 +32,13 @@ class SensorOffsetAccumulator {
 };
 
 // One sensor's offsets over consecutive segments o_0..o_{n−1} (world NED, T)
-// joined by a random walk: the minimiser of
+// joined by a random walk — per segment, each with its own zero-mean prior
+// (the cluster background's SmoothOffsets, cluster_background.h, is a
+// per-sample smoother from one prior) — the minimiser of
 //   Σ_k [Σ_i∈k w_i‖r_i − o_k‖²/σ_i² + ‖o_k‖²/σ_k²] + Σ_k ‖o_{k+1} − o_k‖²/q²
 // (segments[k]: segment k's accumulator, absent = no sample; prior_sigma_T[k]
 // its prior σ_k; step_sigma_T = q, the most a drift moves between segments).
-std::vector<Eigen::Vector3d> SmoothOffsets(const std::vector<const SensorOffsetAccumulator*>& segments,
+std::vector<Eigen::Vector3d> SegmentOffsets(const std::vector<const SensorOffsetAccumulator*>& segments,
                                            const std::vector<double>& prior_sigma_T, double step_sigma_T);
 
 }  // namespace magnav::tracker::internal
