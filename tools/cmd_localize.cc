@@ -162,7 +162,7 @@ void AddLocalizeCommand(CLI::App& app) {
   cmd->add_option("--ekf-iterations", args->options.magnetometer_iterations,
                   "EKF: iterations of each magnetometer update (iterated EKF); 1 = plain EKF")
       ->capture_default_str();
-  cmd->add_option("--check-batch", args->check_batch,
+  cli::AddSwitchOption(*cmd, "--check-batch", &args->check_batch,
                   "ekf, ekf-bounded: also solve the batch smoother over the pass and report 'diverged' when a "
                   "sensor's EKF estimate is beyond the gate of its own covariance from the smoother's (2-dof NEES of "
                   "the difference > chi-square quantile of --gate-probability; docs/ACCURACY.md \"Trust: honest "

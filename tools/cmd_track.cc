@@ -284,11 +284,11 @@ void AddTrackCommand(CLI::App& app) {
                   "change points, each kept if it ends at a lower cost (0 = none, at most " +
                       std::to_string(tracker::TrackerOptions::kMaxBatchTurnChangePoints) + ")")
       ->capture_default_str();
-  cmd->add_option("--batch-restart-from-window", args->flags.options.batch_restart_from_window,
+  cli::AddSwitchOption(*cmd, "--batch-restart-from-window", &args->flags.options.batch_restart_from_window,
                   "batch: also restart each track's solve from the window track that found it, kept if it ends at a "
                   "lower cost (0/1)")
       ->capture_default_str();
-  cmd->add_option("--batch-weak-init", args->flags.options.batch_weak_init,
+  cli::AddSwitchOption(*cmd, "--batch-weak-init", &args->flags.options.batch_weak_init,
                   "batch: a track too weak for the field's start SNR (started in the residual) is initialised at "
                   "the residual start's SNR (--residual-start-snr) and refined; 0: it keeps its window rows (0/1)")
       ->capture_default_str();
@@ -296,19 +296,19 @@ void AddTrackCommand(CLI::App& app) {
                   "batch: Cauchy scale of the turn-rate changes in each track's solve, in sigmas of one step (0 = "
                   "--turn-loss-scale, as the window)")
       ->capture_default_str();
-  cmd->add_option("--batch-model-spread", args->flags.options.track.batch_model_spread,
+  cli::AddSwitchOption(*cmd, "--batch-model-spread", &args->flags.options.track.batch_model_spread,
                   "batch: add to each state's covariance the spread of the restarts' ends about the chosen one, "
                   "weighted by exp(-cost difference) (model averaging over the turn's change points; 0/1)")
       ->capture_default_str();
-  cmd->add_option("--start-rows", args->flags.options.management.backfill_start,
+  cli::AddSwitchOption(*cmd, "--start-rows", &args->flags.options.management.backfill_start,
                   "window: a track started by a two-dipole fit also gets its start's rows from its first strong "
                   "epoch (state start: the window's smoothed estimates, output up to --window late; 0/1)")
       ->capture_default_str();
-  cmd->add_option("--start-rows-single", args->flags.options.management.backfill_single,
+  cli::AddSwitchOption(*cmd, "--start-rows-single", &args->flags.options.management.backfill_single,
                   "window: with --start-rows, a track made by a single start (its own fixes) gets its start's rows "
                   "too, from its first fix (0/1)")
       ->capture_default_str();
-  cmd->add_option("--start-rows-older", args->flags.options.management.residual_start.backfill_older,
+  cli::AddSwitchOption(*cmd, "--start-rows-older", &args->flags.options.management.residual_start.backfill_older,
                   "window: with --start-rows, the older track of a joint start (a single start confirmed before the "
                   "other vessel's start made them a pair) gets its start's rows too (0/1)")
       ->capture_default_str();

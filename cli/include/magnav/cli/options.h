@@ -42,6 +42,15 @@ inline void AddVec3Option(CLI::App& app, const std::string& name, Vec3Arg* out, 
       ->type_name("X,Y,Z");
 }
 
+// A yes/no option ("--x 1", "--x off"). CLI11 converts any integer to a bool
+// (2 -> true, -1 -> false), so a mistyped value would silently pick a side;
+// this accepts only 0/1, true/false, on/off (any case) and refuses the rest.
+inline CLI::Option* AddSwitchOption(CLI::App& app, const std::string& name, bool* out, const std::string& help) {
+  return app.add_option(name, *out, help)
+      ->check(CLI::IsMember({"0", "1", "true", "false", "on", "off"}, CLI::ignore_case))
+      ->type_name("0|1");
+}
+
 // The regional field B0 of a service: "--b0 BX,BY,BZ" (tesla, NED) or
 // "--b0 estimate" (per sensor, from quiet stretches of the stream). There is
 // no default: a service that is given neither refuses to start (a silent

@@ -7,15 +7,23 @@
 
 #include <map>
 #include <string>
+#include <type_traits>
 
 #include <CLI/CLI.hpp>
 
+#include "magnav/cli/options.h"
 #include "magnav/mapmatch/particle_filter.h"
 
 namespace magnav::cli {
 
 inline void AddParticleFilterOptions(CLI::App& app, mapmatch::ParticleFilterOptions* f) {
-  auto opt = [&](const char* name, auto* value, const char* help) { app.add_option(name, *value, help)->capture_default_str(); };
+  auto opt = [&](const char* name, auto* value, const char* help) {
+    if constexpr (std::is_same_v<std::remove_cvref_t<decltype(*value)>, bool>) {
+      AddSwitchOption(app, name, value, help)->capture_default_str();  // 0/1 only, not any integer
+    } else {
+      app.add_option(name, *value, help)->capture_default_str();
+    }
+  };
   opt("--particles", &f->num_particles, "pf: particles; afpf: the fewest it adapts down to (the paper: 3000)");
   opt("--max-particles", &f->max_particles, "afpf: particles at the start and at most (adaptive count)");
   opt("--particles-per-cell", &f->particles_per_cell,

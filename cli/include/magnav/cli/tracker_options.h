@@ -10,6 +10,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "magnav/cli/options.h"
 #include "magnav/core/error.h"
 #include "magnav/tracker/multi_tracker.h"
 
@@ -128,7 +129,7 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--ghost-b-snr", m.ghost_b_snr,
                  "... while its predicted B SNR is at least this at some sensor")
       ->capture_default_str();
-  app.add_option("--pair-refit-excess", m.pair_refit_excess,
+  cli::AddSwitchOption(app, "--pair-refit-excess", &m.pair_refit_excess,
                  "a pair's refit adds its coupling (the joint fit's marginal minus given-the-partner covariance) to "
                  "each refitted track's covariance for --window s after it (0/1; on)")
       ->capture_default_str();
@@ -169,11 +170,11 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--lone-start-span", m.residual_start.lone_min_span_s,
                  "... spanning at least this many seconds")
       ->capture_default_str();
-  app.add_option("--lone-pair-start", m.residual_start.lone_pair,
+  cli::AddSwitchOption(app, "--lone-pair-start", &m.residual_start.lone_pair,
                  "with no live track and no lone start, start two weak vessels abreast by the two-dipole fit with "
                  "the lone start's SNR, fixes and span (0/1)")
       ->capture_default_str();
-  app.add_option("--excuse-beside", m.excuse_beside,
+  cli::AddSwitchOption(app, "--excuse-beside", &m.excuse_beside,
                  "a track's misses do not count while a two-dipole fit beside it explains its samples with a "
                  "newcomer seen (its B and tensor, with tensor evidence) but too weak yet to start (0/1)")
       ->capture_default_str();
