@@ -308,19 +308,20 @@ void Filter::CheckTrack(double ins_lat, double ins_lon, double z, StepDiagnostic
 }
 
 // The published covariance: the cloud's, or, while the filter is lost, at
-// least the prior square's (a uniform over ±prior_half_width_deg: h²/3 per
-// axis): a lost filter does not know where it is within the region it would
-// search, and a collapsed cloud's spread says nothing then.
+// least the prior square's (FloorLostCovariance): a collapsed cloud's spread
+// says nothing then.
 void Filter::PublishCovariance(StepDiagnostics* d) const {
   d->cloud_cov_lat_lat = d->cov_lat_lat;
   d->cloud_cov_lat_lon = d->cov_lat_lon;
   d->cloud_cov_lon_lon = d->cov_lon_lon;
-  if (!d->lost || !o_.lost_covariance_is_prior) return;
-  const double v = o_.prior_half_width_deg * o_.prior_half_width_deg / 3.0;
-  if (d->cov_lat_lat + d->cov_lon_lon >= 2.0 * v) return;
-  d->cov_lat_lat = v;
-  d->cov_lat_lon = 0.0;
-  d->cov_lon_lon = v;
+  FloorLostCovariance(o_, d);
+}
+
+void FloorLostCovariance(const ParticleFilterOptions& o, StepDiagnostics* d) {
+  if (!d->lost || !o.lost_covariance_is_prior) return;
+  const double v = o.prior_half_width_deg * o.prior_half_width_deg / 3.0;
+  if (d->cloud_cov_lat_lat + d->cloud_cov_lon_lon >= 2.0 * v) return;
+  d->cov_lat_lat = v, d->cov_lat_lon = 0.0, d->cov_lon_lon = v;
 }
 
 // The converging covariance (converging_covariance_mixture): the equal mixture of the episode's clouds'

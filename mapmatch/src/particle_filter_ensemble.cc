@@ -134,12 +134,8 @@ const StepDiagnostics& AcquisitionEnsemble::Step(double ins_lat, double ins_lon,
     ++extra_lost_;
     if (d.converging) ++fewer_converging_;
     d.converging = false;
-    // The published covariance of a lost step (as the filter's own, lost_covariance_is_prior): at least
-    // the prior square's; the cloud's own stays in cloud_cov_*.
-    const double v = o_.prior_half_width_deg * o_.prior_half_width_deg / 3.0;
-    if (o_.lost_covariance_is_prior && d.cloud_cov_lat_lat + d.cloud_cov_lon_lon < 2.0 * v) {
-      d.cov_lat_lat = v, d.cov_lat_lon = 0.0, d.cov_lon_lon = v;
-    }
+    // The published covariance of a lost step, as the filter's own; the cloud's stays in cloud_cov_*.
+    FloorLostCovariance(o_, &d);
   }
   if (!shadow_steps_.empty() && !d.lost) PublishMixtureCovariance(&d);
   if (reinitialised) StartShadows();

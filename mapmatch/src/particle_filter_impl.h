@@ -51,6 +51,13 @@ double StepLogEvidence(const StepDiagnostics& s);
 // larger): the converging episode's mixture and the acquisition shadows' never narrow what the filter says.
 void PublishIfWider(double ll, double ln, double nn, StepDiagnostics* d);
 
+// A lost step's published covariance (ParticleFilterOptions::lost_covariance_is_prior): at least the
+// prior square's, a uniform over ±prior_half_width_deg (h²/3 deg² per axis), when the cloud's own
+// (cloud_cov_*) is narrower: a lost filter does not know where it is within the region it would search.
+// Nothing changes while the step is not lost or the option is off. The filter's step, the pooled
+// sub-clouds' and the acquisition ensemble's lost flag all publish through it.
+void FloorLostCovariance(const ParticleFilterOptions& o, StepDiagnostics* d);
+
 // The published covariance while converging (ParticleFilterOptions::converging_covariance_mixture,
 // particle_filter_diagnostics.cc): running sums over the converging episode's clouds (the cloud of the
 // step before it, then every converging step's), as offsets from their INS positions o_i (deg) with

@@ -115,10 +115,7 @@ const StepDiagnostics& SubClouds::Step(double ins_lat, double ins_lon, double me
   if (d.converging) ++counters_.converging_steps;
   // The published covariance: the pooled cloud's, while lost at least the prior square's (as one filter's).
   d.cov_lat_lat = d.cloud_cov_lat_lat, d.cov_lat_lon = d.cloud_cov_lat_lon, d.cov_lon_lon = d.cloud_cov_lon_lon;
-  const double v = o_.prior_half_width_deg * o_.prior_half_width_deg / 3.0;
-  if (d.lost && o_.lost_covariance_is_prior && d.cov_lat_lat + d.cov_lon_lon < 2.0 * v) {
-    d.cov_lat_lat = v, d.cov_lat_lon = 0.0, d.cov_lon_lon = v;
-  }
+  FloorLostCovariance(o_, &d);
   // While converging, the recent pooled clouds' mixture (as one filter's); a re-initialisation of any
   // sub-cloud starts its history again.
   if (counters_.reinitialisations != reinitialisations_seen_) converging_cov_.Clear();

@@ -190,7 +190,8 @@ TEST(Association, ASharedSensorIsGivenToEachTrackWithTheOthersFieldRemoved) {
 // The departing track's B where another track is (TrackManagementOptions::reach_shared_b_snr):
 // its largest predicted B SNR at a sensor the other track gates, and 0 where no other track gates.
 TEST(Association, SharedBSnrIsADepartingTracksBAtTheSensorsAnotherTrackGates) {
-  const MultiTrackerOptions opt;
+  MultiTrackerOptions opt;
+  opt.management.reach_shared_b_snr = 3.0;  // computed only for the rule that uses it
   // Sensor 0 under track 1 (5 m above it); the departing track 2 is 40 m away from
   // sensor 0 (its B there well above σ_B, its tensor below the reach) and 400 m from sensor 1.
   Epoch e{1.0, {Sensor(0, {0, 0, 0}), Sensor(1, {400, 0, 0})}};
@@ -208,8 +209,11 @@ TEST(Association, SharedBSnrIsADepartingTracksBAtTheSensorsAnotherTrackGates) {
   // Alone, track 2 shares no sensor with anyone.
   const auto alone = AssociateEpoch(e, {p2}, kB0, opt);
   EXPECT_EQ(alone[0].max_shared_b_snr, 0.0);
+  // With the rule off (the default) it is not computed.
+  const MultiTrackerOptions off;
+  EXPECT_EQ(AssociateEpoch(e, {p1, p2}, kB0, off)[1].max_shared_b_snr, 0.0);
   // The option: off by default, checked by IsValid.
-  EXPECT_EQ(opt.management.reach_shared_b_snr, 0.0);
+  EXPECT_EQ(off.management.reach_shared_b_snr, 0.0);
   MultiTrackerOptions bad = opt;
   bad.management.reach_shared_b_snr = -1.0;
   EXPECT_FALSE(bad.management.IsValid(nullptr));

@@ -56,7 +56,7 @@ std::vector<TrackAssociation> AssociateEpoch(const Epoch& epoch, const std::vect
         const double st0 = SigmaT(epoch.samples[j], options.track);
         const double t_snr = predictions[i].at[j].T.norm() / st0;
         if (std::isfinite(t_snr)) a.max_tensor_snr = std::max(a.max_tensor_snr, t_snr);
-        for (std::size_t k = 0; k < predictions.size(); ++k) {
+        for (std::size_t k = 0; mg.reach_shared_b_snr > 0.0 && k < predictions.size(); ++k) {
           if (k == i || !predictions[k].valid || !(predictions[k].at[j].snr >= mg.gate_snr)) continue;
           const double b_snr = predictions[i].at[j].B.norm() / SigmaB(epoch.samples[j], options.track);
           if (std::isfinite(b_snr)) a.max_shared_b_snr = std::max(a.max_shared_b_snr, b_snr);

@@ -76,8 +76,8 @@ struct TrackAssociation {
   double max_tensor_snr = 0.0;
   double max_own_tensor_snr = 0.0;
   // Its largest predicted B SNR ‖B̂‖/σ_B at a sensor another valid track
-  // gates (that track's predicted SNR ≥ gate_snr there); 0 if none
-  // (TrackManagementOptions::reach_shared_b_snr).
+  // gates (that track's predicted SNR ≥ gate_snr there); 0 if none, and 0
+  // while its only user, TrackManagementOptions::reach_shared_b_snr, is off.
   double max_shared_b_snr = 0.0;
   double tensor_llr = 0.0;
   // Samples in its gate left out as another source's B
