@@ -97,7 +97,8 @@ TEST(FarSourceScenario, WindowFindsAShipStillFarAlongItsLineWhileAnAuvPasses) {
 // far source's fits are a mirror of the ship, then refused at the bound, until
 // ~60 s, and 1.5–9 nT of the ship's B at the AUV's sensors is left or removed
 // wrongly while its track starts (docs/ACCURACY.md, "A weak AUV beside a far
-// ship: the window's failures"). With that far field's allowance in σ_B
+// ship: the window's failures and an allowance for the unexplained far
+// field"). With that far field's allowance in σ_B
 // (FarSourceOptions::unexplained_sigma_T, 3 nT; an option, off) the start and
 // the track lean on the tensor: window RMS within 15 m 0.109 m (0.336 m off,
 // 0.028 m with the ship taken out of the scenario).

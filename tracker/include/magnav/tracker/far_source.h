@@ -95,9 +95,9 @@ struct FarSourceOptions {
   // proportion to its B; this covers the ship's B while no fit is accepted or
   // while the accepted one is still off, 1–9 nT at the sensors on the
   // far-ship files of docs/ACCURACY.md, "A weak AUV beside a far ship: the
-  // window's failures"). A weak vessel's track then leans on its tensor,
-  // which a far ship's does not reach, and keeps out the far sensors where
-  // its own B is not above that error. 0: off.
+  // window's failures and an allowance ..."): a weak vessel's start leans on
+  // its tensor, which a far ship's does not reach. Off by default: it costs
+  // weak starts elsewhere (held-out abreast: no track). 0: off.
   double unexplained_sigma_T = 0.0;
   // A fit whose largest B at the sensors is below this (T) is not removed
   // (nothing far to remove).
