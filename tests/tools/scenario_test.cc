@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_drift/, fresh_drift2/ and fresh_drift3/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_drift/, fresh_drift2/ and fresh_drift3/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -185,6 +185,8 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"far_ship_105", "far_ship_147", "far_ship_160", "far_ship_185"}) {
     files.push_back({"fresh_farsrc2", name, "far_ship"});
   }
+  for (const char* name : {"far_ship_112", "far_ship_133", "far_ship_176"}) files.push_back({"fresh_farsrc3", name, "far_ship"});
+  files.push_back({"fresh_farsrc3", "crossing_far_ship_140", "crossing_far_ship"});  // two AUVs crossing and a ship
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});
@@ -237,7 +239,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         }
         return false;
       };
-      if (f.truth.size() == 2) {
+      if (f.truth.size() >= 2) {  // the first two vessels (the AUVs of crossing_far_ship)
         for (const auto& a : f.truth[0]) {
           for (const auto& b : f.truth[1]) {
             if (std::abs(a.t_s - b.t_s) > 1e-9) continue;
@@ -279,6 +281,17 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         const bool wide = set == "fresh_overtaking2" || set == "fresh_overtaking3" || set == "fresh_overtaking4" ||
                           set == "fresh_overtaking5";
         EXPECT_LE(closest_pair, wide ? 20.0 : 12.0);
+      } else if (k == "crossing_far_ship") {
+        // Two AUVs crossing within 10 m, each within 15 m of a sensor, and a
+        // ship 100–200 m off the grid.
+        ASSERT_EQ(f.truth.size(), 3u);
+        EXPECT_LE(closest_pair, 10.0);
+        EXPECT_GT(closest_pair, 2.0);
+        EXPECT_LE(reach[0], 15.0);
+        EXPECT_LE(reach[1], 15.0);
+        EXPECT_GE(reach[2], 100.0);
+        EXPECT_LE(reach[2], 200.0);
+        EXPECT_GE(sc.vessels[2].moment_body.norm(), 4e5);
       } else if (k == "far_ship") {
         ASSERT_EQ(f.truth.size(), 2u);
         // The ship passes 100–200 m off the grid (from its nearest sensor),
@@ -299,7 +312,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (k != "far_ship") {
+      if (k != "far_ship" && k != "crossing_far_ship") {
         // Every vessel comes within the sensors' reach; fresh_overtaking3's fast
         // one at or just beyond its edge (overtaking_e16 15.2 m, overtaking_n16
         // 17.2 m in 3-D: only its B at the slow one's sensors), and

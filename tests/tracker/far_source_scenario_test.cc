@@ -92,5 +92,31 @@ TEST(FarSourceScenario, WindowFindsAShipStillFarAlongItsLineWhileAnAuvPasses) {
   EXPECT_GT(st.last_range_m, 86.4 + 5.0);  // outside the bound
 }
 
+// fresh_ghost2/far_ship_120: a weak AUV (tensor SNR 10–20 at 11–13 m) crosses
+// the grid while a 4.5e5 A·m² ship 120 m off is still far along its line. The
+// far source's fits are a mirror of the ship, then refused at the bound, until
+// ~60 s, and 1.5–9 nT of the ship's B at the AUV's sensors is left or removed
+// wrongly while its track starts (docs/ACCURACY.md, "A weak AUV beside a far
+// ship: the window's failures and an allowance for the unexplained far
+// field"). With that far field's allowance in σ_B
+// (FarSourceOptions::unexplained_sigma_T, 3 nT; an option, off) the start and
+// the track lean on the tensor: window RMS within 15 m 0.109 m (0.336 m off,
+// 0.028 m with the ship taken out of the scenario).
+TEST(FarSourceScenario, WindowWithTheUnexplainedFarFieldKeepsAWeakAuvOnTrack) {
+  const FieldScenario sc =
+      cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/fresh_ghost2/far_ship_120.toml");
+  const SimulatedField f = SimulateField(sc);
+  MultiTrackerOptions opt;
+  opt.far_source.unexplained_sigma_T = 3e-9;
+  MultiTracker tracker(sc.B0, opt);
+  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
+  const auto s = magnav::testing::ScoreField(sc, f, rows);
+  magnav::testing::PrintFieldScores("fresh_ghost2/far_ship_120, window, --far-unexplained-sigma 3e-9", s);
+  EXPECT_GE(s.coverage[0], 0.8);  // measured 0.88
+  EXPECT_EQ(s.ids[0], 1u);
+  EXPECT_LE(s.rms[0], 0.2);  // m, measured 0.109 (a 2x regression fails; the target is 0.3)
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
+}
+
 }  // namespace
 }  // namespace magnav::tracker

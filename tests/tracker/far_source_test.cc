@@ -283,6 +283,36 @@ TEST(FarSource, BacksOffWhileItsFitsAreRefused) {
 }
 
 // One sensor is not an array: no fit (the bound would be 10 m from it).
+// The far field the model does not explain (unexplained_sigma_T) is in the
+// σ of every sample, before any fit (nothing removed) and with an accepted
+// one (with the fit's model_share in quadrature); 0 leaves the σ as before.
+TEST(FarSource, UnexplainedFarFieldIsInEverySamplesSigma) {
+  FarSourceOptions opt;
+  opt.unexplained_sigma_T = 3e-9;
+  FarSourceEstimator est(opt);
+  const auto grid = Grid();
+  double sigma = -1.0;
+  EXPECT_EQ(est.B(0, grid[0], 0.0, &sigma), Eigen::Vector3d::Zero());  // no fit yet: nothing removed
+  EXPECT_NEAR(sigma, 3e-9, 1e-18);
+  const Source ship = Ship();
+  for (double t = -20.0; t <= 40.0 + 1e-9; t += 0.1) {
+    if (!est.WantsEpoch(t)) continue;
+    std::vector<FarSourceSample> used;
+    for (const auto& s : Samples({ship}, t, t, static_cast<unsigned>(1000 + t * 10))) used.push_back(s);
+    est.AddEpoch(t, used, grid);
+    est.StepIfDue(t);
+  }
+  ASSERT_TRUE(est.active());
+  const Eigen::Vector3d b = est.B(0, grid[0], 40.0, &sigma);
+  EXPECT_GT(b.norm(), 2e-9);
+  EXPECT_NEAR(sigma, std::hypot(opt.model_share * b.norm() / std::sqrt(3.0), 3e-9), 1e-15);
+  FarSourceOptions off = opt;
+  off.unexplained_sigma_T = 0.0;
+  FarSourceEstimator none(off);
+  none.B(0, grid[0], 0.0, &sigma);
+  EXPECT_EQ(sigma, 0.0);
+}
+
 TEST(FarSource, NoFitWithFewerThanFourSensors) {
   std::vector<FarSourceSample> one;
   for (const auto& s : Samples({Ship()}, 0.0, 60.0, 13)) {
@@ -312,6 +342,13 @@ TEST(FarSource, OptionsAreChecked) {
   EXPECT_FALSE(o.IsValid(&why));
   o = {};
   o.model_share = std::nan("");
+  EXPECT_FALSE(o.IsValid(&why));
+  o = {};
+  o.unexplained_sigma_T = -1e-9;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("unexplained_sigma_T"), std::string::npos);
+  o = {};
+  o.unexplained_sigma_T = std::nan("");
   EXPECT_FALSE(o.IsValid(&why));
   o = {};
   o.min_moment_Am2 = -1.0;

@@ -149,6 +149,9 @@ bool FarSourceOptions::IsValid(std::string* error) const {
   if (!(tensor_gate > 0.0)) return Fail(error, "tensor_gate must be > 0");
   if (!(occupied_tensor_snr >= 0.0)) return Fail(error, "occupied_tensor_snr must be >= 0 (0 = off)");
   if (!(model_share >= 0.0) || !std::isfinite(model_share)) return Fail(error, "model_share must be >= 0");
+  if (!(unexplained_sigma_T >= 0.0) || !std::isfinite(unexplained_sigma_T)) {
+    return Fail(error, "unexplained_sigma_T must be >= 0 (0 = off)");
+  }
   if (!(min_field_T >= 0.0) || !std::isfinite(min_field_T)) return Fail(error, "min_field_T must be >= 0");
   if (!(min_moment_Am2 >= 0.0) || !std::isfinite(min_moment_Am2)) return Fail(error, "min_moment_Am2 must be >= 0");
   if (!(bound_slack_m >= 0.0) || !std::isfinite(bound_slack_m)) return Fail(error, "bound_slack_m must be >= 0");
@@ -473,7 +476,7 @@ Eigen::Vector3d FarSourceEstimator::B(std::uint32_t sensor_id, const Eigen::Vect
     s_far = options_.model_share * far.norm() / std::sqrt(3.0);
     b += far;
   }
-  if (sigma_T != nullptr) *sigma_T = std::hypot(s_far, s_drift);
+  if (sigma_T != nullptr) *sigma_T = std::hypot(std::hypot(s_far, options_.unexplained_sigma_T), s_drift);
   return b;
 }
 

@@ -240,6 +240,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--far-share", fs.model_share,
                  "far source: its removed B taken as uncertain by this share of its norm (added to sigma_B)")
       ->capture_default_str();
+  app.add_option("--far-unexplained-sigma", fs.unexplained_sigma_T,
+                 "far source: the far field its model does not explain, added to sigma_B of every sample whether or "
+                 "not a fit is accepted, T per axis (0 = off)")
+      ->capture_default_str();
   app.add_option("--far-drift", f->far_drift,
                  "far source: each sensor's drift (a line in time over the far source's window) fitted with it and "
                  "removed (on), or the fixed B0 (off)")

@@ -89,6 +89,16 @@ struct FarSourceOptions {
   // The removed B's uncertainty: this share of its norm (per axis over √3),
   // added in quadrature to σ_B of every sample it is removed from.
   double model_share = 0.1;
+  // The far field the model does not explain (T, per axis): added in
+  // quadrature to σ_B of every sample the far source acts on, whether or not
+  // a fit is accepted (model_share covers an accepted fit's error in
+  // proportion to its B; this covers the ship's B while no fit is accepted or
+  // while the accepted one is still off, 1–9 nT at the sensors on the
+  // far-ship files of docs/ACCURACY.md, "A weak AUV beside a far ship: the
+  // window's failures and an allowance ..."): a weak vessel's start leans on
+  // its tensor, which a far ship's does not reach. Off by default: it costs
+  // weak starts elsewhere (held-out abreast: no track). 0: off.
+  double unexplained_sigma_T = 0.0;
   // A fit whose largest B at the sensors is below this (T) is not removed
   // (nothing far to remove).
   double min_field_T = 2e-9;
@@ -222,7 +232,7 @@ class FarSourceEstimator {
   // The far source's B and the sensor's drift to remove at a sensor at t_s,
   // and their σ per axis (T, in quadrature); the far source's part zero while
   // there is no fit or its field is below min_field_T, the drift's while the
-  // sensor has none.
+  // sensor has none; unexplained_sigma_T always in the σ.
   Eigen::Vector3d B(std::uint32_t sensor_id, const Eigen::Vector3d& p_SinW, double t_s, double* sigma_T) const;
   const FarSourceModel& model() const { return model_; }
   const SensorDrift& drift() const { return drift_; }
