@@ -296,6 +296,10 @@ void AddTrackCommand(CLI::App& app) {
                   "batch: Cauchy scale of the turn-rate changes in each track's solve, in sigmas of one step (0 = "
                   "--turn-loss-scale, as the window)")
       ->capture_default_str();
+  cli::AddSwitchOption(*cmd, "--batch-other-field-cov", &args->flags.options.batch_other_field_covariance,
+                       "batch: the other tracks' removed fields are uncertain by their own covariance (position, "
+                       "heading, moment; first order) instead of 5 % of their norm (0/1)")
+      ->capture_default_str();
   cli::AddSwitchOption(*cmd, "--batch-model-spread", &args->flags.options.track.batch_model_spread,
                   "batch: add to each state's covariance the spread of the restarts' ends about the chosen one, "
                   "weighted by exp(-cost difference) (model averaging over the turn's change points; 0/1)")

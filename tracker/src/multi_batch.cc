@@ -32,6 +32,18 @@ constexpr double kMissedExtensionS = 5.0;
 struct TrackPath {
   std::vector<EpochEstimate> epochs;  // time-ordered
   Eigen::Vector3d m_B = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d cov_m_B = Eigen::Matrix3d::Zero();  // (A·m²)²
+
+  // The estimate nearest to t_s (nullptr if none): its covariance is the
+  // one taken for the state At(t_s) (not propagated: at most half an epoch
+  // apart within the span; the end's past it).
+  const EpochEstimate* Nearest(double t_s) const {
+    if (epochs.empty()) return nullptr;
+    auto it = std::lower_bound(epochs.begin(), epochs.end(), t_s,
+                               [](const EpochEstimate& e, double t) { return e.t_s < t; });
+    if (it == epochs.end() || (it != epochs.begin() && t_s - std::prev(it)->t_s < it->t_s - t_s)) --it;
+    return &*it;
+  }
 
   // State at t_s: between the first and the last estimate from the nearest
   // one no farther than max_gap_s; before the first or after the last
@@ -352,6 +364,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     for (std::size_t i = 0; i < result.size(); ++i) {
       now[i].epochs = result[i].track.epochs;
       now[i].m_B = result[i].track.m_B_Am2;
+      now[i].cov_m_B = result[i].track.cov_m_B;
     }
     // Cluster background (cluster_background.h): the offset step given the
     // tracks as they are now (each within its span), over the whole pass.
@@ -488,13 +501,31 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           GradiometerSample s = s0;
           Eigen::Vector3d B_others = Eigen::Vector3d::Zero();
           Eigen::Matrix3d T_others = Eigen::Matrix3d::Zero();
+          OtherFieldVariance var;  // batch_other_field_covariance
+          const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
           for (std::size_t k = 0; k < result.size(); ++k) {
             if (!others[k]) continue;
             PredictedField(*others[k], now[k].m_B, s.p_SinW, &B, &T);
             B_others += B;
             T_others += T;
+            if (!options.batch_other_field_covariance) continue;
+            const EpochEstimate* near = now[k].Nearest(e.t_s);
+            if (near != nullptr && near->has_covariance && near->cov_state.allFinite() && now[k].cov_m_B.allFinite()) {
+              const OtherFieldVariance v =
+                  OtherFieldVarianceFromCovariance(*others[k], now[k].m_B, near->cov_state, now[k].cov_m_B, s.p_SinW);
+              var.B += v.B;
+              var.T += v.T;
+            } else {
+              // No covariance for it: its relative error, as the default.
+              var.B += rel * rel * B.squaredNorm() / 3.0;
+              var.T += rel * rel * T.squaredNorm() / 9.0;
+            }
           }
-          RemoveOtherFields(B_others, T_others, sb, st, &s);
+          if (options.batch_other_field_covariance) {
+            RemoveOtherFieldsWithVariance(B_others, T_others, var, sb, st, &s);
+          } else {
+            RemoveOtherFields(B_others, T_others, sb, st, &s);
+          }
           // Past its last detection a missed track's B is an untracked
           // vessel's far field as much as its own: only its tensor (which
           // falls off faster) is used there.

@@ -407,6 +407,15 @@ struct MultiTrackerOptions {
   // element: the norm over √3 for B, over 3 for T), added in quadrature to
   // the sample's σ.
   static constexpr double kOtherFieldRelativeError = 0.05;
+  // Batch: the other tracks' removed fields taken as uncertain by their own
+  // covariance instead (each track's refined position and heading
+  // covariance at the nearest epoch and its body moment's, propagated to
+  // the field at the sensor to first order; no relative share; a track
+  // without a covariance keeps kOtherFieldRelativeError), in quadrature with
+  // the sample's σ. Changes the weights of the samples near another track,
+  // hence the estimate and its σ. Default off (docs/ACCURACY.md, "The
+  // batch's σ beside another vessel"); the window is unchanged.
+  bool batch_other_field_covariance = false;
   // Window and batch: each sensor's background B0 is a state estimated
   // with the tracks (background.h); the B0 given to the tracker is its
   // start. Off (background.enabled = false): the fixed B0 everywhere.
