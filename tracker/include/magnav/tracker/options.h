@@ -170,7 +170,8 @@ struct InitOptions {
 // reaches this at one of its samples in the window (batch: in the solved
 // span) at the current estimate: there the tensor pins the track, while
 // where the tensor is weak B is the only information and an offset takes it.
-// The other sensors keep B0 as it is.
+// At the other sensors the window's samples do not move the offset: the
+// window keeps the carried one (with carry; none without), the batch none.
 // Off by default (docs/ACCURACY.md: the measured rows).
 struct SensorOffsetOptions {
   bool enabled = false;
