@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_drift/, fresh_drift2/ and fresh_drift3/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_drift/, fresh_drift2/, fresh_drift3/ and fresh_drift4/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -202,6 +202,11 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   files.push_back({"fresh_drift3", "drift_5_crossing", "crossing"});
   files.push_back({"fresh_drift3", "drift_2_abreast", "abreast"});
   files.push_back({"fresh_drift3", "drift_4_farship", "far_ship"});
+  // fresh_drift4 (blind, branch offset2): likewise; its crossing pair has a far ship as a third vessel.
+  files.push_back({"fresh_drift4", "drift_4_single", "drift"});
+  files.push_back({"fresh_drift4", "drift_3_abreast", "abreast"});
+  files.push_back({"fresh_drift4", "drift_2_overtaking", "overtaking"});
+  files.push_back({"fresh_drift4", "drift_5_crossing_farship", "crossing_far_ship"});
   for (const char* name : {"overtaking_ne", "overtaking_n14", "overtaking_wsw19", "overtaking_e5"}) {
     files.push_back({"fresh_overtaking2", name, "overtaking"});
   }
@@ -239,7 +244,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         }
         return false;
       };
-      if (f.truth.size() >= 2) {  // the first two vessels (the AUVs of crossing_far_ship)
+      if (f.truth.size() >= 2) {  // the first two vessels (a third is a far ship: crossing_far_ship)
         for (const auto& a : f.truth[0]) {
           for (const auto& b : f.truth[1]) {
             if (std::abs(a.t_s - b.t_s) > 1e-9) continue;
@@ -257,10 +262,16 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         ASSERT_EQ(f.truth.size(), 2u);
         EXPECT_GE(pair_min_near, 20.0);
         EXPECT_LE(pair_max_near, 40.0);
-      } else if (k == "crossing") {
-        ASSERT_EQ(f.truth.size(), 2u);
+      } else if (k == "crossing" || k == "crossing_far_ship") {
+        ASSERT_EQ(f.truth.size(), k == "crossing" ? 2u : 3u);
         EXPECT_LE(closest_pair, 10.0);
         EXPECT_GT(closest_pair, 2.0);
+        if (k == "crossing_far_ship") {  // the third vessel as a far_ship file's ship
+          EXPECT_GE(reach[2], 100.0);
+          EXPECT_LE(reach[2], 200.0);
+          EXPECT_GE(sc.vessels[2].moment_body.norm(), 4e5);
+          reach.pop_back();  // not within the sensors' reach (checked below for the others)
+        }
       } else if (k == "overtaking") {
         ASSERT_EQ(f.truth.size(), 2u);
         // The faster one starts behind and ends ahead.
@@ -281,17 +292,6 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         const bool wide = set == "fresh_overtaking2" || set == "fresh_overtaking3" || set == "fresh_overtaking4" ||
                           set == "fresh_overtaking5";
         EXPECT_LE(closest_pair, wide ? 20.0 : 12.0);
-      } else if (k == "crossing_far_ship") {
-        // Two AUVs crossing within 10 m, each within 15 m of a sensor, and a
-        // ship 100–200 m off the grid.
-        ASSERT_EQ(f.truth.size(), 3u);
-        EXPECT_LE(closest_pair, 10.0);
-        EXPECT_GT(closest_pair, 2.0);
-        EXPECT_LE(reach[0], 15.0);
-        EXPECT_LE(reach[1], 15.0);
-        EXPECT_GE(reach[2], 100.0);
-        EXPECT_LE(reach[2], 200.0);
-        EXPECT_GE(sc.vessels[2].moment_body.norm(), 4e5);
       } else if (k == "far_ship") {
         ASSERT_EQ(f.truth.size(), 2u);
         // The ship passes 100–200 m off the grid (from its nearest sensor),
@@ -306,13 +306,13 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/, fresh_drift3/, fresh_abreast5/drift_abreast_28) drifts too
+      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/ to fresh_drift4/, fresh_abreast5/drift_abreast_28) drifts too
         ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
         const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (k != "far_ship" && k != "crossing_far_ship") {
+      if (k != "far_ship") {  // crossing_far_ship: its ship popped above
         // Every vessel comes within the sensors' reach; fresh_overtaking3's fast
         // one at or just beyond its edge (overtaking_e16 15.2 m, overtaking_n16
         // 17.2 m in 3-D: only its B at the slow one's sensors), and

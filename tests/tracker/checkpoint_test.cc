@@ -279,6 +279,51 @@ TEST(TrackerCheckpoint, GhostFieldRestoredGoesOnBitForBit) {
   }
 }
 
+// The window's sensor offsets carried between windows
+// (SensorOffsetOptions::carry, with the tensor gate): a checkpoint taken 30 s
+// after the held-out drift's track is confirmed (its window has marginalised
+// samples, so carried offsets) holds them; the restored tracker goes on bit
+// for bit.
+TEST(TrackerCheckpoint, CarriedSensorOffsetsRestoredGoOnBitForBit) {
+  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/drift.toml");
+  const SimulatedField f = SimulateField(sc);
+  MultiTrackerOptions options;
+  options.track.sensor_offset.enabled = true;
+  options.track.sensor_offset.carry = true;
+  options.track.sensor_offset.min_tensor_snr = 20.0;
+  MultiTracker t(sc.B0, options);
+  Outputs whole;
+  std::size_t cut = 0, outputs_before_cut = 0;
+  double t_confirmed = -1.0;
+  std::string payload;
+  for (std::size_t i = 0; i < f.samples.size(); ++i) {
+    if (t_confirmed < 0.0 && t.summary().num_confirmed > 0) t_confirmed = f.samples[i].t_s;
+    const bool boundary = i > 0 && f.samples[i].t_s != f.samples[i - 1].t_s;
+    if (cut == 0 && boundary && t_confirmed >= 0.0 && f.samples[i].t_s >= t_confirmed + 30.0) {
+      cut = i;
+      payload = t.SaveState();
+      outputs_before_cut = whole.out.size();
+    }
+    Take(t, t.AddSample(f.samples[i]), &whole);
+  }
+  Take(t, t.Flush(), &whole);
+  ASSERT_GT(cut, 0u) << "no track confirmed 30 s before the end";
+  MultiTracker restored(sc.B0, options);
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload)));
+  Outputs after;
+  for (std::size_t i = cut; i < f.samples.size(); ++i) Take(restored, restored.AddSample(f.samples[i]), &after);
+  Take(restored, restored.Flush(), &after);
+  std::printf("carried sensor offsets: checkpoint at %.1f s (%zu bytes): the %zu outputs after it compared\n",
+              f.samples[cut].t_s, payload.size(), after.out.size());
+  ASSERT_EQ(after.out.size(), whole.out.size() - outputs_before_cut);
+  ASSERT_GT(after.out.size(), 100u);
+  for (std::size_t k = 0; k < after.out.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after.out[k], whole.out[outputs_before_cut + k]);
+    if (HasFailure()) break;
+  }
+}
+
 // RestoreState(DecodeTrackerCheckpoint(file)) into a new tracker with `options`:
 // the CheckpointError's message, or "" if it was taken.
 std::string Refusal(const std::string& file, const MultiTrackerOptions& options, const Eigen::Vector3d& B0) {

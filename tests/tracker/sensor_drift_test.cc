@@ -186,5 +186,26 @@ TEST(SensorOffset, PriorGrowsWithTheDriftAndOptionsAreChecked) {
   EXPECT_NE(why.find("sensor_offset"), std::string::npos);
 }
 
+// The window's offset carried between windows and the tensor gate
+// (SensorOffsetOptions::carry, min_tensor_snr): off by default, the carry
+// only with the offset, the gate a finite SNR ≥ 0.
+TEST(SensorOffset, CarryAndTensorGateAreOffAndChecked) {
+  SensorOffsetOptions o;
+  EXPECT_FALSE(o.carry);
+  EXPECT_EQ(o.min_tensor_snr, 0.0);
+  std::string why;
+  o.carry = true;
+  EXPECT_FALSE(o.IsValid(&why));  // without enabled
+  EXPECT_NE(why.find("carry"), std::string::npos);
+  o.enabled = true;
+  EXPECT_TRUE(o.IsValid(&why)) << why;
+  o.min_tensor_snr = -1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  o.min_tensor_snr = std::nan("");
+  EXPECT_FALSE(o.IsValid(&why));
+  o.min_tensor_snr = 20.0;
+  EXPECT_TRUE(o.IsValid(&why)) << why;
+}
+
 }  // namespace
 }  // namespace magnav::tracker

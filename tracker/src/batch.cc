@@ -208,9 +208,25 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
   const auto offset_rounds = [&](bool intermediate) {
     for (int pass = 0; pass < so.batch_passes && r_final_pass && pr.last.IsSolutionUsable(); ++pass) {
       std::map<OffsetKey, internal::SensorOffsetAccumulator> acc;
+      // Only sensors where the track's predicted tensor SNR reaches
+      // min_tensor_snr in the span (0: every sensor); the others' offsets back to zero.
+      std::map<std::uint32_t, double> tensor_snr;
+      if (so.min_tensor_snr > 0.0) {
+        const Eigen::Vector3d m_B = moment * moment_scale;
+        for (std::size_t k = i0; k <= i1; ++k) {
+          for (const GradiometerSample& smp : epochs[k].samples) {
+            double& best = tensor_snr[smp.sensor_id];
+            best = std::max(best, internal::PredictedTensorSnr(smp, x[k].data(), m_B, SigmaT(smp, options)));
+          }
+        }
+        for (auto it = own.begin(); it != own.end();) {
+          it = tensor_snr[it->first.first] < so.min_tensor_snr ? own.erase(it) : std::next(it);
+        }
+      }
       for (std::size_t k = i0; k <= i1; ++k) {
         for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
           const GradiometerSample& smp = epochs[k].samples[j];
+          if (so.min_tensor_snr > 0.0 && tensor_snr[smp.sensor_id] < so.min_tensor_snr) continue;
           const OffsetKey key = key_of(smp, epochs[k].t_s);
           const auto it = own.find(key);
           acc[key].Add(factors[k][j], SigmaB(smp, options), it == own.end() ? Eigen::Vector3d::Zero() : it->second);

@@ -88,6 +88,10 @@ bool SensorOffsetOptions::IsValid(std::string* error) const {
   if (!std::isfinite(b0_time_s)) return Fail(error, "sensor_offset.b0_time_s must be finite");
   if (!PositiveFinite(segment_s)) return Fail(error, "sensor_offset.segment_s must be > 0");
   if (passes < 1 || batch_passes < 1) return Fail(error, "sensor_offset.passes and batch_passes must be >= 1");
+  if (carry && !enabled) return Fail(error, "sensor_offset.carry needs sensor_offset.enabled");
+  if (!(min_tensor_snr >= 0.0) || !std::isfinite(min_tensor_snr)) {
+    return Fail(error, "sensor_offset.min_tensor_snr must be finite and >= 0");
+  }
   if (!(tolerance_T >= 0.0) || !std::isfinite(tolerance_T)) {
     return Fail(error, "sensor_offset.tolerance_T must be finite and >= 0");
   }

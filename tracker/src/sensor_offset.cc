@@ -4,6 +4,8 @@
 
 #include <Eigen/Dense>
 
+#include "magnav/core/dipole.h"
+#include "magnav/core/frames.h"
 #include "magnav/tracker/cost_functions.h"
 
 namespace magnav::tracker::internal {
@@ -31,6 +33,33 @@ bool SensorOffsetAccumulator::Add(const Factor& f, double sigma_B_T, const Eigen
 Eigen::Vector3d SensorOffsetAccumulator::Mean(double prior_sigma_T) const {
   const double prior_information = 1.0 / (prior_sigma_T * prior_sigma_T);
   return weighted_sum_ / (information_ + prior_information);
+}
+
+Eigen::Vector3d SensorOffsetAccumulator::Mean(const Eigen::Vector3d& prior_mean_W, double prior_sigma_T) const {
+  const double prior_information = 1.0 / (prior_sigma_T * prior_sigma_T);
+  return (weighted_sum_ + prior_information * prior_mean_W) / (information_ + prior_information);
+}
+
+double PredictedTensorSnr(const GradiometerSample& s, const double* x_state, const Eigen::Vector3d& m_B_Am2,
+                          double sigma_T_Tpm) {
+  const Eigen::Vector3d r_DtoS = s.p_SinW - Eigen::Vector3d(x_state[0], x_state[1], x_state[2]);
+  if (!(r_DtoS.norm() > 0.0) || !(sigma_T_Tpm > 0.0)) return 0.0;
+  const Eigen::Vector3d m_W = HeadingRotation(x_state[4]) * m_B_Am2;
+  const double snr = DipoleT(r_DtoS, m_W).norm() / sigma_T_Tpm;
+  return std::isfinite(snr) ? snr : 0.0;
+}
+
+double CarriedOffset::VarianceAt(double t, double rate_T_per_s) const {
+  const double walk = rate_T_per_s * std::abs(t - t_s);
+  return variance_T2 + walk * walk;
+}
+
+void CarriedOffset::Update(const SensorOffsetAccumulator& a, double t, double rate_T_per_s) {
+  const double prior_information = 1.0 / VarianceAt(t, rate_T_per_s);
+  const double information = a.information() + prior_information;
+  mean_W = (a.weighted_sum() + prior_information * mean_W) / information;
+  variance_T2 = 1.0 / information;
+  t_s = t;
 }
 
 std::vector<Eigen::Vector3d> SegmentOffsets(const std::vector<const SensorOffsetAccumulator*>& segments,

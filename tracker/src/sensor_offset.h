@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "factors.h"
+#include "magnav/core/gradiometer.h"
 
 namespace magnav::tracker::internal {
 
@@ -22,6 +23,9 @@ class SensorOffsetAccumulator {
   // any offset from outside) minus the track's predicted B; w_i the robust
   // loss's weight ρ′(‖e_i‖²) (1 without a loss). World NED, T.
   Eigen::Vector3d Mean(double prior_sigma_T) const;
+  // The same under a prior of mean prior_mean_W (world NED, T) and σ
+  // prior_sigma_T per axis: (Σ w_i r_i/σ_i² + m/σ²) / (Σ w_i/σ_i² + 1/σ²).
+  Eigen::Vector3d Mean(const Eigen::Vector3d& prior_mean_W, double prior_sigma_T) const;
   // Σ w_i r_i/σ_i² (T⁻¹) and Σ w_i/σ_i² (T⁻²), for a joint solve of several.
   const Eigen::Vector3d& weighted_sum() const { return weighted_sum_; }
   double information() const { return information_; }
@@ -29,6 +33,27 @@ class SensorOffsetAccumulator {
  private:
   Eigen::Vector3d weighted_sum_ = Eigen::Vector3d::Zero();  // T⁻¹
   double information_ = 0.0;                                // T⁻²
+};
+
+// The track's predicted tensor SNR ‖T̂‖_F/σ_T at sample s (σ_T sigma_T_Tpm,
+// T/m): the dipole at state x_state (x, y, z world NED m, …, heading rad at
+// index 4) with body moment m_B_Am2 (A·m²). 0 if it cannot be evaluated.
+double PredictedTensorSnr(const GradiometerSample& s, const double* x_state, const Eigen::Vector3d& m_B_Am2,
+                          double sigma_T_Tpm);
+
+// One sensor's offset carried between windows (SensorOffsetOptions::carry):
+// what the samples that have left the window say of it, a Gaussian with the
+// same variance on each axis, as of time t_s; between t_s and t it moves by
+// a random walk of σ = rate·|t − t_s| (the drift bound).
+struct CarriedOffset {
+  Eigen::Vector3d mean_W = Eigen::Vector3d::Zero();  // world NED, T
+  double variance_T2 = 0.0;                          // per axis, T²
+  double t_s = 0.0;
+
+  // The variance at time t (T²): variance_T2 + (rate_T_per_s·|t − t_s|)².
+  double VarianceAt(double t, double rate_T_per_s) const;
+  // The walk to t, then the Bayesian update with the samples of `a` (taken at t).
+  void Update(const SensorOffsetAccumulator& a, double t, double rate_T_per_s);
 };
 
 // One sensor's offsets over consecutive segments o_0..o_{n−1} (world NED, T)

@@ -175,6 +175,8 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.I64(static_cast<std::int64_t>(so.enabled));
   w.I64(static_cast<std::int64_t>(so.passes));
   w.I64(static_cast<std::int64_t>(so.batch_passes));
+  w.I64(static_cast<std::int64_t>(so.carry));
+  w.F64(so.min_tensor_snr);
   for (double d : {so.max_rate_T_per_s, so.floor_T, so.b0_time_s, so.segment_s, so.tolerance_T}) w.F64(d);
   return w.bytes();
 }

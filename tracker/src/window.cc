@@ -82,6 +82,9 @@ struct WindowTracker::Impl {
   // The track's own per-sensor B offset over the window (world NED, T;
   // TrackerOptions::sensor_offset), added to B0 and to `offsets`.
   std::map<std::uint32_t, Eigen::Vector3d> own_offsets;
+  // What the samples that left the window say of each sensor's offset
+  // (sensor_offset.carry): the window's offsets' prior.
+  std::map<std::uint32_t, internal::CarriedOffset> carried_offsets;
 
   Eigen::Vector3d OwnOffset(std::uint32_t sensor_id) const {
     const auto it = own_offsets.find(sensor_id);
@@ -103,17 +106,35 @@ struct WindowTracker::Impl {
   // Every sensor's own offset set to its conditional mean given the window's
   // track (sensor_offset.h), the prior σ at the window's middle time.
   void UpdateOwnOffsets() {
+    const SensorOffsetOptions& so = options.sensor_offset;
     std::map<std::uint32_t, internal::SensorOffsetAccumulator> acc;
+    std::map<std::uint32_t, double> tensor_snr;  // the track's largest predicted, per sensor
+    const Eigen::Vector3d m_B = moment * moment_scale;
     for (const WindowEpoch& w : window) {
       for (std::size_t i = 0; i < w.measurements.size(); ++i) {
         const GradiometerSample& smp = w.epoch.samples[i];
         acc[smp.sensor_id].Add(w.measurements[i], SigmaB(smp, options), OwnOffset(smp.sensor_id));
+        if (so.min_tensor_snr > 0.0) {
+          double& best = tensor_snr[smp.sensor_id];
+          best = std::max(best, internal::PredictedTensorSnr(smp, w.x.data(), m_B, SigmaT(smp, options)));
+        }
       }
     }
     const double t_mid = 0.5 * (window.front().epoch.t_s + window.back().epoch.t_s);
-    const double sigma = options.sensor_offset.PriorSigma(t_mid);
+    const double sigma = so.PriorSigma(t_mid);
     std::map<std::uint32_t, Eigen::Vector3d> next;
-    for (const auto& [id, a] : acc) next[id] = a.Mean(sigma);
+    for (const auto& [id, a] : acc) {
+      const auto c = so.carry ? carried_offsets.find(id) : carried_offsets.end();
+      if (so.min_tensor_snr > 0.0 && tensor_snr[id] < so.min_tensor_snr) {
+        // Where the tensor does not pin the track the window's samples do not
+        // move the offset: the carried one (the samples that left), or none.
+        if (c != carried_offsets.end()) next[id] = c->second.mean_W;
+        continue;
+      }
+      next[id] = c == carried_offsets.end()
+                     ? a.Mean(sigma)
+                     : a.Mean(c->second.mean_W, std::sqrt(c->second.VarianceAt(t_mid, so.max_rate_T_per_s)));
+    }
     own_offsets = std::move(next);
     for (WindowEpoch& w : window) ApplyOffsets(w, true);
     chain_fresh = false;
@@ -159,8 +180,33 @@ struct WindowTracker::Impl {
     return failed;
   }
 
+  // The oldest epoch's samples folded into their sensors' carried offsets
+  // (sensor_offset.carry), their residuals at the current estimate.
+  void CarryFrontOffsets() {
+    const SensorOffsetOptions& so = options.sensor_offset;
+    if (!so.enabled || !so.carry) return;
+    const WindowEpoch& a = window.front();
+    std::map<std::uint32_t, internal::SensorOffsetAccumulator> acc;
+    for (std::size_t i = 0; i < a.measurements.size(); ++i) {
+      const GradiometerSample& smp = a.epoch.samples[i];
+      acc[smp.sensor_id].Add(a.measurements[i], SigmaB(smp, options), OwnOffset(smp.sensor_id));
+    }
+    const double t = a.epoch.t_s;
+    for (const auto& [id, s] : acc) {
+      if (!(s.information() > 0.0)) continue;
+      auto [it, fresh] = carried_offsets.try_emplace(id);
+      if (fresh) {  // from the zero-mean prior of the drift model
+        const double sigma = so.PriorSigma(t);
+        it->second.variance_T2 = sigma * sigma;
+        it->second.t_s = t;
+      }
+      it->second.Update(s, t, so.max_rate_T_per_s);
+    }
+  }
+
   // Drops the oldest epoch, folding its information into the prior.
   void MarginalizeFront() {
+    CarryFrontOffsets();
     WindowEpoch& a = window[0];
     WindowEpoch& b = window[1];
     internal::LocalH H;
@@ -698,6 +744,15 @@ void WindowTracker::SaveState(StateWriter& w) const {
       w.U64(id);
       w.Matrix(o);
     }
+    if (m.options.sensor_offset.carry) {
+      w.U64(m.carried_offsets.size());
+      for (const auto& [id, c] : m.carried_offsets) {
+        w.U64(id);
+        w.Matrix(c.mean_W);
+        w.F64(c.variance_T2);
+        w.F64(c.t_s);
+      }
+    }
   }
   w.U8(m.chain_ok ? 1 : 0);
   w.U8(m.chain_fresh ? 1 : 0);
@@ -743,6 +798,17 @@ void WindowTracker::RestoreState(StateReader& r) {
     for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
       const auto id = static_cast<std::uint32_t>(r.U64());
       m.own_offsets[id] = internal::GetMatrix(r, 3, 1);
+    }
+    if (m.options.sensor_offset.carry) {
+      for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
+        const auto id = static_cast<std::uint32_t>(r.U64());
+        internal::CarriedOffset& c = m.carried_offsets[id];
+        c.mean_W = internal::GetMatrix(r, 3, 1);
+        c.variance_T2 = r.F64();
+        c.t_s = r.F64();
+        if (!(c.variance_T2 > 0.0) || !std::isfinite(c.variance_T2) || !std::isfinite(c.t_s) || !c.mean_W.allFinite())
+          throw CheckpointError("corrupt: a carried sensor offset");
+      }
     }
     for (WindowEpoch& e : m.window) m.ApplyOffsets(e, true);
   }

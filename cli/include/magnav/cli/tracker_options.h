@@ -33,6 +33,7 @@ struct TrackerFlags {
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string sensor_offset = tracker::SensorOffsetOptions{}.enabled ? "on" : "off";
+  std::string sensor_offset_carry = tracker::SensorOffsetOptions{}.carry ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
           ? "residuals"
@@ -287,6 +288,16 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "drift model (on), or takes B0 as it is (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--sensor-offset-carry", f->sensor_offset_carry,
+                 "sensor offset (window, with --sensor-offset on): each sensor's offset carried from window to window "
+                 "(the samples that left the window, the walk of --sensor-offset-rate since) as its prior (on), or a "
+                 "zero-mean prior in every window (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--sensor-offset-min-tensor-snr", t.sensor_offset.min_tensor_snr,
+                 "sensor offset: only sensors where the track's predicted tensor SNR reaches this in the window (batch: "
+                 "the solved span) get an offset; the others keep B0 (0 = every sensor)")
+      ->capture_default_str();
   app.add_option("--sensor-offset-rate", t.sensor_offset.max_rate_T_per_s,
                  "sensor offset: the drift rate bound of its prior, sigma = hypot(--sensor-offset-floor, rate * "
                  "(t - B0's time 0)), T/s per axis")
@@ -332,6 +343,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
     throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");
   }
   o.track.sensor_offset.enabled = f.sensor_offset == "on";
+  o.track.sensor_offset.carry = f.sensor_offset_carry == "on";
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals

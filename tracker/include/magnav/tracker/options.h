@@ -152,9 +152,31 @@ struct InitOptions {
 // vessel's B a lot), and solved jointly per sensor. Each step lowers the
 // joint cost (track, offsets, priors); the track's covariance is
 // conditional on the offsets.
+//
+// carry (window only, with enabled): each sensor's offset is a state carried
+// from window to window with the drift's dynamics instead of being
+// re-estimated from the zero-mean prior in every window. The samples that
+// leave the window are folded into a per-sensor Gaussian (mean, variance per
+// axis, at their time; their residual at the track's estimate when they
+// leave), and the window's offset of that sensor gets it as its prior, its
+// variance grown by (max_rate_T_per_s · Δt)² over the Δt from that time to
+// the window's middle. A drift of a few nT/min is followed; a level the
+// window's samples alone would give (a vessel's slow B) must agree with
+// what the sensor gave before. A sensor with nothing carried yet keeps the
+// zero-mean prior. Per track (each window tracker carries its own).
+//
+// min_tensor_snr (window and batch, with enabled; 0 = every sensor): a sensor
+// gets an offset only where the track's predicted tensor SNR ‖T̂‖_F/σ_T
+// reaches this at one of its samples in the window (batch: in the solved
+// span) at the current estimate: there the tensor pins the track, while
+// where the tensor is weak B is the only information and an offset takes it.
+// At the other sensors the window's samples do not move the offset: the
+// window keeps the carried one (with carry; none without), the batch none.
 // Off by default (docs/ACCURACY.md: the measured rows).
 struct SensorOffsetOptions {
   bool enabled = false;
+  bool carry = false;
+  double min_tensor_snr = 0.0;
   double max_rate_T_per_s = 6e-9 / 60.0;
   double floor_T = 1e-9;
   double b0_time_s = 0.0;
