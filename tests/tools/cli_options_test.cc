@@ -40,7 +40,9 @@ TEST(SwitchOption, TakesTheWordsOfYesAndNoAndRefusesOtherNumbers) {
     bool value = false;
     AddSwitchOption(app, "--x", &value, "a switch");
     EXPECT_EQ(Parses(app, {"prog", "--x", c.value}), c.accepted) << c.value;
-    if (c.accepted) EXPECT_EQ(value, c.result) << c.value;
+    if (c.accepted) {
+      EXPECT_EQ(value, c.result) << c.value;
+    }
   }
 }
 
