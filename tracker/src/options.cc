@@ -125,6 +125,11 @@ bool TrackerOptions::IsValid(std::string* error) const {
   if (batch_turn_change_points < 0 || batch_turn_change_points > kMaxBatchTurnChangePoints) {
     return Fail(error, "batch_turn_change_points must be in [0, " + std::to_string(kMaxBatchTurnChangePoints) + "]");
   }
+  if (!PositiveFinite(window_turn_onset_grid_s)) return Fail(error, "window_turn_onset_grid_s must be > 0");
+  if (!(window_turn_onset_bic_params >= 0.0) || !std::isfinite(window_turn_onset_bic_params)) {
+    return Fail(error, "window_turn_onset_bic_params must be finite and >= 0");
+  }
+  if (window_turn_onset_iterations < 1) return Fail(error, "window_turn_onset_iterations must be >= 1");
   if (!PositiveFinite(window_s)) return Fail(error, "window_s must be > 0");
   if (!(window_solve_interval_s >= 0.0) || !(window_solve_interval_s < window_s)) {
     return Fail(error, "window_solve_interval_s must be >= 0 and < window_s");

@@ -46,6 +46,11 @@ void EliminateFirstState(const internal::LocalH& H, const internal::LocalG& g,
   *H_out = 0.5 * (*H_out + H_out->transpose());
 }
 
+// The onset model's shortest segment before and after the onset (s), and the
+// walk of its free jump (a σ so large the jump costs nothing).
+constexpr double kMinOnsetSegmentS = 1.0;
+constexpr double kFreeTurnRateRadpsPerSqrtS = 1e3;
+
 }  // namespace
 
 struct WindowTracker::Impl {
@@ -292,7 +297,8 @@ struct WindowTracker::Impl {
 
   // Gauss-Newton on the window by chain elimination, with step halving;
   // leaves the factorisation at the final point in `chain` (for covariance).
-  void ChainGaussNewton(ceres::Solver::Summary* cs, int* iterations, double* initial_cost) {
+  void ChainGaussNewton(ceres::Solver::Summary* cs, int* iterations, double* initial_cost, int max_iterations = -1) {
+    if (max_iterations < 0) max_iterations = options.window_max_num_iterations;
     const internal::ChainProblem problem = Chain();
     const auto& groups = problem.groups;
     const int threads = options.num_threads;
@@ -313,7 +319,7 @@ struct WindowTracker::Impl {
     std::vector<StateVector> dx;
     Eigen::Vector3d dm;
     std::vector<StateVector> x0(window.size());
-    for (int it = 0; chain_ok && it < options.window_max_num_iterations; ++it) {
+    for (int it = 0; chain_ok && it < max_iterations; ++it) {
       internal::ChainStep(chain, &dx, &dm);
       for (std::size_t k = 0; k < window.size(); ++k) x0[k] = window[k].x;
       const Eigen::Vector3d m0 = moment;
@@ -356,6 +362,144 @@ struct WindowTracker::Impl {
       cs->message = "chain Gauss-Newton: singular window information";
     }
     chain_fresh = chain_ok;
+  }
+
+  // The turn-onset model (TrackerOptions::window_turn_onset_model): the
+  // window's turn-rate factors swapped for the batch's stiff walk with one
+  // free jump, solved from the default solution, chosen by data cost.
+  struct SavedTurnFactor {
+    std::unique_ptr<ceres::CostFunction> cost;
+    const ceres::LossFunction* loss = nullptr;
+  };
+  std::vector<SavedTurnFactor> saved_turn;  // non-empty: the onset model's factors are in place
+  std::vector<StateVector> saved_x;
+  Eigen::Vector3d saved_moment = Eigen::Vector3d::Zero();
+
+  static internal::Factor* TurnFactor(WindowEpoch& w) {
+    for (auto& f : w.to_next) {
+      if (f.kind == internal::Factor::Kind::kTurnRate) return &f;
+    }
+    return nullptr;
+  }
+
+  // Data cost: the prior and the measurement factors (½ Σ ρ).
+  double DataCost() {
+    internal::ChainProblem c = Chain();
+    for (auto& g : c.groups) {
+      std::vector<const internal::Factor*> keep;
+      for (const internal::Factor* f : g) {
+        if (f->kind == internal::Factor::Kind::kMeasurement || f->kind == internal::Factor::Kind::kPrior) keep.push_back(f);
+      }
+      g = std::move(keep);
+    }
+    return internal::TotalCost(c.groups, options.num_threads);
+  }
+
+  // Puts the onset model's turn-rate factors in place: the stiff walk, free
+  // between epochs onset − 1 and onset (onset = 0: no jump, ω free at the front).
+  void SetOnsetFactors(std::size_t onset) {
+    const bool first = saved_turn.empty();
+    if (first) saved_turn.resize(window.size());
+    for (std::size_t k = 0; k + 1 < window.size(); ++k) {
+      internal::Factor* f = TurnFactor(window[k]);
+      if (f == nullptr) continue;
+      if (first) {
+        saved_turn[k].cost = std::move(f->cost);
+        saved_turn[k].loss = f->loss;
+      }
+      const double dt = window[k + 1].epoch.t_s - window[k].epoch.t_s;
+      const bool free_jump = k + 1 == onset;
+      f->cost = std::make_unique<TurnRateCost>(
+          dt, free_jump ? kFreeTurnRateRadpsPerSqrtS : options.process.turn_rate_radps_per_sqrt_s);
+      f->loss = free_jump ? nullptr : turn_loss.get();
+    }
+    chain_fresh = false;
+  }
+
+  // Puts the default model back (factors, states, moment).
+  void RestoreDefaultModel() {
+    if (saved_turn.empty()) return;
+    for (std::size_t k = 0; k + 1 < window.size() && k < saved_turn.size(); ++k) {
+      internal::Factor* f = TurnFactor(window[k]);
+      if (f == nullptr || !saved_turn[k].cost) continue;
+      f->cost = std::move(saved_turn[k].cost);
+      f->loss = saved_turn[k].loss;
+    }
+    saved_turn.clear();
+    for (std::size_t k = 0; k < window.size() && k < saved_x.size(); ++k) window[k].x = saved_x[k];
+    moment = saved_moment;
+    chain_fresh = false;
+  }
+
+  // Tries the onset model after a default solve. True: it is chosen, and its
+  // states and factors are in place (RestoreDefaultModel after emitting).
+  bool TryTurnOnsetModel() {
+    const std::size_t n = window.size();
+    const double span = window.back().epoch.t_s - window.front().epoch.t_s;
+    if (n < 4 || span < 2.0 * kMinOnsetSegmentS) return false;
+    const double d_default = DataCost();
+    if (!std::isfinite(d_default)) return false;
+    saved_x.resize(n);
+    for (std::size_t k = 0; k < n; ++k) saved_x[k] = window[k].x;
+    saved_moment = moment;
+    // Candidates: no jump (0), and onsets on the grid inside the window.
+    std::vector<std::size_t> candidates{0};
+    const double t0 = window.front().epoch.t_s;
+    double next_t = t0 + kMinOnsetSegmentS;
+    for (std::size_t k = 1; k < n; ++k) {
+      if (window[k].epoch.t_s > window.back().epoch.t_s - kMinOnsetSegmentS) break;
+      if (window[k].epoch.t_s + options.epoch_tolerance_s >= next_t) {
+        candidates.push_back(k);
+        next_t = window[k].epoch.t_s + options.window_turn_onset_grid_s;
+      }
+    }
+    double best_cost = std::numeric_limits<double>::infinity(), best_data = 0.0;
+    std::size_t best = 0;
+    std::vector<StateVector> best_x;
+    Eigen::Vector3d best_m = moment;
+    for (const std::size_t onset : candidates) {
+      SetOnsetFactors(onset);
+      // Start: the default solution with ω the mean of its own on each side.
+      double before = 0.0, after = 0.0;
+      for (std::size_t k = 0; k < n; ++k) (k < onset ? before : after) += saved_x[k](5);
+      if (onset > 0) before /= static_cast<double>(onset);
+      after /= static_cast<double>(n - onset);
+      for (std::size_t k = 0; k < n; ++k) {
+        window[k].x = saved_x[k];
+        window[k].x(5) = k < onset ? before : after;
+      }
+      moment = saved_moment;
+      ceres::Solver::Summary cs;
+      int iterations = 0;
+      double initial = 0.0;
+      ChainGaussNewton(&cs, &iterations, &initial, options.window_turn_onset_iterations);
+      if (!chain_ok || !std::isfinite(cs.final_cost)) continue;
+      if (cs.final_cost < best_cost) {
+        best_cost = cs.final_cost;
+        best = onset;
+        best_data = DataCost();
+        best_x.resize(n);
+        for (std::size_t k = 0; k < n; ++k) best_x[k] = window[k].x;
+        best_m = moment;
+      }
+    }
+    int residuals = 0;
+    for (const WindowEpoch& w : window) {
+      for (const auto& f : w.measurements) residuals += f.cost->num_residuals();
+    }
+    const double penalty = options.window_turn_onset_bic_params * 0.5 * std::log(std::max(residuals, 1));
+    const bool chosen = std::isfinite(best_cost) && best_data <= d_default + penalty;
+    ++summary.num_turn_onset_tries;
+    if (!chosen) {
+      RestoreDefaultModel();
+      return false;
+    }
+    ++summary.num_turn_onset_chosen;
+    SetOnsetFactors(best);
+    for (std::size_t k = 0; k < n; ++k) window[k].x = best_x[k];
+    moment = best_m;
+    chain_fresh = false;
+    return true;
   }
 
   // Solves the window; `start` = first solve from the initialiser's guess
@@ -490,7 +634,12 @@ struct WindowTracker::Impl {
     const std::size_t count = static_cast<std::size_t>(unsolved);
     unsolved = 0;
     last_solve_t = window.back().epoch.t_s;
-    return Emit(count, t0);
+    if (!options.window_turn_onset_model || !summary.usable || !TryTurnOnsetModel()) return Emit(count, t0);
+    // The onset model's newest states and covariance; the window goes on
+    // with the default model.
+    std::vector<EpochEstimate> out = Emit(count, t0);
+    RestoreDefaultModel();
+    return out;
   }
 
   // Estimates of the newest `count` epochs after a solve.

@@ -269,6 +269,30 @@ struct TrackerOptions {
   // Relative cost change that ends a window solve (the window starts from
   // the previous solution, so a loose tolerance loses nothing).
   double window_function_tolerance = 1e-4;
+  // Window: a second turn-rate model tried after every window solve (a
+  // two-model choice; docs/ACCURACY.md, "The window's turn onset as a model
+  // choice"). The default window's turn rate is a loose random walk
+  // (process.window_turn_rate_radps_per_sqrt_s), which spreads a turn's onset
+  // over the window as a ramp, so the newest heading lags the turn. The
+  // onset model is the batch's stiff walk (process.turn_rate_radps_per_sqrt_s,
+  // same robust loss) with one free jump of ω at an onset time chosen on a
+  // grid inside the window; it is solved on the same window (same prior,
+  // samples and kinematic factors) from the default solution, and its newest
+  // states and covariance are emitted instead of the default's if its data
+  // cost (prior + measurements, ½ Σ ρ in σ²) exceeds the default's by at
+  // most window_turn_onset_bic_params · ½ ln n, n the number of measurement
+  // residuals in the window (BIC: the default's walk taken as that many more
+  // free parameters than the onset model). The window itself
+  // (marginalisation, prediction, association) keeps the default model.
+  bool window_turn_onset_model = false;
+  // Grid of onset times (s) inside the window (the window's first and last
+  // 1 s are not tried; "no onset" always is).
+  double window_turn_onset_grid_s = 1.0;
+  // Δk of the BIC comparison (see window_turn_onset_model).
+  double window_turn_onset_bic_params = 1.0;
+  // Gauss-Newton iterations of each onset candidate's solve.
+  int window_turn_onset_iterations = 8;
+
   // Per-epoch window update: kChainGaussNewton = Gauss-Newton steps solved
   // by block-tridiagonal elimination of the chain (O(window) per step, with
   // backtracking and the robust weights of the factors); kCeres = a Ceres
@@ -321,6 +345,10 @@ struct Summary {
   // because they ended at a lower cost (TrackerOptions::batch_turn_change_points).
   int num_turn_restarts = 0;
   int num_turn_restarts_kept = 0;
+  // Window: solves after which the turn-onset model was tried, and chosen
+  // (TrackerOptions::window_turn_onset_model), since the tracker was made.
+  int num_turn_onset_tries = 0;
+  int num_turn_onset_chosen = 0;
   // Batch: candidate ends whose spread entered the covariance with a weight
   // > 1e-12 (TrackerOptions::batch_model_spread; the chosen one included).
   int num_model_spread_candidates = 0;
