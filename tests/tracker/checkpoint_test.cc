@@ -379,6 +379,15 @@ TEST(TrackerCheckpoint, BadFilesAreRefusedWithTheReason) {
   MultiTrackerOptions changed = fx.options;
   changed.management.max_coast_s = 9.0;
   EXPECT_NE(Refusal(good, changed, fx.B0).find("other tracker options"), std::string::npos);
+  // The options of session 16 (the window's turn-onset model, the far field's allowance, the batch's
+  // other-field covariance) are part of the configuration too.
+  for (int k = 0; k < 3; ++k) {
+    MultiTrackerOptions other_model = fx.options;
+    if (k == 0) other_model.track.window_turn_onset_model = !other_model.track.window_turn_onset_model;
+    if (k == 1) other_model.far_source.unexplained_sigma_T += 1e-9;
+    if (k == 2) other_model.batch_other_field_covariance = !other_model.batch_other_field_covariance;
+    EXPECT_NE(Refusal(good, other_model, fx.B0).find("other tracker options"), std::string::npos) << k;
+  }
   EXPECT_NE(Refusal(good, fx.options, Eigen::Vector3d(1e-9, 0.0, 0.0)).find("another B0"), std::string::npos);
   // A payload cut inside the state (re-sealed, so the checksum passes).
   const std::string cut = EncodeTrackerCheckpoint(fx.payload.substr(0, fx.payload.size() - 100));

@@ -178,6 +178,13 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.I64(static_cast<std::int64_t>(so.carry));
   w.F64(so.min_tensor_snr);
   for (double d : {so.max_rate_T_per_s, so.floor_T, so.b0_time_s, so.segment_s, so.tolerance_T}) w.F64(d);
+  // The window's turn-onset model changes the rows it emits; the batch's
+  // other-field covariance its σ.
+  w.I64(static_cast<std::int64_t>(t.window_turn_onset_model));
+  w.I64(static_cast<std::int64_t>(t.window_turn_onset_iterations));
+  w.F64(t.window_turn_onset_grid_s);
+  w.F64(t.window_turn_onset_bic_params);
+  w.I64(static_cast<std::int64_t>(o.batch_other_field_covariance));
   return w.bytes();
 }
 
