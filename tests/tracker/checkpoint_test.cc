@@ -7,6 +7,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,56 @@ void ExpectSame(const TrackOutput& a, const TrackOutput& b) {
   EXPECT_TRUE((a.estimate.cov_state.array() == b.estimate.cov_state.array()).all()) << a.estimate.t_s;
   EXPECT_TRUE((a.m_B_Am2.array() == b.m_B_Am2.array()).all()) << a.estimate.t_s;
   EXPECT_TRUE((a.cov_m_B.array() == b.cov_m_B.array()).all()) << a.estimate.t_s;
+}
+
+// A run cut by a checkpoint: the uninterrupted tracker and its outputs, and
+// the state it saved at the first epoch boundary where the test's rule said so.
+struct CutRun {
+  std::unique_ptr<MultiTracker> tracker;  // uninterrupted, at its end
+  Outputs whole;
+  std::size_t cut = 0;  // the first sample after the checkpoint (0: never cut)
+  std::size_t outputs_before_cut = 0;
+  std::string payload;
+};
+
+// Runs `samples` through a tracker with `options`; before each sample, until
+// the cut, `cut_here(tracker, whole, t_s)` is asked (it may note what it waits
+// for), and the state is saved at the first epoch boundary where it says yes.
+template <class CutHere>
+CutRun RunAndCut(const std::vector<GradiometerSample>& samples, const Eigen::Vector3d& B0,
+                 const MultiTrackerOptions& options, CutHere cut_here) {
+  CutRun r;
+  r.tracker = std::make_unique<MultiTracker>(B0, options);
+  MultiTracker& t = *r.tracker;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const bool boundary = i > 0 && samples[i].t_s != samples[i - 1].t_s;
+    if (r.cut == 0 && cut_here(t, r.whole, samples[i].t_s) && boundary) {
+      r.cut = i;
+      r.payload = t.SaveState();
+      r.outputs_before_cut = r.whole.out.size();
+    }
+    Take(t, t.AddSample(samples[i]), &r.whole);
+  }
+  Take(t, t.Flush(), &r.whole);
+  return r;
+}
+
+// The samples from the cut on through `restored`, flushed.
+Outputs Resume(MultiTracker& restored, const std::vector<GradiometerSample>& samples, std::size_t cut) {
+  Outputs after;
+  for (std::size_t i = cut; i < samples.size(); ++i) Take(restored, restored.AddSample(samples[i]), &after);
+  Take(restored, restored.Flush(), &after);
+  return after;
+}
+
+// The restored run's outputs are the uninterrupted run's after the cut, bit for bit.
+void ExpectSameAfterCut(const Outputs& after, const CutRun& r) {
+  ASSERT_EQ(after.out.size(), r.whole.out.size() - r.outputs_before_cut);
+  for (std::size_t k = 0; k < after.out.size(); ++k) {
+    SCOPED_TRACE(k);
+    ExpectSame(after.out[k], r.whole.out[r.outputs_before_cut + k]);
+    if (::testing::Test::HasFailure()) break;
+  }
 }
 
 struct Fixture {
@@ -138,37 +189,19 @@ TEST(TrackerCheckpoint, PairRestoredBeforeItsRefitGoesOnBitForBit) {
       cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/abreast.toml");
   const SimulatedField f = SimulateField(sc);
   const MultiTrackerOptions options;
-  MultiTracker t(sc.B0, options);
-  Outputs whole;
-  std::size_t cut = 0, outputs_before_cut = 0;
   double t_confirmed = -1.0;
-  std::string payload;
-  for (std::size_t i = 0; i < f.samples.size(); ++i) {
-    const bool boundary = i > 0 && f.samples[i].t_s != f.samples[i - 1].t_s;
-    if (t_confirmed < 0.0 && t.summary().num_confirmed == 2) t_confirmed = f.samples[i].t_s;
-    if (cut == 0 && boundary && t_confirmed > 0.0 && f.samples[i].t_s > t_confirmed + 1.0) {
-      cut = i;
-      payload = t.SaveState();
-      outputs_before_cut = whole.out.size();
-    }
-    Take(t, t.AddSample(f.samples[i]), &whole);
-  }
-  Take(t, t.Flush(), &whole);
-  ASSERT_GT(cut, 0u) << "the pair was never confirmed";
+  const CutRun r = RunAndCut(f.samples, sc.B0, options, [&](const MultiTracker& t, const Outputs&, double t_s) {
+    if (t_confirmed < 0.0 && t.summary().num_confirmed == 2) t_confirmed = t_s;
+    return t_confirmed > 0.0 && t_s > t_confirmed + 1.0;
+  });
+  ASSERT_GT(r.cut, 0u) << "the pair was never confirmed";
   MultiTracker restored(sc.B0, options);
-  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload)));
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
   EXPECT_EQ(restored.num_live_tracks(), 2);
-  Outputs after;
-  for (std::size_t i = cut; i < f.samples.size(); ++i) Take(restored, restored.AddSample(f.samples[i]), &after);
-  Take(restored, restored.Flush(), &after);
+  const Outputs after = Resume(restored, f.samples, r.cut);
   std::printf("pair confirmed at %.1f s, checkpoint at %.1f s: the %zu outputs after it compared\n", t_confirmed,
-              f.samples[cut].t_s, after.out.size());
-  ASSERT_EQ(after.out.size(), whole.out.size() - outputs_before_cut);
-  for (std::size_t k = 0; k < after.out.size(); ++k) {
-    SCOPED_TRACE(k);
-    ExpectSame(after.out[k], whole.out[outputs_before_cut + k]);
-    if (HasFailure()) break;
-  }
+              f.samples[r.cut].t_s, after.out.size());
+  ExpectSameAfterCut(after, r);
 }
 
 // One vessel overtaking another (the short overtaking of
@@ -197,36 +230,17 @@ TEST(TrackerCheckpoint, OvertakingRestoredBeforeTheStartBesideATrackGoesOnBitFor
     }
   }
   ASSERT_GT(t_beside, 0.0) << "no second track beside the first";
-  MultiTracker t(sc.B0, options);
-  Outputs whole;
-  std::size_t cut = 0, outputs_before_cut = 0;
-  std::string payload;
-  for (std::size_t i = 0; i < f.samples.size(); ++i) {
-    const bool boundary = i > 0 && f.samples[i].t_s != f.samples[i - 1].t_s;
-    if (cut == 0 && boundary && f.samples[i].t_s >= t_beside - 0.5) {
-      cut = i;
-      payload = t.SaveState();
-      outputs_before_cut = whole.out.size();
-    }
-    Take(t, t.AddSample(f.samples[i]), &whole);
-  }
-  Take(t, t.Flush(), &whole);
-  ASSERT_EQ(t.Tracks().size(), 2u);  // one id per vessel
+  const CutRun r = RunAndCut(f.samples, sc.B0, options,
+                             [&](const MultiTracker&, const Outputs&, double t_s) { return t_s >= t_beside - 0.5; });
+  ASSERT_EQ(r.tracker->Tracks().size(), 2u);  // one id per vessel
   MultiTracker restored(sc.B0, options);
-  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload)));
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
   EXPECT_EQ(restored.num_live_tracks(), 1);
-  Outputs after;
-  for (std::size_t i = cut; i < f.samples.size(); ++i) Take(restored, restored.AddSample(f.samples[i]), &after);
-  Take(restored, restored.Flush(), &after);
+  const Outputs after = Resume(restored, f.samples, r.cut);
   std::printf("second track at %.1f s, checkpoint at %.1f s: the %zu outputs after it compared\n", t_beside,
-              f.samples[cut].t_s, after.out.size());
+              f.samples[r.cut].t_s, after.out.size());
   EXPECT_EQ(restored.Tracks().size(), 2u);
-  ASSERT_EQ(after.out.size(), whole.out.size() - outputs_before_cut);
-  for (std::size_t k = 0; k < after.out.size(); ++k) {
-    SCOPED_TRACE(k);
-    ExpectSame(after.out[k], whole.out[outputs_before_cut + k]);
-    if (HasFailure()) break;
-  }
+  ExpectSameAfterCut(after, r);
 }
 
 // The ghost field of a track ended out of reach (TrackManagementOptions::ghost_field_s) is in the checkpoint:
@@ -241,42 +255,23 @@ TEST(TrackerCheckpoint, GhostFieldRestoredGoesOnBitForBit) {
   const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions options;
   options.management.ghost_field_s = 30.0;
-  MultiTracker t(sc.B0, options);
-  Outputs whole;
-  std::size_t cut = 0, outputs_before_cut = 0;
   double t_end = -1.0;
-  std::string payload;
-  for (std::size_t i = 0; i < f.samples.size(); ++i) {
-    const bool boundary = i > 0 && f.samples[i].t_s != f.samples[i - 1].t_s;
-    if (cut == 0 && boundary && t_end > 0.0 && f.samples[i].t_s >= t_end + 1.0) {
-      ASSERT_EQ(t.num_ghost_fields(), 1);
-      cut = i;
-      payload = t.SaveState();
-      outputs_before_cut = whole.out.size();
-    }
-    Take(t, t.AddSample(f.samples[i]), &whole);
+  const CutRun r = RunAndCut(f.samples, sc.B0, options, [&](const MultiTracker&, const Outputs& whole, double t_s) {
     for (const TrackEvent& e : whole.events) {
       if (t_end < 0.0 && e.kind == TrackEvent::Kind::kEnded && e.reason == "out_of_reach") t_end = e.t_s;
     }
-  }
-  Take(t, t.Flush(), &whole);
-  ASSERT_GT(cut, 0u) << "no track ended out of reach";
+    return t_end > 0.0 && t_s >= t_end + 1.0;
+  });
+  ASSERT_GT(r.cut, 0u) << "no track ended out of reach";
   MultiTracker restored(sc.B0, options);
-  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload)));
-  EXPECT_EQ(restored.num_ghost_fields(), 1);
-  Outputs after;
-  for (std::size_t i = cut; i < f.samples.size(); ++i) Take(restored, restored.AddSample(f.samples[i]), &after);
-  Take(restored, restored.Flush(), &after);
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
+  EXPECT_EQ(restored.num_ghost_fields(), 1);  // the saved tracker's ghost, 1 s after the track ended
+  const Outputs after = Resume(restored, f.samples, r.cut);
   std::printf("track ended out of reach at %.1f s, checkpoint at %.1f s: the %zu outputs after it compared\n", t_end,
-              f.samples[cut].t_s, after.out.size());
-  EXPECT_EQ(restored.summary().num_ghosts, t.summary().num_ghosts);
-  ASSERT_EQ(after.out.size(), whole.out.size() - outputs_before_cut);
+              f.samples[r.cut].t_s, after.out.size());
+  EXPECT_EQ(restored.summary().num_ghosts, r.tracker->summary().num_ghosts);
   ASSERT_GT(after.out.size(), 0u);
-  for (std::size_t k = 0; k < after.out.size(); ++k) {
-    SCOPED_TRACE(k);
-    ExpectSame(after.out[k], whole.out[outputs_before_cut + k]);
-    if (HasFailure()) break;
-  }
+  ExpectSameAfterCut(after, r);
 }
 
 // The window's sensor offsets carried between windows
@@ -291,37 +286,19 @@ TEST(TrackerCheckpoint, CarriedSensorOffsetsRestoredGoOnBitForBit) {
   options.track.sensor_offset.enabled = true;
   options.track.sensor_offset.carry = true;
   options.track.sensor_offset.min_tensor_snr = 20.0;
-  MultiTracker t(sc.B0, options);
-  Outputs whole;
-  std::size_t cut = 0, outputs_before_cut = 0;
   double t_confirmed = -1.0;
-  std::string payload;
-  for (std::size_t i = 0; i < f.samples.size(); ++i) {
-    if (t_confirmed < 0.0 && t.summary().num_confirmed > 0) t_confirmed = f.samples[i].t_s;
-    const bool boundary = i > 0 && f.samples[i].t_s != f.samples[i - 1].t_s;
-    if (cut == 0 && boundary && t_confirmed >= 0.0 && f.samples[i].t_s >= t_confirmed + 30.0) {
-      cut = i;
-      payload = t.SaveState();
-      outputs_before_cut = whole.out.size();
-    }
-    Take(t, t.AddSample(f.samples[i]), &whole);
-  }
-  Take(t, t.Flush(), &whole);
-  ASSERT_GT(cut, 0u) << "no track confirmed 30 s before the end";
+  const CutRun r = RunAndCut(f.samples, sc.B0, options, [&](const MultiTracker& t, const Outputs&, double t_s) {
+    if (t_confirmed < 0.0 && t.summary().num_confirmed > 0) t_confirmed = t_s;
+    return t_confirmed >= 0.0 && t_s >= t_confirmed + 30.0;
+  });
+  ASSERT_GT(r.cut, 0u) << "no track confirmed 30 s before the end";
   MultiTracker restored(sc.B0, options);
-  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload)));
-  Outputs after;
-  for (std::size_t i = cut; i < f.samples.size(); ++i) Take(restored, restored.AddSample(f.samples[i]), &after);
-  Take(restored, restored.Flush(), &after);
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
+  const Outputs after = Resume(restored, f.samples, r.cut);
   std::printf("carried sensor offsets: checkpoint at %.1f s (%zu bytes): the %zu outputs after it compared\n",
-              f.samples[cut].t_s, payload.size(), after.out.size());
-  ASSERT_EQ(after.out.size(), whole.out.size() - outputs_before_cut);
+              f.samples[r.cut].t_s, r.payload.size(), after.out.size());
   ASSERT_GT(after.out.size(), 100u);
-  for (std::size_t k = 0; k < after.out.size(); ++k) {
-    SCOPED_TRACE(k);
-    ExpectSame(after.out[k], whole.out[outputs_before_cut + k]);
-    if (HasFailure()) break;
-  }
+  ExpectSameAfterCut(after, r);
 }
 
 // RestoreState(DecodeTrackerCheckpoint(file)) into a new tracker with `options`:
