@@ -55,6 +55,15 @@ std::vector<FarSourceSample> Samples(const std::vector<Source>& src, double t0, 
 // edge (y = −180 m), going north at 3 m/s, abeam of the grid at t = 50 s.
 Source Ship() { return {{-150.0, -180.0, -12.0}, {3.0, 0.0, 0.0}, {420000.0, -20000.0, 160000.0}}; }
 
+// The estimator fed the ship's samples every 0.1 s from −20 s to 40 s, each epoch it wants, and stepped when due.
+void FeedShip(const Source& ship, const std::vector<Eigen::Vector3d>& grid, FarSourceEstimator* est) {
+  for (double t = -20.0; t <= 40.0 + 1e-9; t += 0.1) {
+    if (!est->WantsEpoch(t)) continue;
+    est->AddEpoch(t, Samples({ship}, t, t, static_cast<unsigned>(1000 + t * 10)), grid);
+    est->StepIfDue(t);
+  }
+}
+
 TEST(FarSource, RecoversAFarShipsBAtTheSensors) {
   const FarSourceOptions opt;
   const Source ship = Ship();
@@ -121,13 +130,7 @@ TEST(FarSource, EstimatorRemovesTheShipOnlyOnceItsFieldCounts) {
   double sigma = -1.0;
   EXPECT_EQ(est.B(0, grid[0], 0.0, &sigma), Eigen::Vector3d::Zero());
   EXPECT_EQ(sigma, 0.0);
-  for (double t = -20.0; t <= 40.0 + 1e-9; t += 0.1) {
-    if (!est.WantsEpoch(t)) continue;
-    std::vector<FarSourceSample> used;
-    for (const auto& s : Samples({ship}, t, t, static_cast<unsigned>(1000 + t * 10))) used.push_back(s);
-    est.AddEpoch(t, used, grid);
-    est.StepIfDue(t);
-  }
+  FeedShip(ship, grid, &est);
   ASSERT_TRUE(est.active());
   const Eigen::Vector3d b = est.B(0, grid[0], 40.0, &sigma);
   const Eigen::Vector3d truth = DipoleB(grid[0] - ship.At(40.0), ship.m);
@@ -295,13 +298,7 @@ TEST(FarSource, UnexplainedFarFieldIsInEverySamplesSigma) {
   EXPECT_EQ(est.B(0, grid[0], 0.0, &sigma), Eigen::Vector3d::Zero());  // no fit yet: nothing removed
   EXPECT_NEAR(sigma, 3e-9, 1e-18);
   const Source ship = Ship();
-  for (double t = -20.0; t <= 40.0 + 1e-9; t += 0.1) {
-    if (!est.WantsEpoch(t)) continue;
-    std::vector<FarSourceSample> used;
-    for (const auto& s : Samples({ship}, t, t, static_cast<unsigned>(1000 + t * 10))) used.push_back(s);
-    est.AddEpoch(t, used, grid);
-    est.StepIfDue(t);
-  }
+  FeedShip(ship, grid, &est);
   ASSERT_TRUE(est.active());
   const Eigen::Vector3d b = est.B(0, grid[0], 40.0, &sigma);
   EXPECT_GT(b.norm(), 2e-9);

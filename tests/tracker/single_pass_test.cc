@@ -104,6 +104,19 @@ struct PassScores {
   int turn_restarts_kept = 0;  // of the batch's last solve of its (first) track
 };
 
+// Every estimate of the window (MultiTracker, every sample of the pass).
+std::vector<EpochEstimate> WindowEstimates(const SimulatedPass& sim, const Eigen::Vector3d& B0,
+                                           const MultiTrackerOptions& opt) {
+  MultiTracker window(B0, opt);
+  std::vector<EpochEstimate> w;
+  const auto take = [&](const std::vector<TrackOutput>& out) {
+    for (const auto& o : out) w.push_back(o.estimate);
+  };
+  for (const auto& smp : sim.samples) take(window.AddSample(smp));
+  take(window.Flush());
+  return w;
+}
+
 PassScores RunPass(const PassRow& r, bool fluxgate, bool with_single, bool with_window = true,
                    int turn_change_points = TrackerOptions{}.batch_turn_change_points,
                    const MultiTrackerOptions& base = {}) {
@@ -133,14 +146,7 @@ PassScores RunPass(const PassRow& r, bool fluxgate, bool with_single, bool with_
     s.single = testing::ScoreTrack(single.epochs, sim.samples, truth);
   }
   if (!with_window) return s;
-  MultiTracker window(sc.B0, opt);
-  std::vector<EpochEstimate> w;
-  const auto take = [&](const std::vector<TrackOutput>& out) {
-    for (const auto& o : out) w.push_back(o.estimate);
-  };
-  for (const auto& smp : sim.samples) take(window.AddSample(smp));
-  take(window.Flush());
-  s.window = testing::ScoreTrack(w, sim.samples, truth);
+  s.window = testing::ScoreTrack(WindowEstimates(sim, sc.B0, opt), sim.samples, truth);
   return s;
 }
 
@@ -465,14 +471,7 @@ testing::TrackMetrics RunWindowOnly(const PassRow& r, const MultiTrackerOptions&
   const PassScenario sc = Scenario(r, true, r.seed);
   const SimulatedPass sim = SimulatePass(sc);
   const testing::TruthTrack truth = testing::TruthOf(sim);
-  MultiTracker window(sc.B0, opt);
-  std::vector<EpochEstimate> w;
-  const auto take = [&](const std::vector<TrackOutput>& out) {
-    for (const auto& o : out) w.push_back(o.estimate);
-  };
-  for (const auto& smp : sim.samples) take(window.AddSample(smp));
-  take(window.Flush());
-  return testing::ScoreTrack(w, sim.samples, truth);
+  return testing::ScoreTrack(WindowEstimates(sim, sc.B0, opt), sim.samples, truth);
 }
 
 // The window's turn onset as a model choice (TrackerOptions::
