@@ -96,11 +96,22 @@ namespace {
 
 double Snr(const GradiometerSample& s, const TrackerOptions& options) { return s.T.norm() / SigmaT(s, options); }
 
+// σ_B for the initiator's searches (the single-sample fixes, the pair
+// start's and its refit's two-dipole fit): the sample's σ_B with
+// InitOptions::fix_sigma_B_allowance_T taken out in quadrature (the
+// allowance is for the track's fits, not for the misfit gates that decide
+// whether a weak vessel is started).
+double FixSigmaB(const GradiometerSample& s, const TrackerOptions& options) {
+  const double sb = SigmaB(s, options), a = options.init.fix_sigma_B_allowance_T;
+  if (!(a > 0.0) || !(sb > a)) return sb;
+  return std::sqrt(sb * sb - a * a);
+}
+
 // √(Σr²/Σm²) of one dipole at offset r with its least-squares moment
 // (InitOptions::max_dipole_misfit); +inf if no moment fits.
 double DipoleMisfit(const GradiometerSample& s, const Eigen::Vector3d& dB_W, const Eigen::Vector3d& r_DtoS,
                     const TrackerOptions& options) {
-  const double sb = SigmaB(s, options), st = SigmaT(s, options);
+  const double sb = FixSigmaB(s, options), st = SigmaT(s, options);
   Eigen::Vector3d m_W;
   if (!FitDipoleMoment(r_DtoS, dB_W, s.T, sb, st, &m_W)) return std::numeric_limits<double>::infinity();
   Eigen::Vector3d B;
@@ -130,7 +141,7 @@ std::optional<DipoleFix> SampleFix(const GradiometerSample& s, double t_s, const
   // The offset as SingleSampleOffset, with the sample's σ for its covariance
   // (the offset does not depend on them).
   inversion::AnalyticSolution sol;
-  const inversion::NoiseSigmas noise{SigmaB(s, options), SigmaT(s, options)};
+  const inversion::NoiseSigmas noise{FixSigmaB(s, options), SigmaT(s, options)};
   if (!inversion::SolveTedEgt(s.T, dB, inversion::InverterOptions{}.egt_row_weight, noise, &sol) ||
       !sol.r_DtoS.allFinite() || sol.r_DtoS.squaredNorm() == 0.0) {
     return std::nullopt;
@@ -659,7 +670,7 @@ std::vector<InitialTrack> InitializePair(const std::vector<Epoch>& epochs, const
           (s.p_SinW - on_ghost).head<2>().norm() > reach_m) {
         continue;
       }
-      samples.push_back({e.t_s - ghost.t_ref, s.p_SinW, s.B - B0_W, s.T, SigmaB(s, options), SigmaT(s, options)});
+      samples.push_back({e.t_s - ghost.t_ref, s.p_SinW, s.B - B0_W, s.T, FixSigmaB(s, options), SigmaT(s, options)});
       t_min = std::min(t_min, e.t_s);
       t_max = std::max(t_max, e.t_s);
     }
@@ -739,7 +750,7 @@ std::vector<InitialTrack> RefitPair(const std::vector<Epoch>& epochs, const Eige
           (s.p_SinW - PairPosition(x, 1, dt)).head<2>().norm() > reach_m) {
         continue;
       }
-      samples.push_back({dt, s.p_SinW, s.B - B0_W, s.T, SigmaB(s, options), SigmaT(s, options)});
+      samples.push_back({dt, s.p_SinW, s.B - B0_W, s.T, FixSigmaB(s, options), SigmaT(s, options)});
       t_min = std::min(t_min, e.t_s);
       t_max = std::max(t_max, e.t_s);
     }

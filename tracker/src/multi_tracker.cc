@@ -1414,6 +1414,11 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   if (!B0_W.allFinite()) throw InputError("multi-tracker: B0 is not finite");
   impl_->B0_W = B0_W;
   impl_->options = options;
+  // The far field's allowance kept out of the single-sample fix search
+  // (FarSourceOptions::unexplained_in_fix_search).
+  if (options.far_source.enabled && !options.far_source.unexplained_in_fix_search) {
+    impl_->options.track.init.fix_sigma_B_allowance_T = options.far_source.unexplained_sigma_T;
+  }
   impl_->background = SensorBackgrounds(B0_W, options.background);
   impl_->cluster = internal::WindowClusterBackground(B0_W, options);
   impl_->far = FarSourceEstimator(options.far_source);

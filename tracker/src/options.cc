@@ -70,6 +70,9 @@ bool InitOptions::IsValid(std::string* error) const {
   if (!(max_dipole_misfit >= 0.0) || !std::isfinite(max_dipole_misfit)) {
     return Fail(error, "init.max_dipole_misfit must be finite and >= 0");
   }
+  if (!(fix_sigma_B_allowance_T >= 0.0) || !std::isfinite(fix_sigma_B_allowance_T)) {
+    return Fail(error, "init.fix_sigma_B_allowance_T must be finite and >= 0");
+  }
   return true;
 }
 

@@ -245,6 +245,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "far source: the far field its model does not explain, added to sigma_B of every sample whether or "
                  "not a fit is accepted, T per axis (0 = off)")
       ->capture_default_str();
+  app.add_option("--far-unexplained-fix-search", fs.unexplained_in_fix_search,
+                 "far source: that allowance also in the initiator's searches (single-sample fixes, pair start; 1, "
+                 "the default) or only in the fits (0: the single start's moment fit, the association, the solves)")
+      ->capture_default_str();
   app.add_option("--far-drift", f->far_drift,
                  "far source: each sensor's drift (a line in time over the far source's window) fitted with it and "
                  "removed (on), or the fixed B0 (off)")

@@ -99,6 +99,13 @@ struct FarSourceOptions {
   // its tensor, which a far ship's does not reach. Off by default: it costs
   // weak starts elsewhere (held-out abreast: no track). 0: off.
   double unexplained_sigma_T = 0.0;
+  // Whether that allowance also reaches the initiator's searches (true, as
+  // when it was built) or only the fits (false: InitOptions::
+  // fix_sigma_B_allowance_T takes it out of the single-sample fixes and the
+  // pair start's two-dipole fit, whose misfit gates decide whether a weak
+  // vessel is started; the single start's moment fit, the association and
+  // the solves keep it). Only with unexplained_sigma_T > 0.
+  bool unexplained_in_fix_search = true;
   // A fit whose largest B at the sensors is below this (T) is not removed
   // (nothing far to remove).
   double min_field_T = 2e-9;

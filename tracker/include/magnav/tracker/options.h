@@ -121,6 +121,16 @@ struct InitOptions {
   // them and would seed a ghost line. The sample still counts for nothing
   // in the choice of the strongest signal. 0 = off.
   double max_dipole_misfit = 0.0;
+  // The part of every sample's σ_B that is an allowance for the fits (T per
+  // axis), not the sensor's noise: the initiator's searches take it out in
+  // quadrature — the single-sample fixes (SampleFix's one-dipole test and
+  // covariance) and the two-dipole pair fits (InitializePair, RefitPair, and
+  // their misfit gate); the single start's moment fit, the association and
+  // the solves keep it. The multi-vessel tracker sets it to
+  // FarSourceOptions::unexplained_sigma_T when that allowance is kept out of
+  // the fix search (FarSourceOptions::unexplained_in_fix_search false).
+  // 0 = none.
+  double fix_sigma_B_allowance_T = 0.0;
 
   bool IsValid(std::string* error) const;
 };
