@@ -63,6 +63,63 @@ TEST(OtherFields, VarianceFromTheCovarianceMatchesTheSampledSpread) {
   EXPECT_NEAR(v.T / mc.T, 1.0, 0.15);
 }
 
+// The same variance with the field's derivatives by central differences of
+// PredictedField: the analytic Jacobians (position, heading, body moment)
+// against an independent route.
+OtherFieldVariance CentralDifferences(const Case& c) {
+  Eigen::Matrix<double, 3, 7> JB;
+  Eigen::Matrix<double, 9, 7> JT;
+  const double m_step = c.m_B.norm() * 1e-4;                                  // A·m²
+  const double steps[7] = {1e-3, 1e-3, 1e-3, 1e-5, m_step, m_step, m_step};  // m ×3, rad, A·m² ×3
+  for (int k = 0; k < 7; ++k) {
+    Eigen::Vector3d B[2];
+    Eigen::Matrix3d T[2];
+    for (int side = 0; side < 2; ++side) {
+      const double h = side == 0 ? steps[k] : -steps[k];
+      CtState<double> x = c.s;
+      Eigen::Vector3d m = c.m_B;
+      if (k == 0) x.x += h;
+      if (k == 1) x.y += h;
+      if (k == 2) x.z += h;
+      if (k == 3) x.heading += h;
+      if (k >= 4) m(k - 4) += h;
+      PredictedField(x, m, c.p_S, &B[side], &T[side]);
+    }
+    JB.col(k) = (B[0] - B[1]) / (2.0 * steps[k]);
+    const Eigen::Matrix3d dT = (T[0] - T[1]) / (2.0 * steps[k]);
+    JT.col(k) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dT.data());
+  }
+  Eigen::Matrix<double, 7, 7> C = Eigen::Matrix<double, 7, 7>::Zero();
+  const int idx[4] = {0, 1, 2, 4};
+  for (int a = 0; a < 4; ++a) {
+    for (int b = 0; b < 4; ++b) C(a, b) = c.P(idx[a], idx[b]);
+  }
+  C.bottomRightCorner<3, 3>() = c.P_m;
+  return {(JB * C * JB.transpose()).trace() / 3.0, (JT * C * JT.transpose()).trace() / 9.0};
+}
+
+TEST(OtherFields, AnalyticJacobiansMatchCentralDifferences) {
+  // Each term alone (position, heading, moment), so a dropped term is not
+  // hidden by the others; then all three with a position–heading
+  // cross-covariance, so a wrong sign shows. The moment's covariance is not
+  // isotropic, so a moment left in the body frame shows.
+  for (int term = 0; term < 4; ++term) {
+    Case c;
+    c.s.heading = 0.7;  // off the axes, so the heading's derivative is not special
+    c.P_m = Eigen::Vector3d(25.0, 4.0, 64.0).asDiagonal();
+    if (term == 3) c.P(0, 4) = c.P(4, 0) = 0.8 * std::sqrt(c.P(0, 0) * c.P(4, 4));
+    if (term != 0 && term != 3) c.P.topLeftCorner<3, 3>().setZero();
+    if (term != 1 && term != 3) c.P(4, 4) = 0.0;
+    if (term != 2 && term != 3) c.P_m.setZero();
+    const OtherFieldVariance v = OtherFieldVarianceFromCovariance(c.s, c.m_B, c.P, c.P_m, c.p_S);
+    const OtherFieldVariance fd = CentralDifferences(c);
+    ASSERT_GT(fd.B, 0.0);
+    ASSERT_GT(fd.T, 0.0);
+    EXPECT_NEAR(v.B / fd.B, 1.0, 1e-4) << "term " << term;
+    EXPECT_NEAR(v.T / fd.T, 1.0, 1e-4) << "term " << term;
+  }
+}
+
 TEST(OtherFields, ZeroCovarianceAddsNothingAndTheRelativeShareIsFarLarger) {
   Case c;
   c.P.setZero();

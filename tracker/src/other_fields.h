@@ -14,27 +14,39 @@
 
 #include <Eigen/Core>
 
+#include "magnav/core/dipole.h"
+#include "magnav/core/frames.h"
 #include "magnav/core/gradiometer.h"
+#include "magnav/core/tensor.h"
 #include "magnav/tracker/multi_tracker.h"
 
 namespace magnav::tracker {
 
-// `sigma_B`, `sigma_T`: the sample's own noise (its σ or the options'
-// default).
-inline void RemoveOtherFields(const Eigen::Vector3d& B_others, const Eigen::Matrix3d& T_others, double sigma_B,
-                              double sigma_T, GradiometerSample* s) {
+// The fields subtracted from the sample, and their model error (σ per
+// element: `model_sigma_B` T, `model_sigma_T` T/m) added in quadrature to
+// the sample's own noise `sigma_B`, `sigma_T` (its σ or the options' default).
+inline void RemoveModelledFields(const Eigen::Vector3d& B_others, const Eigen::Matrix3d& T_others, double sigma_B,
+                                 double sigma_T, double model_sigma_B, double model_sigma_T, GradiometerSample* s) {
   s->B -= B_others;
   s->T -= T_others;
+  s->sigma_B = std::hypot(sigma_B, model_sigma_B);
+  s->sigma_T = std::hypot(sigma_T, model_sigma_T);
+}
+
+// The model error as kOtherFieldRelativeError of the fields' norm.
+inline void RemoveOtherFields(const Eigen::Vector3d& B_others, const Eigen::Matrix3d& T_others, double sigma_B,
+                              double sigma_T, GradiometerSample* s) {
   const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
-  s->sigma_B = std::hypot(sigma_B, rel * B_others.norm() / std::sqrt(3.0));
-  s->sigma_T = std::hypot(sigma_T, rel * T_others.norm() / 3.0);
+  RemoveModelledFields(B_others, T_others, sigma_B, sigma_T, rel * B_others.norm() / std::sqrt(3.0),
+                       rel * T_others.norm() / 3.0, s);
 }
 
 // The variance per element of another track's predicted field at a sensor
 // from that track's uncertainty, to first order: C = blockdiag(P of [x y z
-// heading], P_m), J the field's derivatives by central differences of
-// PredictedField; B: tr(J_B C J_Bᵀ)/3 (T²), T: tr(J_T C J_Tᵀ)/9 ((T/m)²), the
-// same spread over the elements as the relative error's. The position-
+// heading], P_m), J the field's analytic derivatives (core/dipole.h
+// DipoleMeasurement's J_z_r and J_z_m, frames.h WorldMoment's ∂m_W/∂ψ); B:
+// tr(J_B C J_Bᵀ)/3 (T²), T: tr(J_T C J_Tᵀ)/9 over the nine elements ((T/m)²),
+// the same spread over the elements as the relative error's. The position-
 // moment cross-covariance is not kept by the batch and is left out.
 struct OtherFieldVariance {
   double B = 0.0;  // T² per axis
@@ -43,29 +55,25 @@ struct OtherFieldVariance {
 inline OtherFieldVariance OtherFieldVarianceFromCovariance(const CtState<double>& s, const Eigen::Vector3d& m_B_Am2,
                                                            const Eigen::Matrix<double, 6, 6>& P_state,
                                                            const Eigen::Matrix3d& P_m, const Eigen::Vector3d& p_SinW) {
-  // Columns: d/dx, d/dy, d/dz, d/dheading, d/dm_x, d/dm_y, d/dm_z.
-  Eigen::Matrix<double, 3, 7> JB;
-  Eigen::Matrix<double, 9, 7> JT;
-  const double m_step = std::max(m_B_Am2.norm(), 1.0) * 1e-4;  // A·m²
-  const double steps[7] = {1e-3, 1e-3, 1e-3, 1e-5, m_step, m_step, m_step};  // m, m, m, rad, A·m² ×3
-  for (int c = 0; c < 7; ++c) {
-    Eigen::Vector3d B[2];
-    Eigen::Matrix3d T[2];
-    for (int side = 0; side < 2; ++side) {
-      const double h = side == 0 ? steps[c] : -steps[c];
-      CtState<double> x = s;
-      Eigen::Vector3d m = m_B_Am2;
-      if (c == 0) x.x += h;
-      if (c == 1) x.y += h;
-      if (c == 2) x.z += h;
-      if (c == 3) x.heading += h;
-      if (c >= 4) m(c - 4) += h;
-      PredictedField(x, m, p_SinW, &B[side], &T[side]);
-    }
-    JB.col(c) = (B[0] - B[1]) / (2.0 * steps[c]);
-    const Eigen::Matrix3d dT = (T[0] - T[1]) / (2.0 * steps[c]);
-    JT.col(c) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dT.data());
+  Eigen::Vector3d dmW_dpsi;
+  const Eigen::Vector3d m_W = WorldMoment(m_B_Am2, s.heading, &dmW_dpsi);
+  const Eigen::Matrix3d R = HeadingRotation(s.heading);
+  Jacobian8x3 J_r, J_m;
+  DipoleMeasurement(p_SinW - Eigen::Vector3d(s.x, s.y, s.z), m_W, &J_r, &J_m);
+  // Columns: d/dx, d/dy, d/dz, d/dheading, d/dm_x, d/dm_y, d/dm_z (body).
+  // The vessel's position enters r = p_S − p_D with a minus sign.
+  Eigen::Matrix<double, 8, 7> J;
+  J.leftCols<3>() = -J_r;
+  J.col(3) = J_m * dmW_dpsi;
+  J.rightCols<3>() = J_m * R;
+  // The packed tensor's five rows to the nine elements (UnpackTensor5 is linear).
+  Eigen::Matrix<double, 9, 5> L;
+  for (int k = 0; k < 5; ++k) {
+    const Eigen::Matrix3d e = UnpackTensor5(Tensor5::Unit(k));
+    L.col(k) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(e.data());
   }
+  const Eigen::Matrix<double, 3, 7> JB = J.topRows<3>();
+  const Eigen::Matrix<double, 9, 7> JT = L * J.bottomRows<5>();
   Eigen::Matrix<double, 7, 7> C = Eigen::Matrix<double, 7, 7>::Zero();
   const int idx[4] = {0, 1, 2, 4};  // x y z heading in [x y z v h ω]
   for (int a = 0; a < 4; ++a) {
@@ -83,10 +91,7 @@ inline OtherFieldVariance OtherFieldVarianceFromCovariance(const CtState<double>
 inline void RemoveOtherFieldsWithVariance(const Eigen::Vector3d& B_others, const Eigen::Matrix3d& T_others,
                                           const OtherFieldVariance& var, double sigma_B, double sigma_T,
                                           GradiometerSample* s) {
-  s->B -= B_others;
-  s->T -= T_others;
-  s->sigma_B = std::sqrt(sigma_B * sigma_B + var.B);
-  s->sigma_T = std::sqrt(sigma_T * sigma_T + var.T);
+  RemoveModelledFields(B_others, T_others, sigma_B, sigma_T, std::sqrt(var.B), std::sqrt(var.T), s);
 }
 
 }  // namespace magnav::tracker
