@@ -107,7 +107,9 @@ double ForwardModelSeconds(const FieldScenario& sc, const SimulatedField& f) {
 // (cluster_background.h, with the mean and largest number of tracks per
 // cluster of its offset steps; the far source off, they are exclusive); 2 the
 // fixed B0 alone (the far source off: its cost is the difference with 0).
-void BM_MultiTrackerField(benchmark::State& state) {
+// turn_onset: the window's turn-onset model on (TrackerOptions::
+// window_turn_onset_model, its fast search; BM_MultiTrackerFieldTurnOnset).
+void RunField(benchmark::State& state, bool turn_onset) {
   const int n = static_cast<int>(state.range(0));
   const int vessels = static_cast<int>(state.range(1));
   const double solve_interval_s = static_cast<double>(state.range(2)) * 1e-3;
@@ -118,6 +120,7 @@ void BM_MultiTrackerField(benchmark::State& state) {
   magnav::tracker::MultiTrackerOptions opt;
   opt.track.window_solve_interval_s = solve_interval_s;
   opt.cluster_background.enabled = state.range(4) == 1;
+  opt.track.window_turn_onset_model = turn_onset;
   if (state.range(4) != 0) opt.far_source.enabled = false;
   int tracks = 0;
   magnav::tracker::MultiSummary summary;
@@ -182,6 +185,17 @@ void BM_MultiTrackerField(benchmark::State& state) {
   state.counters["ms_per_epoch"] = 1e3 * cpu_s / epochs;
   state.counters["ratio_to_forward_model"] = cpu_s / ForwardModelSeconds(sc, f);
 }
+
+void BM_MultiTrackerField(benchmark::State& state) { RunField(state, false); }
+// The same with the window's turn-onset model on (docs/ACCURACY.md, "The
+// window's turn onset: cheap and guarded"): the scale rows, apart and abreast.
+void BM_MultiTrackerFieldTurnOnset(benchmark::State& state) { RunField(state, true); }
+BENCHMARK(BM_MultiTrackerFieldTurnOnset)
+    ->ArgNames({"grid", "vessels", "solve_ms", "abreast", "cluster_bg"})
+    ->Args({10, 10, 500, 0, 0})
+    ->Args({10, 10, 500, 1, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 BENCHMARK(BM_MultiTrackerField)
     ->ArgNames({"grid", "vessels", "solve_ms", "abreast", "cluster_bg"})
     ->Args({3, 1, 0, 0, 0})

@@ -279,12 +279,6 @@ void AddTrackCommand(CLI::App& app) {
                   "batch: each round grows a track's span by at most this much per side, over the epochs where its "
                   "predicted tensor SNR reaches --batch-gate-snr, s")
       ->capture_default_str();
-  cmd->add_flag("--window-turn-onset", args->flags.options.track.window_turn_onset_model,
-                "window: after each solve also solve the window with the batch's stiff turn-rate walk and one "
-                "free turn onset (on a grid), and emit it if its data cost is at most --window-turn-onset-bic-params "
-                "x 1/2 ln(n) above the default's (off by default)");
-  cmd->add_option("--window-turn-onset-bic-params", args->flags.options.track.window_turn_onset_bic_params,
-                  "window: the BIC penalty of --window-turn-onset, in parameters (1/2 ln n each; default 1)");
   cmd->add_option("--batch-turn-change-points", args->flags.options.track.batch_turn_change_points,
                   "batch: restarts from the estimate with its turn rate made piecewise constant with 1..this many "
                   "change points, each kept if it ends at a lower cost (0 = none, at most " +

@@ -133,6 +133,13 @@ bool TrackerOptions::IsValid(std::string* error) const {
     return Fail(error, "window_turn_onset_bic_params must be finite and >= 0");
   }
   if (window_turn_onset_iterations < 1) return Fail(error, "window_turn_onset_iterations must be >= 1");
+  if (!(window_turn_onset_trigger_sigmas >= 0.0) || !std::isfinite(window_turn_onset_trigger_sigmas)) {
+    return Fail(error, "window_turn_onset_trigger_sigmas must be finite and >= 0");
+  }
+  if (!PositiveFinite(window_turn_onset_coarse_grid_s)) return Fail(error, "window_turn_onset_coarse_grid_s must be > 0");
+  if (!(window_turn_onset_jump_sigmas >= 0.0) || !std::isfinite(window_turn_onset_jump_sigmas)) {
+    return Fail(error, "window_turn_onset_jump_sigmas must be finite and >= 0");
+  }
   if (!PositiveFinite(window_s)) return Fail(error, "window_s must be > 0");
   if (!(window_solve_interval_s >= 0.0) || !(window_solve_interval_s < window_s)) {
     return Fail(error, "window_solve_interval_s must be >= 0 and < window_s");

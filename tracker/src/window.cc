@@ -1,6 +1,7 @@
 #include <ceres/solver.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <deque>
@@ -431,35 +432,53 @@ struct WindowTracker::Impl {
     chain_fresh = false;
   }
 
-  // Tries the onset model after a default solve. True: it is chosen, and its
-  // states and factors are in place (RestoreDefaultModel after emitting).
-  bool TryTurnOnsetModel() {
-    const std::size_t n = window.size();
-    const double span = window.back().epoch.t_s - window.front().epoch.t_s;
-    if (n < 4 || span < 2.0 * kMinOnsetSegmentS) return false;
-    const double d_default = DataCost();
-    if (!std::isfinite(d_default)) return false;
-    saved_x.resize(n);
-    for (std::size_t k = 0; k < n; ++k) saved_x[k] = window[k].x;
-    saved_moment = moment;
-    // Candidates: no jump (0), and onsets on the grid inside the window.
-    std::vector<std::size_t> candidates{0};
-    const double t0 = window.front().epoch.t_s;
-    double next_t = t0 + kMinOnsetSegmentS;
-    for (std::size_t k = 1; k < n; ++k) {
-      if (window[k].epoch.t_s > window.back().epoch.t_s - kMinOnsetSegmentS) break;
-      if (window[k].epoch.t_s + options.epoch_tolerance_s >= next_t) {
-        candidates.push_back(k);
-        next_t = window[k].epoch.t_s + options.window_turn_onset_grid_s;
+  // The previous try's best onset (absolute time, s; NaN: none), chosen or
+  // refused, where the fast search looks first (window_turn_onset_search).
+  double carried_onset_t = std::numeric_limits<double>::quiet_NaN();
+  bool carried_onset_chosen = false;  // else refused (by the BIC or the jump's guard)
+  bool onset_side_later = false;      // HillClimb's side near a carried onset
+  // That try's best onset-model states (their epochs' times) and moment:
+  // the fast search's start near the carried onset (a warm start).
+  std::vector<std::pair<double, StateVector>> carried_x;
+  Eigen::Vector3d carried_m = Eigen::Vector3d::Zero();
+
+  // The warm start: each epoch's state from the previous onset solution
+  // (same time), the epochs after it propagated by the coordinated turn.
+  // False if the previous solution does not reach the window's front.
+  bool WarmStart() {
+    if (carried_x.empty()) return false;
+    std::size_t j = 0;
+    const double tol = options.epoch_tolerance_s;
+    while (j < carried_x.size() && carried_x[j].first < window.front().epoch.t_s - tol) ++j;
+    if (j == carried_x.size() || std::abs(carried_x[j].first - window.front().epoch.t_s) > tol) return false;
+    for (std::size_t k = 0; k < window.size(); ++k) {
+      if (j < carried_x.size() && std::abs(carried_x[j].first - window[k].epoch.t_s) <= tol) {
+        window[k].x = carried_x[j++].second;
+      } else {
+        const StateVector& a = window[k - 1].x;
+        const CtState<double> s = PropagateCoordinatedTurn(CtState<double>{a(0), a(1), a(2), a(3), a(4), a(5)},
+                                                           window[k].epoch.t_s - window[k - 1].epoch.t_s);
+        window[k].x << s.x, s.y, s.z, s.v, s.heading, s.turn_rate;
       }
     }
-    double best_cost = std::numeric_limits<double>::infinity(), best_data = 0.0;
-    std::size_t best = 0;
-    std::vector<StateVector> best_x;
-    Eigen::Vector3d best_m = moment;
-    for (const std::size_t onset : candidates) {
-      SetOnsetFactors(onset);
-      // Start: the default solution with ω the mean of its own on each side.
+    moment = carried_m;
+    return true;
+  }
+
+  // One onset candidate solved from the default solution (ω its own mean on
+  // each side), or with `warm` from the carried solution (WarmStart); the
+  // best by the cost of its own problem is kept in `best`.
+  struct OnsetBest {
+    double cost = std::numeric_limits<double>::infinity();
+    double data = 0.0;
+    std::size_t onset = 0;
+    std::vector<StateVector> x;
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+  };
+  void SolveOnsetCandidate(std::size_t onset, OnsetBest* best, bool warm = false) {
+    const std::size_t n = window.size();
+    SetOnsetFactors(onset);
+    if (!warm || !WarmStart()) {
       double before = 0.0, after = 0.0;
       for (std::size_t k = 0; k < n; ++k) (k < onset ? before : after) += saved_x[k](5);
       if (onset > 0) before /= static_cast<double>(onset);
@@ -469,36 +488,179 @@ struct WindowTracker::Impl {
         window[k].x(5) = k < onset ? before : after;
       }
       moment = saved_moment;
-      ceres::Solver::Summary cs;
-      int iterations = 0;
-      double initial = 0.0;
-      ChainGaussNewton(&cs, &iterations, &initial, options.window_turn_onset_iterations);
-      if (!chain_ok || !std::isfinite(cs.final_cost)) continue;
-      if (cs.final_cost < best_cost) {
-        best_cost = cs.final_cost;
-        best = onset;
-        best_data = DataCost();
-        best_x.resize(n);
-        for (std::size_t k = 0; k < n; ++k) best_x[k] = window[k].x;
-        best_m = moment;
+    }
+    ceres::Solver::Summary cs;
+    int iterations = 0;
+    double initial = 0.0;
+    ChainGaussNewton(&cs, &iterations, &initial, options.window_turn_onset_iterations);
+    ++summary.num_turn_onset_candidate_solves;
+    summary.num_turn_onset_iterations += iterations;
+    if (!chain_ok || !std::isfinite(cs.final_cost) || !(cs.final_cost < best->cost)) return;
+    best->cost = cs.final_cost;
+    best->onset = onset;
+    best->data = DataCost();
+    best->x.resize(n);
+    for (std::size_t k = 0; k < n; ++k) best->x[k] = window[k].x;
+    best->m = moment;
+  }
+
+  // Fast search from grid position `i` (window_turn_onset_search): the grid
+  // points either side of it, moving on while the best is at an edge.
+  // With `one_side` (near a carried onset) only one neighbour of i is tried
+  // at first, on alternate sides from solve to solve.
+  void HillClimb(const std::vector<std::size_t>& grid, std::size_t i, std::vector<bool>* tried, OnsetBest* best,
+                 bool warm, bool one_side) {
+    auto eval = [&](std::size_t j) {
+      if ((*tried)[j]) return;
+      (*tried)[j] = true;
+      SolveOnsetCandidate(grid[j], best, warm);
+    };
+    std::size_t lo = i > 0 ? i - 1 : 0, hi = std::min(i + 1, grid.size() - 1);
+    bool down = true, up = true;  // directions the climb may go on in
+    if (one_side) {
+      onset_side_later = !onset_side_later;
+      (onset_side_later ? lo : hi) = i;
+      (onset_side_later ? down : up) = false;
+    }
+    for (std::size_t j = lo; j <= hi; ++j) eval(j);
+    for (;;) {
+      if (down && best->onset == grid[lo] && lo > 0) {
+        eval(--lo);
+      } else if (up && best->onset == grid[hi] && hi + 1 < grid.size()) {
+        eval(++hi);
+      } else {
+        break;
       }
+    }
+  }
+
+  // Tries the onset model after a default solve. True: it is chosen, and its
+  // states and factors are in place (RestoreDefaultModel after emitting).
+  bool TryTurnOnsetModel() {
+    const bool fast = options.window_turn_onset_search == TrackerOptions::OnsetSearch::kFast;
+    const double carried = carried_onset_t;
+    carried_onset_t = std::numeric_limits<double>::quiet_NaN();
+    const std::size_t n = window.size();
+    const double span = window.back().epoch.t_s - window.front().epoch.t_s;
+    if (n < 4 || span < 2.0 * kMinOnsetSegmentS) return false;
+    // Onsets on the grid inside the window (not its first or last 1 s).
+    // The fast search's grid is at whole multiples of the grid step (so a
+    // carried onset stays on it as the window slides); the full search's
+    // starts 1 s after the window's front.
+    std::vector<std::size_t> grid;
+    const double t0 = window.front().epoch.t_s, g = options.window_turn_onset_grid_s;
+    double next_t = t0 + kMinOnsetSegmentS;
+    if (fast) next_t = std::ceil((next_t - options.epoch_tolerance_s) / g) * g;
+    for (std::size_t k = 1; k < n; ++k) {
+      if (window[k].epoch.t_s > window.back().epoch.t_s - kMinOnsetSegmentS) break;
+      if (window[k].epoch.t_s + options.epoch_tolerance_s >= next_t) {
+        grid.push_back(k);
+        next_t = fast ? (std::floor((window[k].epoch.t_s + options.epoch_tolerance_s) / g) + 1.0) * g
+                      : window[k].epoch.t_s + g;
+      }
+    }
+    if (fast && grid.empty()) return false;
+    // The trigger: the default's turn-rate span against the stiff walk's σ
+    // over the window.
+    bool trigger = false;
+    if (fast) {
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for (const WindowEpoch& w : window) {
+        lo = std::min(lo, w.x(5));
+        hi = std::max(hi, w.x(5));
+      }
+      const double stiff = options.process.turn_rate_radps_per_sqrt_s * std::sqrt(span);
+      trigger = hi - lo >= options.window_turn_onset_trigger_sigmas * stiff;
+    }
+    // The fast search's start: the previous try's best onset if still inside
+    // the grid (chosen, or refused while the trigger still fires), else the
+    // coarse grid if the trigger fires.
+    std::optional<std::size_t> near;
+    if (fast && std::isfinite(carried) && (carried_onset_chosen || trigger) &&
+        carried >= window[grid.front()].epoch.t_s - options.epoch_tolerance_s &&
+        carried <= window[grid.back()].epoch.t_s + options.epoch_tolerance_s) {
+      std::size_t i = 0;
+      for (std::size_t j = 1; j < grid.size(); ++j) {
+        if (std::abs(window[grid[j]].epoch.t_s - carried) < std::abs(window[grid[i]].epoch.t_s - carried)) i = j;
+      }
+      near = i;
+    }
+    if (fast && !near && !trigger) return false;
+    const double d_default = DataCost();
+    if (!std::isfinite(d_default)) return false;
+    saved_x.resize(n);
+    for (std::size_t k = 0; k < n; ++k) saved_x[k] = window[k].x;
+    saved_moment = moment;
+    OnsetBest best;
+    if (!fast) {
+      SolveOnsetCandidate(0, &best);  // no jump
+      for (const std::size_t onset : grid) SolveOnsetCandidate(onset, &best);
+    } else {
+      std::vector<bool> tried(grid.size(), false);
+      const bool warm = near.has_value();
+      if (!near) {
+        // Coarse grid, then the fine grid next to its best.
+        const double coarse = std::max(options.window_turn_onset_coarse_grid_s, options.window_turn_onset_grid_s);
+        double next = -std::numeric_limits<double>::infinity();
+        for (std::size_t j = 0; j < grid.size(); ++j) {
+          if (window[grid[j]].epoch.t_s + options.epoch_tolerance_s < next) continue;
+          tried[j] = true;
+          SolveOnsetCandidate(grid[j], &best);
+          next = window[grid[j]].epoch.t_s + coarse;
+        }
+        if (!std::isfinite(best.cost)) {
+          RestoreDefaultModel();
+          return false;
+        }
+        near = static_cast<std::size_t>(std::find(grid.begin(), grid.end(), best.onset) - grid.begin());
+      }
+      HillClimb(grid, *near, &tried, &best, warm, warm);
     }
     int residuals = 0;
     for (const WindowEpoch& w : window) {
       for (const auto& f : w.measurements) residuals += f.cost->num_residuals();
     }
     const double penalty = options.window_turn_onset_bic_params * 0.5 * std::log(std::max(residuals, 1));
-    const bool chosen = std::isfinite(best_cost) && best_data <= d_default + penalty;
+    bool chosen = std::isfinite(best.cost) && best.data <= d_default + penalty;
     ++summary.num_turn_onset_tries;
+    if (fast && std::isfinite(best.cost) && best.onset > 0) {
+      // Carried to the next try (its start and warm start), chosen or not.
+      carried_onset_t = window[best.onset].epoch.t_s;
+      carried_x.clear();
+      for (std::size_t k = 0; k < n; ++k) carried_x.emplace_back(window[k].epoch.t_s, best.x[k]);
+      carried_m = best.m;
+    }
+    carried_onset_chosen = false;
+    if (chosen) {
+      SetOnsetFactors(best.onset);
+      for (std::size_t k = 0; k < n; ++k) window[k].x = best.x[k];
+      moment = best.m;
+      chain_fresh = false;
+    }
+    if (chosen && options.window_turn_onset_jump_sigmas > 0.0) {
+      // The guard: the jump of ω at the onset against its σ (no jump: refused).
+      chain_fresh = internal::FactorizeChain(Chain(), &chain);
+      std::vector<StateCovariance> P;
+      Eigen::Matrix3d Pm;
+      bool significant = false;
+      if (best.onset > 0 && chain_fresh && internal::ChainCovariance(chain, &P, &Pm)) {
+        const std::size_t k = best.onset;
+        const double jump = window[k].x(5) - window[k - 1].x(5);
+        const double var = P[k](5, 5) + P[k - 1](5, 5);
+        const double kk = options.window_turn_onset_jump_sigmas;
+        significant = std::isfinite(var) && var > 0.0 && jump * jump >= kk * kk * var;
+      }
+      if (!significant) {
+        ++summary.num_turn_onset_refused_jump;
+        chosen = false;
+      }
+    }
     if (!chosen) {
       RestoreDefaultModel();
       return false;
     }
     ++summary.num_turn_onset_chosen;
-    SetOnsetFactors(best);
-    for (std::size_t k = 0; k < n; ++k) window[k].x = best_x[k];
-    moment = best_m;
-    chain_fresh = false;
+    carried_onset_chosen = true;
     return true;
   }
 

@@ -34,6 +34,9 @@ struct TrackerFlags {
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string sensor_offset = tracker::SensorOffsetOptions{}.enabled ? "on" : "off";
   std::string sensor_offset_carry = tracker::SensorOffsetOptions{}.carry ? "on" : "off";
+  std::string turn_onset_search =
+      tracker::TrackerOptions{}.window_turn_onset_search == tracker::TrackerOptions::OnsetSearch::kFast ? "fast"
+                                                                                                        : "full";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
           ? "residuals"
@@ -91,6 +94,31 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
       ->capture_default_str()
       ->check(CLI::IsMember({"huber", "cauchy", "trivial"}));
   app.add_option("--turn-loss-scale", t.process.turn_rate_loss_scale_sigma, "turn-rate loss scale, in sigmas of one step")
+      ->capture_default_str();
+  app.add_flag("--window-turn-onset", t.window_turn_onset_model,
+               "window: after a solve also solve the window with the batch's stiff turn-rate walk and one free turn "
+               "onset (on a grid), and emit it if its data cost is at most --window-turn-onset-bic-params x 1/2 ln(n) "
+               "above the default's and its jump of turn rate is at least --window-turn-onset-jump-sigmas sigma "
+               "(off by default)");
+  app.add_option("--window-turn-onset-bic-params", t.window_turn_onset_bic_params,
+                 "window: the BIC penalty of --window-turn-onset, in parameters (1/2 ln n each)")
+      ->capture_default_str();
+  app.add_option("--window-turn-onset-search", f->turn_onset_search,
+                 "window: onsets tried by --window-turn-onset: fast (near the previous solve's onset, else only when "
+                 "the default's turn rate spans more than --window-turn-onset-trigger-sigmas x the stiff walk's sigma "
+                 "over the window: a coarse grid then the fine grid next to its best) or full (every grid point and "
+                 "'no onset' after every solve)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"fast", "full"}));
+  app.add_option("--window-turn-onset-trigger-sigmas", t.window_turn_onset_trigger_sigmas,
+                 "window: the fast search's trigger, in sigmas of the stiff walk over the window")
+      ->capture_default_str();
+  app.add_option("--window-turn-onset-coarse-grid", t.window_turn_onset_coarse_grid_s,
+                 "window: the fast search's coarse grid of onsets when it has no previous onset, s")
+      ->capture_default_str();
+  app.add_option("--window-turn-onset-jump-sigmas", t.window_turn_onset_jump_sigmas,
+                 "window: --window-turn-onset's onset is emitted only if its jump of turn rate is at least this many "
+                 "sigma (0 = no guard)")
       ->capture_default_str();
   app.add_option("--init-from", f->init_from,
                  "fixes that start a track: auto (" + fixes_help +
@@ -348,6 +376,11 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   }
   o.track.sensor_offset.enabled = f.sensor_offset == "on";
   o.track.sensor_offset.carry = f.sensor_offset_carry == "on";
+  if (f.turn_onset_search != "fast" && f.turn_onset_search != "full") {
+    throw InputError("--window-turn-onset-search: expected fast or full, got '" + f.turn_onset_search + "'");
+  }
+  o.track.window_turn_onset_search = f.turn_onset_search == "fast" ? tracker::TrackerOptions::OnsetSearch::kFast
+                                                                   : tracker::TrackerOptions::OnsetSearch::kFull;
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals

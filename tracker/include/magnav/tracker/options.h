@@ -302,6 +302,35 @@ struct TrackerOptions {
   double window_turn_onset_bic_params = 1.0;
   // Gauss-Newton iterations of each onset candidate's solve.
   int window_turn_onset_iterations = 8;
+  // Which onsets are tried (docs/ACCURACY.md, "The window's turn onset: cheap
+  // and guarded"). kFull: every grid point (from 1 s after the window's
+  // front) and "no onset", after every window solve, each from the default
+  // solution. kFast: the grid at whole multiples of window_turn_onset_grid_s
+  // (so an onset stays on it as the window slides), no "no onset" candidate.
+  // The trigger: the default solution's turn rate spans more than
+  // window_turn_onset_trigger_sigmas × the stiff walk's σ over the window
+  // (process.turn_rate_radps_per_sqrt_s · √(window span), rad/s). If the
+  // previous try's best onset is still on the grid and was chosen (or the
+  // trigger fires), that onset and one neighbour (alternate sides from try
+  // to try; on along that side while the farther one is best), each started
+  // from the previous try's best solution (a warm start); else, if the
+  // trigger fires, every window_turn_onset_coarse_grid_s, then both
+  // neighbours of the best (on while an edge is best), from the default
+  // solution; else nothing is solved and the default is emitted.
+  enum class OnsetSearch { kFull, kFast };
+  OnsetSearch window_turn_onset_search = OnsetSearch::kFast;
+  double window_turn_onset_trigger_sigmas = 3.0;
+  // 1 s (= the grid: every onset once per turn event); 3 s, the first
+  // value, moved the onset found on f27 (0.244 → 0.309 m, docs/ACCURACY.md).
+  double window_turn_onset_coarse_grid_s = 1.0;
+  // The onset model is emitted only if its jump of ω at the onset is
+  // significant: |Δω| ≥ this × σ_Δω, σ_Δω² = the onset model's marginal
+  // variances of ω on the two epochs either side of the onset, summed (their
+  // covariance left out). 3: χ²(1 dof) at 0.9973, i.e. a 5 % family-wise
+  // level over the ≈ 19 onsets of a 20 s window (Bonferroni: 9.1 ≈ 3²).
+  // 0 = no guard (session 16's rule; with "no onset" as the best candidate
+  // the onset model is then emitted without a jump).
+  double window_turn_onset_jump_sigmas = 3.0;
 
   // Per-epoch window update: kChainGaussNewton = Gauss-Newton steps solved
   // by block-tridiagonal elimination of the chain (O(window) per step, with
@@ -359,6 +388,12 @@ struct Summary {
   // (TrackerOptions::window_turn_onset_model), since the tracker was made.
   int num_turn_onset_tries = 0;
   int num_turn_onset_chosen = 0;
+  // Window, the onset model's cost: candidate solves and their Gauss-Newton
+  // iterations; tries whose best onset's jump was not significant
+  // (window_turn_onset_jump_sigmas), since the tracker was made.
+  int num_turn_onset_candidate_solves = 0;
+  int num_turn_onset_iterations = 0;
+  int num_turn_onset_refused_jump = 0;
   // Batch: candidate ends whose spread entered the covariance with a weight
   // > 1e-12 (TrackerOptions::batch_model_spread; the chosen one included).
   int num_model_spread_candidates = 0;
