@@ -15,6 +15,7 @@
 
 #include "magnav/core/dipole.h"
 #include "magnav/tracker/far_source.h"
+#include "quiet_offset.h"
 
 namespace magnav::tracker {
 namespace {
@@ -205,6 +206,60 @@ TEST(SensorOffset, CarryAndTensorGateAreOffAndChecked) {
   EXPECT_FALSE(o.IsValid(&why));
   o.min_tensor_snr = 20.0;
   EXPECT_TRUE(o.IsValid(&why)) << why;
+}
+
+// Each sensor's offset from its quiet data (SensorOffsetOptions::quiet,
+// tracker/src/quiet_offset.h): 20 s of a 5 nT/min drift with 1 nT noise at
+// 10 Hz, 10 % of the samples spoilt by a vessel's 300 nT — the median sits on
+// the drift at the samples' median time (within 0.5 nT: the vessel's share
+// would move a mean by 30 nT), its σ is the median's (≈ 1.25 · 1 nT/√200) and
+// grows by the 6 nT/min walk after; too few samples give no prior.
+TEST(SensorOffset, QuietOffsetIsTheQuietMedianWalkedAtTheDriftBound) {
+  SensorOffsetOptions o;
+  EXPECT_FALSE(o.quiet);  // an option, off
+  o.enabled = true;
+  o.quiet = true;
+  std::string why;
+  ASSERT_TRUE(o.IsValid(&why)) << why;
+  internal::QuietOffsets q(o);
+  const Eigen::Vector3d rate_W = Eigen::Vector3d(3.0, -4.0, 0.0) * kNt / 60.0;  // 5 nT/min
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0.0, kNt);
+  Eigen::Vector3d mean_W;
+  double sigma = 0.0;
+  EXPECT_FALSE(q.Prior(4, 0.0, &mean_W, &sigma));  // nothing yet
+  int k = 0;
+  for (double t = 100.0; t < 130.0 - 1e-9; t += 0.1, ++k) {  // 30 s: the first 10 s leave the 20 s span
+    Eigen::Vector3d r = rate_W * t + Eigen::Vector3d(n(rng), n(rng), n(rng));
+    if (k % 10 == 3) r += Eigen::Vector3d(300.0, -200.0, 150.0) * kNt;
+    q.Add(4, t, r);
+  }
+  EXPECT_NEAR(q.num_quiet(4), 201, 1);
+  EXPECT_FALSE(q.Prior(5, 130.0, &mean_W, &sigma));  // another sensor: none
+  ASSERT_TRUE(q.Prior(4, 120.0, &mean_W, &sigma));  // the samples' median time
+  EXPECT_LE((mean_W - rate_W * 120.0).norm(), 0.5 * kNt);
+  EXPECT_GT(sigma, 0.04 * kNt);
+  EXPECT_LT(sigma, 0.2 * kNt);  // 1.2533 · 1.4826 · MAD/√201 ≈ 0.09 nT
+  ASSERT_TRUE(q.Prior(4, 180.0, &mean_W, &sigma));  // 60 s later: the walk's 6 nT
+  EXPECT_NEAR(sigma, 6.0 * kNt, 0.05 * kNt);
+  o.quiet_min_samples = 1000;
+  internal::QuietOffsets few(o);
+  few.Add(4, 0.0, Eigen::Vector3d::Zero());
+  EXPECT_FALSE(few.Prior(4, 0.0, &mean_W, &sigma));
+  // Checked: only with the offset, a positive span and count.
+  o = {};
+  o.quiet = true;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("quiet"), std::string::npos);
+  o.enabled = true;
+  o.quiet_span_s = 0.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  o.quiet_span_s = 20.0;
+  o.quiet_min_samples = 0;
+  EXPECT_FALSE(o.IsValid(&why));
+  o.quiet_min_samples = 50;
+  o.quiet_tensor_mean_s = std::nan("");
+  EXPECT_FALSE(o.IsValid(&why));
 }
 
 }  // namespace

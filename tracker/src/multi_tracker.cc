@@ -2,6 +2,7 @@
 #include "cluster_window.h"
 #include "other_fields.h"
 #include "quiet_sample.h"
+#include "quiet_offset.h"
 #include "residual_tensor_mean.h"
 #include "state_io.h"
 
@@ -254,6 +255,11 @@ struct MultiTracker::Impl {
   // Each sensor's residual tensor over the drift's recent seconds (its
   // near-source rule, sensor_drift.h); not in the checkpoint, like the far source.
   internal::ResidualTensorMean tensor_mean;
+  // Each sensor's B offset from its quiet data, every track's prior
+  // (sensor_offset.quiet, quiet_offset.h), and its sensors' residual tensor
+  // means (its near-source rule); not in the checkpoint.
+  internal::QuietOffsets quiet_offsets;
+  internal::ResidualTensorMean quiet_tensor_mean;
   const TrackManagementOptions& mg() const { return options.management; }
   std::vector<Track> tracks;  // live (confirmed and tentative)
   std::vector<Ghost> ghosts;  // ended out of reach, field still subtracted
@@ -609,6 +615,44 @@ struct MultiTracker::Impl {
     summary.far_source = far.stats();
   }
 
+  bool QuietOffsetsOn() const { return options.track.sensor_offset.enabled && options.track.sensor_offset.quiet; }
+
+  // A track's window takes its sensors' offsets from their quiet data.
+  void AttachQuiet(WindowTracker& w) {
+    if (!QuietOffsetsOn()) return;
+    w.SetSensorOffsetPrior([this](std::uint32_t id, double t_s, Eigen::Vector3d* mean_W, double* sigma_T) {
+      return quiet_offsets.Prior(id, t_s, mean_W, sigma_T);
+    });
+  }
+
+  // Each sensor's quiet samples (the epoch the tracks get: background and far
+  // source removed) enter its offset: no live track's predicted tensor SNR
+  // >= 3 nor predicted B >= 3 sigma_B there, and no untracked near source
+  // (the sample's residual tensor and its recent mean below their gates).
+  void UpdateQuietOffsets(const Epoch& e, const std::vector<TrackPrediction>& pred) {
+    if (!QuietOffsetsOn()) return;
+    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+    const internal::QuietRule rule{3.0, 4.0, rel};
+    for (std::size_t j = 0; j < e.samples.size(); ++j) {
+      const GradiometerSample& s = e.samples[j];
+      if (CheckSample(s) != SampleDefect::kNone) continue;
+      Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
+      for (const TrackPrediction& p : pred) {
+        if (!p.valid) continue;
+        B_tracks += p.at[j].B;
+        T_tracks += p.at[j].T;
+      }
+      const double st = SigmaT(s, options.track);
+      quiet_tensor_mean.Add(s.sensor_id, e.t_s, s.T - T_tracks, st * st + rel * rel * T_tracks.squaredNorm() / 9.0);
+      if (B_tracks.norm() >= 3.0 * SigmaB(s, options.track)) continue;
+      if (quiet_tensor_mean.window_s() > 0.0 && quiet_tensor_mean.Z(s.sensor_id) > 2.5) continue;
+      const internal::QuietSample q = internal::QuietResidual(s, B_tracks, T_tracks, B0_W, options.track, rule);
+      if (q.use != internal::QuietUse::kUsed) continue;
+      quiet_offsets.Add(s.sensor_id, e.t_s, q.r_W);
+    }
+  }
+
   // Each sensor's background takes the raw sample minus every live track's
   // predicted B (their model error in its variance).
   void UpdateBackground(const Epoch& raw, const std::vector<TrackPrediction>& pred) {
@@ -697,6 +741,7 @@ struct MultiTracker::Impl {
     const EvidenceAssignment evidence = AssignOwnFixes(e, pred, &fix_sample);
     UpdateBackground(raw, pred);
     UpdateFarSource(raw, pred);
+    UpdateQuietOffsets(e, pred);
     // The sensors' horizontal bounding box at this epoch (the reach rule).
     Eigen::Vector2d box_lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
     Eigen::Vector2d box_hi = -box_lo;
@@ -1211,6 +1256,7 @@ struct MultiTracker::Impl {
     const std::vector<Epoch> mine = SamplesOf(init, partner, epochs);
     if (mine.empty()) return;
     auto engine = std::make_unique<WindowTracker>(B0_W, options.track);
+    AttachQuiet(*engine);
     const std::vector<EpochEstimate> first = engine->Start(init, mine);
     if (first.empty() || !first.back().usable) return;
     Collect(tr, tr.engine->Flush(), out);
@@ -1254,6 +1300,7 @@ struct MultiTracker::Impl {
     tr.life = TrackLifeCycle(t, mg());
     tr.t_evidence_s = EvidenceStart(t, init);
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
+    AttachQuiet(*tr.engine);
     const std::vector<EpochEstimate> first = tr.engine->Start(init, mine);
     if (first.empty() || !first.back().usable) return false;
     tr.has_newest = true;
@@ -1331,6 +1378,7 @@ struct MultiTracker::Impl {
     }
     if (mine.empty()) return false;
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
+    AttachQuiet(*tr.engine);
     if (cluster.enabled()) {
       for (Epoch& k : mine) cluster.PutBack(&k);
       tr.engine->SetBackgroundOffsets(cluster.Fn());
@@ -1423,6 +1471,8 @@ MultiTracker::MultiTracker(const Eigen::Vector3d& B0_W, const MultiTrackerOption
   impl_->cluster = internal::WindowClusterBackground(B0_W, options);
   impl_->far = FarSourceEstimator(options.far_source);
   impl_->tensor_mean = internal::ResidualTensorMean(options.far_source.drift.tensor_mean_window_s);
+  impl_->quiet_offsets = internal::QuietOffsets(options.track.sensor_offset);
+  impl_->quiet_tensor_mean = internal::ResidualTensorMean(options.track.sensor_offset.quiet_tensor_mean_s);
   impl_->summary.far_source_enabled = options.far_source.enabled;
 }
 
@@ -1657,6 +1707,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     Track tr;
     tr.engine = std::make_unique<WindowTracker>(m.B0_W, m.options.track);
     tr.engine->RestoreState(r);
+    m.AttachQuiet(*tr.engine);
     tr.id = r.U32();
     tr.life = TrackLifeCycle(0.0, m.options.management);
     tr.life.RestoreState(r);
@@ -1753,6 +1804,8 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.background.RestoreState(r);
   m.far = FarSourceEstimator(m.options.far_source);  // not in the checkpoint: fitted again
   m.tensor_mean = internal::ResidualTensorMean(m.options.far_source.drift.tensor_mean_window_s);
+  m.quiet_offsets = internal::QuietOffsets(m.options.track.sensor_offset);
+  m.quiet_tensor_mean = internal::ResidualTensorMean(m.options.track.sensor_offset.quiet_tensor_mean_s);
   m.summary.far_source_enabled = m.options.far_source.enabled;
   m.summary.far_source = {};
   m.cluster = internal::WindowClusterBackground(m.B0_W, m.options);

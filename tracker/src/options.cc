@@ -92,6 +92,12 @@ bool SensorOffsetOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(segment_s)) return Fail(error, "sensor_offset.segment_s must be > 0");
   if (passes < 1 || batch_passes < 1) return Fail(error, "sensor_offset.passes and batch_passes must be >= 1");
   if (carry && !enabled) return Fail(error, "sensor_offset.carry needs sensor_offset.enabled");
+  if (quiet && !enabled) return Fail(error, "sensor_offset.quiet needs sensor_offset.enabled");
+  if (!PositiveFinite(quiet_span_s)) return Fail(error, "sensor_offset.quiet_span_s must be > 0");
+  if (quiet_min_samples < 1) return Fail(error, "sensor_offset.quiet_min_samples must be >= 1");
+  if (!(quiet_tensor_mean_s >= 0.0) || !std::isfinite(quiet_tensor_mean_s)) {
+    return Fail(error, "sensor_offset.quiet_tensor_mean_s must be finite and >= 0");
+  }
   if (!(min_tensor_snr >= 0.0) || !std::isfinite(min_tensor_snr)) {
     return Fail(error, "sensor_offset.min_tensor_snr must be finite and >= 0");
   }

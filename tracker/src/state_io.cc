@@ -179,6 +179,10 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.I64(static_cast<std::int64_t>(so.batch_passes));
   w.I64(static_cast<std::int64_t>(so.carry));
   w.F64(so.min_tensor_snr);
+  w.I64(static_cast<std::int64_t>(so.quiet));
+  w.I64(static_cast<std::int64_t>(so.quiet_min_samples));
+  w.F64(so.quiet_span_s);
+  w.F64(so.quiet_tensor_mean_s);
   for (double d : {so.max_rate_T_per_s, so.floor_T, so.b0_time_s, so.segment_s, so.tolerance_T}) w.F64(d);
   // The window's turn-onset model changes the rows it emits; the batch's
   // other-field covariance its σ.

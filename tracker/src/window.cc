@@ -91,6 +91,9 @@ struct WindowTracker::Impl {
   // What the samples that left the window say of each sensor's offset
   // (sensor_offset.carry): the window's offsets' prior.
   std::map<std::uint32_t, internal::CarriedOffset> carried_offsets;
+  // The sensor's own offset from its quiet data (sensor_offset.quiet;
+  // SetSensorOffsetPrior): the window's offsets' prior where it answers.
+  WindowTracker::SensorOffsetPriorFn quiet_prior;
 
   Eigen::Vector3d OwnOffset(std::uint32_t sensor_id) const {
     const auto it = own_offsets.find(sensor_id);
@@ -131,10 +134,22 @@ struct WindowTracker::Impl {
     std::map<std::uint32_t, Eigen::Vector3d> next;
     for (const auto& [id, a] : acc) {
       const auto c = so.carry ? carried_offsets.find(id) : carried_offsets.end();
+      Eigen::Vector3d quiet_W;
+      double quiet_sigma = 0.0;
+      const bool quiet = so.quiet && quiet_prior && quiet_prior(id, t_mid, &quiet_W, &quiet_sigma);
       if (so.min_tensor_snr > 0.0 && tensor_snr[id] < so.min_tensor_snr) {
         // Where the tensor does not pin the track the window's samples do not
-        // move the offset: the carried one (the samples that left), or none.
-        if (c != carried_offsets.end()) next[id] = c->second.mean_W;
+        // move the offset: the sensor's quiet one, the carried one (the
+        // samples that left), or none.
+        if (quiet) {
+          next[id] = quiet_W;
+        } else if (c != carried_offsets.end()) {
+          next[id] = c->second.mean_W;
+        }
+        continue;
+      }
+      if (quiet) {
+        next[id] = a.Mean(quiet_W, quiet_sigma);
         continue;
       }
       next[id] = c == carried_offsets.end()
@@ -1129,6 +1144,8 @@ void WindowTracker::RestoreState(StateReader& r) {
   if (m.initialized && m.window.empty()) throw CheckpointError("corrupt: a track without a window");
   impl_ = std::move(fresh);
 }
+
+void WindowTracker::SetSensorOffsetPrior(SensorOffsetPriorFn prior) { impl_->quiet_prior = std::move(prior); }
 
 void WindowTracker::SetBackgroundOffsets(BackgroundOffsetFn offset) {
   Impl& m = *impl_;

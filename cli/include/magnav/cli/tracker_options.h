@@ -37,6 +37,7 @@ struct TrackerFlags {
   std::string turn_onset_search =
       tracker::TrackerOptions{}.window_turn_onset_search == tracker::TrackerOptions::OnsetSearch::kFast ? "fast"
                                                                                                         : "full";
+  std::string sensor_offset_quiet = tracker::SensorOffsetOptions{}.quiet ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
           ? "residuals"
@@ -320,6 +321,13 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "drift model (on), or takes B0 as it is (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--sensor-offset-quiet", f->sensor_offset_quiet,
+                 "sensor offset (window, with --sensor-offset on; magnav track): each sensor's offset owned by the "
+                 "sensor: the median of the B it gave while no track's field (nor an untracked near source) was "
+                 "there, walked at --sensor-offset-rate since, as every track's prior (taken as it is below "
+                 "--sensor-offset-min-tensor-snr) (on), or as the other sensor-offset flags say (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--sensor-offset-carry", f->sensor_offset_carry,
                  "sensor offset (window, with --sensor-offset on): each sensor's offset carried from window to window "
                  "(the samples that left the window, the walk of --sensor-offset-rate since) as its prior (on), or a "
@@ -381,6 +389,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   }
   o.track.window_turn_onset_search = f.turn_onset_search == "fast" ? tracker::TrackerOptions::OnsetSearch::kFast
                                                                    : tracker::TrackerOptions::OnsetSearch::kFull;
+  o.track.sensor_offset.quiet = f.sensor_offset_quiet == "on";
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals

@@ -182,11 +182,32 @@ struct InitOptions {
 // where the tensor is weak B is the only information and an offset takes it.
 // At the other sensors the window's samples do not move the offset: the
 // window keeps the carried one (with carry; none without), the batch none.
+// quiet (window, with enabled; MultiTracker only): each sensor's offset is
+// owned by the sensor, not the track: the multi-tracker keeps, per sensor,
+// the samples it gave while it was quiet (no live track's predicted tensor
+// SNR ≥ 3 and predicted B ≥ 3 σ_B there, no untracked near source in its
+// residual tensor — the single sample's and its quiet_tensor_mean_s mean's
+// gates, tracker/src/quiet_sample.h — over the last quiet_span_s of such
+// samples), and every track's window gets that sensor's offset as its prior:
+// the per-axis median of those samples' residual B (sample − B0 − the tracks'
+// predicted B − the far source's, world NED, T), σ the median's spread
+// (1.2533 · 1.4826 · MAD/√n, the largest axis) widened by a random walk at
+// max_rate_T_per_s over the time from the samples' median time to the
+// window's middle. A sensor below min_tensor_snr takes the quiet offset as
+// it is (not the carried one); one above takes it as the prior of the
+// window's own estimate. A sensor with fewer than quiet_min_samples quiet
+// samples keeps the rule without it. Not in the checkpoint (a restored
+// tracker starts the store empty). Off by default (docs/ACCURACY.md, "One B
+// offset per sensor, owned by the sensor").
 // Off by default (docs/ACCURACY.md: the measured rows).
 struct SensorOffsetOptions {
   bool enabled = false;
   bool carry = false;
   double min_tensor_snr = 0.0;
+  bool quiet = false;
+  double quiet_span_s = 20.0;
+  int quiet_min_samples = 50;
+  double quiet_tensor_mean_s = 10.0;
   double max_rate_T_per_s = 6e-9 / 60.0;
   double floor_T = 1e-9;
   double b0_time_s = 0.0;

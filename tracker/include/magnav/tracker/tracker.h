@@ -142,6 +142,13 @@ class WindowTracker {
   // again after RestoreState (MultiTracker does).
   using BackgroundOffsetFn = std::function<Eigen::Vector3d(std::uint32_t sensor_id, double t_s)>;
   void SetBackgroundOffsets(BackgroundOffsetFn offset);
+  // Each sensor's own offset's prior from outside (SensorOffsetOptions::quiet:
+  // the sensor's offset from its quiet data, MultiTracker): true with the
+  // offset (world NED, T) and its σ per axis (T) at t_s, false for none (the
+  // window's own rule). Not in the checkpoint: whoever sets it sets it again.
+  using SensorOffsetPriorFn =
+      std::function<bool(std::uint32_t sensor_id, double t_s, Eigen::Vector3d* mean_W, double* sigma_T)>;
+  void SetSensorOffsetPrior(SensorOffsetPriorFn prior);
   // The window's epochs, oldest first: time, state and the sensors of its
   // samples (empty before a track exists).
   struct WindowEpochView {
