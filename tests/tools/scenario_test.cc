@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/ and fresh_drift5/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/ and fresh_drift5/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -187,6 +187,10 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   }
   for (const char* name : {"far_ship_112", "far_ship_133", "far_ship_176"}) files.push_back({"fresh_farsrc3", name, "far_ship"});
   files.push_back({"fresh_farsrc3", "crossing_far_ship_140", "crossing_far_ship"});  // two AUVs crossing and a ship
+  // fresh_farsrc4 (blind, branch farship3): and a ship alone.
+  for (const char* name : {"far_ship_118", "lone_far_ship_175"}) files.push_back({"fresh_farsrc4", name, "far_ship"});
+  files.push_back({"fresh_farsrc4", "crossing_far_ship_141", "crossing_far_ship"});
+  files.push_back({"fresh_farsrc4", "ship_only_115", "ship_only"});  // no AUV
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});
@@ -305,6 +309,11 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_LE(reach[1], 200.0);
         EXPECT_GE(sc.vessels[1].moment_body.norm(), 4e5);
         EXPECT_LE(reach[0], 15.0);
+      } else if (k == "ship_only") {  // a far ship and nothing else
+        ASSERT_EQ(f.truth.size(), 1u);
+        EXPECT_GE(reach[0], 100.0);
+        EXPECT_LE(reach[0], 200.0);
+        EXPECT_GE(sc.vessels[0].moment_body.norm(), 4e5);
       } else {
         ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
         const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
@@ -317,7 +326,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (k != "far_ship") {  // crossing_far_ship: its ship popped above
+      if (k != "far_ship" && k != "ship_only") {  // crossing_far_ship: its ship popped above
         // Every vessel comes within the sensors' reach; fresh_overtaking3's fast
         // one at or just beyond its edge (overtaking_e16 15.2 m, overtaking_n16
         // 17.2 m in 3-D: only its B at the slow one's sensors), and

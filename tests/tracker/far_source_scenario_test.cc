@@ -118,5 +118,30 @@ TEST(FarSourceScenario, WindowWithTheUnexplainedFarFieldKeepsAWeakAuvOnTrack) {
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
 }
 
+// fresh_farsrc3/far_ship_112: a weak 1.6e3 A·m² AUV 8.6 m from its sensors
+// while a 4.4e5 A·m² ship passes 112 m off. At 52–57 s the far source fits
+// the ship, still far along its line, against the bound with a ship's moment
+// (2.4e5–4.2e5 A·m²; its B within 1.5–2.4 nT of the ship's), and the default
+// refuses it: the ship's 11–24 nT is left in the samples until 65 s and the
+// window's AUV is 1.5–2.3 m off there (docs/ACCURACY.md, "Far-ship files that
+// still failed"). With such fits accepted (FarSourceOptions::
+// bound_accept_moment_Am2 2e5; an option, off) the window RMS is 0.241 m
+// (0.516 m off, 0.037 m with the ship taken out of the scenario).
+TEST(FarSourceScenario, WindowAcceptsAShipAtTheBoundBesideAWeakAuv) {
+  const FieldScenario sc =
+      cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/fresh_farsrc3/far_ship_112.toml");
+  const SimulatedField f = SimulateField(sc);
+  MultiTrackerOptions opt;
+  opt.far_source.bound_accept_moment_Am2 = 2e5;
+  MultiTracker tracker(sc.B0, opt);
+  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
+  const auto s = magnav::testing::ScoreField(sc, f, rows);
+  magnav::testing::PrintFieldScores("fresh_farsrc3/far_ship_112, window, --far-bound-accept-moment 2e5", s);
+  EXPECT_GE(s.coverage[0], 0.8);  // measured 0.90
+  EXPECT_EQ(s.ids[0], 1u);
+  EXPECT_LE(s.rms[0], 0.35);  // m, measured 0.241, 0.516 with the default (a 2x regression fails; the target is 0.3)
+  EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
+}
+
 }  // namespace
 }  // namespace magnav::tracker

@@ -353,6 +353,13 @@ TEST(FarSource, OptionsAreChecked) {
   o = {};
   o.bound_slack_m = -1.0;
   EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_EQ(FarSourceOptions{}.bound_accept_moment_Am2, 0.0);  // off by default
+  o = {};
+  o.bound_accept_moment_Am2 = -1.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("bound_accept_moment_Am2"), std::string::npos);
+  o.bound_accept_moment_Am2 = std::nan("");
+  EXPECT_FALSE(o.IsValid(&why));
   o = {};
   o.max_interval_s = 0.5;  // below solve_interval_s
   EXPECT_FALSE(o.IsValid(&why));

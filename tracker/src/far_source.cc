@@ -155,6 +155,9 @@ bool FarSourceOptions::IsValid(std::string* error) const {
   if (!(min_field_T >= 0.0) || !std::isfinite(min_field_T)) return Fail(error, "min_field_T must be >= 0");
   if (!(min_moment_Am2 >= 0.0) || !std::isfinite(min_moment_Am2)) return Fail(error, "min_moment_Am2 must be >= 0");
   if (!(bound_slack_m >= 0.0) || !std::isfinite(bound_slack_m)) return Fail(error, "bound_slack_m must be >= 0");
+  if (!(bound_accept_moment_Am2 >= 0.0) || !std::isfinite(bound_accept_moment_Am2)) {
+    return Fail(error, "bound_accept_moment_Am2 must be >= 0 (0 = off)");
+  }
   if (!(max_interval_s >= solve_interval_s) || !std::isfinite(max_interval_s)) {
     return Fail(error, "max_interval_s must be >= solve_interval_s (equal: no back-off)");
   }
@@ -431,7 +434,8 @@ bool FarSourceEstimator::StepIfDue(double t_s) {
     refusal_ = FarSourceRefusal::kNoFit;
   } else if (model_.m_W.norm() < options_.min_moment_Am2) {
     refusal_ = FarSourceRefusal::kSmallMoment;
-  } else if (model_.d_m < model_.min_range_m + options_.bound_slack_m) {
+  } else if (model_.d_m < model_.min_range_m + options_.bound_slack_m &&
+             !(options_.bound_accept_moment_Am2 > 0.0 && model_.m_W.norm() >= options_.bound_accept_moment_Am2)) {
     refusal_ = FarSourceRefusal::kAtBound;
   } else {
     for (const auto& p : sensors_) active_ = active_ || model_.BAt(p, model_.t_last_s).norm() >= options_.min_field_T;

@@ -315,6 +315,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "no longer fits (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--far-bound-accept-moment", fs.bound_accept_moment_Am2,
+                 "far source: a fit pressed against its bound is still removed when its moment is at least this "
+                 "(a ship far along its line), A m^2 (0 = off: every fit at the bound is refused)")
+      ->capture_default_str();
   app.add_option("--sensor-offset", f->sensor_offset,
                  "each track's window and batch solve gives every sensor a B offset (world NED) as a nuisance, constant "
                  "over the window or over one --sensor-offset-segment of the batch, with a zero-mean prior from the "
