@@ -92,6 +92,10 @@ bool SensorOffsetOptions::IsValid(std::string* error) const {
   if (!PositiveFinite(segment_s)) return Fail(error, "sensor_offset.segment_s must be > 0");
   if (passes < 1 || batch_passes < 1) return Fail(error, "sensor_offset.passes and batch_passes must be >= 1");
   if (carry && !enabled) return Fail(error, "sensor_offset.carry needs sensor_offset.enabled");
+  if (window_lines && carry) return Fail(error, "sensor_offset.window_lines is not with sensor_offset.carry");
+  if (!PositiveFinite(line_rate_sigma_T_per_s)) {
+    return Fail(error, "sensor_offset.line_rate_sigma_T_per_s must be > 0");
+  }
   if (!(min_tensor_snr >= 0.0) || !std::isfinite(min_tensor_snr)) {
     return Fail(error, "sensor_offset.min_tensor_snr must be finite and >= 0");
   }
