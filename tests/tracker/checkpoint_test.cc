@@ -301,6 +301,33 @@ TEST(TrackerCheckpoint, CarriedSensorOffsetsRestoredGoOnBitForBit) {
   ExpectSameAfterCut(after, r);
 }
 
+// The window's offsets as lines in time (SensorOffsetOptions::window_lines,
+// with the batch's `enabled` off): a checkpoint taken 30 s after the
+// held-out drift's track is confirmed holds each sensor's level and rate and
+// their time; the restored tracker goes on bit for bit.
+TEST(TrackerCheckpoint, WindowOffsetLinesRestoredGoOnBitForBit) {
+  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/drift.toml");
+  const SimulatedField f = SimulateField(sc);
+  MultiTrackerOptions options;
+  options.track.sensor_offset.window_lines = true;
+  double t_confirmed = -1.0;
+  const CutRun r = RunAndCut(f.samples, sc.B0, options, [&](const MultiTracker& t, const Outputs&, double t_s) {
+    if (t_confirmed < 0.0 && t.summary().num_confirmed > 0) t_confirmed = t_s;
+    return t_confirmed >= 0.0 && t_s >= t_confirmed + 30.0;
+  });
+  ASSERT_GT(r.cut, 0u) << "no track confirmed 30 s before the end";
+  MultiTracker restored(sc.B0, options);
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
+  const Outputs after = Resume(restored, f.samples, r.cut);
+  std::printf("window offset lines: checkpoint at %.1f s (%zu bytes): the %zu outputs after it compared\n",
+              f.samples[r.cut].t_s, r.payload.size(), after.out.size());
+  ASSERT_GT(after.out.size(), 100u);
+  ExpectSameAfterCut(after, r);
+  // A tracker without the lines refuses that checkpoint (its options differ).
+  MultiTracker other(sc.B0, MultiTrackerOptions{});
+  EXPECT_THROW(other.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload))), CheckpointError);
+}
+
 // RestoreState(DecodeTrackerCheckpoint(file)) into a new tracker with `options`:
 // the CheckpointError's message, or "" if it was taken.
 std::string Refusal(const std::string& file, const MultiTrackerOptions& options, const Eigen::Vector3d& B0) {

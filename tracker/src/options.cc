@@ -98,6 +98,10 @@ bool SensorOffsetOptions::IsValid(std::string* error) const {
   if (!(quiet_tensor_mean_s >= 0.0) || !std::isfinite(quiet_tensor_mean_s)) {
     return Fail(error, "sensor_offset.quiet_tensor_mean_s must be finite and >= 0");
   }
+  if (window_lines && carry) return Fail(error, "sensor_offset.window_lines is not with sensor_offset.carry");
+  if (!PositiveFinite(line_rate_sigma_T_per_s)) {
+    return Fail(error, "sensor_offset.line_rate_sigma_T_per_s must be > 0");
+  }
   if (!(min_tensor_snr >= 0.0) || !std::isfinite(min_tensor_snr)) {
     return Fail(error, "sensor_offset.min_tensor_snr must be finite and >= 0");
   }

@@ -40,6 +40,31 @@ Eigen::Vector3d SensorOffsetAccumulator::Mean(const Eigen::Vector3d& prior_mean_
   return (weighted_sum_ + prior_information * prior_mean_W) / (information_ + prior_information);
 }
 
+bool LineOffsetAccumulator::Add(const Factor& f, double sigma_B_T, const Eigen::Vector3d& own_W, double dt_s) {
+  SensorOffsetAccumulator one;
+  if (!one.Add(f, sigma_B_T, own_W) || !std::isfinite(dt_s)) return false;
+  const double info = one.information();  // w/σ²
+  const Eigen::Vector3d sum = one.weighted_sum();  // w r/σ²
+  const Eigen::Vector2d h(1.0, dt_s);
+  information_ += info * h * h.transpose();
+  weighted_sum_ += h * sum.transpose();
+  return true;
+}
+
+bool LineOffsetAccumulator::Solve(double level_sigma_T, double rate_sigma_T_per_s, Eigen::Vector3d* level_W,
+                                  Eigen::Vector3d* rate_W) const {
+  Eigen::Matrix2d A = information_;
+  A(0, 0) += 1.0 / (level_sigma_T * level_sigma_T);
+  A(1, 1) += 1.0 / (rate_sigma_T_per_s * rate_sigma_T_per_s);
+  const Eigen::LDLT<Eigen::Matrix2d> ldlt(A);
+  if (ldlt.info() != Eigen::Success) return false;
+  const Eigen::Matrix<double, 2, 3> x = ldlt.solve(weighted_sum_);
+  if (!x.allFinite()) return false;
+  *level_W = x.row(0).transpose();
+  *rate_W = x.row(1).transpose();
+  return true;
+}
+
 double PredictedTensorSnr(const GradiometerSample& s, const double* x_state, const Eigen::Vector3d& m_B_Am2,
                           double sigma_T_Tpm) {
   const Eigen::Vector3d r_DtoS = s.p_SinW - Eigen::Vector3d(x_state[0], x_state[1], x_state[2]);

@@ -35,6 +35,24 @@ class SensorOffsetAccumulator {
   double information_ = 0.0;                                // T⁻²
 };
 
+// The samples of one sensor over the window for an offset that is a line in
+// time (SensorOffsetOptions::window_lines): o(t) = level + rate · (t − t_ref).
+class LineOffsetAccumulator {
+ public:
+  // As SensorOffsetAccumulator::Add; dt_s = the sample's t − t_ref (s) and
+  // own_W the line's value at that time now removed from its B.
+  bool Add(const Factor& f, double sigma_B_T, const Eigen::Vector3d& own_W, double dt_s);
+  // The level (T) and rate (T/s), world NED, minimising
+  //   Σ w_i‖r_i − level − rate·dt_i‖²/σ_i² + ‖level‖²/σ_l² + ‖rate‖²/σ_r²
+  // (σ_l level_sigma_T, σ_r rate_sigma_T_per_s). False if singular.
+  bool Solve(double level_sigma_T, double rate_sigma_T_per_s, Eigen::Vector3d* level_W,
+             Eigen::Vector3d* rate_W) const;
+
+ private:
+  Eigen::Matrix2d information_ = Eigen::Matrix2d::Zero();                  // [T⁻², T⁻² s; ·, T⁻² s²]
+  Eigen::Matrix<double, 2, 3> weighted_sum_ = Eigen::Matrix<double, 2, 3>::Zero();  // [T⁻¹; T⁻¹ s]
+};
+
 // The track's predicted tensor SNR ‖T̂‖_F/σ_T at sample s (σ_T sigma_T_Tpm,
 // T/m): the dipole at state x_state (x, y, z world NED m, …, heading rad at
 // index 4) with body moment m_B_Am2 (A·m²). 0 if it cannot be evaluated.

@@ -88,6 +88,10 @@ struct WindowTracker::Impl {
   // The track's own per-sensor B offset over the window (world NED, T;
   // TrackerOptions::sensor_offset), added to B0 and to `offsets`.
   std::map<std::uint32_t, Eigen::Vector3d> own_offsets;
+  // With sensor_offset.window_lines: each sensor's rate (world NED, T/s)
+  // about own_offset_t_s, the window's middle time when they were fitted.
+  std::map<std::uint32_t, Eigen::Vector3d> own_rates;
+  double own_offset_t_s = 0.0;
   // What the samples that left the window say of each sensor's offset
   // (sensor_offset.carry): the window's offsets' prior.
   std::map<std::uint32_t, internal::CarriedOffset> carried_offsets;
@@ -95,9 +99,12 @@ struct WindowTracker::Impl {
   // SetSensorOffsetPrior): the window's offsets' prior where it answers.
   WindowTracker::SensorOffsetPriorFn quiet_prior;
 
-  Eigen::Vector3d OwnOffset(std::uint32_t sensor_id) const {
+  // The track's own offset of a sensor at time t_s (world NED, T).
+  Eigen::Vector3d OwnOffset(std::uint32_t sensor_id, double t_s) const {
     const auto it = own_offsets.find(sensor_id);
-    return it == own_offsets.end() ? Eigen::Vector3d::Zero() : it->second;
+    if (it == own_offsets.end()) return Eigen::Vector3d::Zero();
+    const auto r = own_rates.find(sensor_id);
+    return r == own_rates.end() ? it->second : Eigen::Vector3d(it->second + r->second * (t_s - own_offset_t_s));
   }
 
   // `force`: set every factor's offset even with none (back to zero).
@@ -106,7 +113,7 @@ struct WindowTracker::Impl {
     for (std::size_t i = 0; i < w.measurements.size(); ++i) {
       auto* cost = static_cast<MeasurementCost*>(w.measurements[i].cost.get());
       const std::uint32_t id = w.epoch.samples[i].sensor_id;
-      Eigen::Vector3d o = OwnOffset(id);
+      Eigen::Vector3d o = OwnOffset(id, w.epoch.t_s);
       if (offsets) o += offsets(id, w.epoch.t_s);
       cost->SetBackgroundOffset(o);
     }
@@ -122,7 +129,7 @@ struct WindowTracker::Impl {
     for (const WindowEpoch& w : window) {
       for (std::size_t i = 0; i < w.measurements.size(); ++i) {
         const GradiometerSample& smp = w.epoch.samples[i];
-        acc[smp.sensor_id].Add(w.measurements[i], SigmaB(smp, options), OwnOffset(smp.sensor_id));
+        acc[smp.sensor_id].Add(w.measurements[i], SigmaB(smp, options), OwnOffset(smp.sensor_id, w.epoch.t_s));
         if (so.min_tensor_snr > 0.0) {
           double& best = tensor_snr[smp.sensor_id];
           best = std::max(best, internal::PredictedTensorSnr(smp, w.x.data(), m_B, SigmaT(smp, options)));
@@ -131,6 +138,10 @@ struct WindowTracker::Impl {
     }
     const double t_mid = 0.5 * (window.front().epoch.t_s + window.back().epoch.t_s);
     const double sigma = so.PriorSigma(t_mid);
+    if (so.window_lines) {
+      UpdateOwnLines(t_mid, sigma, tensor_snr);
+      return;
+    }
     std::map<std::uint32_t, Eigen::Vector3d> next;
     for (const auto& [id, a] : acc) {
       const auto c = so.carry ? carried_offsets.find(id) : carried_offsets.end();
@@ -157,6 +168,37 @@ struct WindowTracker::Impl {
                      : a.Mean(c->second.mean_W, std::sqrt(c->second.VarianceAt(t_mid, so.max_rate_T_per_s)));
     }
     own_offsets = std::move(next);
+    for (WindowEpoch& w : window) ApplyOffsets(w, true);
+    chain_fresh = false;
+  }
+
+  // sensor_offset.window_lines: every sensor's offset a line in time about
+  // t_mid (the level's prior σ level_sigma_T, the rate's
+  // line_rate_sigma_T_per_s); a sensor below min_tensor_snr gets none.
+  void UpdateOwnLines(double t_mid, double level_sigma_T, const std::map<std::uint32_t, double>& tensor_snr) {
+    const SensorOffsetOptions& so = options.sensor_offset;
+    std::map<std::uint32_t, internal::LineOffsetAccumulator> acc;
+    for (const WindowEpoch& w : window) {
+      for (std::size_t i = 0; i < w.measurements.size(); ++i) {
+        const GradiometerSample& smp = w.epoch.samples[i];
+        acc[smp.sensor_id].Add(w.measurements[i], SigmaB(smp, options), OwnOffset(smp.sensor_id, w.epoch.t_s),
+                               w.epoch.t_s - t_mid);
+      }
+    }
+    std::map<std::uint32_t, Eigen::Vector3d> levels, rates;
+    for (const auto& [id, a] : acc) {
+      if (so.min_tensor_snr > 0.0) {
+        const auto it = tensor_snr.find(id);
+        if (it == tensor_snr.end() || it->second < so.min_tensor_snr) continue;
+      }
+      Eigen::Vector3d level, rate;
+      if (!a.Solve(level_sigma_T, so.line_rate_sigma_T_per_s, &level, &rate)) continue;
+      levels[id] = level;
+      rates[id] = rate;
+    }
+    own_offsets = std::move(levels);
+    own_rates = std::move(rates);
+    own_offset_t_s = t_mid;
     for (WindowEpoch& w : window) ApplyOffsets(w, true);
     chain_fresh = false;
   }
@@ -210,7 +252,7 @@ struct WindowTracker::Impl {
     std::map<std::uint32_t, internal::SensorOffsetAccumulator> acc;
     for (std::size_t i = 0; i < a.measurements.size(); ++i) {
       const GradiometerSample& smp = a.epoch.samples[i];
-      acc[smp.sensor_id].Add(a.measurements[i], SigmaB(smp, options), OwnOffset(smp.sensor_id));
+      acc[smp.sensor_id].Add(a.measurements[i], SigmaB(smp, options), OwnOffset(smp.sensor_id, a.epoch.t_s));
     }
     const double t = a.epoch.t_s;
     for (const auto& [id, s] : acc) {
@@ -685,7 +727,7 @@ struct WindowTracker::Impl {
   // the offsets' update and a Gauss-Newton solve of the track given them.
   void Solve(bool start) {
     SolveOnce(start);
-    if (!options.sensor_offset.enabled) return;
+    if (!options.sensor_offset.WindowOffsets()) return;
     for (int pass = 0; pass < options.sensor_offset.passes && summary.usable; ++pass) {
       UpdateOwnOffsets();
       SolveOnce(false);
@@ -1064,11 +1106,19 @@ void WindowTracker::SaveState(StateWriter& w) const {
   w.F64(m.last_solve_t);
   w.I64(m.rejected_samples);
   w.I64(m.dropped_factors);
-  if (m.options.sensor_offset.enabled) {  // the options are the restoring tracker's too
+  if (m.options.sensor_offset.WindowOffsets()) {  // the options are the restoring tracker's too
     w.U64(m.own_offsets.size());
     for (const auto& [id, o] : m.own_offsets) {
       w.U64(id);
       w.Matrix(o);
+    }
+    if (m.options.sensor_offset.window_lines) {
+      w.F64(m.own_offset_t_s);
+      w.U64(m.own_rates.size());
+      for (const auto& [id, rate] : m.own_rates) {
+        w.U64(id);
+        w.Matrix(rate);
+      }
     }
     if (m.options.sensor_offset.carry) {
       w.U64(m.carried_offsets.size());
@@ -1120,10 +1170,18 @@ void WindowTracker::RestoreState(StateReader& r) {
   m.last_solve_t = r.F64();
   m.rejected_samples = static_cast<int>(r.I64());
   m.dropped_factors = static_cast<int>(r.I64());
-  if (m.options.sensor_offset.enabled) {
+  if (m.options.sensor_offset.WindowOffsets()) {
     for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
       const auto id = static_cast<std::uint32_t>(r.U64());
       m.own_offsets[id] = internal::GetMatrix(r, 3, 1);
+    }
+    if (m.options.sensor_offset.window_lines) {
+      m.own_offset_t_s = r.F64();
+      for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
+        const auto id = static_cast<std::uint32_t>(r.U64());
+        m.own_rates[id] = internal::GetMatrix(r, 3, 1);
+      }
+      if (!std::isfinite(m.own_offset_t_s)) throw CheckpointError("corrupt: a sensor offset's time");
     }
     if (m.options.sensor_offset.carry) {
       for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {

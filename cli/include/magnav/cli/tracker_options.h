@@ -38,6 +38,7 @@ struct TrackerFlags {
       tracker::TrackerOptions{}.window_turn_onset_search == tracker::TrackerOptions::OnsetSearch::kFast ? "fast"
                                                                                                         : "full";
   std::string sensor_offset_quiet = tracker::SensorOffsetOptions{}.quiet ? "on" : "off";
+  std::string window_offset_lines = tracker::SensorOffsetOptions{}.window_lines ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
           ? "residuals"
@@ -338,6 +339,15 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "zero-mean prior in every window (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--window-offset-lines", f->window_offset_lines,
+                 "each track's window solve gives every sensor a B offset that is a line in time over the window "
+                 "(level and rate; an untracked vessel's B changing within the window) as a nuisance (on; the batch "
+                 "follows --sensor-offset alone; not with --sensor-offset-carry), or as --sensor-offset says (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--window-offset-rate-sigma", t.sensor_offset.line_rate_sigma_T_per_s,
+                 "--window-offset-lines: the zero-mean prior sigma of each sensor's rate, T/s per axis")
+      ->capture_default_str();
   app.add_option("--sensor-offset-min-tensor-snr", t.sensor_offset.min_tensor_snr,
                  "sensor offset: only sensors where the track's predicted tensor SNR reaches this in the window (batch: "
                  "the solved span) get an offset; the others keep B0 (0 = every sensor)")
@@ -394,6 +404,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.track.window_turn_onset_search = f.turn_onset_search == "fast" ? tracker::TrackerOptions::OnsetSearch::kFast
                                                                    : tracker::TrackerOptions::OnsetSearch::kFull;
   o.track.sensor_offset.quiet = f.sensor_offset_quiet == "on";
+  o.track.sensor_offset.window_lines = f.window_offset_lines == "on";
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals

@@ -218,6 +218,21 @@ struct SensorOffsetOptions {
   int passes = 2;
   int batch_passes = 8;
   double tolerance_T = 0.1e-9;
+  // Window only: each sensor's offset in each track's window solve is a line
+  // in time over the window — a level (T, world NED, at the window's middle
+  // time) and a rate (T/s) — instead of a constant. An untracked vessel
+  // 20–40 m from a track's sensors (an overtaker beyond the tensor reach,
+  // seen there by its B alone) changes its B at a sensor by tens of nT
+  // within the 20 s window; a constant offset takes out its mean only
+  // (docs/ACCURACY.md, "The slow vessel's window RMS while an untracked
+  // overtaker closes"). On by itself it turns the window's offsets on (the
+  // batch follows `enabled` alone: with `enabled` false its rows are
+  // unchanged). The level's prior is PriorSigma's, the rate's zero-mean with
+  // σ line_rate_sigma_T_per_s per axis. Off by default; not with carry.
+  bool window_lines = false;
+  double line_rate_sigma_T_per_s = 5e-9;
+  // Whether the window solves offsets at all (enabled or window_lines).
+  bool WindowOffsets() const { return enabled || window_lines; }
 
   // The prior σ (T, per axis) at time t_s.
   double PriorSigma(double t_s) const;
