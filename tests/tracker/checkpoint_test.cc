@@ -274,31 +274,40 @@ TEST(TrackerCheckpoint, GhostFieldRestoredGoesOnBitForBit) {
   ExpectSameAfterCut(after, r);
 }
 
+// The held-out drift with `options`: a checkpoint taken 30 s after its
+// track is confirmed, restored into a new tracker, goes on bit for bit; the
+// checkpoint's payload is returned.
+std::string ExpectDriftRunGoesOnBitForBit(const MultiTrackerOptions& options, const char* what) {
+  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/drift.toml");
+  const SimulatedField f = SimulateField(sc);
+  double t_confirmed = -1.0;
+  const CutRun r = RunAndCut(f.samples, sc.B0, options, [&](const MultiTracker& t, const Outputs&, double t_s) {
+    if (t_confirmed < 0.0 && t.summary().num_confirmed > 0) t_confirmed = t_s;
+    return t_confirmed >= 0.0 && t_s >= t_confirmed + 30.0;
+  });
+  EXPECT_GT(r.cut, 0u) << "no track confirmed 30 s before the end";
+  if (r.cut == 0) return {};
+  MultiTracker restored(sc.B0, options);
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
+  const Outputs after = Resume(restored, f.samples, r.cut);
+  std::printf("%s: checkpoint at %.1f s (%zu bytes): the %zu outputs after it compared\n", what,
+              f.samples[r.cut].t_s, r.payload.size(), after.out.size());
+  EXPECT_GT(after.out.size(), 100u);
+  ExpectSameAfterCut(after, r);
+  return r.payload;
+}
+
 // The window's sensor offsets carried between windows
 // (SensorOffsetOptions::carry, with the tensor gate): a checkpoint taken 30 s
 // after the held-out drift's track is confirmed (its window has marginalised
 // samples, so carried offsets) holds them; the restored tracker goes on bit
 // for bit.
 TEST(TrackerCheckpoint, CarriedSensorOffsetsRestoredGoOnBitForBit) {
-  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/drift.toml");
-  const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions options;
   options.track.sensor_offset.enabled = true;
   options.track.sensor_offset.carry = true;
   options.track.sensor_offset.min_tensor_snr = 20.0;
-  double t_confirmed = -1.0;
-  const CutRun r = RunAndCut(f.samples, sc.B0, options, [&](const MultiTracker& t, const Outputs&, double t_s) {
-    if (t_confirmed < 0.0 && t.summary().num_confirmed > 0) t_confirmed = t_s;
-    return t_confirmed >= 0.0 && t_s >= t_confirmed + 30.0;
-  });
-  ASSERT_GT(r.cut, 0u) << "no track confirmed 30 s before the end";
-  MultiTracker restored(sc.B0, options);
-  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
-  const Outputs after = Resume(restored, f.samples, r.cut);
-  std::printf("carried sensor offsets: checkpoint at %.1f s (%zu bytes): the %zu outputs after it compared\n",
-              f.samples[r.cut].t_s, r.payload.size(), after.out.size());
-  ASSERT_GT(after.out.size(), 100u);
-  ExpectSameAfterCut(after, r);
+  ExpectDriftRunGoesOnBitForBit(options, "carried sensor offsets");
 }
 
 // The window's offsets as lines in time (SensorOffsetOptions::window_lines,
@@ -306,26 +315,14 @@ TEST(TrackerCheckpoint, CarriedSensorOffsetsRestoredGoOnBitForBit) {
 // held-out drift's track is confirmed holds each sensor's level and rate and
 // their time; the restored tracker goes on bit for bit.
 TEST(TrackerCheckpoint, WindowOffsetLinesRestoredGoOnBitForBit) {
-  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/drift.toml");
-  const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions options;
   options.track.sensor_offset.window_lines = true;
-  double t_confirmed = -1.0;
-  const CutRun r = RunAndCut(f.samples, sc.B0, options, [&](const MultiTracker& t, const Outputs&, double t_s) {
-    if (t_confirmed < 0.0 && t.summary().num_confirmed > 0) t_confirmed = t_s;
-    return t_confirmed >= 0.0 && t_s >= t_confirmed + 30.0;
-  });
-  ASSERT_GT(r.cut, 0u) << "no track confirmed 30 s before the end";
-  MultiTracker restored(sc.B0, options);
-  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
-  const Outputs after = Resume(restored, f.samples, r.cut);
-  std::printf("window offset lines: checkpoint at %.1f s (%zu bytes): the %zu outputs after it compared\n",
-              f.samples[r.cut].t_s, r.payload.size(), after.out.size());
-  ASSERT_GT(after.out.size(), 100u);
-  ExpectSameAfterCut(after, r);
+  const std::string payload = ExpectDriftRunGoesOnBitForBit(options, "window offset lines");
+  ASSERT_FALSE(payload.empty());
   // A tracker without the lines refuses that checkpoint (its options differ).
+  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/drift.toml");
   MultiTracker other(sc.B0, MultiTrackerOptions{});
-  EXPECT_THROW(other.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload))), CheckpointError);
+  EXPECT_THROW(other.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload))), CheckpointError);
 }
 
 // RestoreState(DecodeTrackerCheckpoint(file)) into a new tracker with `options`:

@@ -20,6 +20,19 @@
 namespace magnav::tracker {
 namespace {
 
+// A committed scenario (tests/data/generated/scenarios/NAME.toml) through the
+// window tracker with `opt`, scored against its truth and printed.
+auto WindowScores(const std::string& name, const MultiTrackerOptions& opt, const std::string& what) {
+  const FieldScenario sc =
+      cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/" + name + ".toml");
+  const SimulatedField f = SimulateField(sc);
+  MultiTracker tracker(sc.B0, opt);
+  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
+  const auto s = magnav::testing::ScoreField(sc, f, rows);
+  magnav::testing::PrintFieldScores((name + ", " + what).c_str(), s);
+  return s;
+}
+
 TEST(FarSourceScenario, WindowKeepsTheAuvOnTrackWhileAFarShipPasses) {
   const FieldScenario sc =
       cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/heldout/far_ship.toml");
@@ -103,15 +116,9 @@ TEST(FarSourceScenario, WindowFindsAShipStillFarAlongItsLineWhileAnAuvPasses) {
 // the track lean on the tensor: window RMS within 15 m 0.109 m (0.336 m off,
 // 0.028 m with the ship taken out of the scenario).
 TEST(FarSourceScenario, WindowWithTheUnexplainedFarFieldKeepsAWeakAuvOnTrack) {
-  const FieldScenario sc =
-      cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/fresh_ghost2/far_ship_120.toml");
-  const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions opt;
   opt.far_source.unexplained_sigma_T = 3e-9;
-  MultiTracker tracker(sc.B0, opt);
-  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
-  const auto s = magnav::testing::ScoreField(sc, f, rows);
-  magnav::testing::PrintFieldScores("fresh_ghost2/far_ship_120, window, --far-unexplained-sigma 3e-9", s);
+  const auto s = WindowScores("fresh_ghost2/far_ship_120", opt, "window, --far-unexplained-sigma 3e-9");
   EXPECT_GE(s.coverage[0], 0.8);  // measured 0.88
   EXPECT_EQ(s.ids[0], 1u);
   EXPECT_LE(s.rms[0], 0.2);  // m, measured 0.109 (a 2x regression fails; the target is 0.3)
@@ -128,15 +135,9 @@ TEST(FarSourceScenario, WindowWithTheUnexplainedFarFieldKeepsAWeakAuvOnTrack) {
 // bound_accept_moment_Am2 2e5; an option, off) the window RMS is 0.241 m
 // (0.516 m off, 0.037 m with the ship taken out of the scenario).
 TEST(FarSourceScenario, WindowAcceptsAShipAtTheBoundBesideAWeakAuv) {
-  const FieldScenario sc =
-      cli::ReadScenarioFile(magnav::testing::TestDataDir() + "/generated/scenarios/fresh_farsrc3/far_ship_112.toml");
-  const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions opt;
   opt.far_source.bound_accept_moment_Am2 = 2e5;
-  MultiTracker tracker(sc.B0, opt);
-  const auto rows = magnav::testing::WindowRows(&tracker, f.samples);
-  const auto s = magnav::testing::ScoreField(sc, f, rows);
-  magnav::testing::PrintFieldScores("fresh_farsrc3/far_ship_112, window, --far-bound-accept-moment 2e5", s);
+  const auto s = WindowScores("fresh_farsrc3/far_ship_112", opt, "window, --far-bound-accept-moment 2e5");
   EXPECT_GE(s.coverage[0], 0.8);  // measured 0.90
   EXPECT_EQ(s.ids[0], 1u);
   EXPECT_LE(s.rms[0], 0.35);  // m, measured 0.241, 0.516 with the default (a 2x regression fails; the target is 0.3)

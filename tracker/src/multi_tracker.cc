@@ -157,6 +157,18 @@ void PredictedField(const CtState<double>& state, const Eigen::Vector3d& m_B_Am2
 
 namespace {
 
+// The live tracks' predicted fields summed at the epoch's sample j (T, T/m);
+// a track without a prediction this epoch adds nothing.
+void SumTracksField(const std::vector<TrackPrediction>& pred, std::size_t j, Eigen::Vector3d* B, Eigen::Matrix3d* T) {
+  B->setZero();
+  T->setZero();
+  for (const TrackPrediction& p : pred) {
+    if (!p.valid) continue;
+    *B += p.at[j].B;
+    *T += p.at[j].T;
+  }
+}
+
 struct Track {
   std::unique_ptr<WindowTracker> engine;
   std::uint32_t id = 0;  // 0 while tentative
@@ -574,10 +586,9 @@ struct MultiTracker::Impl {
       for (std::size_t j = 0; j < raw.samples.size(); ++j) {
         const GradiometerSample& s = raw.samples[j];
         if (CheckSample(s) != SampleDefect::kNone) continue;
-        Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
-        for (const TrackPrediction& p : pred) {
-          if (p.valid) T_tracks += p.at[j].T;
-        }
+        Eigen::Vector3d B_tracks;
+        Eigen::Matrix3d T_tracks;
+        SumTracksField(pred, j, &B_tracks, &T_tracks);
         const double st = SigmaT(s, options.track);
         tensor_mean.Add(s.sensor_id, raw.t_s, s.T - T_tracks, st * st + rel * rel * T_tracks.squaredNorm() / 9.0);
       }
@@ -591,13 +602,9 @@ struct MultiTracker::Impl {
       const GradiometerSample& s = raw.samples[j];
       if (CheckSample(s) != SampleDefect::kNone) continue;
       sensors.push_back(s.p_SinW);
-      Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
-      for (const TrackPrediction& p : pred) {
-        if (!p.valid) continue;
-        B_tracks += p.at[j].B;
-        T_tracks += p.at[j].T;
-      }
+      Eigen::Vector3d B_tracks;
+      Eigen::Matrix3d T_tracks;
+      SumTracksField(pred, j, &B_tracks, &T_tracks);
       const internal::QuietSample q = internal::QuietResidual(s, B_tracks, T_tracks, B0_W, options.track, rule);
       if (q.use != internal::QuietUse::kUsed) continue;
       FarSourceSample f;
@@ -636,13 +643,9 @@ struct MultiTracker::Impl {
     for (std::size_t j = 0; j < e.samples.size(); ++j) {
       const GradiometerSample& s = e.samples[j];
       if (CheckSample(s) != SampleDefect::kNone) continue;
-      Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
-      for (const TrackPrediction& p : pred) {
-        if (!p.valid) continue;
-        B_tracks += p.at[j].B;
-        T_tracks += p.at[j].T;
-      }
+      Eigen::Vector3d B_tracks;
+      Eigen::Matrix3d T_tracks;
+      SumTracksField(pred, j, &B_tracks, &T_tracks);
       const double st = SigmaT(s, options.track);
       quiet_tensor_mean.Add(s.sensor_id, e.t_s, s.T - T_tracks, st * st + rel * rel * T_tracks.squaredNorm() / 9.0);
       if (B_tracks.norm() >= 3.0 * SigmaB(s, options.track)) continue;
@@ -660,13 +663,9 @@ struct MultiTracker::Impl {
     const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
     for (std::size_t j = 0; j < raw.samples.size(); ++j) {
       const GradiometerSample& s = raw.samples[j];
-      Eigen::Vector3d B_tracks = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d T_tracks = Eigen::Matrix3d::Zero();
-      for (const TrackPrediction& p : pred) {
-        if (!p.valid) continue;
-        B_tracks += p.at[j].B;
-        T_tracks += p.at[j].T;
-      }
+      Eigen::Vector3d B_tracks;
+      Eigen::Matrix3d T_tracks;
+      SumTracksField(pred, j, &B_tracks, &T_tracks);
       const double sb = SigmaB(s, options.track);
       const double var = sb * sb + rel * rel * B_tracks.squaredNorm() / 3.0;
       const double st2 = std::pow(SigmaT(s, options.track), 2) + rel * rel * T_tracks.squaredNorm() / 9.0;
