@@ -574,6 +574,15 @@ struct MultiTracker::Impl {
     return e;
   }
 
+  // A sample's tensor minus the live tracks' (`T_tracks`) into a residual
+  // tensor mean, its variance the sample's σ_T² plus the tracks' model error.
+  void AddResidualTensor(internal::ResidualTensorMean* mean, const GradiometerSample& s, double t_s,
+                         const Eigen::Matrix3d& T_tracks) const {
+    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+    const double st = SigmaT(s, options.track);
+    mean->Add(s.sensor_id, t_s, s.T - T_tracks, st * st + rel * rel * T_tracks.squaredNorm() / 9.0);
+  }
+
   // The far source (and the sensors' drift) takes the raw sample minus B0
   // and every live track's predicted B (their model error in its σ) where no
   // untracked near source (residual tensor) and no tracked vessel (predicted
@@ -582,15 +591,13 @@ struct MultiTracker::Impl {
     if (!far.enabled()) return;
     if (far.drift().enabled() && tensor_mean.window_s() > 0.0) {
       // Every epoch's residual tensor at each sensor, for the drift's mean.
-      const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
       for (std::size_t j = 0; j < raw.samples.size(); ++j) {
         const GradiometerSample& s = raw.samples[j];
         if (CheckSample(s) != SampleDefect::kNone) continue;
         Eigen::Vector3d B_tracks;
         Eigen::Matrix3d T_tracks;
         SumTracksField(pred, j, &B_tracks, &T_tracks);
-        const double st = SigmaT(s, options.track);
-        tensor_mean.Add(s.sensor_id, raw.t_s, s.T - T_tracks, st * st + rel * rel * T_tracks.squaredNorm() / 9.0);
+        AddResidualTensor(&tensor_mean, s, raw.t_s, T_tracks);
       }
     }
     if (!far.WantsEpoch(raw.t_s)) return;
@@ -646,8 +653,7 @@ struct MultiTracker::Impl {
       Eigen::Vector3d B_tracks;
       Eigen::Matrix3d T_tracks;
       SumTracksField(pred, j, &B_tracks, &T_tracks);
-      const double st = SigmaT(s, options.track);
-      quiet_tensor_mean.Add(s.sensor_id, e.t_s, s.T - T_tracks, st * st + rel * rel * T_tracks.squaredNorm() / 9.0);
+      AddResidualTensor(&quiet_tensor_mean, s, e.t_s, T_tracks);
       if (B_tracks.norm() >= 3.0 * SigmaB(s, options.track)) continue;
       if (quiet_tensor_mean.window_s() > 0.0 && quiet_tensor_mean.Z(s.sensor_id) > 2.5) continue;
       const internal::QuietSample q = internal::QuietResidual(s, B_tracks, T_tracks, B0_W, options.track, rule);
