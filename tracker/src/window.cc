@@ -527,7 +527,6 @@ struct WindowTracker::Impl {
   // best by the cost of its own problem is kept in `best`.
   struct OnsetBest {
     double cost = std::numeric_limits<double>::infinity();
-    double data = 0.0;
     std::size_t onset = 0;
     std::vector<StateVector> x;
     Eigen::Vector3d m = Eigen::Vector3d::Zero();
@@ -555,7 +554,6 @@ struct WindowTracker::Impl {
     if (!chain_ok || !std::isfinite(cs.final_cost) || !(cs.final_cost < best->cost)) return;
     best->cost = cs.final_cost;
     best->onset = onset;
-    best->data = DataCost();
     best->x.resize(n);
     for (std::size_t k = 0; k < n; ++k) best->x[k] = window[k].x;
     best->m = moment;
@@ -678,7 +676,14 @@ struct WindowTracker::Impl {
       for (const auto& f : w.measurements) residuals += f.cost->num_residuals();
     }
     const double penalty = options.window_turn_onset_bic_params * 0.5 * std::log(std::max(residuals, 1));
-    bool chosen = std::isfinite(best.cost) && best.data <= d_default + penalty;
+    // The best candidate's data cost, once (the measurement and prior factors
+    // do not depend on which turn-rate model is in place).
+    bool chosen = false;
+    if (std::isfinite(best.cost)) {
+      for (std::size_t k = 0; k < n; ++k) window[k].x = best.x[k];
+      moment = best.m;
+      chosen = DataCost() <= d_default + penalty;
+    }
     ++summary.num_turn_onset_tries;
     if (fast && std::isfinite(best.cost) && best.onset > 0) {
       // Carried to the next try (its start and warm start), chosen or not.
