@@ -410,7 +410,6 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
     if (drift_refit) {
       std::map<std::uint32_t, std::vector<DriftSample>> series;
       double last_t = -std::numeric_limits<double>::infinity();
-      const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
       for (const Epoch& e : epochs) {
         if (e.t_s - last_t < drift_opt.sample_interval_s - 1e-6) continue;
         last_t = e.t_s;
@@ -435,7 +434,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           }
           const double sb = SigmaB(smp, topt), st = SigmaT(smp, topt);
           if (B_near > drift_opt.occupied_B_sigmas * sb) continue;
-          const double st2 = st * st + rel * rel * T_tracks.squaredNorm() / 9.0;
+          const double st2 = st * st + RelativeOtherFieldVariance(B_tracks, T_tracks).T;
           if ((smp.T - T_tracks).squaredNorm() / st2 / 9.0 > options.far_source.tensor_gate) continue;
           const auto& [b_far, s_far] = far_only[&e - epochs.data()][j];
           series[smp.sensor_id].push_back(
@@ -502,7 +501,6 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           Eigen::Vector3d B_others = Eigen::Vector3d::Zero();
           Eigen::Matrix3d T_others = Eigen::Matrix3d::Zero();
           OtherFieldVariance var;  // batch_other_field_covariance
-          const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
           for (std::size_t k = 0; k < result.size(); ++k) {
             if (!others[k]) continue;
             PredictedField(*others[k], now[k].m_B, s.p_SinW, &B, &T);
@@ -517,8 +515,9 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
               var.T += v.T;
             } else {
               // No covariance for it: its relative error, as the default.
-              var.B += rel * rel * B.squaredNorm() / 3.0;
-              var.T += rel * rel * T.squaredNorm() / 9.0;
+              const OtherFieldVariance v = RelativeOtherFieldVariance(B, T);
+              var.B += v.B;
+              var.T += v.T;
             }
           }
           if (options.batch_other_field_covariance) {

@@ -666,15 +666,15 @@ struct MultiTracker::Impl {
   // predicted B (their model error in its variance).
   void UpdateBackground(const Epoch& raw, const std::vector<TrackPrediction>& pred) {
     if (!options.background.enabled) return;
-    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
     for (std::size_t j = 0; j < raw.samples.size(); ++j) {
       const GradiometerSample& s = raw.samples[j];
       Eigen::Vector3d B_tracks;
       Eigen::Matrix3d T_tracks;
       SumTracksField(pred, j, &B_tracks, &T_tracks);
       const double sb = SigmaB(s, options.track);
-      const double var = sb * sb + rel * rel * B_tracks.squaredNorm() / 3.0;
-      const double st2 = std::pow(SigmaT(s, options.track), 2) + rel * rel * T_tracks.squaredNorm() / 9.0;
+      const OtherFieldVariance model = RelativeOtherFieldVariance(B_tracks, T_tracks);
+      const double var = sb * sb + model.B;
+      const double st2 = std::pow(SigmaT(s, options.track), 2) + model.T;
       background.Update(s.sensor_id, raw.t_s, s.B - B_tracks, var, (s.T - T_tracks).squaredNorm() / st2 / 9.0);
     }
   }

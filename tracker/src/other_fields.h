@@ -52,6 +52,13 @@ struct OtherFieldVariance {
   double B = 0.0;  // T² per axis
   double T = 0.0;  // (T/m)² per element
 };
+
+// The same variance as kOtherFieldRelativeError of the fields' norm
+// (RemoveOtherFields' model error, squared), for `B` (T) and `T` (T/m).
+inline OtherFieldVariance RelativeOtherFieldVariance(const Eigen::Vector3d& B, const Eigen::Matrix3d& T) {
+  const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+  return {rel * rel * B.squaredNorm() / 3.0, rel * rel * T.squaredNorm() / 9.0};
+}
 inline OtherFieldVariance OtherFieldVarianceFromCovariance(const CtState<double>& s, const Eigen::Vector3d& m_B_Am2,
                                                            const Eigen::Matrix<double, 6, 6>& P_state,
                                                            const Eigen::Matrix3d& P_m, const Eigen::Vector3d& p_SinW) {
