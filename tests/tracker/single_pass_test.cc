@@ -20,6 +20,7 @@
 #include "magnav/core/simulate.h"
 #include "magnav/tracker/multi_tracker.h"
 #include "magnav/tracker/tracker.h"
+#include "options_check.h"
 #include "reference_truth.h"
 #include "test_data.h"
 #include "track_metrics.h"
@@ -492,29 +493,16 @@ TEST(SinglePass, WindowTurnOnsetModelKeepsTheTurn) {
   std::string why;
   EXPECT_FALSE(o.window_turn_onset_model);
   EXPECT_TRUE(o.IsValid(&why)) << why;
-  o.window_turn_onset_bic_params = -1.0;
-  EXPECT_FALSE(o.IsValid(&why));
-  EXPECT_NE(why.find("window_turn_onset_bic_params"), std::string::npos);
-  o = TrackerOptions{};
-  o.window_turn_onset_grid_s = 0.0;
-  EXPECT_FALSE(o.IsValid(&why));
-  EXPECT_NE(why.find("window_turn_onset_grid_s"), std::string::npos);
-  o = TrackerOptions{};
-  o.window_turn_onset_iterations = 0;
-  EXPECT_FALSE(o.IsValid(&why));
-  EXPECT_NE(why.find("window_turn_onset_iterations"), std::string::npos);
-  o = TrackerOptions{};
-  o.window_turn_onset_jump_sigmas = -1.0;
-  EXPECT_FALSE(o.IsValid(&why));
-  EXPECT_NE(why.find("window_turn_onset_jump_sigmas"), std::string::npos);
-  o = TrackerOptions{};
-  o.window_turn_onset_trigger_sigmas = std::nan("");
-  EXPECT_FALSE(o.IsValid(&why));
-  EXPECT_NE(why.find("window_turn_onset_trigger_sigmas"), std::string::npos);
-  o = TrackerOptions{};
-  o.window_turn_onset_coarse_grid_s = 0.0;
-  EXPECT_FALSE(o.IsValid(&why));
-  EXPECT_NE(why.find("window_turn_onset_coarse_grid_s"), std::string::npos);
+  using testing::ExpectRefused;
+  ExpectRefused<TrackerOptions>([](auto& x) { x.window_turn_onset_bic_params = -1.0; }, "window_turn_onset_bic_params");
+  ExpectRefused<TrackerOptions>([](auto& x) { x.window_turn_onset_grid_s = 0.0; }, "window_turn_onset_grid_s");
+  ExpectRefused<TrackerOptions>([](auto& x) { x.window_turn_onset_iterations = 0; }, "window_turn_onset_iterations");
+  ExpectRefused<TrackerOptions>([](auto& x) { x.window_turn_onset_jump_sigmas = -1.0; },
+                                "window_turn_onset_jump_sigmas");
+  ExpectRefused<TrackerOptions>([](auto& x) { x.window_turn_onset_trigger_sigmas = std::nan(""); },
+                                "window_turn_onset_trigger_sigmas");
+  ExpectRefused<TrackerOptions>([](auto& x) { x.window_turn_onset_coarse_grid_s = 0.0; },
+                                "window_turn_onset_coarse_grid_s");
   EXPECT_EQ(TrackerOptions{}.window_turn_onset_search, TrackerOptions::OnsetSearch::kFast);
   EXPECT_EQ(TrackerOptions{}.window_turn_onset_jump_sigmas, 3.0);
 
