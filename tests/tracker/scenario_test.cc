@@ -772,7 +772,8 @@ TEST(HarbourScenario, WindowOffsetLinesTakeAnUntrackedOvertakersBOut) {
   EXPECT_LE(s.rms[0], 1.5 * 0.378);  // m, measured 0.378 (coverage 0.921)
   const auto g = ScoreWindow(ShortOvertakingS13(), "short overtaking_s13, defaults", nullptr);
   EXPECT_GE(g.rms[0], 3.0 * s.rms[0]);  // measured 1.429 m (3.8x; coverage 0.948)
-  // The options' checks: not with carry; the rate's prior σ > 0.
+  // The options' checks: not with carry nor with the quiet offset (the lines
+  // would leave it unused); the rate's prior σ > 0.
   SensorOffsetOptions so;
   so.window_lines = true;
   std::string error;
@@ -782,6 +783,10 @@ TEST(HarbourScenario, WindowOffsetLinesTakeAnUntrackedOvertakersBOut) {
   so.carry = true;
   EXPECT_FALSE(so.IsValid(&error));
   so.carry = false;
+  so.quiet = true;
+  EXPECT_FALSE(so.IsValid(&error));
+  EXPECT_NE(error.find("quiet"), std::string::npos) << error;
+  so.quiet = false;
   so.line_rate_sigma_T_per_s = 0.0;
   EXPECT_FALSE(so.IsValid(&error));
 }

@@ -99,6 +99,7 @@ bool SensorOffsetOptions::IsValid(std::string* error) const {
     return Fail(error, "sensor_offset.quiet_tensor_mean_s must be finite and >= 0");
   }
   if (window_lines && carry) return Fail(error, "sensor_offset.window_lines is not with sensor_offset.carry");
+  if (window_lines && quiet) return Fail(error, "sensor_offset.window_lines is not with sensor_offset.quiet");
   if (!PositiveFinite(line_rate_sigma_T_per_s)) {
     return Fail(error, "sensor_offset.line_rate_sigma_T_per_s must be > 0");
   }
