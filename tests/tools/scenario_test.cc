@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/ and fresh_drift5/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/ and fresh_drift5/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -191,6 +191,11 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"far_ship_118", "lone_far_ship_175"}) files.push_back({"fresh_farsrc4", name, "far_ship"});
   files.push_back({"fresh_farsrc4", "crossing_far_ship_141", "crossing_far_ship"});
   files.push_back({"fresh_farsrc4", "ship_only_115", "ship_only"});  // no AUV
+  // fresh_farsrc5 (blind, the lead's session 18).
+  for (const char* name : {"far_ship_138", "far_ship_165"}) files.push_back({"fresh_farsrc5", name, "far_ship"});
+  for (const char* name : {"crossing_far_ship_152", "crossing_far_ship_128"}) {
+    files.push_back({"fresh_farsrc5", name, "crossing_far_ship"});
+  }
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});
