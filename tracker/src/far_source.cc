@@ -127,6 +127,10 @@ std::string FarSourceStats::BriefReport() const {
     << " at the bound, " << num_refused_weak << " field too weak, " << num_refused_no_fit << " no fit; "
     << num_grid_searches << " grid searches), its B removed for " << std::fixed << std::setprecision(1) << active_s
     << " s of data";
+  if (num_pre_track_corrected + num_pre_track_occupied > 0) {
+    o << "; kept samples from before a track's start (counted per fit): " << num_pre_track_corrected
+      << " given its back-predicted B, " << num_pre_track_occupied << " left out as occupied";
+  }
   if (has_accepted) {
     o << "; last accepted at t " << last_t_s << " s: (" << last_p_W.x() << ", " << last_p_W.y() << ", "
       << last_p_W.z() << ") m NED, " << last_range_m << " m from the sensors' centroid, " << std::setprecision(2)
@@ -382,14 +386,34 @@ void FarSourceEstimator::AddEpoch(double t_s, const std::vector<FarSourceSample>
   }
 }
 
-bool FarSourceEstimator::StepIfDue(double t_s) {
+bool FarSourceEstimator::StepIfDue(double t_s, const PreTrackFieldFn& pre_track) {
   if (!options_.enabled || kept_.empty()) return false;
   if (interval_s_ < 0.0) interval_s_ = options_.solve_interval_s;
   if (t_s - last_fit_t_ < interval_s_ - 1e-6) return false;
   if (kept_.back().t_s - kept_.front().t_s < options_.min_span_s) return false;
   last_fit_t_ = t_s;
   std::vector<FarSourceSample> all;
-  for (const Kept& k : kept_) all.insert(all.end(), k.used.begin(), k.used.end());
+  for (const Kept& k : kept_) {
+    if (!options_.back_predict_new_tracks || !pre_track) {
+      all.insert(all.end(), k.used.begin(), k.used.end());
+      continue;
+    }
+    for (FarSourceSample s : k.used) {
+      Eigen::Vector3d B = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
+      double var = 0.0;
+      if (pre_track(s, &B, &T, &var)) {
+        if (options_.occupied_tensor_snr > 0.0 && T.norm() >= options_.occupied_tensor_snr * s.sigma_tensor_Tpm) {
+          ++stats_.num_pre_track_occupied;
+          continue;
+        }
+        ++stats_.num_pre_track_corrected;
+        s.r_W -= B;
+        s.sigma_T = std::sqrt(s.sigma_T * s.sigma_T + var);
+      }
+      all.push_back(s);
+    }
+  }
   if (drift_.enabled()) {
     // The drift on the samples minus the previous far source (if removed),
     // then the far source on the samples minus the drift: one block step of

@@ -622,11 +622,49 @@ struct MultiTracker::Impl {
       f.sigma_T = std::sqrt(q.var_T2);
       f.tracks_B_T = B_tracks.norm();
       f.residual_tensor_mean_z = tensor_mean.Z(s.sensor_id);
+      f.sigma_tensor_Tpm = SigmaT(s, options.track);
       used.push_back(f);
     }
     far.AddEpoch(raw.t_s, used, sensors);
-    far.StepIfDue(raw.t_s);
+    far.StepIfDue(raw.t_s, fo.back_predict_new_tracks ? PreTrackField(raw.t_s) : FarSourceEstimator::PreTrackFieldFn{});
     summary.far_source = far.stats();
+  }
+
+  // The far source's correction of its kept samples older than a live
+  // track's start (FarSourceOptions::back_predict_new_tracks): the tracks
+  // started within its window, each predicted back to the sample's time from
+  // its engine's newest state (the coordinated-turn model, the moment
+  // constant), their model error as for the tracks known then.
+  FarSourceEstimator::PreTrackFieldFn PreTrackField(double t_s) const {
+    struct Young {
+      const WindowTracker* engine;
+      Eigen::Vector3d m_B;
+      double t_started_s;
+    };
+    std::vector<Young> young;
+    for (const Track& tr : tracks) {
+      if (tr.ended || !tr.has_pred || tr.t_started_s < t_s - options.far_source.window_s) continue;
+      young.push_back({tr.engine.get(), tr.m_B, tr.t_started_s});
+    }
+    if (young.empty()) return {};
+    return [young = std::move(young)](const FarSourceSample& s, Eigen::Vector3d* B_W, Eigen::Matrix3d* T_W,
+                                      double* var_T2) {
+      bool any = false;
+      for (const Young& y : young) {
+        if (!(s.t_s < y.t_started_s)) continue;
+        const auto state = y.engine->PredictState(s.t_s);
+        if (!state) continue;
+        Eigen::Vector3d B;
+        Eigen::Matrix3d T;
+        PredictedField(*state, y.m_B, s.p_SinW, &B, &T);
+        *B_W += B;
+        *T_W += T;
+        any = true;
+      }
+      const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+      *var_T2 = rel * rel * B_W->squaredNorm() / 3.0;
+      return any;
+    };
   }
 
   bool QuietOffsetsOn() const { return options.track.sensor_offset.enabled && options.track.sensor_offset.quiet; }

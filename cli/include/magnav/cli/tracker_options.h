@@ -30,6 +30,7 @@ struct TrackerFlags {
   std::string far_drift = tracker::SensorDriftOptions{}.enabled ? "on" : "off";
   std::string far_drift_batch = tracker::SensorDriftOptions{}.batch_refit ? "on" : "off";
   std::string far_grid_when_refused = "on";
+  std::string far_back_predict = "off";
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string sensor_offset = tracker::SensorOffsetOptions{}.enabled ? "on" : "off";
@@ -320,6 +321,12 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "far source: a fit pressed against its bound is still removed when its moment is at least this "
                  "(a ship far along its line), A m^2 (0 = off: every fit at the bound is refused)")
       ->capture_default_str();
+  app.add_option("--far-back-predict", f->far_back_predict,
+                 "far source: at each fit, a kept sample older than a live track's start gets that track's field "
+                 "predicted back to its time (its B subtracted, or the sample left out where its tensor would have "
+                 "occupied it) (on), or is fitted as it was kept (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--sensor-offset", f->sensor_offset,
                  "each track's window and batch solve gives every sensor a B offset (world NED) as a nuisance, constant "
                  "over the window or over one --sensor-offset-segment of the batch, with a zero-mean prior from the "
@@ -393,6 +400,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.far_source.drift.enabled = f.far_drift == "on";
   o.far_source.drift.batch_refit = f.far_drift_batch == "on";
   o.far_source.grid_when_refused = f.far_grid_when_refused == "on";
+  o.far_source.back_predict_new_tracks = f.far_back_predict == "on";
   if (!tracker::ParseLossType(f.far_loss, &o.far_source.loss)) {
     throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");
   }

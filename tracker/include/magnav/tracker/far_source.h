@@ -34,6 +34,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -128,6 +129,20 @@ struct FarSourceOptions {
   // of a near vessel's field had 1e4–6e4 A·m² (refused by min_moment_Am2
   // before this rule is reached).
   double bound_accept_moment_Am2 = 0.0;
+  // A track started after some of the kept samples: its field there was not
+  // subtracted when they were kept (it had no track yet), so a weak AUV's B
+  // before its track (7–25 nT at the sensors beside it, its tensor below the
+  // sample rules' gate) sits in the fit's window until it leaves it — the
+  // cause of far_ship_112's and crossing_far_ship_140's bad fits
+  // (docs/ACCURACY.md, "Far-ship files that still failed ..."). On: at each
+  // fit every kept sample older than a live track's start gets that track's
+  // field as its state now predicts it back to the sample's time (its
+  // coordinated-turn model run backwards, the moment constant): where its
+  // predicted tensor SNR is at least occupied_tensor_snr the sample is left
+  // out of the fit (it would have been occupied), else its B is subtracted and
+  // its model error added to σ (MultiTracker: MultiTrackerOptions::
+  // kOtherFieldRelativeError of it, as for the tracks known when it was kept). Off (false) by default: kept as kept.
+  bool back_predict_new_tracks = false;
   // At most this many samples enter one fit: beyond it, an even stride over
   // the window's samples (epoch after epoch, so the sensors kept change from
   // one epoch to the next). A 3 × 3 grid over 60 s at 0.5 s has 1080, all
@@ -176,6 +191,10 @@ struct FarSourceStats {
   int num_refused_bound = 0;      // line within bound_slack_m of the bound
   int num_refused_weak = 0;       // its B below min_field_T at every sensor
   int num_grid_searches = 0;      // fits that searched the start grid
+  // FarSourceOptions::back_predict_new_tracks: kept samples (counted once per
+  // fit) given a later track's back-predicted B, and left out as occupied by it.
+  long long num_pre_track_corrected = 0;
+  long long num_pre_track_occupied = 0;
   double active_s = 0.0;          // time of data from which its B was removed (s)
   bool has_accepted = false;      // the last accepted fit:
   double last_t_s = 0.0;          //   its newest sample's time (s)
@@ -198,6 +217,9 @@ struct FarSourceSample {
   // z of the sensor's residual tensor averaged over the drift's
   // tensor_mean_window_s (sensor_drift.h): the drift's near-source rule.
   double residual_tensor_mean_z = 0.0;
+  // The sample's tensor σ per element (T/m): the occupied rule of a track
+  // started after it (FarSourceOptions::back_predict_new_tracks).
+  double sigma_tensor_Tpm = 0.0;
 };
 
 // A fitted far source (see the model above).
@@ -245,8 +267,15 @@ class FarSourceEstimator {
   // One epoch's residual samples (those that passed the sample rules) and
   // the positions of every sensor in it.
   void AddEpoch(double t_s, const std::vector<FarSourceSample>& used, const std::vector<Eigen::Vector3d>& sensors);
-  // Refits when due at t_s; returns whether it did.
-  bool StepIfDue(double t_s);
+  // The field (world NED: B in T, tensor in T/m) at a kept sample of the
+  // tracks started after its time, as they now predict it back to then, and
+  // its model error's variance per axis of B (T²); false if no live track
+  // started after it (FarSourceOptions::back_predict_new_tracks).
+  using PreTrackFieldFn =
+      std::function<bool(const FarSourceSample&, Eigen::Vector3d* B_W, Eigen::Matrix3d* T_W, double* var_T2)>;
+  // Refits when due at t_s; returns whether it did. `pre_track` (may be
+  // empty; used only with back_predict_new_tracks): the correction above.
+  bool StepIfDue(double t_s, const PreTrackFieldFn& pre_track = {});
   // The far source's B and the sensor's drift to remove at a sensor at t_s,
   // and their σ per axis (T, in quadrature); the far source's part zero while
   // there is no fit or its field is below min_field_T, the drift's while the
