@@ -383,14 +383,15 @@ TEST(TrackerCheckpoint, BadFilesAreRefusedWithTheReason) {
   // The options of session 16 (the window's turn-onset model, the far field's allowance, the batch's
   // other-field covariance) and of session 17 (the far source's fits at the bound with a ship's
   // moment accepted) and of session 18 (the far source's samples given a later track's back-predicted
-  // field) are part of the configuration too.
-  for (int k = 0; k < 5; ++k) {
+  // field, its cap on the moment) are part of the configuration too.
+  for (int k = 0; k < 6; ++k) {
     MultiTrackerOptions other_model = fx.options;
     if (k == 0) other_model.track.window_turn_onset_model = !other_model.track.window_turn_onset_model;
     if (k == 1) other_model.far_source.unexplained_sigma_T += 1e-9;
     if (k == 2) other_model.batch_other_field_covariance = !other_model.batch_other_field_covariance;
     if (k == 3) other_model.far_source.bound_accept_moment_Am2 = 2e5;
     if (k == 4) other_model.far_source.back_predict_new_tracks = !other_model.far_source.back_predict_new_tracks;
+    if (k == 5) other_model.far_source.max_moment_Am2 = 2e6;
     EXPECT_NE(Refusal(good, other_model, fx.B0).find("other tracker options"), std::string::npos) << k;
   }
   EXPECT_NE(Refusal(good, fx.options, Eigen::Vector3d(1e-9, 0.0, 0.0)).find("another B0"), std::string::npos);

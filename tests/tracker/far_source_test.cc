@@ -350,6 +350,26 @@ TEST(FarSource, ATracksFieldIsGivenBackToTheSamplesFromBeforeItsStart) {
   EXPECT_LT(occupied.worst_nT, 0.5 * kept.worst_nT);
 }
 
+// max_moment_Am2: a fit stronger than any ship is not removed (a drift
+// mimicked by a huge source far off); 0, the default, removes any moment.
+TEST(FarSource, AFitStrongerThanTheCapIsRefused) {
+  FarSourceOptions capped;
+  capped.max_moment_Am2 = 2e5;  // below the test ship's 4.5e5 A·m²: its fits are refused
+  FarSourceEstimator est(capped);
+  FeedShip(Ship(), Grid(), &est);
+  EXPECT_FALSE(est.active());
+  EXPECT_EQ(est.refusal(), FarSourceRefusal::kLargeMoment);
+  EXPECT_GT(est.stats().num_refused_large, 0);
+  EXPECT_EQ(est.stats().num_accepted, 0);
+  EXPECT_NE(est.stats().BriefReport().find("moment above a ship's"), std::string::npos);
+  FarSourceOptions above = capped;
+  above.max_moment_Am2 = 2e6;  // above it: removed as without a cap
+  FarSourceEstimator ok(above);
+  FeedShip(Ship(), Grid(), &ok);
+  EXPECT_TRUE(ok.active());
+  EXPECT_EQ(ok.stats().num_refused_large, 0);
+}
+
 // One sensor is not an array: no fit (the bound would be 10 m from it).
 // The far field the model does not explain (unexplained_sigma_T) is in the
 // σ of every sample, before any fit (nothing removed) and with an accepted
@@ -389,6 +409,17 @@ TEST(FarSource, OptionsAreChecked) {
   EXPECT_TRUE(FarSourceOptions{}.IsValid(&why)) << why;
   EXPECT_TRUE(FarSourceOptions{}.enabled);  // on by default since 2026-11-26
   EXPECT_FALSE(FarSourceOptions{}.back_predict_new_tracks);  // off by default
+  EXPECT_EQ(FarSourceOptions{}.max_moment_Am2, 0.0);  // off by default
+  {
+    FarSourceOptions m;
+    m.max_moment_Am2 = -1.0;
+    EXPECT_FALSE(m.IsValid(&why));
+    EXPECT_NE(why.find("max_moment_Am2"), std::string::npos);
+    m.max_moment_Am2 = 5e4;  // below min_moment_Am2 (1e5): every fit refused
+    EXPECT_FALSE(m.IsValid(&why));
+    m.max_moment_Am2 = std::nan("");
+    EXPECT_FALSE(m.IsValid(&why));
+  }
   FarSourceOptions o;
   o.window_s = 0.0;
   EXPECT_FALSE(o.IsValid(&why));

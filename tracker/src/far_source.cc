@@ -114,6 +114,8 @@ const char* FarSourceRefusalName(FarSourceRefusal r) {
       return "at the bound";
     case FarSourceRefusal::kWeakField:
       return "field too weak";
+    case FarSourceRefusal::kLargeMoment:
+      return "moment above a ship's";
     case FarSourceRefusal::kNone:
       break;
   }
@@ -127,6 +129,7 @@ std::string FarSourceStats::BriefReport() const {
     << " at the bound, " << num_refused_weak << " field too weak, " << num_refused_no_fit << " no fit; "
     << num_grid_searches << " grid searches), its B removed for " << std::fixed << std::setprecision(1) << active_s
     << " s of data";
+  if (num_refused_large > 0) o << "; " << num_refused_large << " refused: moment above a ship's";
   if (num_pre_track_corrected + num_pre_track_occupied > 0) {
     o << "; kept samples from before a track's start (counted per fit): " << num_pre_track_corrected
       << " given its back-predicted B, " << num_pre_track_occupied << " left out as occupied";
@@ -159,6 +162,10 @@ bool FarSourceOptions::IsValid(std::string* error) const {
   if (!(min_field_T >= 0.0) || !std::isfinite(min_field_T)) return Fail(error, "min_field_T must be >= 0");
   if (!(min_moment_Am2 >= 0.0) || !std::isfinite(min_moment_Am2)) return Fail(error, "min_moment_Am2 must be >= 0");
   if (!(bound_slack_m >= 0.0) || !std::isfinite(bound_slack_m)) return Fail(error, "bound_slack_m must be >= 0");
+  if (!(max_moment_Am2 >= 0.0) || !std::isfinite(max_moment_Am2)) return Fail(error, "max_moment_Am2 must be >= 0 (0 = off)");
+  if (max_moment_Am2 > 0.0 && max_moment_Am2 < min_moment_Am2) {
+    return Fail(error, "max_moment_Am2 must be >= min_moment_Am2 (or 0 = off)");
+  }
   if (!(bound_accept_moment_Am2 >= 0.0) || !std::isfinite(bound_accept_moment_Am2)) {
     return Fail(error, "bound_accept_moment_Am2 must be >= 0 (0 = off)");
   }
@@ -458,6 +465,8 @@ bool FarSourceEstimator::StepIfDue(double t_s, const PreTrackFieldFn& pre_track)
     refusal_ = FarSourceRefusal::kNoFit;
   } else if (model_.m_W.norm() < options_.min_moment_Am2) {
     refusal_ = FarSourceRefusal::kSmallMoment;
+  } else if (options_.max_moment_Am2 > 0.0 && model_.m_W.norm() > options_.max_moment_Am2) {
+    refusal_ = FarSourceRefusal::kLargeMoment;
   } else if (model_.d_m < model_.min_range_m + options_.bound_slack_m &&
              !(options_.bound_accept_moment_Am2 > 0.0 && model_.m_W.norm() >= options_.bound_accept_moment_Am2)) {
     refusal_ = FarSourceRefusal::kAtBound;
@@ -485,6 +494,9 @@ bool FarSourceEstimator::StepIfDue(double t_s, const PreTrackFieldFn& pre_track)
       break;
     case FarSourceRefusal::kWeakField:
       ++stats_.num_refused_weak;
+      break;
+    case FarSourceRefusal::kLargeMoment:
+      ++stats_.num_refused_large;
       break;
   }
   // The back-off: the interval doubles after each refused fit.

@@ -162,6 +162,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.F64(o.track.init.fix_sigma_B_allowance_T);
   w.F64(f.bound_accept_moment_Am2);
   w.I64(static_cast<std::int64_t>(f.back_predict_new_tracks));
+  w.F64(f.max_moment_Am2);
   const VarianceFactorOptions& v = o.variance_factor;
   w.I64(static_cast<std::int64_t>(v.enabled));
   w.I64(static_cast<std::int64_t>(v.statistic));

@@ -321,6 +321,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "far source: a fit pressed against its bound is still removed when its moment is at least this "
                  "(a ship far along its line), A m^2 (0 = off: every fit at the bound is refused)")
       ->capture_default_str();
+  app.add_option("--far-max-moment", fs.max_moment_Am2,
+                 "far source: a fit whose moment is above this is not removed (no ship is that strong; a drift of "
+                 "every sensor's B0 is mimicked by a huge source far off), A m^2 (0 = off: any moment is removed)")
+      ->capture_default_str();
   app.add_option("--far-back-predict", f->far_back_predict,
                  "far source: at each fit, a kept sample older than a live track's start gets that track's field "
                  "predicted back to its time (its B subtracted, or the sample left out where its tensor would have "

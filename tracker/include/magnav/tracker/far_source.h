@@ -129,6 +129,13 @@ struct FarSourceOptions {
   // of a near vessel's field had 1e4–6e4 A·m² (refused by min_moment_Am2
   // before this rule is reached).
   double bound_accept_moment_Am2 = 0.0;
+  // A fit whose moment is above this (A·m²) is not removed: no ship is that
+  // strong (the scenarios' 4e5–5e5, a large ship's ~1e6), and a drift of every
+  // sensor's B0 is mimicked by a source of 4e6–4e7 A·m² 350–620 m off, at the
+  // limits of the fit's box (fresh_drift2/drift_4_crossing, fresh_drift/
+  // drift_6_farship: docs/ACCURACY.md, "The AUV's B from before its track in
+  // the far source's samples"). 0 = off, the default: any moment is removed.
+  double max_moment_Am2 = 0.0;
   // A track started after some of the kept samples: its field there was not
   // subtracted when they were kept (it had no track yet), so a weak AUV's B
   // before its track (7–25 nT at the sensors beside it, its tensor below the
@@ -178,7 +185,7 @@ struct FarSourceOptions {
 };
 
 // Why the newest fit was not removed (kNone: it was, or no fit yet).
-enum class FarSourceRefusal { kNone, kNoFit, kSmallMoment, kAtBound, kWeakField };
+enum class FarSourceRefusal { kNone, kNoFit, kSmallMoment, kAtBound, kWeakField, kLargeMoment };
 const char* FarSourceRefusalName(FarSourceRefusal r);
 
 // What the far source did over the data so far: a user must see when it
@@ -190,6 +197,7 @@ struct FarSourceStats {
   int num_refused_moment = 0;     // moment below min_moment_Am2
   int num_refused_bound = 0;      // line within bound_slack_m of the bound
   int num_refused_weak = 0;       // its B below min_field_T at every sensor
+  int num_refused_large = 0;      // moment above max_moment_Am2
   int num_grid_searches = 0;      // fits that searched the start grid
   // FarSourceOptions::back_predict_new_tracks: kept samples (counted once per
   // fit) given a later track's back-predicted B, and left out as occupied by it.
