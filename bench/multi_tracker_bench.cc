@@ -108,8 +108,13 @@ double ForwardModelSeconds(const FieldScenario& sc, const SimulatedField& f) {
 // cluster of its offset steps; the far source off, they are exclusive); 2 the
 // fixed B0 alone (the far source off: its cost is the difference with 0).
 // turn_onset: the window's turn-onset model on (TrackerOptions::
-// window_turn_onset_model, its fast search; BM_MultiTrackerFieldTurnOnset).
-void RunField(benchmark::State& state, bool turn_onset) {
+// window_turn_onset_model, its fast search; BM_MultiTrackerFieldTurnOnset),
+// with the trigger's noise test at noise_sigmas (0 = off; TrackerOptions::
+// window_turn_onset_trigger_noise_sigmas; BM_MultiTrackerFieldTurnOnsetNoise).
+// With it on, the onset model's work is reported as counts (MultiSummary::
+// turn_onset: they do not depend on the machine's load): window solves,
+// tries, grid searches, candidate solves per window solve.
+void RunField(benchmark::State& state, bool turn_onset, double noise_sigmas = 0.0) {
   const int n = static_cast<int>(state.range(0));
   const int vessels = static_cast<int>(state.range(1));
   const double solve_interval_s = static_cast<double>(state.range(2)) * 1e-3;
@@ -121,6 +126,7 @@ void RunField(benchmark::State& state, bool turn_onset) {
   opt.track.window_solve_interval_s = solve_interval_s;
   opt.cluster_background.enabled = state.range(4) == 1;
   opt.track.window_turn_onset_model = turn_onset;
+  opt.track.window_turn_onset_trigger_noise_sigmas = noise_sigmas;
   if (state.range(4) != 0) opt.far_source.enabled = false;
   int tracks = 0;
   magnav::tracker::MultiSummary summary;
@@ -184,6 +190,18 @@ void RunField(benchmark::State& state, bool turn_onset) {
   state.counters["cpu_s_per_data_s"] = cpu_s / duration_s;
   state.counters["ms_per_epoch"] = 1e3 * cpu_s / epochs;
   state.counters["ratio_to_forward_model"] = cpu_s / ForwardModelSeconds(sc, f);
+  if (turn_onset) {
+    const magnav::tracker::TurnOnsetCounts& c = summary.turn_onset;
+    state.counters["window_solves"] = c.window_solves;
+    state.counters["onset_triggered"] = c.triggered;
+    state.counters["onset_tries"] = c.tries;
+    state.counters["onset_grid_searches"] = c.grid_searches;
+    state.counters["onset_chosen"] = c.chosen;
+    state.counters["onset_candidates_per_solve"] =
+        c.window_solves > 0 ? static_cast<double>(c.candidate_solves) / c.window_solves : 0.0;
+    state.counters["onset_iterations_per_solve"] =
+        c.window_solves > 0 ? static_cast<double>(c.iterations) / c.window_solves : 0.0;
+  }
 }
 
 void BM_MultiTrackerField(benchmark::State& state) { RunField(state, false); }
@@ -194,6 +212,19 @@ BENCHMARK(BM_MultiTrackerFieldTurnOnset)
     ->ArgNames({"grid", "vessels", "solve_ms", "abreast", "cluster_bg"})
     ->Args({10, 10, 500, 0, 0})
     ->Args({10, 10, 500, 1, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+// The same with the trigger's noise test (docs/ACCURACY.md, "The window's
+// turn onset at scale"); the last argument is its k × 10 (15: 1.5 σ).
+void BM_MultiTrackerFieldTurnOnsetNoise(benchmark::State& state) {
+  RunField(state, true, static_cast<double>(state.range(5)) / 10.0);
+}
+BENCHMARK(BM_MultiTrackerFieldTurnOnsetNoise)
+    ->ArgNames({"grid", "vessels", "solve_ms", "abreast", "cluster_bg", "noise_x10"})
+    ->Args({10, 10, 500, 0, 0, 15})
+    ->Args({10, 10, 500, 1, 0, 15})
+    ->Args({10, 10, 500, 0, 0, 20})
+    ->Args({10, 10, 500, 1, 0, 20})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
 BENCHMARK(BM_MultiTrackerField)

@@ -125,6 +125,18 @@ bool MultiTrackerOptions::IsValid(std::string* error) const {
   return true;
 }
 
+void TurnOnsetCounts::Add(const Summary& s) {
+  window_solves += s.num_window_solves;
+  triggered += s.num_turn_onset_triggered;
+  noise_vetoes += s.num_turn_onset_noise_vetoes;
+  tries += s.num_turn_onset_tries;
+  grid_searches += s.num_turn_onset_grid_searches;
+  chosen += s.num_turn_onset_chosen;
+  refused_jump += s.num_turn_onset_refused_jump;
+  candidate_solves += s.num_turn_onset_candidate_solves;
+  iterations += s.num_turn_onset_iterations;
+}
+
 std::string MultiSummary::BriefReport() const {
   std::ostringstream o;
   o << "multi-tracker: " << num_epochs << " epochs, " << num_confirmed << " tracks confirmed, " << num_ended
@@ -274,6 +286,16 @@ struct MultiTracker::Impl {
   internal::ResidualTensorMean quiet_tensor_mean;
   const TrackManagementOptions& mg() const { return options.management; }
   std::vector<Track> tracks;  // live (confirmed and tentative)
+  // The turn-onset counts of the engines no longer in `tracks` (ended,
+  // dropped, replaced by a restart); summary.turn_onset adds the live ones.
+  TurnOnsetCounts retired_onset;
+  void RetireEngine(const WindowTracker& w) { retired_onset.Add(w.last_summary()); }
+  void UpdateOnsetCounts() {
+    summary.turn_onset = retired_onset;
+    for (const Track& tr : tracks) {
+      if (tr.engine) summary.turn_onset.Add(tr.engine->last_summary());
+    }
+  }
   std::vector<Ghost> ghosts;  // ended out of reach, field still subtracted
   std::vector<EndedTrack> ended;  // ended within reacquire_s: may be continued (reacquire.h)
   std::vector<TrackRecord> records;  // confirmed, by id - 1
@@ -889,7 +911,11 @@ struct MultiTracker::Impl {
         s.T.setZero();
       }
     }
-    tracks.erase(std::remove_if(tracks.begin(), tracks.end(), [](const Track& tr) { return tr.ended; }),
+    tracks.erase(std::remove_if(tracks.begin(), tracks.end(),
+                                [this](const Track& tr) {
+                                  if (tr.ended && tr.engine) RetireEngine(*tr.engine);
+                                  return tr.ended;
+                                }),
                  tracks.end());
     buffer.push_back(std::move(residual));
     const double span = options.track.window_s + options.track.epoch_tolerance_s;
@@ -910,6 +936,7 @@ struct MultiTracker::Impl {
         if (tracks.size() == before && !StartInResidual(t, &out)) StartLone(t);
       }
     }
+    UpdateOnsetCounts();
     return out;
   }
 
@@ -1303,6 +1330,7 @@ struct MultiTracker::Impl {
     const std::vector<EpochEstimate> first = engine->Start(init, mine);
     if (first.empty() || !first.back().usable) return;
     Collect(tr, tr.engine->Flush(), out);
+    RetireEngine(*tr.engine);
     tr.engine = std::move(engine);
     tr.has_newest = true;
     tr.newest = first.back();
@@ -1559,7 +1587,9 @@ std::vector<TrackOutput> MultiTracker::Flush() {
       tr.ended = true;  // never confirmed: nothing to say
     }
   }
+  for (const Track& tr : m.tracks) m.RetireEngine(*tr.engine);
   m.tracks.clear();
+  m.UpdateOnsetCounts();
   return out;
 }
 

@@ -151,6 +151,9 @@ bool TrackerOptions::IsValid(std::string* error) const {
   if (!(window_turn_onset_jump_sigmas >= 0.0) || !std::isfinite(window_turn_onset_jump_sigmas)) {
     return Fail(error, "window_turn_onset_jump_sigmas must be finite and >= 0");
   }
+  if (!(window_turn_onset_trigger_noise_sigmas >= 0.0) || !std::isfinite(window_turn_onset_trigger_noise_sigmas)) {
+    return Fail(error, "window_turn_onset_trigger_noise_sigmas must be finite and >= 0");
+  }
   if (!PositiveFinite(window_s)) return Fail(error, "window_s must be > 0");
   if (!(window_solve_interval_s >= 0.0) || !(window_solve_interval_s < window_s)) {
     return Fail(error, "window_solve_interval_s must be >= 0 and < window_s");

@@ -197,7 +197,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.F64(t.window_turn_onset_bic_params);
   w.I64(static_cast<std::int64_t>(t.window_turn_onset_search));
   for (double d : {t.window_turn_onset_trigger_sigmas, t.window_turn_onset_coarse_grid_s,
-                   t.window_turn_onset_jump_sigmas}) {
+                   t.window_turn_onset_jump_sigmas, t.window_turn_onset_trigger_noise_sigmas}) {
     w.F64(d);
   }
   w.I64(static_cast<std::int64_t>(o.batch_other_field_covariance));

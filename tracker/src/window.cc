@@ -83,6 +83,21 @@ struct WindowTracker::Impl {
   internal::ChainFactorization chain;
   bool chain_ok = false;
   bool chain_fresh = false;
+  // Marginal covariances (every state's, the moment's unscaled) already
+  // computed at a solution that is about to be emitted (the turn-onset
+  // model's: the default's for the trigger's noise test, the onset model's
+  // for its guard); NewestCovariances takes them from `emit_covariance`.
+  struct CovarianceCache {
+    bool valid = false;
+    std::vector<StateCovariance> P;
+    Eigen::Matrix3d Pm = Eigen::Matrix3d::Zero();
+  };
+  CovarianceCache default_covariance, onset_covariance;
+  const CovarianceCache* emit_covariance = nullptr;
+  // The default solution's factorisation, kept while the onset candidates
+  // are solved and put back if the onset model is not chosen.
+  internal::ChainFactorization saved_chain;
+  bool saved_chain_fresh = false;
   // Per-sensor background offsets added to B0 (SetBackgroundOffsets).
   WindowTracker::BackgroundOffsetFn offsets;
   // The track's own per-sensor B offset over the window (world NED, T;
@@ -316,11 +331,18 @@ struct WindowTracker::Impl {
   // (chain selected inversion over the window, prior included); P_states in
   // window order.
   bool NewestCovariances(std::size_t count, std::vector<StateCovariance>* P_states, Eigen::Matrix3d* P_moment) {
-    if (!chain_fresh)
-      chain_fresh = internal::FactorizeChain(Chain(), &chain);
     std::vector<StateCovariance> P;
     Eigen::Matrix3d Pm;
-    if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
+    if (emit_covariance != nullptr && emit_covariance->valid) {
+      // Already computed at this solution (the onset model's guard, or the
+      // trigger's noise test on the default's): the same selected inversion.
+      P = emit_covariance->P;
+      Pm = emit_covariance->Pm;
+    } else {
+      if (!chain_fresh)
+        chain_fresh = internal::FactorizeChain(Chain(), &chain);
+      if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
+    }
     count = std::min(count, P.size());
     P_states->assign(P.end() - static_cast<std::ptrdiff_t>(count), P.end());
     *P_moment = Pm * (moment_scale * moment_scale);
@@ -355,7 +377,11 @@ struct WindowTracker::Impl {
 
   // Gauss-Newton on the window by chain elimination, with step halving;
   // leaves the factorisation at the final point in `chain` (for covariance).
-  void ChainGaussNewton(ceres::Solver::Summary* cs, int* iterations, double* initial_cost, int max_iterations = -1) {
+  // With factorize_final = false the factorisation is not redone at a point
+  // where the solve stops by its tolerances (an onset candidate, whose
+  // factorisation nothing uses: chain_fresh is then false).
+  void ChainGaussNewton(ceres::Solver::Summary* cs, int* iterations, double* initial_cost, int max_iterations = -1,
+                        bool factorize_final = true) {
     if (max_iterations < 0) max_iterations = options.window_max_num_iterations;
     const internal::ChainProblem problem = Chain();
     const auto& groups = problem.groups;
@@ -377,6 +403,7 @@ struct WindowTracker::Impl {
     std::vector<StateVector> dx;
     Eigen::Vector3d dm;
     std::vector<StateVector> x0(window.size());
+    bool stale = false;  // the factorisation is of the step's start, not of its end
     for (int it = 0; chain_ok && it < max_iterations; ++it) {
       internal::ChainStep(chain, &dx, &dm);
       for (std::size_t k = 0; k < window.size(); ++k) x0[k] = window[k].x;
@@ -406,8 +433,13 @@ struct WindowTracker::Impl {
           std::sqrt(step_sq) <= options.parameter_tolerance * (std::sqrt(x_sq) + options.parameter_tolerance);
       const double decrease = cost - new_cost;
       cost = new_cost;
-      chain_ok = internal::FactorizeChain(problem, &chain);
-      if (decrease <= options.window_function_tolerance * cost || tiny_step) {
+      const bool converged = decrease <= options.window_function_tolerance * cost || tiny_step;
+      if (converged && !factorize_final) {
+        stale = true;
+      } else {
+        chain_ok = internal::FactorizeChain(problem, &chain);
+      }
+      if (converged) {
         cs->termination_type = ceres::CONVERGENCE;
         cs->message = "chain Gauss-Newton: function tolerance reached";
         break;
@@ -419,7 +451,7 @@ struct WindowTracker::Impl {
       cs->termination_type = ceres::FAILURE;
       cs->message = "chain Gauss-Newton: singular window information";
     }
-    chain_fresh = chain_ok;
+    chain_fresh = chain_ok && !stale;
   }
 
   // The turn-onset model (TrackerOptions::window_turn_onset_model): the
@@ -489,6 +521,29 @@ struct WindowTracker::Impl {
     chain_fresh = false;
   }
 
+  // The default model put back after a try that did not choose the onset
+  // model, with the default solution's own factorisation (the same one a
+  // new factorisation at the restored states would give).
+  void RestoreDefaultAfterRefusal() {
+    RestoreDefaultModel();
+    if (saved_chain_fresh) {
+      chain = std::move(saved_chain);
+      chain_fresh = true;
+    }
+    saved_chain_fresh = false;
+  }
+
+  // The default solution's marginal covariances (default_covariance), from
+  // its factorisation. False if singular.
+  bool DefaultCovariance() {
+    if (default_covariance.valid) return true;
+    if (!chain_fresh) chain_fresh = internal::FactorizeChain(Chain(), &chain);
+    default_covariance.valid =
+        chain_fresh && internal::ChainCovariance(chain, &default_covariance.P, &default_covariance.Pm) &&
+        default_covariance.P.size() == window.size();
+    return default_covariance.valid;
+  }
+
   // The previous try's best onset (absolute time, s; NaN: none), chosen or
   // refused, where the fast search looks first (window_turn_onset_search).
   double carried_onset_t = std::numeric_limits<double>::quiet_NaN();
@@ -548,7 +603,7 @@ struct WindowTracker::Impl {
     ceres::Solver::Summary cs;
     int iterations = 0;
     double initial = 0.0;
-    ChainGaussNewton(&cs, &iterations, &initial, options.window_turn_onset_iterations);
+    ChainGaussNewton(&cs, &iterations, &initial, options.window_turn_onset_iterations, false);
     ++summary.num_turn_onset_candidate_solves;
     summary.num_turn_onset_iterations += iterations;
     if (!chain_ok || !std::isfinite(cs.final_cost) || !(cs.final_cost < best->cost)) return;
@@ -619,13 +674,25 @@ struct WindowTracker::Impl {
     // over the window.
     bool trigger = false;
     if (fast) {
-      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-      for (const WindowEpoch& w : window) {
-        lo = std::min(lo, w.x(5));
-        hi = std::max(hi, w.x(5));
+      std::size_t k_lo = 0, k_hi = 0;
+      for (std::size_t k = 1; k < n; ++k) {
+        if (window[k].x(5) < window[k_lo].x(5)) k_lo = k;
+        if (window[k].x(5) > window[k_hi].x(5)) k_hi = k;
       }
+      const double range = window[k_hi].x(5) - window[k_lo].x(5);
       const double stiff = options.process.turn_rate_radps_per_sqrt_s * std::sqrt(span);
-      trigger = hi - lo >= options.window_turn_onset_trigger_sigmas * stiff;
+      trigger = range >= options.window_turn_onset_trigger_sigmas * stiff;
+      if (trigger) ++summary.num_turn_onset_triggered;
+      // The noise test (window_turn_onset_trigger_noise_sigmas): the span
+      // against the stiff walk and the default's own σ of ω at both ends.
+      const double kn = options.window_turn_onset_trigger_noise_sigmas;
+      if (trigger && kn > 0.0 && DefaultCovariance()) {
+        const double var = stiff * stiff + default_covariance.P[k_lo](5, 5) + default_covariance.P[k_hi](5, 5);
+        if (std::isfinite(var) && range * range < kn * kn * var) {
+          trigger = false;
+          ++summary.num_turn_onset_noise_vetoes;
+        }
+      }
     }
     // The fast search's start: the previous try's best onset if still inside
     // the grid (chosen, or refused while the trigger still fires), else the
@@ -646,6 +713,9 @@ struct WindowTracker::Impl {
     saved_x.resize(n);
     for (std::size_t k = 0; k < n; ++k) saved_x[k] = window[k].x;
     saved_moment = moment;
+    saved_chain_fresh = chain_fresh;
+    if (chain_fresh) saved_chain = chain;
+    if (!fast || !near) ++summary.num_turn_onset_grid_searches;
     OnsetBest best;
     if (!fast) {
       SolveOnsetCandidate(0, &best);  // no jump
@@ -664,7 +734,7 @@ struct WindowTracker::Impl {
           next = window[grid[j]].epoch.t_s + coarse;
         }
         if (!std::isfinite(best.cost)) {
-          RestoreDefaultModel();
+          RestoreDefaultAfterRefusal();
           return false;
         }
         near = static_cast<std::size_t>(std::find(grid.begin(), grid.end(), best.onset) - grid.begin());
@@ -706,6 +776,9 @@ struct WindowTracker::Impl {
       Eigen::Matrix3d Pm;
       bool significant = false;
       if (best.onset > 0 && chain_fresh && internal::ChainCovariance(chain, &P, &Pm)) {
+        onset_covariance.valid = P.size() == n;
+        onset_covariance.P = P;
+        onset_covariance.Pm = Pm;
         const std::size_t k = best.onset;
         const double jump = window[k].x(5) - window[k - 1].x(5);
         const double var = P[k](5, 5) + P[k - 1](5, 5);
@@ -718,9 +791,11 @@ struct WindowTracker::Impl {
       }
     }
     if (!chosen) {
-      RestoreDefaultModel();
+      onset_covariance.valid = false;
+      RestoreDefaultAfterRefusal();
       return false;
     }
+    saved_chain_fresh = false;
     ++summary.num_turn_onset_chosen;
     carried_onset_chosen = true;
     return true;
@@ -858,11 +933,16 @@ struct WindowTracker::Impl {
     const std::size_t count = static_cast<std::size_t>(unsolved);
     unsolved = 0;
     last_solve_t = window.back().epoch.t_s;
-    if (!options.window_turn_onset_model || !summary.usable || !TryTurnOnsetModel()) return Emit(count, t0);
-    // The onset model's newest states and covariance; the window goes on
-    // with the default model.
+    ++summary.num_window_solves;
+    default_covariance.valid = onset_covariance.valid = false;
+    if (!options.window_turn_onset_model || !summary.usable) return Emit(count, t0);
+    // With the onset model chosen its newest states and covariance, else the
+    // default's; the window goes on with the default model.
+    const bool chosen = TryTurnOnsetModel();
+    emit_covariance = chosen ? &onset_covariance : &default_covariance;
     std::vector<EpochEstimate> out = Emit(count, t0);
-    RestoreDefaultModel();
+    emit_covariance = nullptr;
+    if (chosen) RestoreDefaultModel();
     return out;
   }
 

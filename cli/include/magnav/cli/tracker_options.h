@@ -116,6 +116,11 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--window-turn-onset-trigger-sigmas", t.window_turn_onset_trigger_sigmas,
                  "window: the fast search's trigger, in sigmas of the stiff walk over the window")
       ->capture_default_str();
+  app.add_option("--window-turn-onset-trigger-noise", t.window_turn_onset_trigger_noise_sigmas,
+                 "window: the fast search's trigger counts only if the default's turn-rate span is also at least this "
+                 "many sigma of the stiff walk and of the default's own turn-rate sigma at the span's ends combined "
+                 "(0 = off, the default)")
+      ->capture_default_str();
   app.add_option("--window-turn-onset-coarse-grid", t.window_turn_onset_coarse_grid_s,
                  "window: the fast search's coarse grid of onsets when it has no previous onset, s")
       ->capture_default_str();

@@ -495,6 +495,23 @@ struct TrackRecord {
   std::uint32_t partner_id = 0;
 };
 
+// The windows' turn-onset model (TrackerOptions::window_turn_onset_model):
+// the engines' Summary counters (num_window_solves, num_turn_onset_*) summed
+// over every track engine the tracker has run — live, ended, dropped or
+// replaced by a restart. Counts, not times: they do not depend on the load.
+struct TurnOnsetCounts {
+  int window_solves = 0;     // window solves after the start
+  int triggered = 0;         // ... whose trigger fired (before the noise test)
+  int noise_vetoes = 0;      // triggers the noise test turned down
+  int tries = 0;             // tries of the onset model
+  int grid_searches = 0;     // ... that searched the grid (the rest: a carried onset)
+  int chosen = 0;            // ... whose onset model was emitted
+  int refused_jump = 0;      // ... refused by the jump's guard
+  int candidate_solves = 0;  // onset candidates solved
+  int iterations = 0;        // their Gauss-Newton iterations
+  void Add(const Summary& s);
+};
+
 struct MultiSummary {
   int num_epochs = 0;
   int num_rejected_samples = 0;  // refused at the door (CheckSample)
@@ -520,6 +537,9 @@ struct MultiSummary {
   // in the checkpoint (nor is its fit): counted again after a restart.
   bool far_source_enabled = false;
   FarSourceStats far_source;
+  // The windows' turn-onset model's work (all zero while it is off). Not in
+  // the checkpoint: counted again after a restart.
+  TurnOnsetCounts turn_onset;
   std::string BriefReport() const;
 };
 

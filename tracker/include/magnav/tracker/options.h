@@ -367,6 +367,17 @@ struct TrackerOptions {
   // 0 = no guard (session 16's rule; with "no onset" as the best candidate
   // the onset model is then emitted without a jump).
   double window_turn_onset_jump_sigmas = 3.0;
+  // The trigger's noise test (kFast; docs/ACCURACY.md, "The window's turn
+  // onset at scale: the trigger fires on the default's own noise"): 0 = off
+  // (session 17's trigger). > 0: a trigger counts only if the default's turn
+  // rate span ω_hi − ω_lo (rad/s) is also at least this × √(σ_stiff² + σ_lo² +
+  // σ_hi²), σ_stiff the stiff walk's σ over the window (as above) and σ_lo,
+  // σ_hi the default solution's marginal σ of ω at the two epochs of the
+  // span's ends (chain selected inversion, prior included; their covariance
+  // left out). Where the data hold ω weakly (a vessel 12 m or more from the
+  // sensors, or beside another vessel whose removed field is in its samples)
+  // the default's ω wanders by more than 3 σ_stiff on a straight course.
+  double window_turn_onset_trigger_noise_sigmas = 0.0;
 
   // Per-epoch window update: kChainGaussNewton = Gauss-Newton steps solved
   // by block-tridiagonal elimination of the chain (O(window) per step, with
@@ -430,6 +441,17 @@ struct Summary {
   int num_turn_onset_candidate_solves = 0;
   int num_turn_onset_iterations = 0;
   int num_turn_onset_refused_jump = 0;
+  // Window, where the fast search's tries come from, since the tracker was
+  // made: window solves after the start (each may try the onset model);
+  // solves whose trigger fired (window_turn_onset_trigger_sigmas, before the
+  // noise test); triggers the noise test turned down
+  // (window_turn_onset_trigger_noise_sigmas); tries that searched the grid
+  // (the trigger fired and no carried onset was on the grid; every try of
+  // the full search). The other tries started from a carried onset.
+  int num_window_solves = 0;
+  int num_turn_onset_triggered = 0;
+  int num_turn_onset_noise_vetoes = 0;
+  int num_turn_onset_grid_searches = 0;
   // Batch: candidate ends whose spread entered the covariance with a weight
   // > 1e-12 (TrackerOptions::batch_model_spread; the chosen one included).
   int num_model_spread_candidates = 0;
