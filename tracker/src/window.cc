@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "factors.h"
+#include "offset_marginal.h"
 #include "sensor_offset.h"
 #include "state_io.h"
 #include "magnav/core/csv.h"
@@ -312,15 +313,48 @@ struct WindowTracker::Impl {
     window.pop_front();
   }
 
+  // Marginal covariances of every state of the factorisation `f` (of the
+  // window's first f.D_inv.size() epochs at their current values) and of the
+  // moment (parameter units): the chain's selected inversion, prior
+  // included; with sensor_offset.window_lines each sensor's offset line
+  // marginalised too (offset_marginal.h) — the lines are solved by
+  // alternation, and the chain's covariance alone is the track's given them.
+  // Should that fail (S not positive definite: not seen), the chain's.
+  bool WindowCovariance(const internal::ChainFactorization& f, std::vector<StateCovariance>* P,
+                        Eigen::Matrix3d* Pm) const {
+    if (!internal::ChainCovariance(f, P, Pm)) return false;
+    const SensorOffsetOptions& so = options.sensor_offset;
+    if (!so.window_lines || own_rates.empty()) return true;
+    const std::size_t n = std::min(f.D_inv.size(), window.size());
+    if (n != f.D_inv.size()) return true;
+    std::vector<std::uint32_t> ids;
+    for (const auto& [id, rate] : own_rates) ids.push_back(id);
+    internal::OffsetLineMarginal lines(n, ids);
+    for (std::size_t k = 0; k < n; ++k) {
+      const WindowEpoch& w = window[k];
+      for (std::size_t i = 0; i < w.measurements.size(); ++i) {
+        const GradiometerSample& smp = w.epoch.samples[i];
+        lines.Add(w.measurements[i], k, smp.sensor_id, SigmaB(smp, options), w.epoch.t_s - own_offset_t_s);
+      }
+    }
+    lines.AddPriors(so.PriorSigma(own_offset_t_s), so.line_rate_sigma_T_per_s);
+    std::vector<StateCovariance> P_lines = *P;
+    Eigen::Matrix3d Pm_lines = *Pm;
+    if (lines.Marginalize(f, &P_lines, &Pm_lines)) {
+      *P = std::move(P_lines);
+      *Pm = Pm_lines;
+    }
+    return true;
+  }
+
   // Marginal covariances of the newest `count` states and of the moment
-  // (chain selected inversion over the window, prior included); P_states in
-  // window order.
+  // (WindowCovariance over the window); P_states in window order.
   bool NewestCovariances(std::size_t count, std::vector<StateCovariance>* P_states, Eigen::Matrix3d* P_moment) {
     if (!chain_fresh)
       chain_fresh = internal::FactorizeChain(Chain(), &chain);
     std::vector<StateCovariance> P;
     Eigen::Matrix3d Pm;
-    if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
+    if (!chain_fresh || !WindowCovariance(chain, &P, &Pm)) return false;
     count = std::min(count, P.size());
     P_states->assign(P.end() - static_cast<std::ptrdiff_t>(count), P.end());
     *P_moment = Pm * (moment_scale * moment_scale);
@@ -943,10 +977,10 @@ struct WindowTracker::Impl {
     std::size_t newest = solved;  // P.back() is window[newest − 1]'s
     if (options.compute_covariance && ok) {
       if (chain_fresh) {
-        have = internal::ChainCovariance(chain, &P, &Pm);
+        have = WindowCovariance(chain, &P, &Pm);
       } else {
         internal::ChainFactorization local;
-        have = internal::FactorizeChain(Chain(), &local) && internal::ChainCovariance(local, &P, &Pm);
+        have = internal::FactorizeChain(Chain(), &local) && WindowCovariance(local, &P, &Pm);
         newest = window.size();
       }
     }
