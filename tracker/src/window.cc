@@ -27,6 +27,12 @@ namespace magnav::tracker {
 
 namespace {
 
+// With sensor_offset.window_lines the variance factor's residual means are
+// per sensor and per this many equal parts of the window (ResidualMeansChi2):
+// a line takes a sensor's mean over the whole window, not the curvature of
+// an untracked vessel's B within it.
+constexpr int kLineSegments = 4;
+
 // One epoch inside the window: its state and the factors it owns (its
 // measurements and the process factors to the next epoch).
 struct WindowEpoch {
@@ -1281,22 +1287,38 @@ void WindowTracker::ResidualMeansChi2(double* chi2, double* dof) const {
   *chi2 = 0.0;
   *dof = 0.0;
   if (!impl_->initialized || !impl_->summary.usable) return;
-  std::map<std::uint32_t, std::pair<Eigen::Matrix<double, 8, 1>, int>> sums;  // per sensor
+  // Per sensor, or with the offset lines per (sensor, quarter of the window).
+  std::map<std::pair<std::uint32_t, int>, std::pair<Eigen::Matrix<double, 8, 1>, int>> sums;
   const std::size_t solved = impl_->Solved();
+  if (solved == 0) return;
+  const bool lines = impl_->options.sensor_offset.window_lines;
+  const double t_front = impl_->window.front().epoch.t_s;
+  const double span = impl_->window[solved - 1].epoch.t_s - t_front;
   for (std::size_t k = 0; k < solved; ++k) {
     const auto& w = impl_->window[k];
+    const int segment =
+        lines && span > 0.0
+            ? std::min(kLineSegments - 1, static_cast<int>(kLineSegments * (w.epoch.t_s - t_front) / span))
+            : 0;
     for (std::size_t i = 0; i < w.measurements.size() && i < w.epoch.samples.size(); ++i) {
       const internal::Factor& f = w.measurements[i];
       Eigen::Matrix<double, 8, 1> e;
       if (!f.cost || !f.cost->Evaluate(f.blocks.data(), e.data(), nullptr) || !e.allFinite()) continue;
-      auto& s = sums.try_emplace(w.epoch.samples[i].sensor_id, Eigen::Matrix<double, 8, 1>::Zero(), 0).first->second;
+      auto& s = sums.try_emplace({w.epoch.samples[i].sensor_id, segment}, Eigen::Matrix<double, 8, 1>::Zero(), 0)
+                    .first->second;
       s.first += e;
       ++s.second;
     }
   }
-  for (const auto& [id, s] : sums) {
+  std::map<std::uint32_t, int> segments;  // per sensor
+  for (const auto& [key, s] : sums) {
     *chi2 += s.first.squaredNorm() / s.second;  // n ‖ē‖² = ‖Σ e‖² / n
     *dof += 8.0;
+    ++segments[key.first];
+  }
+  // Each sensor's line (level and rate, 3 axes) took 6 of its segment means' dof.
+  for (const auto& [id, n] : segments) {
+    if (lines && n > 2 && impl_->own_rates.count(id) != 0) *dof -= 6.0;
   }
 }
 

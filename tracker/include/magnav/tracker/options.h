@@ -232,8 +232,9 @@ struct SensorOffsetOptions {
   // (its rows, re-acquisition, the association's gates) has the lines
   // marginalised (tracker/src/offset_marginal.h: the lines are solved by
   // alternation, and the track's covariance given them leaves out what they
-  // took; docs/ACCURACY.md, "The window offsets' uncertainty in the window's
-  // σ"). Off by default; not with carry.
+  // took), and its variance factor reads residual means per quarter of the
+  // window (WindowTracker::ResidualMeansChi2; docs/ACCURACY.md, "The window
+  // offsets' uncertainty in the window's σ"). Off by default; not with carry.
   bool window_lines = false;
   double line_rate_sigma_T_per_s = 5e-9;
   // Whether the window solves offsets at all (enabled or window_lines).
