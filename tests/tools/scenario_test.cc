@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/ and fresh_drift5/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_overtaking7/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/ and fresh_drift5/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -236,6 +236,9 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"overtaking_ene10", "overtaking_sse14", "overtaking_sw12", "overtaking_nnw9"}) {
     files.push_back({"fresh_overtaking6", name, "overtaking"});
   }
+  for (const char* name : {"overtaking_nbe8", "overtaking_ebs16", "overtaking_swbs11", "overtaking_nwbw13"}) {
+    files.push_back({"fresh_overtaking7", name, "overtaking"});
+  }
   for (const auto& [set, file, kind] : files) {
     {
       SCOPED_TRACE(set + "/" + file);
@@ -305,9 +308,10 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         };
         EXPECT_LT(along(fa), along(same_t(fa.t_s)));
         EXPECT_GT(along(fb), along(same_t(fb.t_s)));
-        // fresh_overtaking2 to 6 pass 5-20 m apart; the older sets 8-12 m.
+        // fresh_overtaking2 to 7 pass 5-20 m apart; the older sets 8-12 m.
         const bool wide = set == "fresh_overtaking2" || set == "fresh_overtaking3" || set == "fresh_overtaking4" ||
-                          set == "fresh_overtaking5" || set == "fresh_overtaking6";
+                          set == "fresh_overtaking5" || set == "fresh_overtaking6" ||
+                          set == "fresh_overtaking7";
         EXPECT_LE(closest_pair, wide ? 20.0 : 12.0);
       } else if (k == "far_ship") {
         ASSERT_EQ(f.truth.size(), 2u);

@@ -175,6 +175,12 @@ bool EliminateChain(const ChainLinearization& lin, double lambda, ChainFactoriza
 // LinearizeChain + EliminateChain(λ = 0).
 bool FactorizeChain(const ChainProblem& chain, ChainFactorization* out, int num_threads = 1);
 bool ChainCovariance(const ChainFactorization& f, std::vector<StateCovariance>* P_x, Eigen::Matrix3d* P_m);
+// The solution Z of H Z = R for a right-hand side of any number of columns,
+// by the factorisation (f: of H, λ = 0): forward elimination of R, then
+// back substitution. R's rows (and Z's) are [x_0 (6); …; x_{N−1} (6); m (3)],
+// N = f.D_inv.size(), in parameter units. False if R has the wrong number of
+// rows or Z is not finite.
+bool ChainSolve(const ChainFactorization& f, const Eigen::MatrixXd& R, Eigen::MatrixXd* Z);
 // Gauss-Newton step by back substitution: Δm = −S⁻¹ g_m,
 // Δx_k = −D_k⁻¹ (g_k + C_k [Δx_{k+1}; Δm]).
 void ChainStep(const ChainFactorization& f, std::vector<StateVector>* dx, Eigen::Vector3d* dm);

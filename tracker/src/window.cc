@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "factors.h"
+#include "offset_marginal.h"
 #include "sensor_offset.h"
 #include "state_io.h"
 #include "magnav/core/csv.h"
@@ -25,6 +26,12 @@
 namespace magnav::tracker {
 
 namespace {
+
+// With sensor_offset.window_lines the variance factor's residual means are
+// per sensor and per this many equal parts of the window (ResidualMeansChi2):
+// a line takes a sensor's mean over the whole window, not the curvature of
+// an untracked vessel's B within it.
+constexpr int kLineSegments = 4;
 
 // One epoch inside the window: its state and the factors it owns (its
 // measurements and the process factors to the next epoch).
@@ -327,13 +334,51 @@ struct WindowTracker::Impl {
     window.pop_front();
   }
 
+  // Marginal covariances of every state of the factorisation `f` (of the
+  // window's first f.D_inv.size() epochs at their current values) and of the
+  // moment (parameter units): the chain's selected inversion, prior
+  // included; with sensor_offset.window_lines each sensor's offset line
+  // marginalised too (offset_marginal.h) — the lines are solved by
+  // alternation, and the chain's covariance alone is the track's given them.
+  // Should that fail (S not positive definite: not seen), the chain's.
+  bool WindowCovariance(const internal::ChainFactorization& f, std::vector<StateCovariance>* P,
+                        Eigen::Matrix3d* Pm) const {
+    if (!internal::ChainCovariance(f, P, Pm)) return false;
+    const SensorOffsetOptions& so = options.sensor_offset;
+    if (!so.window_lines || own_rates.empty()) return true;
+    const std::size_t n = std::min(f.D_inv.size(), window.size());
+    if (n != f.D_inv.size()) return true;
+    std::vector<std::uint32_t> ids;
+    for (const auto& [id, rate] : own_rates) ids.push_back(id);
+    internal::OffsetLineMarginal lines(n, ids);
+    for (std::size_t k = 0; k < n; ++k) {
+      const WindowEpoch& w = window[k];
+      for (std::size_t i = 0; i < w.measurements.size(); ++i) {
+        const GradiometerSample& smp = w.epoch.samples[i];
+        lines.Add(w.measurements[i], k, smp.sensor_id, SigmaB(smp, options), w.epoch.t_s - own_offset_t_s);
+      }
+    }
+    lines.AddPriors(so.PriorSigma(own_offset_t_s), so.line_rate_sigma_T_per_s);
+    std::vector<StateCovariance> P_lines = *P;
+    Eigen::Matrix3d Pm_lines = *Pm;
+    if (lines.Marginalize(f, &P_lines, &Pm_lines)) {
+      *P = std::move(P_lines);
+      *Pm = Pm_lines;
+    }
+    return true;
+  }
+
   // Marginal covariances of the newest `count` states and of the moment
-  // (chain selected inversion over the window, prior included); P_states in
-  // window order.
+  // (WindowCovariance over the window); P_states in window order.
   bool NewestCovariances(std::size_t count, std::vector<StateCovariance>* P_states, Eigen::Matrix3d* P_moment) {
     std::vector<StateCovariance> P;
     Eigen::Matrix3d Pm;
-    if (emit_covariance != nullptr && emit_covariance->valid) {
+    // With the offset lines (sensor_offset.window_lines) the cache, the
+    // chain's alone, is not used: WindowCovariance marginalises them over the
+    // factorisation of the solution emitted (the onset model's, refactorised
+    // for its guard, or the default's, kept across a refused try).
+    const bool lines = options.sensor_offset.window_lines && !own_rates.empty();
+    if (emit_covariance != nullptr && emit_covariance->valid && !lines) {
       // Already computed at this solution (the onset model's guard, or the
       // trigger's noise test on the default's): the same selected inversion.
       P = emit_covariance->P;
@@ -341,7 +386,7 @@ struct WindowTracker::Impl {
     } else {
       if (!chain_fresh)
         chain_fresh = internal::FactorizeChain(Chain(), &chain);
-      if (!chain_fresh || !internal::ChainCovariance(chain, &P, &Pm)) return false;
+      if (!chain_fresh || !WindowCovariance(chain, &P, &Pm)) return false;
     }
     count = std::min(count, P.size());
     P_states->assign(P.end() - static_cast<std::ptrdiff_t>(count), P.end());
@@ -1023,10 +1068,10 @@ struct WindowTracker::Impl {
     std::size_t newest = solved;  // P.back() is window[newest − 1]'s
     if (options.compute_covariance && ok) {
       if (chain_fresh) {
-        have = internal::ChainCovariance(chain, &P, &Pm);
+        have = WindowCovariance(chain, &P, &Pm);
       } else {
         internal::ChainFactorization local;
-        have = internal::FactorizeChain(Chain(), &local) && internal::ChainCovariance(local, &P, &Pm);
+        have = internal::FactorizeChain(Chain(), &local) && WindowCovariance(local, &P, &Pm);
         newest = window.size();
       }
     }
@@ -1327,22 +1372,38 @@ void WindowTracker::ResidualMeansChi2(double* chi2, double* dof) const {
   *chi2 = 0.0;
   *dof = 0.0;
   if (!impl_->initialized || !impl_->summary.usable) return;
-  std::map<std::uint32_t, std::pair<Eigen::Matrix<double, 8, 1>, int>> sums;  // per sensor
+  // Per sensor, or with the offset lines per (sensor, quarter of the window).
+  std::map<std::pair<std::uint32_t, int>, std::pair<Eigen::Matrix<double, 8, 1>, int>> sums;
   const std::size_t solved = impl_->Solved();
+  if (solved == 0) return;
+  const bool lines = impl_->options.sensor_offset.window_lines;
+  const double t_front = impl_->window.front().epoch.t_s;
+  const double span = impl_->window[solved - 1].epoch.t_s - t_front;
   for (std::size_t k = 0; k < solved; ++k) {
     const auto& w = impl_->window[k];
+    const int segment =
+        lines && span > 0.0
+            ? std::min(kLineSegments - 1, static_cast<int>(kLineSegments * (w.epoch.t_s - t_front) / span))
+            : 0;
     for (std::size_t i = 0; i < w.measurements.size() && i < w.epoch.samples.size(); ++i) {
       const internal::Factor& f = w.measurements[i];
       Eigen::Matrix<double, 8, 1> e;
       if (!f.cost || !f.cost->Evaluate(f.blocks.data(), e.data(), nullptr) || !e.allFinite()) continue;
-      auto& s = sums.try_emplace(w.epoch.samples[i].sensor_id, Eigen::Matrix<double, 8, 1>::Zero(), 0).first->second;
+      auto& s = sums.try_emplace({w.epoch.samples[i].sensor_id, segment}, Eigen::Matrix<double, 8, 1>::Zero(), 0)
+                    .first->second;
       s.first += e;
       ++s.second;
     }
   }
-  for (const auto& [id, s] : sums) {
+  std::map<std::uint32_t, int> segments;  // per sensor
+  for (const auto& [key, s] : sums) {
     *chi2 += s.first.squaredNorm() / s.second;  // n ‖ē‖² = ‖Σ e‖² / n
     *dof += 8.0;
+    ++segments[key.first];
+  }
+  // Each sensor's line (level and rate, 3 axes) took 6 of its segment means' dof.
+  for (const auto& [id, n] : segments) {
+    if (lines && n > 2 && impl_->own_rates.count(id) != 0) *dof -= 6.0;
   }
 }
 

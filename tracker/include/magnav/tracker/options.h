@@ -228,7 +228,13 @@ struct SensorOffsetOptions {
   // overtaker closes"). On by itself it turns the window's offsets on (the
   // batch follows `enabled` alone: with `enabled` false its rows are
   // unchanged). The level's prior is PriorSigma's, the rate's zero-mean with
-  // σ line_rate_sigma_T_per_s per axis. Off by default; not with carry.
+  // σ line_rate_sigma_T_per_s per axis. The window's published covariance
+  // (its rows, re-acquisition, the association's gates) has the lines
+  // marginalised (tracker/src/offset_marginal.h: the lines are solved by
+  // alternation, and the track's covariance given them leaves out what they
+  // took), and its variance factor reads residual means per quarter of the
+  // window (WindowTracker::ResidualMeansChi2; docs/ACCURACY.md, "The window
+  // offsets' uncertainty in the window's σ"). Off by default; not with carry.
   bool window_lines = false;
   double line_rate_sigma_T_per_s = 5e-9;
   // Whether the window solves offsets at all (enabled or window_lines).

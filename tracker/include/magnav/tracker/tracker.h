@@ -185,7 +185,11 @@ class WindowTracker {
   const Summary& last_summary() const;
   // Over the solved epochs of the window: Σ over its sensors of n_j ‖ē_j‖²,
   // ē_j the mean whitened residual (8) of sensor j's n_j samples, and its
-  // dof 8·(sensors); both 0 before a usable solve (variance_factor.h).
+  // dof 8·(sensors); both 0 before a usable solve (variance_factor.h). With
+  // sensor_offset.window_lines the means are per sensor and per quarter of
+  // the window's span (a line takes out each sensor's mean and trend, not
+  // what bends within the window), dof 8 per (sensor, quarter) less 6 per
+  // sensor whose line was fitted (and that has more than two quarters).
   void ResidualMeansChi2(double* chi2, double* dof) const;
 
   // Checkpoint (tracker/checkpoint.h): everything that changes after
