@@ -873,6 +873,25 @@ TEST(HarbourScenario, WindowWithTheQuietSensorOffsetKeepsTheHeldOutDriftClean) {
   EXPECT_LE(s.rms[0], 2.0 * 0.4325);  // m, measured 0.4325 (main 0.436, the gate alone 0.2053)
 }
 
+// The quiet offset as a line with the new track's approach taken out of the
+// store (SensorOffsetOptions::quiet_rate and quiet_approach), window on
+// heldout/drift: the offset follows the drift's ramp while the vessel holds
+// the sensors, so the RMS the stale median gave back (0.4325 m) returns
+// (docs/ACCURACY.md, "A drift rate in the sensor-owned offset").
+TEST(HarbourScenario, WindowWithTheQuietOffsetRateAndApproachMeetsTheHeldOutDrift) {
+  MultiTrackerOptions o = CarriedGatedOffset();
+  o.track.sensor_offset.quiet = true;
+  o.track.sensor_offset.quiet_rate = true;
+  o.track.sensor_offset.quiet_approach = true;
+  const auto s = ScoreWindow(HeldOut("drift"), "held-out drift, quiet offset rate and approach", nullptr, o);
+  EXPECT_EQ(s.false_rows, 0u);    // measured 0 (main 2.43 %)
+  EXPECT_GE(s.coverage[0], 0.8);  // measured 0.889
+  EXPECT_EQ(s.ids[0], 1u);
+  // m, measured 0.1669: the stale median's 0.4325, main's 0.436 and a 2×
+  // regression fail it.
+  EXPECT_LE(s.rms[0], 1.5 * 0.1669);
+}
+
 // The single-track batch (SolveBatch) with the offset on the held-out drift's
 // samples while the AUV is within 30 m of a sensor (the drift, since t = 0,
 // is in them): RMS against the truth at the epochs. (The multi-vessel batch

@@ -262,5 +262,118 @@ TEST(SensorOffset, QuietOffsetIsTheQuietMedianWalkedAtTheDriftBound) {
   EXPECT_FALSE(o.IsValid(&why));
 }
 
+// The quiet offset as a line (SensorOffsetOptions::quiet_rate): 60 s of a
+// 5 nT/min drift with 1 nT noise at 10 Hz, 10 % of the samples spoilt by a
+// vessel's 300 nT; predicted 45 s after the last sample (a sensor occupied by
+// a vessel) it is within 1 nT of the drift, where the median walked at the
+// bound (the option off) is 6.25 nT behind (75 s × 5 nT/min); its rate within
+// 1 nT/min of the drift's; its σ grows with the extrapolation; a rate beyond
+// the bound is held at it; a store shorter than the baseline gives no rate.
+TEST(SensorOffset, QuietOffsetRateFollowsTheDriftRampWhileTheSensorIsOccupied) {
+  SensorOffsetOptions o;
+  EXPECT_FALSE(o.quiet_rate);  // an option, off
+  EXPECT_FALSE(o.quiet_approach);
+  o.enabled = true;
+  o.quiet = true;
+  o.quiet_rate = true;
+  std::string why;
+  ASSERT_TRUE(o.IsValid(&why)) << why;
+  const Eigen::Vector3d rate_W = Eigen::Vector3d(3.0, -4.0, 0.0) * kNt / 60.0;  // 5 nT/min
+  const auto fill = [&](internal::QuietOffsets* q, const Eigen::Vector3d& rate, double t0, double t1) {
+    std::mt19937 rng(12);
+    std::normal_distribution<double> n(0.0, kNt);
+    int k = 0;
+    for (double t = t0; t < t1 - 1e-9; t += 0.1, ++k) {
+      Eigen::Vector3d r = rate * t + Eigen::Vector3d(n(rng), n(rng), n(rng));
+      if (k % 10 == 3) r += Eigen::Vector3d(300.0, -200.0, 150.0) * kNt;
+      q->Add(4, t, r);
+    }
+  };
+  internal::QuietOffsets q(o);
+  fill(&q, rate_W, 90.0, 160.0);  // 70 s: the first 10 s leave the 60 s span
+  EXPECT_NEAR(q.num_quiet(4), 601, 1);
+  Eigen::Vector3d mean_W, rate_fit;
+  double sigma_now = 0.0, sigma_later = 0.0;
+  ASSERT_TRUE(q.Rate(4, &rate_fit));
+  EXPECT_LE((rate_fit - rate_W).norm(), 1.0 * kNt / 60.0);
+  ASSERT_TRUE(q.Prior(4, 130.0, &mean_W, &sigma_now));
+  ASSERT_TRUE(q.Prior(4, 205.0, &mean_W, &sigma_later));
+  EXPECT_LE((mean_W - rate_W * 205.0).norm(), 1.0 * kNt);  // measured 0.74 nT (the spoilt 10 % move the level)
+  EXPECT_GT(sigma_later, 2.0 * sigma_now);  // the rate's σ × 75 s on the level's
+  EXPECT_LT(sigma_later, 1.5 * kNt);
+  // The option off: the median at the samples' median time, 6.25 nT behind.
+  SensorOffsetOptions off = o;
+  off.quiet_rate = false;
+  off.quiet_span_s = 60.0;
+  internal::QuietOffsets walked(off);
+  fill(&walked, rate_W, 90.0, 160.0);
+  ASSERT_TRUE(walked.Prior(4, 205.0, &mean_W, &sigma_later));
+  EXPECT_GT((mean_W - rate_W * 205.0).norm(), 5.0 * kNt);
+  // A drift beyond the bound (20 nT/min on x): its rate held at 6 nT/min.
+  internal::QuietOffsets steep(o);
+  fill(&steep, Eigen::Vector3d(20.0, 0.0, 0.0) * kNt / 60.0, 90.0, 160.0);
+  ASSERT_TRUE(steep.Rate(4, &rate_fit));
+  EXPECT_NEAR(rate_fit.x(), o.max_rate_T_per_s, 1e-15);
+  // 5 s of samples: no rate (the median and the walk).
+  internal::QuietOffsets brief(o);
+  fill(&brief, rate_W, 100.0, 105.0);
+  EXPECT_FALSE(brief.Rate(4, &rate_fit));
+  // Checked: only with the quiet offset; a positive span.
+  o = {};
+  o.enabled = true;
+  o.quiet_rate = true;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("quiet_rate"), std::string::npos);
+  o.quiet_rate = false;
+  o.quiet_approach = true;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("quiet_approach"), std::string::npos);
+  o.quiet = true;
+  ASSERT_TRUE(o.IsValid(&why)) << why;
+  o.quiet_rate_span_s = 0.0;
+  EXPECT_FALSE(o.IsValid(&why));
+  o.quiet_rate_span_s = std::nan("");
+  EXPECT_FALSE(o.IsValid(&why));
+}
+
+// A confirmed track's approach out of the quiet store (QuietOffsets::TakeOut,
+// SensorOffsetOptions::quiet_approach): 30 s of quiet samples with no drift
+// (1 nT noise), the last 10 s holding an untracked vessel's approach B that
+// grows from 0 to 8 nT along x. With the rate fitted the approach sets a
+// steep rate (held at the 6 nT/min bound) and the offset 20 s later is
+// nT off; once the track's field is taken out (dropped where it reaches
+// 3 nT, subtracted below) the offset is back within 1 nT of zero.
+TEST(SensorOffset, QuietTakeOutRemovesANewTracksApproachFromTheStore) {
+  SensorOffsetOptions o;
+  o.enabled = true;
+  o.quiet = true;
+  o.quiet_rate = true;
+  o.quiet_approach = true;
+  internal::QuietOffsets q(o);
+  const auto approach = [](double t) { return Eigen::Vector3d(t > 120.0 ? 0.8 * (t - 120.0) * kNt : 0.0, 0.0, 0.0); };
+  std::mt19937 rng(13);
+  std::normal_distribution<double> n(0.0, kNt);
+  for (double t = 100.0; t < 130.0 - 1e-9; t += 0.1) {
+    q.Add(4, t, approach(t) + Eigen::Vector3d(n(rng), n(rng), n(rng)), Eigen::Vector3d(1.0, 2.0, 0.0), kNt, 1.4 * kNt);
+  }
+  Eigen::Vector3d mean_W;
+  double sigma = 0.0;
+  ASSERT_TRUE(q.Prior(4, 150.0, &mean_W, &sigma));
+  EXPECT_GT(mean_W.norm(), 2.0 * kNt);  // the approach's B and its rate
+  const internal::QuietTakeOutStats st =
+      q.TakeOut([&](std::uint32_t id, double t, const Eigen::Vector3d& p, double sigma_B, double, Eigen::Vector3d* B,
+                    bool* not_quiet) {
+        EXPECT_EQ(id, 4u);
+        EXPECT_EQ(p, Eigen::Vector3d(1.0, 2.0, 0.0));  // the stored sample's sensor position
+        *B = approach(t);
+        *not_quiet = B->norm() >= 3.0 * sigma_B;
+        return true;
+      });
+  EXPECT_NEAR(st.dropped, 62, 1);  // 123.8–129.9 s: B ≥ 3 nT
+  EXPECT_NEAR(st.corrected, 238, 1);
+  ASSERT_TRUE(q.Prior(4, 150.0, &mean_W, &sigma));
+  EXPECT_LE(mean_W.norm(), 1.0 * kNt);  // measured 0.46 nT (the noise's rate over 36 s of extrapolation)
+}
+
 }  // namespace
 }  // namespace magnav::tracker

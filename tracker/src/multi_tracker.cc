@@ -145,6 +145,10 @@ std::string MultiSummary::BriefReport() const {
   if (num_rejected_samples > 0) o << ", " << num_rejected_samples << " bad samples left out";
   if (num_ghosts > 0) o << ", " << num_ghosts << " ended tracks' fields subtracted as ghosts";
   if (num_reacquired > 0) o << ", " << num_reacquired << " tracks re-acquired (an ended track's id continued)";
+  if (num_quiet_approach_dropped + num_quiet_approach_corrected > 0) {
+    o << ", confirmed tracks' approach out of the quiet offsets (" << num_quiet_approach_dropped << " samples dropped, "
+      << num_quiet_approach_corrected << " corrected)";
+  }
   if (far_source_enabled) o << "; " << far_source.BriefReport();
   return o.str();
 }
@@ -368,6 +372,7 @@ struct MultiTracker::Impl {
 
   void Confirm(Track& tr, double t_s) {
     tr.life.Confirm();
+    TakeApproachOutOfQuiet(tr);
     tr.taken.clear();
     TrackRecord r;
     r.t_start_s = t_s;
@@ -718,8 +723,43 @@ struct MultiTracker::Impl {
       if (quiet_tensor_mean.window_s() > 0.0 && quiet_tensor_mean.Z(s.sensor_id) > 2.5) continue;
       const internal::QuietSample q = internal::QuietResidual(s, B_tracks, T_tracks, B0_W, options.track, rule);
       if (q.use != internal::QuietUse::kUsed) continue;
-      quiet_offsets.Add(s.sensor_id, e.t_s, q.r_W);
+      quiet_offsets.Add(s.sensor_id, e.t_s, q.r_W, s.p_SinW, SigmaB(s, options.track), SigmaT(s, options.track));
     }
+  }
+
+  // A newly confirmed track's approach out of the sensors' quiet samples
+  // (sensor_offset.quiet_approach; at confirmation, not at the tentative
+  // start: a tentative track that is dropped, or a wrong start's state, must
+  // not move the store): its field back-predicted to each stored sample's
+  // time; the sample dropped where that field would have made it not quiet
+  // (the store's rule: predicted tensor SNR >= 3 or B >= 3 sigma_B), else
+  // the field's B subtracted from it.
+  void TakeApproachOutOfQuiet(const Track& tr) {
+    if (!QuietOffsetsOn() || !options.track.sensor_offset.quiet_approach) return;
+    Track probe;
+    probe.m_B = tr.engine->m_B_Am2();
+    if (!probe.m_B.allFinite()) return;
+    std::map<double, std::optional<CtState<double>>> at;  // the state per stored time
+    const internal::QuietTakeOutStats st = quiet_offsets.TakeOut(
+        [&](std::uint32_t id, double t_s, const Eigen::Vector3d& p_SinW, double sigma_B, double sigma_T,
+            Eigen::Vector3d* B_W, bool* not_quiet) {
+          auto it = at.find(t_s);
+          if (it == at.end()) it = at.emplace(t_s, tr.engine->PredictState(t_s)).first;
+          if (!it->second) return false;
+          probe.pred = *it->second;
+          GradiometerSample s;
+          s.sensor_id = id;
+          s.t_s = t_s;
+          s.p_SinW = p_SinW;
+          s.sigma_B = sigma_B;
+          s.sigma_T = sigma_T;
+          const FieldPrediction p = Predict(probe, s);
+          *B_W = p.B;
+          *not_quiet = p.T.norm() >= 3.0 * SigmaT(s, options.track) || p.B.norm() >= 3.0 * SigmaB(s, options.track);
+          return true;
+        });
+    summary.num_quiet_approach_dropped += st.dropped;
+    summary.num_quiet_approach_corrected += st.corrected;
   }
 
   // Each sensor's background takes the raw sample minus every live track's

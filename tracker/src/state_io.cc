@@ -186,6 +186,9 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.I64(static_cast<std::int64_t>(so.quiet_min_samples));
   w.F64(so.quiet_span_s);
   w.F64(so.quiet_tensor_mean_s);
+  w.I64(static_cast<std::int64_t>(so.quiet_rate));
+  w.F64(so.quiet_rate_span_s);
+  w.I64(static_cast<std::int64_t>(so.quiet_approach));
   for (double d : {so.max_rate_T_per_s, so.floor_T, so.b0_time_s, so.segment_s, so.tolerance_T}) w.F64(d);
   w.I64(static_cast<std::int64_t>(so.window_lines));
   w.F64(so.line_rate_sigma_T_per_s);

@@ -39,6 +39,9 @@ struct TrackerFlags {
       tracker::TrackerOptions{}.window_turn_onset_search == tracker::TrackerOptions::OnsetSearch::kFast ? "fast"
                                                                                                         : "full";
   std::string sensor_offset_quiet = tracker::SensorOffsetOptions{}.quiet ? "on" : "off";
+  std::string sensor_offset_quiet_rate = tracker::SensorOffsetOptions{}.quiet_rate ? "on" : "off";
+  double sensor_offset_quiet_rate_span_s = tracker::SensorOffsetOptions{}.quiet_rate_span_s;
+  std::string sensor_offset_quiet_approach = tracker::SensorOffsetOptions{}.quiet_approach ? "on" : "off";
   std::string window_offset_lines = tracker::SensorOffsetOptions{}.window_lines ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
@@ -349,6 +352,23 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "--sensor-offset-min-tensor-snr) (on), or as the other sensor-offset flags say (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--sensor-offset-quiet-rate", f->sensor_offset_quiet_rate,
+                 "sensor offset (with --sensor-offset-quiet on): each sensor's quiet offset is a line in time, its "
+                 "rate from the medians of the older and newer halves of its last --sensor-offset-quiet-rate-span s of "
+                 "quiet samples (bounded by --sensor-offset-rate), predicted to the window with its sigma growing (on), "
+                 "or the median walked at --sensor-offset-rate (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--sensor-offset-quiet-rate-span", f->sensor_offset_quiet_rate_span_s,
+                 "sensor offset (with --sensor-offset-quiet-rate on): the span of quiet samples the line is fitted "
+                 "over, s")
+      ->capture_default_str();
+  app.add_option("--sensor-offset-quiet-approach", f->sensor_offset_quiet_approach,
+                 "sensor offset (with --sensor-offset-quiet on): when a track is confirmed, its back-predicted field is taken "
+                 "out of every sensor's stored quiet samples (dropped where it would have made the sensor not quiet, "
+                 "else its B subtracted) (on), or the store kept as it is (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--sensor-offset-carry", f->sensor_offset_carry,
                  "sensor offset (window, with --sensor-offset on): each sensor's offset carried from window to window "
                  "(the samples that left the window, the walk of --sensor-offset-rate since) as its prior (on), or a "
@@ -421,6 +441,9 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.track.window_turn_onset_search = f.turn_onset_search == "fast" ? tracker::TrackerOptions::OnsetSearch::kFast
                                                                    : tracker::TrackerOptions::OnsetSearch::kFull;
   o.track.sensor_offset.quiet = f.sensor_offset_quiet == "on";
+  o.track.sensor_offset.quiet_rate = f.sensor_offset_quiet_rate == "on";
+  o.track.sensor_offset.quiet_rate_span_s = f.sensor_offset_quiet_rate_span_s;
+  o.track.sensor_offset.quiet_approach = f.sensor_offset_quiet_approach == "on";
   o.track.sensor_offset.window_lines = f.window_offset_lines == "on";
   o.variance_factor.enabled = f.variance_factor == "on";
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"

@@ -532,6 +532,11 @@ struct MultiSummary {
   // confirmed tracks that continued an ended track under its id (not in
   // num_confirmed; their earlier end not in num_ended).
   int num_reacquired = 0;
+  // The confirmed tracks' approach taken out of the sensors' quiet samples
+  // (SensorOffsetOptions::quiet_approach): samples dropped and corrected.
+  // Not in the checkpoint (nor is the store).
+  int num_quiet_approach_dropped = 0;
+  int num_quiet_approach_corrected = 0;
   // The far source (far_source.h), when on: its fits accepted and refused,
   // the time its B was removed, its position at the last accepted fit. Not
   // in the checkpoint (nor is its fit): counted again after a restart.

@@ -199,6 +199,20 @@ struct InitOptions {
 // samples keeps the rule without it. Not in the checkpoint (a restored
 // tracker starts the store empty). Off by default (docs/ACCURACY.md, "One B
 // offset per sensor, owned by the sensor").
+// quiet_rate (with quiet): each sensor's quiet offset is a line in time,
+// level + rate · (t − t_ref) (world NED, T and T/s), fitted robustly over the
+// last quiet_rate_span_s of its quiet samples (the store keeps at least that
+// much): the rate from the medians of the store's older and newer halves,
+// bounded by max_rate_T_per_s; the level the median of the samples with the
+// rate taken out; predicted to the window's middle, its σ² = σ_level² +
+// (σ_rate · Δt)² growing with the extrapolation Δt (tracker/src/
+// quiet_offset.h). A drift's ramp is followed while the sensor is occupied
+// instead of held at the level of samples tens of seconds old.
+// quiet_approach (with quiet): when a track is confirmed, its back-predicted
+// field is taken out of every sensor's stored quiet samples: a sample where it
+// would have made the sensor not quiet (its predicted tensor SNR ≥ 3 or B ≥
+// 3 σ_B) is dropped, the others lose its predicted B — the vessel's approach,
+// before it had a track, leaves the sensors' offsets.
 // Off by default (docs/ACCURACY.md: the measured rows).
 struct SensorOffsetOptions {
   bool enabled = false;
@@ -208,6 +222,9 @@ struct SensorOffsetOptions {
   double quiet_span_s = 20.0;
   int quiet_min_samples = 50;
   double quiet_tensor_mean_s = 10.0;
+  bool quiet_rate = false;
+  double quiet_rate_span_s = 60.0;
+  bool quiet_approach = false;
   double max_rate_T_per_s = 6e-9 / 60.0;
   double floor_T = 1e-9;
   double b0_time_s = 0.0;
