@@ -400,8 +400,9 @@ bool FarSourceEstimator::StepIfDue(double t_s, const PreTrackFieldFn& pre_track)
   if (kept_.back().t_s - kept_.front().t_s < options_.min_span_s) return false;
   last_fit_t_ = t_s;
   std::vector<FarSourceSample> all;
+  const bool correct = options_.back_predict_new_tracks && pre_track;
   for (const Kept& k : kept_) {
-    if (!options_.back_predict_new_tracks || !pre_track) {
+    if (!correct) {
       all.insert(all.end(), k.used.begin(), k.used.end());
       continue;
     }

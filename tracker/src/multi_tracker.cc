@@ -272,6 +272,29 @@ double HorizontalSigma(const EpochEstimate& e) {
 
 Eigen::Vector2d Horizontal(const CtState<double>& s) { return {s.x, s.y}; }
 
+// A live track's field at sensors at times before its start (the far
+// source's kept samples, the quiet offsets' store): its engine's newest
+// state run back by its coordinated-turn model, its moment as now (world
+// NED: B in T, tensor in T/m). One propagation per time, kept for the other
+// sensors at that time. The engine must outlive it.
+class BackPredictedField {
+ public:
+  BackPredictedField(const WindowTracker* engine, const Eigen::Vector3d& m_B) : engine_(engine), m_B_(m_B) {}
+  // False if the engine has no state.
+  bool At(double t_s, const Eigen::Vector3d& p_SinW, Eigen::Vector3d* B_W, Eigen::Matrix3d* T_W) {
+    auto it = states_.find(t_s);
+    if (it == states_.end()) it = states_.emplace(t_s, engine_->PredictState(t_s)).first;
+    if (!it->second) return false;
+    PredictedField(*it->second, m_B_, p_SinW, B_W, T_W);
+    return true;
+  }
+
+ private:
+  const WindowTracker* engine_;
+  Eigen::Vector3d m_B_;
+  std::map<double, std::optional<CtState<double>>> states_;
+};
+
 }  // namespace
 
 struct MultiTracker::Impl {
@@ -664,26 +687,22 @@ struct MultiTracker::Impl {
   // constant), their model error as for the tracks known then.
   FarSourceEstimator::PreTrackFieldFn PreTrackField(double t_s) const {
     struct Young {
-      const WindowTracker* engine;
-      Eigen::Vector3d m_B;
+      BackPredictedField field;
       double t_started_s;
     };
     std::vector<Young> young;
     for (const Track& tr : tracks) {
       if (tr.ended || !tr.has_pred || tr.t_started_s < t_s - options.far_source.window_s) continue;
-      young.push_back({tr.engine.get(), tr.m_B, tr.t_started_s});
+      young.push_back({BackPredictedField(tr.engine.get(), tr.m_B), tr.t_started_s});
     }
     if (young.empty()) return {};
     return [young = std::move(young)](const FarSourceSample& s, Eigen::Vector3d* B_W, Eigen::Matrix3d* T_W,
-                                      double* var_T2) {
+                                      double* var_T2) mutable {
       bool any = false;
-      for (const Young& y : young) {
-        if (!(s.t_s < y.t_started_s)) continue;
-        const auto state = y.engine->PredictState(s.t_s);
-        if (!state) continue;
+      for (Young& y : young) {
         Eigen::Vector3d B;
         Eigen::Matrix3d T;
-        PredictedField(*state, y.m_B, s.p_SinW, &B, &T);
+        if (!(s.t_s < y.t_started_s) || !y.field.At(s.t_s, s.p_SinW, &B, &T)) continue;
         *B_W += B;
         *T_W += T;
         any = true;
@@ -736,26 +755,18 @@ struct MultiTracker::Impl {
   // the field's B subtracted from it.
   void TakeApproachOutOfQuiet(const Track& tr) {
     if (!QuietOffsetsOn() || !options.track.sensor_offset.quiet_approach) return;
-    Track probe;
-    probe.m_B = tr.engine->m_B_Am2();
-    if (!probe.m_B.allFinite()) return;
-    std::map<double, std::optional<CtState<double>>> at;  // the state per stored time
+    const Eigen::Vector3d m_B = tr.engine->m_B_Am2();
+    if (!m_B.allFinite()) return;
+    BackPredictedField field(tr.engine.get(), m_B);
     const internal::QuietTakeOutStats st = quiet_offsets.TakeOut(
-        [&](std::uint32_t id, double t_s, const Eigen::Vector3d& p_SinW, double sigma_B, double sigma_T,
+        [&](std::uint32_t /*sensor_id*/, double t_s, const Eigen::Vector3d& p_SinW, double sigma_B, double sigma_T,
             Eigen::Vector3d* B_W, bool* not_quiet) {
-          auto it = at.find(t_s);
-          if (it == at.end()) it = at.emplace(t_s, tr.engine->PredictState(t_s)).first;
-          if (!it->second) return false;
-          probe.pred = *it->second;
-          GradiometerSample s;
-          s.sensor_id = id;
-          s.t_s = t_s;
-          s.p_SinW = p_SinW;
+          Eigen::Matrix3d T;
+          if (!field.At(t_s, p_SinW, B_W, &T)) return false;
+          GradiometerSample s;  // for the σ defaults
           s.sigma_B = sigma_B;
           s.sigma_T = sigma_T;
-          const FieldPrediction p = Predict(probe, s);
-          *B_W = p.B;
-          *not_quiet = p.T.norm() >= 3.0 * SigmaT(s, options.track) || p.B.norm() >= 3.0 * SigmaB(s, options.track);
+          *not_quiet = T.norm() >= 3.0 * SigmaT(s, options.track) || B_W->norm() >= 3.0 * SigmaB(s, options.track);
           return true;
         });
     summary.num_quiet_approach_dropped += st.dropped;
