@@ -239,6 +239,34 @@ class Writer {
   Listener listener_;
 };
 
+namespace internal {
+
+// Takes every sample `r` holds now into `sample` / `info`, one at a time:
+// calls good() for each valid one and bad(n) for n payloads the type support
+// refused (CheckedPubSubType, topics.h). Fast DDS 2.9.1 drops a refused
+// payload inside take_next_sample and goes on to the next change in the same
+// call: one take can refuse bad payloads and still return a good sample (when
+// they came in one burst, as a late joiner's history or a repaired loss
+// does), or answer NO_DATA after refusing (more may follow: take on).
+template <class M, class Bad, class Good>
+void TakeEach(fdds::DataReader* r, M& sample, fdds::SampleInfo& info, Bad&& bad, Good&& good) {
+  while (true) {
+    // Cleared first: Fast DDS may deserialise on this thread outside a take
+    // (for a key).
+    (void)TakeDeserializeFailures();
+    const auto rc = r->take_next_sample(&sample, &info);
+    const int refused = TakeDeserializeFailures();
+    if (refused > 0) bad(refused);
+    if (rc != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      if (refused > 0) continue;
+      break;
+    }
+    if (info.valid_data) good();
+  }
+}
+
+}  // namespace internal
+
 // A typed reader on one topic; the callback runs on a middleware thread for
 // every sample received. An exception thrown by the callback is caught,
 // logged and counted: one bad sample never stops the reader.
@@ -316,27 +344,19 @@ class Reader {
     M sample;
     void on_data_available(fdds::DataReader* r) override {
       fdds::SampleInfo info;
-      while (true) {
-        // The failure mark of CheckedPubSubType (topics.h) is cleared first
-        // (Fast DDS may deserialise on this thread outside a take, for a key).
-        (void)internal::TakeDeserializeFailure();
-        const auto rc = r->take_next_sample(&sample, &info);
-        // A payload that failed to deserialise is dropped by Fast DDS with
-        // NO_DATA although more samples may follow: count it and take on
-        // (stopping here left the samples behind it until the next arrival).
-        if (internal::TakeDeserializeFailure()) {
-          // Which writer sent it is not known: the companion counts only
-          // while it serves writers of its own (else both would count the
-          // payload of a writer both match).
-          if (!companion || self->filter_.companion_only_writers() > 0) {
-            if (self->stats_.bad_payloads++ == 0) internal::LogBadPayload(self->topic_);
-          }
-          continue;
-        }
-        if (rc != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) break;
-        if (!info.valid_data) continue;
-        self->Deliver(companion, sample, info);
-      }
+      internal::TakeEach(
+          r, sample, info,
+          [&](int bad) {
+            // Which writer sent it is not known: the companion counts only
+            // while it serves writers of its own (else both would count the
+            // payload of a writer both match).
+            if (!companion || self->filter_.companion_only_writers() > 0) {
+              if (self->stats_.bad_payloads.fetch_add(static_cast<std::uint64_t>(bad)) == 0) {
+                internal::LogBadPayload(self->topic_);
+              }
+            }
+          },
+          [&] { self->Deliver(companion, sample, info); });
     }
     void on_subscription_matched(fdds::DataReader*, const fdds::SubscriptionMatchedStatus& s) override {
       self->filter_.Matched(companion, internal::GuidOf(s.last_publication_handle), s.current_count_change);

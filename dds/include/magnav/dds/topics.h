@@ -18,23 +18,27 @@ namespace msg = ::magnav::msg;
 
 namespace internal {
 
-// Set (per thread) when CheckedPubSubType refused a payload; the reader's
-// listener takes it right after take_next_sample (same thread).
-inline thread_local bool deserialize_failed = false;
-inline bool TakeDeserializeFailure() {
-  const bool failed = deserialize_failed;
-  deserialize_failed = false;
-  return failed;
+// Counts (per thread) the payloads CheckedPubSubType refused; the reader's
+// listener takes the count right after take_next_sample (same thread). One
+// take can refuse several: Fast DDS drops a payload that fails and goes on to
+// the next change in the same call (TakeEach, node.h).
+inline thread_local int deserialize_failures = 0;
+inline int TakeDeserializeFailures() {
+  const int n = deserialize_failures;
+  deserialize_failures = 0;
+  return n;
 }
+inline bool TakeDeserializeFailure() { return TakeDeserializeFailures() > 0; }
 
 // The generated type support with a door on deserialisation. fastddsgen's
 // deserialize() catches only a short buffer (NotEnoughMemoryException); a
 // payload whose encapsulation header is not CDR (first byte not 0) throws
 // BadParamException out of DataReader::take_next_sample, which ended the
 // service (found by fuzz/dds_entry.cc). Here any failure returns false (Fast
-// DDS 2.9.1 then drops the sample: take_next_sample answers NO_DATA), resets
-// the sample to its default and marks the failure for the reader's listener,
-// which counts it (EndpointStats::bad_payloads) and goes on taking.
+// DDS 2.9.1 then drops the sample and takes the next one in the same call, or
+// answers NO_DATA if there is none), resets the sample to its default and
+// counts the failure for the reader's listener, which adds it to
+// EndpointStats::bad_payloads and goes on taking.
 template <class Generated, class M>
 class CheckedPubSubType : public Generated {
  public:
@@ -47,7 +51,7 @@ class CheckedPubSubType : public Generated {
     }
     if (!ok) {
       *static_cast<M*>(data) = M();
-      deserialize_failed = true;
+      ++deserialize_failures;
     }
     return ok;
   }
