@@ -1412,14 +1412,23 @@ struct MultiTracker::Impl {
     return mine;
   }
 
+  // A new tentative track's life cycle and start time (every start path:
+  // StartOn's pair start beside a track had no start time, 0, so the far
+  // source's back-prediction never took it for a young track).
+  Track Tentative(double t) const {
+    Track tr;
+    tr.life = TrackLifeCycle(t, mg());
+    tr.t_started_s = t;
+    return tr;
+  }
+
   // A tentative track started from `init` on `epochs` (SamplesOf, without
   // `partner`'s field); its field is taken out of the initiator's buffer as
   // StartTrack's. True if started.
   bool StartOn(double t, const InitialTrack& init, const InitialTrack& partner, const std::vector<Epoch>& epochs) {
     const std::vector<Epoch> mine = SamplesOf(init, partner, epochs);
     if (mine.empty()) return false;
-    Track tr;
-    tr.life = TrackLifeCycle(t, mg());
+    Track tr = Tentative(t);
     tr.t_evidence_s = EvidenceStart(t, init);
     tr.engine = std::make_unique<WindowTracker>(B0_W, options.track);
     AttachQuiet(*tr.engine);
@@ -1472,9 +1481,7 @@ struct MultiTracker::Impl {
     }
     // The new track's sensors in the buffered epochs (gated by the
     // initialiser's line and moment).
-    Track tr;
-    tr.life = TrackLifeCycle(t, mg());
-    tr.t_started_s = t;
+    Track tr = Tentative(t);
     tr.t_evidence_s = std::isnan(t_evidence_s) ? EvidenceStart(t, *init) : t_evidence_s;
     std::vector<Epoch> mine;
     for (const Epoch& b : epochs) {
