@@ -4,12 +4,15 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <vector>
 
+#include "magnav/cli/scenario_file.h"
 #include "magnav/core/simulate.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/multi_tracker.h"
 #include "magnav/tracker/pair_beside.h"
+#include "test_data.h"
 
 namespace magnav::tracker {
 namespace {
@@ -83,6 +86,41 @@ TEST(PairBeside, NothingBesideALoneVesselOrWithTheGateOff) {
   opt.init.max_dipole_misfit = 0.0;
   EXPECT_TRUE(
       InitializeBeside(GroupEpochs(g.samples, opt.epoch_tolerance_s), two.B0, opt, TrackOfVessel1(two), 8.0).empty());
+}
+
+// A track started beside a tracked vessel (MultiTracker's pair start,
+// StartOn) has its start time: its confirmation event says since when it was
+// tentative, the time the second live track appeared. It had none (0 s), so
+// the far source's back-prediction never took it for a young track (its
+// field before its start was never given back) and the joint start never
+// took it for a young partner. heldout/overtaking's geometry over 100 s (the
+// checkpoint test's).
+TEST(PairBeside, ATrackStartedBesideATrackedVesselHasItsStartTime) {
+  FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/overtaking.toml");
+  sc.vessels[0].start_position.x() = -40.0;
+  sc.vessels[0].segments = {{100.0, 0.0}};
+  sc.vessels[1].start_position.x() = -65.0;
+  sc.vessels[1].segments = {{100.0, 0.0}};
+  const SimulatedField f = SimulateField(sc);
+  MultiTracker tracker(sc.B0, MultiTrackerOptions{});
+  double t_beside = -1.0;
+  std::vector<TrackEvent> events;
+  for (const auto& s : f.samples) {
+    tracker.AddSample(s);
+    if (t_beside < 0.0 && tracker.summary().num_confirmed >= 1 && tracker.num_live_tracks() == 2) t_beside = s.t_s;
+    for (TrackEvent& e : tracker.TakeEvents()) events.push_back(std::move(e));
+  }
+  ASSERT_GT(t_beside, 0.0) << "no second track beside the first";
+  const TrackEvent* beside = nullptr;
+  for (const TrackEvent& e : events) {
+    if (e.kind == TrackEvent::Kind::kStarted && e.reason.find("beside track") != std::string::npos) beside = &e;
+  }
+  ASSERT_NE(beside, nullptr) << "no start beside a track";
+  const auto at = beside->reason.find("tentative since ");
+  ASSERT_NE(at, std::string::npos) << beside->reason;
+  const double t_started = std::stod(beside->reason.substr(at + 16));
+  std::printf("%s (second live track at %.1f s)\n", beside->reason.c_str(), t_beside);
+  EXPECT_NEAR(t_started, t_beside, 0.15);  // s (the sample's time within its epoch)
 }
 
 }  // namespace

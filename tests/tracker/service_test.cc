@@ -295,7 +295,7 @@ TEST(TrackerService, StartsFromTheInvertersFixes) {
     got = peer.SendPassAndStop(file, want.size(), &service);
   }
   const std::string log = service.ReadAll();
-  // "track 1 started at t = ... s (confirmed; from N dipole_fix fixes)"
+  // "track 1 started at t = ... s (confirmed (tentative since ... s); from N dipole_fix fixes)"
   EXPECT_NE(log.find("dipole_fix fixes"), std::string::npos) << log;
   EXPECT_NE(log.find("track 1 started"), std::string::npos) << log;
   EXPECT_NE(log.find("dipole_fix skipped"), std::string::npos) << log;

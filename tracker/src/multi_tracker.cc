@@ -452,7 +452,8 @@ struct MultiTracker::Impl {
     }
     records.push_back(r);
     ++summary.num_confirmed;
-    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s, "confirmed; " + tr.origin + backfilled});
+    events.push_back({TrackEvent::Kind::kStarted, tr.id, t_s,
+                      "confirmed (tentative since " + FormatNumber(tr.t_started_s) + " s); " + tr.origin + backfilled});
   }
 
   // The ended track (index into `ended`) the newly confirmed `tr` continues

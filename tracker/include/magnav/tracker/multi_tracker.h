@@ -471,8 +471,8 @@ struct TrackEvent {
   Kind kind = Kind::kStarted;
   std::uint32_t track_id = 0;
   double t_s = 0.0;
-  // Start: "confirmed; from N dipole_fix fixes" (or "... fixes of its own
-  // TED+EGT"); end: "missed", "lost", "uncertain", "unusable", "duplicate",
+  // Start: "confirmed (tentative since T s); from N dipole_fix fixes" (or
+  // "... fixes of its own TED+EGT"; T its tentative start); end: "missed", "lost", "uncertain", "unusable", "duplicate",
   // "end of data".
   std::string reason;
 };
