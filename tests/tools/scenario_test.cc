@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_overtaking7/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/, fresh_drift5/ and fresh_drift6/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_overtaking7/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_farsrc6/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/, fresh_drift5/ and fresh_drift6/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -196,6 +196,11 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   for (const char* name : {"crossing_far_ship_152", "crossing_far_ship_128"}) {
     files.push_back({"fresh_farsrc5", name, "crossing_far_ship"});
   }
+  // fresh_farsrc6 (blind, session 19 branch fbpdrift): two of them drift too (checked below).
+  for (const char* name : {"drift_6_farship_146", "drift_4_farship_132", "far_ship_126"}) {
+    files.push_back({"fresh_farsrc6", name, "far_ship"});
+  }
+  files.push_back({"fresh_farsrc6", "crossing_far_ship_144", "crossing_far_ship"});
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});

@@ -151,7 +151,8 @@ TEST(FarSourceScenario, WindowAcceptsAShipAtTheBoundBesideAWeakAuv) {
 // still failed"; "The AUV's B from before its track in the far source's
 // samples"). With each kept sample given the later tracks' back-predicted
 // field (FarSourceOptions::back_predict_new_tracks; an option, off) the
-// window's RMS is 0.145 / 0.158 m (defaults 1.13 / 0.43 m).
+// window's RMS is 0.162 / 0.174 m (session 18's form 0.145 / 0.158 m;
+// defaults 1.13 / 0.43 m).
 TEST(FarSourceScenario, WindowKeepsACrossingPairBesideAShipWithTheirEarlierBGivenBack) {
   MultiTrackerOptions opt;
   opt.far_source.back_predict_new_tracks = true;
@@ -160,7 +161,7 @@ TEST(FarSourceScenario, WindowKeepsACrossingPairBesideAShipWithTheirEarlierBGive
     SCOPED_TRACE(v);
     EXPECT_GE(s.coverage[v], 0.8);  // measured 0.98 / 1.00
     EXPECT_EQ(s.ids[v], 1u);
-    EXPECT_LE(s.rms[v], 0.3);  // m, the target; measured 0.145 / 0.158 (a 2x regression of vessel 2 fails)
+    EXPECT_LE(s.rms[v], 0.3);  // m, the target; measured 0.162 / 0.174 (a 2x regression fails)
   }
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
 }

@@ -20,6 +20,13 @@ constexpr double kMomentUnit = 1e5;
 // from the array's extent; with one sensor it would be 10 m from it and
 // take the near vessel itself), and 8 parameters need B at several sensors.
 constexpr std::size_t kMinSensors = 4;
+// FarSourceOptions::back_predict_new_tracks: a kept sample where a later
+// track's back-predicted B is at least this many σ_B is left out of the fit,
+// not corrected (as MultiTracker's quiet store drops a new track's approach:
+// predicted B >= 3 σ_B). Subtracting it moved the far source's fits on the
+// drift files by the back-prediction's error (docs/ACCURACY.md, "The same
+// vessel's B taken out twice ...").
+constexpr double kPreTrackOccupiedBSigmas = 3.0;
 
 bool Fail(std::string* error, const std::string& why) {
   if (error != nullptr) *error = "far_source: " + why;
@@ -130,9 +137,10 @@ std::string FarSourceStats::BriefReport() const {
     << num_grid_searches << " grid searches), its B removed for " << std::fixed << std::setprecision(1) << active_s
     << " s of data";
   if (num_refused_large > 0) o << "; " << num_refused_large << " refused: moment above a ship's";
-  if (num_pre_track_corrected + num_pre_track_occupied > 0) {
+  if (num_pre_track_corrected + num_pre_track_occupied + num_pre_track_already_tracked > 0) {
     o << "; kept samples from before a track's start (counted per fit): " << num_pre_track_corrected
-      << " given its back-predicted B, " << num_pre_track_occupied << " left out as occupied";
+      << " given its back-predicted B, " << num_pre_track_occupied << " left out as occupied, "
+      << num_pre_track_already_tracked << " not given it (its vessel tracked then)";
   }
   if (has_accepted) {
     o << "; last accepted at t " << last_t_s << " s: (" << last_p_W.x() << ", " << last_p_W.y() << ", "
@@ -176,6 +184,14 @@ bool FarSourceOptions::IsValid(std::string* error) const {
   if (!(along_step_m > 0.0) || !std::isfinite(along_step_m)) return Fail(error, "along_step_m must be > 0");
   if (along_extent_m / along_step_m > 100.0) return Fail(error, "along_extent_m / along_step_m must be <= 100");
   return drift.IsValid(error);
+}
+
+bool TrackedWhenKept(const Eigen::Vector3d& p_then_W, const std::vector<Eigen::Vector3d>& p_tracked_W,
+                     double same_vessel_m) {
+  for (const Eigen::Vector3d& p : p_tracked_W) {
+    if ((p.head<2>() - p_then_W.head<2>()).norm() < same_vessel_m) return true;
+  }
+  return false;
 }
 
 Eigen::Vector3d FarSourceModel::PositionAt(double t_s) const {
@@ -377,18 +393,19 @@ bool FarSourceEstimator::WantsEpoch(double t_s) const {
 }
 
 void FarSourceEstimator::AddEpoch(double t_s, const std::vector<FarSourceSample>& used,
-                                  const std::vector<Eigen::Vector3d>& sensors) {
+                                  const std::vector<Eigen::Vector3d>& sensors,
+                                  const std::vector<Eigen::Vector3d>& p_tracked_W) {
   if (!options_.enabled) return;
   // The time its B was removed from: the kept epochs' spacing while active.
   if (active_ && std::isfinite(last_kept_t_) && t_s > last_kept_t_) stats_.active_s += t_s - last_kept_t_;
   last_kept_t_ = t_s;
   if (!sensors.empty()) sensors_ = sensors;
-  kept_.push_back({t_s, used});
+  kept_.push_back({t_s, used, p_tracked_W});
   while (!kept_.empty() && t_s - kept_.front().t_s > options_.window_s) kept_.pop_front();
   const SensorDriftOptions& d = options_.drift;
   if (d.enabled && t_s - last_drift_kept_t_ >= d.sample_interval_s - 1e-6) {
     last_drift_kept_t_ = t_s;
-    drift_kept_.push_back({t_s, used});
+    drift_kept_.push_back({t_s, used, {}});
     while (!drift_kept_.empty() && t_s - drift_kept_.front().t_s > d.window_s) drift_kept_.pop_front();
   }
 }
@@ -407,17 +424,22 @@ bool FarSourceEstimator::StepIfDue(double t_s, const PreTrackFieldFn& pre_track)
       continue;
     }
     for (FarSourceSample s : k.used) {
-      Eigen::Vector3d B = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d T = Eigen::Matrix3d::Zero();
-      double var = 0.0;
-      if (pre_track(s, &B, &T, &var)) {
-        if (options_.occupied_tensor_snr > 0.0 && T.norm() >= options_.occupied_tensor_snr * s.sigma_tensor_Tpm) {
+      PreTrackField f;
+      pre_track(s, k.p_tracked_W, &f);
+      if (f.num_already_tracked > 0) ++stats_.num_pre_track_already_tracked;
+      if (f.num_given > 0) {
+        // Occupied by the later track's vessel: its back-predicted tensor SNR
+        // at least occupied_tensor_snr (the sample rules'), or its B at least
+        // kPreTrackOccupiedBSigmas σ_B (the quiet store's rule for a new
+        // track's approach): a back-prediction's error grows with its field.
+        if ((options_.occupied_tensor_snr > 0.0 && f.T_W.norm() >= options_.occupied_tensor_snr * s.sigma_tensor_Tpm) ||
+            f.B_W.norm() >= kPreTrackOccupiedBSigmas * s.sigma_T) {
           ++stats_.num_pre_track_occupied;
           continue;
         }
         ++stats_.num_pre_track_corrected;
-        s.r_W -= B;
-        s.sigma_T = std::sqrt(s.sigma_T * s.sigma_T + var);
+        s.r_W -= f.B_W;
+        s.sigma_T = std::sqrt(s.sigma_T * s.sigma_T + f.var_T2);
       }
       all.push_back(s);
     }

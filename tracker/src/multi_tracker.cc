@@ -282,11 +282,16 @@ class BackPredictedField {
   BackPredictedField(const WindowTracker* engine, const Eigen::Vector3d& m_B) : engine_(engine), m_B_(m_B) {}
   // False if the engine has no state.
   bool At(double t_s, const Eigen::Vector3d& p_SinW, Eigen::Vector3d* B_W, Eigen::Matrix3d* T_W) {
+    const CtState<double>* s = StateAt(t_s);
+    if (s == nullptr) return false;
+    PredictedField(*s, m_B_, p_SinW, B_W, T_W);
+    return true;
+  }
+  // Its state at t_s (null if the engine has none).
+  const CtState<double>* StateAt(double t_s) {
     auto it = states_.find(t_s);
     if (it == states_.end()) it = states_.emplace(t_s, engine_->PredictState(t_s)).first;
-    if (!it->second) return false;
-    PredictedField(*it->second, m_B_, p_SinW, B_W, T_W);
-    return true;
+    return it->second ? &*it->second : nullptr;
   }
 
  private:
@@ -656,6 +661,10 @@ struct MultiTracker::Impl {
     const internal::QuietRule rule{fo.occupied_tensor_snr, fo.tensor_gate, MultiTrackerOptions::kOtherFieldRelativeError};
     std::vector<FarSourceSample> used;
     std::vector<Eigen::Vector3d> sensors;
+    std::vector<Eigen::Vector3d> p_tracked;  // the tracks whose predicted B is subtracted below
+    for (std::size_t i = 0; i < tracks.size() && i < pred.size(); ++i) {
+      if (pred[i].valid) p_tracked.emplace_back(tracks[i].pred.x, tracks[i].pred.y, tracks[i].pred.z);
+    }
     for (std::size_t j = 0; j < raw.samples.size(); ++j) {
       const GradiometerSample& s = raw.samples[j];
       if (CheckSample(s) != SampleDefect::kNone) continue;
@@ -676,7 +685,7 @@ struct MultiTracker::Impl {
       f.sigma_tensor_Tpm = SigmaT(s, options.track);
       used.push_back(f);
     }
-    far.AddEpoch(raw.t_s, used, sensors);
+    far.AddEpoch(raw.t_s, used, sensors, p_tracked);
     far.StepIfDue(raw.t_s, fo.back_predict_new_tracks ? PreTrackField(raw.t_s) : FarSourceEstimator::PreTrackFieldFn{});
     summary.far_source = far.stats();
   }
@@ -685,7 +694,10 @@ struct MultiTracker::Impl {
   // track's start (FarSourceOptions::back_predict_new_tracks): the tracks
   // started within its window, each predicted back to the sample's time from
   // its engine's newest state (the coordinated-turn model, the moment
-  // constant), their model error as for the tracks known then.
+  // constant), their model error as for the tracks known then; none where a
+  // track whose B was subtracted from the sample when it was kept was within
+  // min_separation_m of that back-predicted position (the same vessel,
+  // tracked then: a re-acquired or restarted track's earlier life).
   FarSourceEstimator::PreTrackFieldFn PreTrackField(double t_s) const {
     struct Young {
       BackPredictedField field;
@@ -697,20 +709,27 @@ struct MultiTracker::Impl {
       young.push_back({BackPredictedField(tr.engine.get(), tr.m_B), tr.t_started_s});
     }
     if (young.empty()) return {};
-    return [young = std::move(young)](const FarSourceSample& s, Eigen::Vector3d* B_W, Eigen::Matrix3d* T_W,
-                                      double* var_T2) mutable {
-      bool any = false;
+    const double same_vessel_m = mg().min_separation_m;
+    return [young = std::move(young), same_vessel_m](const FarSourceSample& s,
+                                                     const std::vector<Eigen::Vector3d>& p_tracked_W,
+                                                     FarSourceEstimator::PreTrackField* f) mutable {
       for (Young& y : young) {
+        if (!(s.t_s < y.t_started_s)) continue;
+        const CtState<double>* then = y.field.StateAt(s.t_s);
+        if (then == nullptr) continue;
+        if (TrackedWhenKept(Eigen::Vector3d(then->x, then->y, then->z), p_tracked_W, same_vessel_m)) {
+          ++f->num_already_tracked;
+          continue;
+        }
         Eigen::Vector3d B;
         Eigen::Matrix3d T;
-        if (!(s.t_s < y.t_started_s) || !y.field.At(s.t_s, s.p_SinW, &B, &T)) continue;
-        *B_W += B;
-        *T_W += T;
-        any = true;
+        if (!y.field.At(s.t_s, s.p_SinW, &B, &T)) continue;
+        f->B_W += B;
+        f->T_W += T;
+        ++f->num_given;
       }
       const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
-      *var_T2 = rel * rel * B_W->squaredNorm() / 3.0;
-      return any;
+      f->var_T2 = rel * rel * f->B_W.squaredNorm() / 3.0;
     };
   }
 

@@ -336,7 +336,9 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--far-back-predict", f->far_back_predict,
                  "far source: at each fit, a kept sample older than a live track's start gets that track's field "
                  "predicted back to its time (its B subtracted, or the sample left out where its tensor would have "
-                 "occupied it) (on), or is fitted as it was kept (off)")
+                 "occupied it or its B is >= 3 sigma_B; nothing where a track within the tracks' min separation was "
+                 "live when the sample was kept: that vessel's B is already out) (on), or is fitted as it was kept "
+                 "(off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--sensor-offset", f->sensor_offset,

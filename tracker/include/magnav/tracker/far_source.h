@@ -145,10 +145,20 @@ struct FarSourceOptions {
   // fit every kept sample older than a live track's start gets that track's
   // field as its state now predicts it back to the sample's time (its
   // coordinated-turn model run backwards, the moment constant): where its
-  // predicted tensor SNR is at least occupied_tensor_snr the sample is left
-  // out of the fit (it would have been occupied), else its B is subtracted and
-  // its model error added to σ (MultiTracker: MultiTrackerOptions::
-  // kOtherFieldRelativeError of it, as for the tracks known when it was kept). Off (false) by default: kept as kept.
+  // predicted tensor SNR is at least occupied_tensor_snr or its predicted B
+  // at least 3 σ_B (the quiet store's rule for a new track's approach; since
+  // session 19: subtracting a strong back-predicted B moved the fits by its
+  // error) the sample is left out of the fit (occupied), else its B is
+  // subtracted and its model error added to σ (MultiTracker:
+  // MultiTrackerOptions::kOtherFieldRelativeError of it, as for the tracks
+  // known when it was kept).
+  // Nothing is given back where a track live when the sample was kept was
+  // within TrackManagementOptions::min_separation_m of the new track's
+  // back-predicted position (its vessel's B was subtracted then): a track
+  // re-acquired or restarted after an earlier one of the same vessel ended
+  // would have that B taken out twice (fresh_drift/drift_6_farship:
+  // docs/ACCURACY.md, "The same vessel's B taken out twice ..."). Off (false)
+  // by default: kept as kept.
   bool back_predict_new_tracks = false;
   // At most this many samples enter one fit: beyond it, an even stride over
   // the window's samples (epoch after epoch, so the sensors kept change from
@@ -203,6 +213,9 @@ struct FarSourceStats {
   // fit) given a later track's back-predicted B, and left out as occupied by it.
   long long num_pre_track_corrected = 0;
   long long num_pre_track_occupied = 0;
+  // ... and (per fit) given nothing by a later track because a track live
+  // when it was kept was at that track's vessel then (its B already out).
+  long long num_pre_track_already_tracked = 0;
   double active_s = 0.0;          // time of data from which its B was removed (s)
   bool has_accepted = false;      // the last accepted fit:
   double last_t_s = 0.0;          //   its newest sample's time (s)
@@ -229,6 +242,16 @@ struct FarSourceSample {
   // started after it (FarSourceOptions::back_predict_new_tracks).
   double sigma_tensor_Tpm = 0.0;
 };
+
+// FarSourceOptions::back_predict_new_tracks: whether a later track's
+// back-predicted position at a kept sample's time (world NED, m) was already
+// tracked when the sample was kept — a track whose B was subtracted from it
+// (`p_tracked_W`, AddEpoch) within `same_vessel_m` horizontally (m;
+// MultiTracker: TrackManagementOptions::min_separation_m, within which two
+// tracks are one vessel). Then that vessel's B is not in the sample: nothing
+// is given back.
+bool TrackedWhenKept(const Eigen::Vector3d& p_then_W, const std::vector<Eigen::Vector3d>& p_tracked_W,
+                     double same_vessel_m);
 
 // A fitted far source (see the model above).
 struct FarSourceModel {
@@ -272,15 +295,28 @@ class FarSourceEstimator {
   bool enabled() const { return options_.enabled; }
   // Whether an epoch at t_s is kept for the fit (one per sample_interval_s).
   bool WantsEpoch(double t_s) const;
-  // One epoch's residual samples (those that passed the sample rules) and
-  // the positions of every sensor in it.
-  void AddEpoch(double t_s, const std::vector<FarSourceSample>& used, const std::vector<Eigen::Vector3d>& sensors);
-  // The field (world NED: B in T, tensor in T/m) at a kept sample of the
-  // tracks started after its time, as they now predict it back to then, and
-  // its model error's variance per axis of B (T²); false if no live track
-  // started after it (FarSourceOptions::back_predict_new_tracks).
+  // One epoch's residual samples (those that passed the sample rules), the
+  // positions of every sensor in it, and the positions of the live tracks
+  // whose predicted B was subtracted from them (world NED, m; for
+  // FarSourceOptions::back_predict_new_tracks).
+  void AddEpoch(double t_s, const std::vector<FarSourceSample>& used, const std::vector<Eigen::Vector3d>& sensors,
+                const std::vector<Eigen::Vector3d>& p_tracked_W = {});
+  // What a kept sample gets from the tracks started after its time
+  // (FarSourceOptions::back_predict_new_tracks).
+  struct PreTrackField {
+    Eigen::Vector3d B_W = Eigen::Vector3d::Zero();  // their B there, as they now predict it back (world NED, T)
+    Eigen::Matrix3d T_W = Eigen::Matrix3d::Zero();  // their tensor there (T/m)
+    double var_T2 = 0.0;                            // its model error's variance per axis of B (T²)
+    int num_given = 0;                              // tracks whose field is in B_W, T_W
+    // Tracks started after it whose back-predicted position was within
+    // reach of a track live when it was kept (`p_tracked_W`): that vessel's
+    // B was subtracted then, nothing given.
+    int num_already_tracked = 0;
+  };
+  // The correction of one kept sample, given the positions of the tracks
+  // whose B was subtracted from it when it was kept.
   using PreTrackFieldFn =
-      std::function<bool(const FarSourceSample&, Eigen::Vector3d* B_W, Eigen::Matrix3d* T_W, double* var_T2)>;
+      std::function<void(const FarSourceSample&, const std::vector<Eigen::Vector3d>& p_tracked_W, PreTrackField*)>;
   // Refits when due at t_s; returns whether it did. `pre_track` (may be
   // empty; used only with back_predict_new_tracks): the correction above.
   bool StepIfDue(double t_s, const PreTrackFieldFn& pre_track = {});
@@ -303,6 +339,7 @@ class FarSourceEstimator {
   struct Kept {
     double t_s;
     std::vector<FarSourceSample> used;
+    std::vector<Eigen::Vector3d> p_tracked_W;  // the live tracks whose B was subtracted (world NED, m)
   };
   std::deque<Kept> kept_;
   std::deque<Kept> drift_kept_;  // the drift's window (sensor_drift.h)
