@@ -18,6 +18,7 @@
 #include "magnav/tracker/checkpoint.h"
 #include "magnav/tracker/multi_tracker.h"
 #include "test_data.h"
+#include "short_overtaking.h"
 #include "two_vessels.h"
 
 namespace magnav::tracker {
@@ -213,11 +214,7 @@ TEST(TrackerCheckpoint, PairRestoredBeforeItsRefitGoesOnBitForBit) {
 // the saved time of the track's last poor fit does not fail it: the fit
 // stays poor until the start, so the restored tracker sees it again.)
 TEST(TrackerCheckpoint, OvertakingRestoredBeforeTheStartBesideATrackGoesOnBitForBit) {
-  FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/overtaking.toml");
-  sc.vessels[0].start_position.x() = -40.0;
-  sc.vessels[0].segments = {{100.0, 0.0}};
-  sc.vessels[1].start_position.x() = -65.0;
-  sc.vessels[1].segments = {{100.0, 0.0}};
+  const FieldScenario sc = testing::ShortOvertaking();
   const SimulatedField f = SimulateField(sc);
   const MultiTrackerOptions options;
   // When the second live track appears (a confirmed one is there already).

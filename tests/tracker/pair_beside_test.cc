@@ -7,12 +7,11 @@
 #include <string>
 #include <vector>
 
-#include "magnav/cli/scenario_file.h"
 #include "magnav/core/simulate.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/multi_tracker.h"
 #include "magnav/tracker/pair_beside.h"
-#include "test_data.h"
+#include "short_overtaking.h"
 
 namespace magnav::tracker {
 namespace {
@@ -93,14 +92,9 @@ TEST(PairBeside, NothingBesideALoneVesselOrWithTheGateOff) {
 // tentative, the time the second live track appeared. It had none (0 s), so
 // the far source's back-prediction never took it for a young track (its
 // field before its start was never given back) and the joint start never
-// took it for a young partner. heldout/overtaking's geometry over 100 s (the
-// checkpoint test's).
+// took it for a young partner. The short overtaking (short_overtaking.h).
 TEST(PairBeside, ATrackStartedBesideATrackedVesselHasItsStartTime) {
-  FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/overtaking.toml");
-  sc.vessels[0].start_position.x() = -40.0;
-  sc.vessels[0].segments = {{100.0, 0.0}};
-  sc.vessels[1].start_position.x() = -65.0;
-  sc.vessels[1].segments = {{100.0, 0.0}};
+  const FieldScenario sc = testing::ShortOvertaking();
   const SimulatedField f = SimulateField(sc);
   MultiTracker tracker(sc.B0, MultiTrackerOptions{});
   double t_beside = -1.0;

@@ -19,6 +19,7 @@
 #include "magnav/core/simulate.h"
 #include "magnav/tracker/multi_tracker.h"
 #include "test_data.h"
+#include "short_overtaking.h"
 #include "two_vessels.h"
 
 namespace magnav::tracker {
@@ -516,14 +517,7 @@ namespace {
 // coverage 0.70 / 0.93, 2 ids each, RMS 0.24 / 1.66 m; docs/ACCURACY.md,
 // "One vessel overtaking another"). This geometry was looked at for that
 // change (not blind); fresh_overtaking/ is the blind check.
-FieldScenario ShortOvertaking() {
-  FieldScenario sc = HeldOut("overtaking");
-  sc.vessels[0].start_position.x() = -40.0;
-  sc.vessels[0].segments = {{100.0, 0.0}};
-  sc.vessels[1].start_position.x() = -65.0;
-  sc.vessels[1].segments = {{100.0, 0.0}};
-  return sc;
-}
+using testing::ShortOvertaking;
 
 TEST(HarbourScenario, WindowKeepsBothVesselsOfAnOvertaking) {
   const auto s = ScoreWindow(ShortOvertaking(), "short overtaking");
