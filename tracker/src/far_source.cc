@@ -9,6 +9,8 @@
 #include <memory>
 #include <sstream>
 
+#include "quiet_sample.h"
+
 namespace magnav::tracker {
 namespace {
 
@@ -20,13 +22,6 @@ constexpr double kMomentUnit = 1e5;
 // from the array's extent; with one sensor it would be 10 m from it and
 // take the near vessel itself), and 8 parameters need B at several sensors.
 constexpr std::size_t kMinSensors = 4;
-// FarSourceOptions::back_predict_new_tracks: a kept sample where a later
-// track's back-predicted B is at least this many σ_B is left out of the fit,
-// not corrected (as MultiTracker's quiet store drops a new track's approach:
-// predicted B >= 3 σ_B). Subtracting it moved the far source's fits on the
-// drift files by the back-prediction's error (docs/ACCURACY.md, "The same
-// vessel's B taken out twice ...").
-constexpr double kPreTrackOccupiedBSigmas = 3.0;
 
 bool Fail(std::string* error, const std::string& why) {
   if (error != nullptr) *error = "far_source: " + why;
@@ -428,12 +423,12 @@ bool FarSourceEstimator::StepIfDue(double t_s, const PreTrackFieldFn& pre_track)
       pre_track(s, k.p_tracked_W, &f);
       if (f.num_already_tracked > 0) ++stats_.num_pre_track_already_tracked;
       if (f.num_given > 0) {
-        // Occupied by the later track's vessel: its back-predicted tensor SNR
-        // at least occupied_tensor_snr (the sample rules'), or its B at least
-        // kPreTrackOccupiedBSigmas σ_B (the quiet store's rule for a new
-        // track's approach): a back-prediction's error grows with its field.
-        if ((options_.occupied_tensor_snr > 0.0 && f.T_W.norm() >= options_.occupied_tensor_snr * s.sigma_tensor_Tpm) ||
-            f.B_W.norm() >= kPreTrackOccupiedBSigmas * s.sigma_T) {
+        // Occupied by the later track's vessel (the quiet store's rule,
+        // internal::OccupiedBy, with the sample rules' tensor SNR): left out,
+        // not corrected — subtracting a strong back-predicted B moved the fits
+        // on the drift files by its error (docs/ACCURACY.md, "The same
+        // vessel's B taken out twice ...").
+        if (internal::OccupiedBy(f.B_W, f.T_W, s.sigma_T, s.sigma_tensor_Tpm, options_.occupied_tensor_snr)) {
           ++stats_.num_pre_track_occupied;
           continue;
         }

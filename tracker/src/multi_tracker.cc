@@ -733,6 +733,9 @@ struct MultiTracker::Impl {
     };
   }
 
+  // The quiet store's sample rule (UpdateQuietOffsets, TakeApproachOutOfQuiet).
+  static constexpr internal::QuietRule kQuietStoreRule{3.0, 4.0, MultiTrackerOptions::kOtherFieldRelativeError};
+
   bool QuietOffsetsOn() const { return options.track.sensor_offset.enabled && options.track.sensor_offset.quiet; }
 
   // A track's window takes its sensors' offsets from their quiet data.
@@ -749,8 +752,7 @@ struct MultiTracker::Impl {
   // (the sample's residual tensor and its recent mean below their gates).
   void UpdateQuietOffsets(const Epoch& e, const std::vector<TrackPrediction>& pred) {
     if (!QuietOffsetsOn()) return;
-    const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
-    const internal::QuietRule rule{3.0, 4.0, rel};
+    const internal::QuietRule& rule = kQuietStoreRule;
     for (std::size_t j = 0; j < e.samples.size(); ++j) {
       const GradiometerSample& s = e.samples[j];
       if (CheckSample(s) != SampleDefect::kNone) continue;
@@ -758,7 +760,10 @@ struct MultiTracker::Impl {
       Eigen::Matrix3d T_tracks;
       SumTracksField(pred, j, &B_tracks, &T_tracks);
       AddResidualTensor(&quiet_tensor_mean, s, e.t_s, T_tracks);
-      if (B_tracks.norm() >= 3.0 * SigmaB(s, options.track)) continue;
+      if (internal::OccupiedBy(B_tracks, T_tracks, SigmaB(s, options.track), SigmaT(s, options.track),
+                               rule.occupied_tensor_snr)) {
+        continue;
+      }
       if (quiet_tensor_mean.window_s() > 0.0 && quiet_tensor_mean.Z(s.sensor_id) > 2.5) continue;
       const internal::QuietSample q = internal::QuietResidual(s, B_tracks, T_tracks, B0_W, options.track, rule);
       if (q.use != internal::QuietUse::kUsed) continue;
@@ -783,10 +788,8 @@ struct MultiTracker::Impl {
             Eigen::Vector3d* B_W, bool* not_quiet) {
           Eigen::Matrix3d T;
           if (!field.At(t_s, p_SinW, B_W, &T)) return false;
-          GradiometerSample s;  // for the σ defaults
-          s.sigma_B = sigma_B;
-          s.sigma_T = sigma_T;
-          *not_quiet = T.norm() >= 3.0 * SigmaT(s, options.track) || B_W->norm() >= 3.0 * SigmaB(s, options.track);
+          // The store's σ are the samples' resolved ones (Add).
+          *not_quiet = internal::OccupiedBy(*B_W, T, sigma_B, sigma_T, kQuietStoreRule.occupied_tensor_snr);
           return true;
         });
     summary.num_quiet_approach_dropped += st.dropped;

@@ -28,6 +28,18 @@ struct QuietRule {
 
 enum class QuietUse { kUsed, kOccupied, kGated };
 
+// A vessel's predicted field B̂, T̂ at a sample (world NED; T, T/m) with the
+// sample's σ_B (T) and σ_T (T/m per element): whether it makes the sample
+// "occupied" — its tensor SNR ‖T̂‖_F / σ_T at least tensor_snr (0: never) or
+// its B at least kOccupiedBSigmas σ_B. The one rule of the quiet store (the
+// live tracks' field, and a confirmed track's approach taken out of it) and
+// of the far source's samples from before a track's start.
+constexpr double kOccupiedBSigmas = 3.0;
+inline bool OccupiedBy(const Eigen::Vector3d& B, const Eigen::Matrix3d& T, double sigma_B, double sigma_T,
+                       double tensor_snr) {
+  return (tensor_snr > 0.0 && T.norm() >= tensor_snr * sigma_T) || B.norm() >= kOccupiedBSigmas * sigma_B;
+}
+
 struct QuietSample {
   QuietUse use = QuietUse::kUsed;
   Eigen::Vector3d r_W = Eigen::Vector3d::Zero();  // set only when used
