@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_overtaking7/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_farsrc6/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/, fresh_drift5/ and fresh_drift6/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_overtaking7/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_farsrc6/, fresh_farsrc7/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/, fresh_drift5/ and fresh_drift6/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -201,6 +201,11 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
     files.push_back({"fresh_farsrc6", name, "far_ship"});
   }
   files.push_back({"fresh_farsrc6", "crossing_far_ship_144", "crossing_far_ship"});
+  // fresh_farsrc7 (blind, session 20): drift files of other kinds (checked below), and two AUVs abreast beside a ship.
+  files.push_back({"fresh_farsrc7", "drift_5_crossing_ship_138", "crossing_far_ship"});
+  files.push_back({"fresh_farsrc7", "drift_3_one", "drift"});
+  files.push_back({"fresh_farsrc7", "far_ship_118_abreast", "abreast_far_ship"});
+  files.push_back({"fresh_farsrc7", "drift_6_overtaking", "overtaking"});
   for (const char* name : {"drift_2", "drift_5"}) files.push_back({"fresh_ghost2", name, "drift"});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma", std::string(kind) + "_s", kind});
   for (const char* kind : {"abreast", "crossing", "overtaking"}) files.push_back({"fresh_sigma2", std::string(kind) + "_s2", kind});
@@ -288,10 +293,16 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         }
       }
       const std::string k = kind;
-      if (k == "abreast") {
-        ASSERT_EQ(f.truth.size(), 2u);
+      if (k == "abreast" || k == "abreast_far_ship") {
+        ASSERT_EQ(f.truth.size(), k == "abreast" ? 2u : 3u);
         EXPECT_GE(pair_min_near, 20.0);
         EXPECT_LE(pair_max_near, 40.0);
+        if (k == "abreast_far_ship") {  // the third vessel as a far_ship file's ship
+          EXPECT_GE(reach[2], 100.0);
+          EXPECT_LE(reach[2], 200.0);
+          EXPECT_GE(sc.vessels[2].moment_body.norm(), 4e5);
+          reach.pop_back();
+        }
       } else if (k == "crossing" || k == "crossing_far_ship") {
         ASSERT_EQ(f.truth.size(), k == "crossing" ? 2u : 3u);
         EXPECT_LE(closest_pair, 10.0);
@@ -318,10 +329,10 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         };
         EXPECT_LT(along(fa), along(same_t(fa.t_s)));
         EXPECT_GT(along(fb), along(same_t(fb.t_s)));
-        // fresh_overtaking2 to 7 pass 5-20 m apart; the older sets 8-12 m.
+        // fresh_overtaking2 to 7 and fresh_farsrc7 pass 5-20 m apart; the older sets 8-12 m.
         const bool wide = set == "fresh_overtaking2" || set == "fresh_overtaking3" || set == "fresh_overtaking4" ||
                           set == "fresh_overtaking5" || set == "fresh_overtaking6" ||
-                          set == "fresh_overtaking7";
+                          set == "fresh_overtaking7" || set == "fresh_farsrc7";
         EXPECT_LE(closest_pair, wide ? 20.0 : 12.0);
       } else if (k == "far_ship") {
         ASSERT_EQ(f.truth.size(), 2u);
@@ -342,7 +353,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/ to fresh_drift6/, fresh_abreast5/drift_abreast_28) drifts too
+      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/ to fresh_drift6/, fresh_abreast5/drift_abreast_28, fresh_farsrc7/) drifts too
         ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
         const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
         EXPECT_GE(per_min, 2.0);
