@@ -322,6 +322,52 @@ TEST(TrackerCheckpoint, WindowOffsetLinesRestoredGoOnBitForBit) {
   EXPECT_THROW(other.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload))), CheckpointError);
 }
 
+// The far source in the checkpoint (version 10): on the held-out far-ship
+// field (a 4.2e5 A·m² ship 150 m off while an AUV crosses), a checkpoint
+// taken while its fit is accepted and the AUV's track is live holds its kept
+// samples, fit and back-off, so the restored tracker removes the same B from
+// the first sample on and goes on bit for bit (before version 10 the far
+// source started empty after a restart and removed nothing for 10 s: the
+// AUV's estimates then differ). Its counters go on too.
+TEST(TrackerCheckpoint, FarSourceRestoredGoesOnBitForBit) {
+  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/far_ship.toml");
+  const SimulatedField f = SimulateField(sc);
+  const MultiTrackerOptions options;  // the defaults: the far source on
+  ASSERT_TRUE(options.far_source.enabled);
+  const CutRun r = RunAndCut(f.samples, sc.B0, options, [&](const MultiTracker& t, const Outputs&, double t_s) {
+    return t.summary().num_confirmed > 0 && t.num_live_tracks() > 0 && t.summary().far_source.num_accepted > 20 &&
+           t_s > 90.0;
+  });
+  ASSERT_GT(r.cut, 0u) << "no checkpoint with a live track and an accepted far source";
+  MultiTracker restored(sc.B0, options);
+  restored.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(r.payload)));
+  const FarSourceStats at_cut = restored.summary().far_source;
+  EXPECT_GT(at_cut.num_accepted, 20);
+  EXPECT_TRUE(at_cut.has_accepted);
+  const Outputs after = Resume(restored, f.samples, r.cut);
+  std::printf("far source: checkpoint at %.1f s (%zu bytes, %d fits accepted so far): the %zu outputs after it "
+              "compared\n",
+              f.samples[r.cut].t_s, r.payload.size(), at_cut.num_accepted, after.out.size());
+  EXPECT_GT(after.out.size(), 100u);
+  ExpectSameAfterCut(after, r);
+  const FarSourceStats& a = restored.summary().far_source;
+  const FarSourceStats& b = r.tracker->summary().far_source;
+  EXPECT_EQ(a.num_fits, b.num_fits);
+  EXPECT_EQ(a.num_accepted, b.num_accepted);
+  EXPECT_EQ(a.num_pre_track_corrected, b.num_pre_track_corrected);
+  EXPECT_EQ(a.active_s, b.active_s);
+  EXPECT_EQ(a.BriefReport(), b.BriefReport());
+  // A corrupt refusal code inside the far source's state is refused, not taken.
+  MultiTracker fresh(sc.B0, options);
+  std::string bad = r.payload;
+  // The refusal byte sits before the interval (F64), the 8 counters, the 3
+  // pre-track counts (I64 each), active_s (F64), has_accepted (U8), last_t_s,
+  // last_p_W (3), last_range_m and last_moment_Am2 (F64): 8 + 64 + 24 + 8 + 1 + 8 + 24 + 16 bytes from the end.
+  const std::size_t refusal_at = bad.size() - (8 + 64 + 24 + 8 + 1 + 8 + 24 + 16) - 1;
+  bad[refusal_at] = static_cast<char>(200);
+  EXPECT_THROW(fresh.RestoreState(bad), CheckpointError);
+}
+
 // RestoreState(DecodeTrackerCheckpoint(file)) into a new tracker with `options`:
 // the CheckpointError's message, or "" if it was taken.
 std::string Refusal(const std::string& file, const MultiTrackerOptions& options, const Eigen::Vector3d& B0) {

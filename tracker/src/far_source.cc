@@ -9,7 +9,9 @@
 #include <memory>
 #include <sstream>
 
+#include "magnav/core/checkpoint.h"
 #include "quiet_sample.h"
+#include "state_io.h"
 
 namespace magnav::tracker {
 namespace {
@@ -536,6 +538,139 @@ Eigen::Vector3d FarSourceEstimator::B(std::uint32_t sensor_id, const Eigen::Vect
   }
   if (sigma_T != nullptr) *sigma_T = std::hypot(std::hypot(s_far, options_.unexplained_sigma_T), s_drift);
   return b;
+}
+
+namespace {
+
+void PutVector3(StateWriter& w, const Eigen::Vector3d& v) {
+  for (int i = 0; i < 3; ++i) w.F64(v[i]);
+}
+Eigen::Vector3d GetVector3(StateReader& r) {
+  Eigen::Vector3d v;
+  for (int i = 0; i < 3; ++i) v[i] = r.F64();
+  return v;
+}
+
+void PutSample(StateWriter& w, const FarSourceSample& s) {
+  w.U32(s.sensor_id);
+  w.F64(s.t_s);
+  PutVector3(w, s.p_SinW);
+  PutVector3(w, s.r_W);
+  for (double v : {s.sigma_T, s.tracks_B_T, s.residual_tensor_mean_z, s.sigma_tensor_Tpm}) w.F64(v);
+}
+FarSourceSample GetSample(StateReader& r) {
+  FarSourceSample s;
+  s.sensor_id = r.U32();
+  s.t_s = r.F64();
+  s.p_SinW = GetVector3(r);
+  s.r_W = GetVector3(r);
+  s.sigma_T = r.F64();
+  s.tracks_B_T = r.F64();
+  s.residual_tensor_mean_z = r.F64();
+  s.sigma_tensor_Tpm = r.F64();
+  return s;
+}
+
+template <class Kept>
+void PutKept(StateWriter& w, const std::deque<Kept>& kept) {
+  w.U64(kept.size());
+  for (const Kept& k : kept) {
+    w.F64(k.t_s);
+    w.U64(k.used.size());
+    for (const FarSourceSample& s : k.used) PutSample(w, s);
+    w.U64(k.p_tracked_W.size());
+    for (const Eigen::Vector3d& p : k.p_tracked_W) PutVector3(w, p);
+  }
+}
+template <class Kept>
+void GetKept(StateReader& r, std::deque<Kept>* kept) {
+  kept->clear();
+  for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
+    Kept k;
+    k.t_s = r.F64();
+    for (std::size_t m = r.Count(internal::kMaxStateCount); m > 0; --m) k.used.push_back(GetSample(r));
+    for (std::size_t m = r.Count(internal::kMaxStateCount); m > 0; --m) k.p_tracked_W.push_back(GetVector3(r));
+    kept->push_back(std::move(k));
+  }
+}
+
+}  // namespace
+
+void FarSourceEstimator::SaveState(StateWriter& w) const {
+  PutKept(w, kept_);
+  PutKept(w, drift_kept_);
+  w.F64(last_drift_kept_t_);
+  w.U64(sensors_.size());
+  for (const Eigen::Vector3d& p : sensors_) PutVector3(w, p);
+  w.F64(last_kept_t_);
+  w.F64(last_fit_t_);
+  const FarSourceModel& m = model_;
+  w.U8(m.valid ? 1 : 0);
+  for (double v : {m.t_ref_s, m.centroid.x(), m.centroid.y(), m.min_range_m, m.d_m, m.theta_rad, m.a0_m, m.u_mps,
+                   m.z_m, m.m_W.x(), m.m_W.y(), m.m_W.z(), m.rms_whitened, m.t_first_s, m.t_last_s}) {
+    w.F64(v);
+  }
+  w.I64(m.num_samples);
+  w.U8(active_ ? 1 : 0);
+  drift_.SaveState(w);
+  w.U8(static_cast<std::uint8_t>(refusal_));
+  w.F64(interval_s_);
+  const FarSourceStats& st = stats_;
+  for (int v : {st.num_fits, st.num_accepted, st.num_refused_no_fit, st.num_refused_moment, st.num_refused_bound,
+                st.num_refused_weak, st.num_refused_large, st.num_grid_searches}) {
+    w.I64(v);
+  }
+  for (long long v : {st.num_pre_track_corrected, st.num_pre_track_occupied, st.num_pre_track_already_tracked}) w.I64(v);
+  w.F64(st.active_s);
+  w.U8(st.has_accepted ? 1 : 0);
+  w.F64(st.last_t_s);
+  PutVector3(w, st.last_p_W);
+  w.F64(st.last_range_m);
+  w.F64(st.last_moment_Am2);
+}
+
+void FarSourceEstimator::RestoreState(StateReader& r) {
+  FarSourceEstimator e(options_);
+  GetKept(r, &e.kept_);
+  GetKept(r, &e.drift_kept_);
+  e.last_drift_kept_t_ = r.F64();
+  for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) e.sensors_.push_back(GetVector3(r));
+  e.last_kept_t_ = r.F64();
+  e.last_fit_t_ = r.F64();
+  FarSourceModel& m = e.model_;
+  m.valid = r.U8() != 0;
+  m.t_ref_s = r.F64();
+  m.centroid.x() = r.F64();
+  m.centroid.y() = r.F64();
+  for (double* v : {&m.min_range_m, &m.d_m, &m.theta_rad, &m.a0_m, &m.u_mps, &m.z_m}) *v = r.F64();
+  m.m_W = GetVector3(r);
+  m.rms_whitened = r.F64();
+  m.t_first_s = r.F64();
+  m.t_last_s = r.F64();
+  m.num_samples = static_cast<int>(r.I64());
+  e.active_ = r.U8() != 0;
+  e.drift_.RestoreState(r);
+  const std::uint8_t refusal = r.U8();
+  if (refusal > static_cast<std::uint8_t>(FarSourceRefusal::kLargeMoment)) {
+    throw CheckpointError("corrupt: far source refusal " + std::to_string(refusal));
+  }
+  e.refusal_ = static_cast<FarSourceRefusal>(refusal);
+  e.interval_s_ = r.F64();
+  FarSourceStats& st = e.stats_;
+  for (int* v : {&st.num_fits, &st.num_accepted, &st.num_refused_no_fit, &st.num_refused_moment,
+                 &st.num_refused_bound, &st.num_refused_weak, &st.num_refused_large, &st.num_grid_searches}) {
+    *v = static_cast<int>(r.I64());
+  }
+  for (long long* v : {&st.num_pre_track_corrected, &st.num_pre_track_occupied, &st.num_pre_track_already_tracked}) {
+    *v = r.I64();
+  }
+  st.active_s = r.F64();
+  st.has_accepted = r.U8() != 0;
+  st.last_t_s = r.F64();
+  st.last_p_W = GetVector3(r);
+  st.last_range_m = r.F64();
+  st.last_moment_Am2 = r.F64();
+  *this = std::move(e);
 }
 
 }  // namespace magnav::tracker

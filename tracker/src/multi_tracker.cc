@@ -309,7 +309,8 @@ struct MultiTracker::Impl {
   internal::WindowClusterBackground cluster{Eigen::Vector3d::Zero(), MultiTrackerOptions{}};
   FarSourceEstimator far;
   // Each sensor's residual tensor over the drift's recent seconds (its
-  // near-source rule, sensor_drift.h); not in the checkpoint, like the far source.
+  // near-source rule, sensor_drift.h); not in the checkpoint (the far source
+  // is, since version 10, with each kept sample's mean as it was).
   internal::ResidualTensorMean tensor_mean;
   // Each sensor's B offset from its quiet data, every track's prior
   // (sensor_offset.quiet, quiet_offset.h), and its sensors' residual tensor
@@ -1839,6 +1840,7 @@ std::string MultiTracker::SaveState() const {
   w.F64(m.last_t);
   m.background.SaveState(w);
   if (m.cluster.enabled()) m.cluster.SaveState(w);
+  m.far.SaveState(w);  // since version 10
   return w.bytes();
 }
 
@@ -1956,7 +1958,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
   m.last_t = r.F64();
   m.background = SensorBackgrounds(m.B0_W, m.options.background);
   m.background.RestoreState(r);
-  m.far = FarSourceEstimator(m.options.far_source);  // not in the checkpoint: fitted again
+  m.far = FarSourceEstimator(m.options.far_source);
   m.tensor_mean = internal::ResidualTensorMean(m.options.far_source.drift.tensor_mean_window_s);
   m.quiet_offsets = internal::QuietOffsets(m.options.track.sensor_offset);
   m.quiet_tensor_mean = internal::ResidualTensorMean(m.options.track.sensor_offset.quiet_tensor_mean_s);
@@ -1969,6 +1971,10 @@ void MultiTracker::RestoreState(const std::string& payload) {
     // saved tracker's last offset step set them.
     for (Track& tr : m.tracks) tr.engine->SetBackgroundOffsets(m.cluster.Fn());
   }
+  // The far source's kept samples, fit, back-off and counters (version 10;
+  // before, it was fitted again from the samples after the restart).
+  m.far.RestoreState(r);
+  m.summary.far_source = m.far.stats();
   if (!r.at_end()) throw CheckpointError("corrupt: bytes after the tracker state");
   impl_ = std::move(fresh);
 }

@@ -1,5 +1,8 @@
 #include "magnav/tracker/sensor_drift.h"
 
+#include "magnav/core/checkpoint.h"
+#include "state_io.h"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -152,6 +155,35 @@ Eigen::Vector3d SensorDrift::At(std::uint32_t sensor_id, double t_s, double* sig
   if (!options_.enabled || it == lines_.end() || !it->second.Confirmed(options_)) return Eigen::Vector3d::Zero();
   if (sigma_T != nullptr) *sigma_T = it->second.SigmaAt(t_s);
   return it->second.At(t_s);
+}
+
+void SensorDrift::SaveState(StateWriter& w) const {
+  w.U64(lines_.size());
+  for (const auto& [id, l] : lines_) {
+    w.U32(id);
+    for (double v : {l.t_ref_s, l.offset_W.x(), l.offset_W.y(), l.offset_W.z(), l.rate_W.x(), l.rate_W.y(),
+                     l.rate_W.z(), l.var_offset, l.cov_offset_rate, l.var_rate}) {
+      w.F64(v);
+    }
+    w.I64(l.num_samples);
+  }
+}
+
+void SensorDrift::RestoreState(StateReader& r) {
+  std::map<std::uint32_t, DriftLine> lines;
+  for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
+    const std::uint32_t id = r.U32();
+    DriftLine l;
+    l.t_ref_s = r.F64();
+    for (int i = 0; i < 3; ++i) l.offset_W[i] = r.F64();
+    for (int i = 0; i < 3; ++i) l.rate_W[i] = r.F64();
+    l.var_offset = r.F64();
+    l.cov_offset_rate = r.F64();
+    l.var_rate = r.F64();
+    l.num_samples = static_cast<int>(r.I64());
+    lines[id] = l;
+  }
+  lines_ = std::move(lines);
 }
 
 }  // namespace magnav::tracker

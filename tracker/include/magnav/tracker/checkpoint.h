@@ -47,7 +47,13 @@ namespace magnav::tracker {
 // reacquire_gate_chi2, also in the configuration): each one's id, end
 // reason and time, last row's time and newest estimate; and the summary's
 // count of re-acquired tracks; a version-8 file is refused.
-inline constexpr std::uint32_t kTrackerCheckpointVersion = 9;
+// Version 10 (2026-11-27, session 20): the far source's whole state
+// (FarSourceEstimator::SaveState: its kept samples with the live tracks'
+// positions when each was kept, the drift's samples and lines, the last fit,
+// its refusal, back-off interval and counters); before, a restored tracker
+// fitted it again from the samples after the restart and removed nothing for
+// its first 10 s; a version-9 file is refused.
+inline constexpr std::uint32_t kTrackerCheckpointVersion = 10;
 inline constexpr CheckpointKind kTrackerCheckpointKind{"MAGNAVTC", kTrackerCheckpointVersion, "magnav-tracker"};
 
 // Header + payload + checksum (core/checkpoint.h's format, the tracker's magic and version).

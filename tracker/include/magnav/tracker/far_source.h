@@ -333,6 +333,12 @@ class FarSourceEstimator {
   // The interval to the next fit (s): solve_interval_s, or longer while
   // fits are refused (the back-off).
   double interval_s() const { return interval_s_; }
+  // Its whole state for a checkpoint (core/checkpoint.h: every kept sample,
+  // the drift's samples and lines, the fit, its refusal, back-off and
+  // counters): a restored estimator goes on bit for bit. The options are the
+  // configuration's (RestoreState keeps this estimator's).
+  void SaveState(StateWriter& w) const;
+  void RestoreState(StateReader& r);
 
  private:
   FarSourceOptions options_;

@@ -40,6 +40,11 @@
 #include <string>
 #include <vector>
 
+namespace magnav {
+class StateWriter;  // core/checkpoint.h
+class StateReader;
+}  // namespace magnav
+
 namespace magnav::tracker {
 
 struct SensorDriftOptions {
@@ -150,6 +155,10 @@ class SensorDrift {
   // and 0 for a sensor never fitted or whose line is not confirmed.
   Eigen::Vector3d At(std::uint32_t sensor_id, double t_s, double* sigma_T = nullptr) const;
   const std::map<std::uint32_t, DriftLine>& lines() const { return lines_; }
+  // Every sensor's line, for a checkpoint (core/checkpoint.h); the options
+  // are the configuration's.
+  void SaveState(StateWriter& w) const;
+  void RestoreState(StateReader& r);
 
  private:
   SensorDriftOptions options_;
