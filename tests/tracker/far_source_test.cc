@@ -451,7 +451,7 @@ TEST(FarSource, OptionsAreChecked) {
   std::string why;
   EXPECT_TRUE(FarSourceOptions{}.IsValid(&why)) << why;
   EXPECT_TRUE(FarSourceOptions{}.enabled);  // on by default since 2026-11-26
-  EXPECT_FALSE(FarSourceOptions{}.back_predict_new_tracks);  // off by default
+  EXPECT_TRUE(FarSourceOptions{}.back_predict_new_tracks);  // on by default since session 20
   EXPECT_EQ(FarSourceOptions{}.max_moment_Am2, 0.0);  // off by default
   {
     FarSourceOptions m;

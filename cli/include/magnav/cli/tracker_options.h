@@ -30,7 +30,7 @@ struct TrackerFlags {
   std::string far_drift = tracker::SensorDriftOptions{}.enabled ? "on" : "off";
   std::string far_drift_batch = tracker::SensorDriftOptions{}.batch_refit ? "on" : "off";
   std::string far_grid_when_refused = "on";
-  std::string far_back_predict = "off";
+  std::string far_back_predict = "on";
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string sensor_offset = tracker::SensorOffsetOptions{}.enabled ? "on" : "off";
