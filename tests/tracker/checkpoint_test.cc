@@ -362,8 +362,9 @@ TEST(TrackerCheckpoint, FarSourceRestoredGoesOnBitForBit) {
   std::string bad = r.payload;
   // The refusal byte sits before the interval (F64), the 8 counters, the 3
   // pre-track counts (I64 each), active_s (F64), has_accepted (U8), last_t_s,
-  // last_p_W (3), last_range_m and last_moment_Am2 (F64): 8 + 64 + 24 + 8 + 1 + 8 + 24 + 16 bytes from the end.
-  const std::size_t refusal_at = bad.size() - (8 + 64 + 24 + 8 + 1 + 8 + 24 + 16) - 1;
+  // last_p_W (a 3 × 1 matrix: rows and columns as U64, then 3 F64), last_range_m and last_moment_Am2 (F64):
+  // 8 + 64 + 24 + 8 + 1 + 8 + 40 + 16 bytes from the end.
+  const std::size_t refusal_at = bad.size() - (8 + 64 + 24 + 8 + 1 + 8 + 40 + 16) - 1;
   bad[refusal_at] = static_cast<char>(200);
   EXPECT_THROW(fresh.RestoreState(bad), CheckpointError);
 }

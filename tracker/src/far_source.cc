@@ -542,20 +542,15 @@ Eigen::Vector3d FarSourceEstimator::B(std::uint32_t sensor_id, const Eigen::Vect
 
 namespace {
 
-void PutVector3(StateWriter& w, const Eigen::Vector3d& v) {
-  for (int i = 0; i < 3; ++i) w.F64(v[i]);
-}
-Eigen::Vector3d GetVector3(StateReader& r) {
-  Eigen::Vector3d v;
-  for (int i = 0; i < 3; ++i) v[i] = r.F64();
-  return v;
-}
+// A 3-vector as every other one in the tracker's checkpoint (state_io.h:
+// its shape checked when read).
+Eigen::Vector3d GetVector3(StateReader& r) { return internal::GetMatrix(r, 3, 1); }
 
 void PutSample(StateWriter& w, const FarSourceSample& s) {
   w.U32(s.sensor_id);
   w.F64(s.t_s);
-  PutVector3(w, s.p_SinW);
-  PutVector3(w, s.r_W);
+  w.Matrix(s.p_SinW);
+  w.Matrix(s.r_W);
   for (double v : {s.sigma_T, s.tracks_B_T, s.residual_tensor_mean_z, s.sigma_tensor_Tpm}) w.F64(v);
 }
 FarSourceSample GetSample(StateReader& r) {
@@ -579,7 +574,7 @@ void PutKept(StateWriter& w, const std::deque<Kept>& kept) {
     w.U64(k.used.size());
     for (const FarSourceSample& s : k.used) PutSample(w, s);
     w.U64(k.p_tracked_W.size());
-    for (const Eigen::Vector3d& p : k.p_tracked_W) PutVector3(w, p);
+    for (const Eigen::Vector3d& p : k.p_tracked_W) w.Matrix(p);
   }
 }
 template <class Kept>
@@ -601,15 +596,17 @@ void FarSourceEstimator::SaveState(StateWriter& w) const {
   PutKept(w, drift_kept_);
   w.F64(last_drift_kept_t_);
   w.U64(sensors_.size());
-  for (const Eigen::Vector3d& p : sensors_) PutVector3(w, p);
+  for (const Eigen::Vector3d& p : sensors_) w.Matrix(p);
   w.F64(last_kept_t_);
   w.F64(last_fit_t_);
   const FarSourceModel& m = model_;
   w.U8(m.valid ? 1 : 0);
   for (double v : {m.t_ref_s, m.centroid.x(), m.centroid.y(), m.min_range_m, m.d_m, m.theta_rad, m.a0_m, m.u_mps,
-                   m.z_m, m.m_W.x(), m.m_W.y(), m.m_W.z(), m.rms_whitened, m.t_first_s, m.t_last_s}) {
+                   m.z_m}) {
     w.F64(v);
   }
+  w.Matrix(m.m_W);
+  for (double v : {m.rms_whitened, m.t_first_s, m.t_last_s}) w.F64(v);
   w.I64(m.num_samples);
   w.U8(active_ ? 1 : 0);
   drift_.SaveState(w);
@@ -624,7 +621,7 @@ void FarSourceEstimator::SaveState(StateWriter& w) const {
   w.F64(st.active_s);
   w.U8(st.has_accepted ? 1 : 0);
   w.F64(st.last_t_s);
-  PutVector3(w, st.last_p_W);
+  w.Matrix(st.last_p_W);
   w.F64(st.last_range_m);
   w.F64(st.last_moment_Am2);
 }

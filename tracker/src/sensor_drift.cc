@@ -161,10 +161,10 @@ void SensorDrift::SaveState(StateWriter& w) const {
   w.U64(lines_.size());
   for (const auto& [id, l] : lines_) {
     w.U32(id);
-    for (double v : {l.t_ref_s, l.offset_W.x(), l.offset_W.y(), l.offset_W.z(), l.rate_W.x(), l.rate_W.y(),
-                     l.rate_W.z(), l.var_offset, l.cov_offset_rate, l.var_rate}) {
-      w.F64(v);
-    }
+    w.F64(l.t_ref_s);
+    w.Matrix(l.offset_W);
+    w.Matrix(l.rate_W);
+    for (double v : {l.var_offset, l.cov_offset_rate, l.var_rate}) w.F64(v);
     w.I64(l.num_samples);
   }
 }
@@ -175,8 +175,8 @@ void SensorDrift::RestoreState(StateReader& r) {
     const std::uint32_t id = r.U32();
     DriftLine l;
     l.t_ref_s = r.F64();
-    for (int i = 0; i < 3; ++i) l.offset_W[i] = r.F64();
-    for (int i = 0; i < 3; ++i) l.rate_W[i] = r.F64();
+    l.offset_W = internal::GetMatrix(r, 3, 1);
+    l.rate_W = internal::GetMatrix(r, 3, 1);
     l.var_offset = r.F64();
     l.cov_offset_rate = r.F64();
     l.var_rate = r.F64();
