@@ -16,6 +16,7 @@
 #include "magnav/tracker/cost_functions.h"
 #include "magnav/tracker/initialize.h"
 #include "magnav/tracker/tracker.h"
+#include "magnav/tracker/variance_factor.h"
 
 namespace magnav::tracker {
 
@@ -419,6 +420,36 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
         Eigen::Matrix<double, 3, 3, Eigen::RowMajor> Cm;
         cov.GetCovarianceBlock(moment.data(), moment.data(), Cm.data());
         P_m = Cm;
+      }
+    }
+    if (sum.covariance_ok && options.batch_variance_factor.enabled && !epochs.empty()) {
+      // The a-posteriori variance factor per epoch (TrackerOptions::
+      // batch_variance_factor): the conditional covariance scaled where the
+      // residuals say the samples hold more than the noise; the spread of
+      // the other models (below) is added unscaled.
+      std::vector<WhitenedResidual> residuals;
+      residuals.reserve(static_cast<std::size_t>(sum.num_samples));
+      for (std::size_t k = 0; k < epochs.size(); ++k) {
+        std::size_t j = 0;
+        for (const internal::Factor& f : factors[k]) {
+          if (f.kind != internal::Factor::Kind::kMeasurement) continue;
+          WhitenedResidual r;
+          r.t_s = epochs[k].t_s;
+          r.sensor_id = epochs[k].samples[j++].sensor_id;
+          if (f.cost->Evaluate(f.blocks.data(), r.e.data(), nullptr) && r.e.allFinite()) residuals.push_back(r);
+        }
+      }
+      std::vector<double> times(epochs.size());
+      for (std::size_t k = 0; k < epochs.size(); ++k) times[k] = epochs[k].t_s;
+      double pass_factor = 1.0;
+      const std::vector<double> block_factor =
+          SlidingVarianceFactors(residuals, times, options.batch_variance_factor_span_s,
+                                 options.measurement_loss_scale_sigma, options.batch_variance_factor, &pass_factor);
+      for (std::size_t k = 0; k < x.size(); ++k) P[k] *= block_factor[k];
+      P_m *= pass_factor;
+      for (const double f : block_factor) {
+        sum.max_variance_factor = std::max(sum.max_variance_factor, f);
+        if (f > 1.0) ++sum.num_variance_factor_epochs;
       }
     }
     if (sum.covariance_ok && options.batch_model_spread && candidates.size() > 1) {

@@ -122,6 +122,8 @@ bool TrackerOptions::IsValid(std::string* error) const {
     return Fail(error, "measurement_loss_scale_sigma must be > 0");
   if (!process.IsValid(error) || !init.IsValid(error)) return false;
   if (!sensor_offset.IsValid(error)) return false;
+  if (!batch_variance_factor.IsValid(error)) return false;
+  if (!PositiveFinite(batch_variance_factor_span_s)) return Fail(error, "batch_variance_factor_span_s must be > 0");
   if (!std::isfinite(epoch_tolerance_s) || epoch_tolerance_s < 0.0) {
     return Fail(error, "epoch_tolerance_s must be >= 0");
   }
@@ -174,6 +176,10 @@ std::string Summary::BriefReport() const {
     << (converged ? ", converged" : ", not converged");
   if (num_rejected_samples > 0) o << ", " << num_rejected_samples << " bad samples left out";
   if (num_dropped_factors > 0) o << ", " << num_dropped_factors << " factors left out of marginalisation";
+  if (num_variance_factor_epochs > 0) {
+    o << ", covariance scaled by the residuals at " << num_variance_factor_epochs << " epochs (factor up to "
+      << max_variance_factor << ")";
+  }
   o << "; " << message;
   return o.str();
 }

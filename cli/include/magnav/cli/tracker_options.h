@@ -33,6 +33,7 @@ struct TrackerFlags {
   std::string far_back_predict = "on";
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
+  std::string batch_variance_factor = tracker::TrackerOptions::BatchVarianceFactorDefaults().enabled ? "on" : "off";
   std::string sensor_offset = tracker::SensorOffsetOptions{}.enabled ? "on" : "off";
   std::string sensor_offset_carry = tracker::SensorOffsetOptions{}.carry ? "on" : "off";
   std::string turn_onset_search =
@@ -77,6 +78,15 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
       ->check(CLI::IsMember({"residuals", "sensor-means"}));
   app.add_option("--variance-factor-quantile", f->options.variance_factor.quantile,
                  "--variance-factor applies above this quantile of chi2_dof/dof")
+      ->capture_default_str();
+  app.add_option("--batch-variance-factor", f->batch_variance_factor,
+                 "batch: scale each state's covariance by the chi2/dof of the sensors' mean whitened residuals over "
+                 "the --batch-variance-factor-span centred on it when above --variance-factor-quantile of "
+                 "chi2_dof/dof (on), or not (off); the rows' sigma only")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--batch-variance-factor-span", t.batch_variance_factor_span_s,
+                 "--batch-variance-factor's span, s")
       ->capture_default_str();
   app.add_option("--q-depth-weak", t.process.depth_weak_m_per_sqrt_s,
                  "depth random walk from an epoch whose measured tensors are all below --depth-weak-snr "
@@ -448,6 +458,8 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.track.sensor_offset.quiet_approach = f.sensor_offset_quiet_approach == "on";
   o.track.sensor_offset.window_lines = f.window_offset_lines == "on";
   o.variance_factor.enabled = f.variance_factor == "on";
+  o.track.batch_variance_factor.enabled = f.batch_variance_factor == "on";
+  o.track.batch_variance_factor.quantile = o.variance_factor.quantile;  // one flag for both
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals
                                     : tracker::VarianceFactorOptions::Statistic::kSensorMeans;

@@ -16,43 +16,17 @@
 // rules use the unscaled covariance.
 #pragma once
 
+#include <Eigen/Core>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "magnav/tracker/options.h"
 #include "magnav/tracker/tracker.h"
 
 namespace magnav::tracker {
 
-struct VarianceFactorOptions {
-  // On by default (docs/ACCURACY.md, "The a-posteriori variance factor"):
-  // over 20 draws it moves the window's overconfident overtaking cells into
-  // [1.5, 6] and fails no cell that passed. Off: covariances as the window
-  // solve gives them.
-  bool enabled = true;
-  // The factor applies when χ²/dof exceeds this quantile of χ²_dof/dof
-  // (0.99: a fit this poor happens by chance once in 100 solves). In (0, 1).
-  double quantile = 0.99;
-  // The factor is at most this (≥ 1): a bound against a diverged solve.
-  double max_factor = 1e4;
-  // What χ² and dof are:
-  //  - kResiduals: every whitened residual of the window's samples (white
-  //    noise assumed): χ² = 2·final_cost, dof = 8·samples (WindowVarianceFactor
-  //    from the Summary; no pass over the samples);
-  //  - kSensorMeans: the per-sensor means of the whitened residuals over the
-  //    window, χ² = Σ_j n_j ‖ē_j‖², dof = 8·sensors
-  //    (WindowTracker::ResidualMeansChi2): a slowly varying unmodelled field
-  //    is a bias over the window's n_j samples, and shifts the estimate as
-  //    much as n_j independent errors would, which this χ² counts (the white
-  //    χ² sees it once per sample). One more evaluation of the window's
-  //    measurement factors per solve.
-  enum class Statistic { kResiduals, kSensorMeans };
-  // kSensorMeans by default: on the held-out overtaking's window (3 draws)
-  // the inside ANEES 60.8 → 3.02 with it, → 38.7 with kResiduals
-  // (docs/ACCURACY.md).
-  Statistic statistic = Statistic::kSensorMeans;
-
-  bool IsValid(std::string* error) const;
-};
+// VarianceFactorOptions: options.h (the batch's factor is a TrackerOptions field).
 
 // s² = chi2 / dof when the factor applies (enabled, dof > 0, s² above the
 // quantile point), capped at max_factor; 1 otherwise.
@@ -68,6 +42,24 @@ double WindowVarianceFactor(const Summary& summary, const VarianceFactorOptions&
 
 // The factor of a window tracker's last solve by options.statistic.
 double WindowVarianceFactor(const WindowTracker& window, const VarianceFactorOptions& options);
+
+// The batch's factor per epoch (TrackerOptions::batch_variance_factor,
+// applied in SolveBatch): the whitened 8-residuals of a batch's samples at
+// its solution, each clipped to norm ≤ clip_sigma (one wild sample moves a
+// sensor's mean by at most clip_sigma / n); for each time in times_s, the
+// samples within ±span_s/2 of it, χ² and dof as kSensorMeans (per sensor j,
+// n_j ‖ē_j‖², 8 dof) or kResiduals (Σ ‖e‖², 8 per sample), and the factor
+// VarianceFactor(χ², dof) — the window's question, asked of the span
+// centred on each epoch. `pass_factor`, if given: the same over the whole
+// pass (for the moment's covariance).
+struct WhitenedResidual {
+  double t_s = 0.0;
+  std::uint32_t sensor_id = 0;
+  Eigen::Matrix<double, 8, 1> e = Eigen::Matrix<double, 8, 1>::Zero();
+};
+std::vector<double> SlidingVarianceFactors(const std::vector<WhitenedResidual>& residuals,
+                                           const std::vector<double>& times_s, double span_s, double clip_sigma,
+                                           const VarianceFactorOptions& options, double* pass_factor = nullptr);
 
 // cov_state ×= factor (when the estimate has a covariance).
 void ScaleCovariance(double factor, EpochEstimate* estimate);
