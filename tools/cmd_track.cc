@@ -300,6 +300,10 @@ void AddTrackCommand(CLI::App& app) {
                        "batch: the other tracks' removed fields are uncertain by their own covariance (position, "
                        "heading, moment; first order) instead of 5 % of their norm (0/1)")
       ->capture_default_str();
+  cmd->add_option("--batch-other-field-rel", args->flags.options.batch_other_field_relative_error,
+                  "batch: the other tracks' removed fields are uncertain by this share of their norm, in [0, 1] "
+                  "(the window keeps 0.05)")
+      ->capture_default_str();
   cli::AddSwitchOption(*cmd, "--batch-model-spread", &args->flags.options.track.batch_model_spread,
                   "batch: add to each state's covariance the spread of the restarts' ends about the chosen one, "
                   "weighted by exp(-cost difference) (model averaging over the turn's change points; 0/1)")

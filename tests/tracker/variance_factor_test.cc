@@ -224,6 +224,26 @@ TEST(BatchVarianceFactor, EpochsScaleWhereTheResidualsAroundThemSaySo) {
   EXPECT_EQ(pass, 1.0);
 }
 
+TEST(BatchVarianceFactor, OptionsAreChecked) {
+  std::string why;
+  TrackerOptions t;
+  EXPECT_TRUE(t.batch_variance_factor.enabled);  // on by default
+  EXPECT_EQ(t.batch_variance_factor_span_s, 20.0);
+  EXPECT_TRUE(t.IsValid(&why)) << why;
+  t.batch_variance_factor_span_s = 0.0;
+  EXPECT_FALSE(t.IsValid(&why));
+  t = TrackerOptions{};
+  t.batch_variance_factor.quantile = 1.5;
+  EXPECT_FALSE(t.IsValid(&why));
+  MultiTrackerOptions m;
+  EXPECT_EQ(m.batch_other_field_relative_error, MultiTrackerOptions::kOtherFieldRelativeError);
+  m.batch_other_field_relative_error = -0.1;
+  EXPECT_FALSE(m.IsValid(&why));
+  EXPECT_NE(why.find("batch_other_field_relative_error"), std::string::npos);
+  m.batch_other_field_relative_error = 0.02;
+  EXPECT_TRUE(m.IsValid(&why)) << why;
+}
+
 // Batch rows of vessel 1 (within 5 m of it): mean 3-dof NEES and tr P.
 EarlyRows BatchRowsOfVessel1(const FieldScenario& sc, const SimulatedField& f,
                              const std::vector<MultiTrackEstimate>& tracks) {

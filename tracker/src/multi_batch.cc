@@ -523,7 +523,7 @@ std::vector<MultiTrackEstimate> SolveBatchMulti(const std::vector<Epoch>& epochs
           if (options.batch_other_field_covariance) {
             RemoveOtherFieldsWithVariance(B_others, T_others, var, sb, st, &s);
           } else {
-            RemoveOtherFields(B_others, T_others, sb, st, &s);
+            RemoveOtherFields(B_others, T_others, sb, st, &s, options.batch_other_field_relative_error);
           }
           // Past its last detection a missed track's B is an untracked
           // vessel's far field as much as its own: only its tensor (which

@@ -117,6 +117,9 @@ bool MultiTrackerOptions::IsValid(std::string* error) const {
     return Fail(error, "the far source and a background model are exclusive");
   }
   if (batch_rounds < 1) return Fail(error, "batch_rounds must be >= 1");
+  if (!(batch_other_field_relative_error >= 0.0 && batch_other_field_relative_error <= 1.0)) {
+    return Fail(error, "batch_other_field_relative_error must be in [0, 1]");
+  }
   if (!PositiveFinite(batch_gate_snr)) return Fail(error, "batch_gate_snr must be > 0");
   if (!PositiveFinite(batch_extension_step_s)) return Fail(error, "batch_extension_step_s must be > 0");
   if (!(batch_turn_loss_scale_sigma >= 0.0 && std::isfinite(batch_turn_loss_scale_sigma))) {

@@ -33,10 +33,11 @@ inline void RemoveModelledFields(const Eigen::Vector3d& B_others, const Eigen::M
   s->sigma_T = std::hypot(sigma_T, model_sigma_T);
 }
 
-// The model error as kOtherFieldRelativeError of the fields' norm.
+// The model error as `rel` of the fields' norm (kOtherFieldRelativeError
+// unless given: the batch's batch_other_field_relative_error).
 inline void RemoveOtherFields(const Eigen::Vector3d& B_others, const Eigen::Matrix3d& T_others, double sigma_B,
-                              double sigma_T, GradiometerSample* s) {
-  const double rel = MultiTrackerOptions::kOtherFieldRelativeError;
+                              double sigma_T, GradiometerSample* s,
+                              double rel = MultiTrackerOptions::kOtherFieldRelativeError) {
   RemoveModelledFields(B_others, T_others, sigma_B, sigma_T, rel * B_others.norm() / std::sqrt(3.0),
                        rel * T_others.norm() / 3.0, s);
 }
