@@ -436,18 +436,18 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
           WhitenedResidual r;
           r.t_s = epochs[k].t_s;
           r.sensor_id = epochs[k].samples[j++].sensor_id;
-          if (f.cost->Evaluate(f.blocks.data(), r.e.data(), nullptr) && r.e.allFinite()) residuals.push_back(r);
+          if (f.cost->Evaluate(f.blocks.data(), r.e.data(), nullptr)) residuals.push_back(r);  // non-finite: left out there
         }
       }
       std::vector<double> times(epochs.size());
       for (std::size_t k = 0; k < epochs.size(); ++k) times[k] = epochs[k].t_s;
       double pass_factor = 1.0;
-      const std::vector<double> block_factor =
+      const std::vector<double> factor =
           SlidingVarianceFactors(residuals, times, options.batch_variance_factor_span_s,
                                  options.measurement_loss_scale_sigma, options.batch_variance_factor, &pass_factor);
-      for (std::size_t k = 0; k < x.size(); ++k) P[k] *= block_factor[k];
+      for (std::size_t k = 0; k < x.size(); ++k) P[k] *= factor[k];
       P_m *= pass_factor;
-      for (const double f : block_factor) {
+      for (const double f : factor) {
         sum.max_variance_factor = std::max(sum.max_variance_factor, f);
         if (f > 1.0) ++sum.num_variance_factor_epochs;
       }

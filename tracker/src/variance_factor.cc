@@ -4,7 +4,6 @@
 #include <cstdint>
 #include <cmath>
 #include <map>
-#include <utility>
 
 #include <boost/math/distributions/chi_squared.hpp>
 

@@ -33,7 +33,7 @@ struct TrackerFlags {
   std::string far_back_predict = "on";
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
-  std::string batch_variance_factor = tracker::TrackerOptions::BatchVarianceFactorDefaults().enabled ? "on" : "off";
+  std::string batch_variance_factor = tracker::TrackerOptions{}.batch_variance_factor.enabled ? "on" : "off";
   std::string sensor_offset = tracker::SensorOffsetOptions{}.enabled ? "on" : "off";
   std::string sensor_offset_carry = tracker::SensorOffsetOptions{}.carry ? "on" : "off";
   std::string turn_onset_search =

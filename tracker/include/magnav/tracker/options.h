@@ -465,16 +465,14 @@ struct TrackerOptions {
   // per-sensor mean whitened residuals over the batch_variance_factor_span_s
   // centred on its epoch where that exceeds the quantile's point (never
   // below 1), and the moment's by the whole pass's. Residuals are clipped at
-  // measurement_loss_scale_sigma first. Only σ changes.
-  VarianceFactorOptions batch_variance_factor = BatchVarianceFactorDefaults();
+  // measurement_loss_scale_sigma first. Only σ changes. On by default
+  // (the window's defaults): over 20 draws the drift cells' ANEES 1279 /
+  // 1952 → 2.5 / 3.1 and far-ship's 6.7 / 30 → 1.2 / 1.7 (inside / outside
+  // the reach), single passes, crossing and abreast unchanged.
+  VarianceFactorOptions batch_variance_factor;
   // > 0, s: the span (the window's 20 s by default: the same question over
   // as much data as the window's factor asks it).
   double batch_variance_factor_span_s = 20.0;
-  // On by default (docs/ACCURACY.md, "The batch's variance factor"): over
-  // 20 draws the drift cells' ANEES 1279 / 1952 → 2.5 / 3.1 and far-ship's
-  // 6.7 / 30 → 1.2 / 1.7 (inside / outside the reach), single passes,
-  // crossing and abreast unchanged; the estimates are the same.
-  static VarianceFactorOptions BatchVarianceFactorDefaults() { return VarianceFactorOptions{}; }
 
   bool IsValid(std::string* error) const;
 };
