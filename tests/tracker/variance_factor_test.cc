@@ -196,6 +196,7 @@ TEST(BatchVarianceFactor, EpochsScaleWhereTheResidualsAroundThemSaySo) {
   // spans of neighbouring epochs overlap; this draw: none.
   int scaled = 0;
   for (double v : f) scaled += v > 1.0;
+  std::printf("white residuals: %d of %zu epochs scaled\n", scaled, f.size());
   EXPECT_LE(scaled, 30);
   EXPECT_EQ(pass, 1.0);
   // One spike of 1e6 σ (a wild but finite sample that passed the door).
@@ -317,7 +318,7 @@ TEST(BatchVarianceFactor, ABatchUnderADriftSaysSoAndACleanOneIsLeftAlone) {
   // (ANEES 1.47, tr P 0.0017 m², as with the factor off).
   ASSERT_FALSE(t_on.empty());
   for (const auto& t : t_on) EXPECT_EQ(t.track.summary.num_variance_factor_epochs, 0);
-  EXPECT_LT(b.anees, 3.0);
+  EXPECT_LT(b.anees, 2.5);  // measured 1.47: twice that fails
 }
 
 }  // namespace
