@@ -301,7 +301,7 @@ std::string ExpectDriftRunGoesOnBitForBit(const MultiTrackerOptions& options, co
 // for bit.
 TEST(TrackerCheckpoint, CarriedSensorOffsetsRestoredGoOnBitForBit) {
   MultiTrackerOptions options;
-  options.track.sensor_offset.enabled = true;
+  options.track.sensor_offset.window = true;
   options.track.sensor_offset.carry = true;
   options.track.sensor_offset.min_tensor_snr = 20.0;
   ExpectDriftRunGoesOnBitForBit(options, "carried sensor offsets");

@@ -172,7 +172,9 @@ TEST(ClusterBackground, VesselOverADriftingSensorBatch) {
   const FieldScenario sc = DriftingSensorField();
   const SimulatedField f = SimulateField(sc);
   MultiTrackerOptions off;
+  off.track.sensor_offset.batch = false;  // B0 fixed: the batch's own offsets (the default) take the drift out too
   MultiTrackerOptions on;
+  on.track.sensor_offset.batch = false;
   on.cluster_background.enabled = true;
   on.far_source.enabled = false;  // on by default; exclusive with a background model
   const auto epochs = GroupEpochs(f.samples, on.track.epoch_tolerance_s);

@@ -757,7 +757,7 @@ namespace {
 // targets, RMS 0.0655 m measured (0.436 m with the option off, main's row).
 TEST(HarbourScenario, WindowWithTheSensorOffsetMeetsTheTargetsOnTheHeldOutDrift) {
   MultiTrackerOptions on;
-  on.track.sensor_offset.enabled = true;
+  on.track.sensor_offset.window = true;
   const auto s = ScoreWindow(HeldOut("drift"), "held-out drift, sensor offset", nullptr, on);
   EXPECT_LE(static_cast<double>(s.false_rows), 0.05 * static_cast<double>(s.rows));  // measured 0 %
   EXPECT_GE(s.coverage[0], 0.8);  // measured 0.889
@@ -800,7 +800,7 @@ TEST(HarbourScenario, WindowOffsetLinesTakeAnUntrackedOvertakersBOut) {
   std::string error;
   EXPECT_TRUE(so.IsValid(&error)) << error;
   EXPECT_TRUE(so.WindowOffsets());
-  so.enabled = true;
+  so.window = true;
   so.carry = true;
   EXPECT_FALSE(so.IsValid(&error));
   so.carry = false;
@@ -821,7 +821,7 @@ TEST(HarbourScenario, WindowOffsetLinesTakeAnUntrackedOvertakersBOut) {
 // meets the targets (less of the free offset's gain).
 MultiTrackerOptions CarriedGatedOffset() {
   MultiTrackerOptions o;
-  o.track.sensor_offset.enabled = true;
+  o.track.sensor_offset.window = true;
   o.track.sensor_offset.carry = true;
   o.track.sensor_offset.min_tensor_snr = 20.0;
   return o;
@@ -909,7 +909,7 @@ TEST(HarbourScenario, BatchWithTheSensorOffsetOnTheHeldOutDriftsPass) {
     if (truth.count(std::llround(s.t_s * sc.rate_hz))) kept.push_back(s);
   }
   TrackerOptions opt;
-  opt.sensor_offset.enabled = true;
+  opt.sensor_offset.batch = true;
   opt.compute_covariance = false;
   const TrackEstimate est = SolveBatch(GroupEpochs(kept, opt.epoch_tolerance_s), sc.B0, opt);
   ASSERT_TRUE(est.summary.usable) << est.summary.message;

@@ -170,10 +170,12 @@ TEST(SensorDrift, OptionsAreChecked) {
 // its prior σ grows with the drift since B0 held, its options are checked.
 TEST(SensorOffset, PriorGrowsWithTheDriftAndOptionsAreChecked) {
   SensorOffsetOptions o;
-  EXPECT_FALSE(o.enabled);  // an option, off
+  EXPECT_FALSE(o.window);  // the window's, an option, off
+  EXPECT_TRUE(o.batch);    // the batch's, on behind its score test
+  EXPECT_TRUE(o.batch_score_test);
   EXPECT_NEAR(o.PriorSigma(0.0), o.floor_T, 1e-15);
   EXPECT_NEAR(o.PriorSigma(600.0), std::hypot(o.floor_T, 60e-9), 1e-12);  // 6 nT/min over 10 min
-  EXPECT_NEAR(o.StepSigma(), 2e-9, 1e-15);                                 // 6 nT/min over 20 s
+  EXPECT_NEAR(o.StepSigma(), 1e-9, 1e-15);                                 // 6 nT/min over 10 s
   std::string why;
   EXPECT_TRUE(o.IsValid(&why)) << why;
   o.passes = 0;
@@ -196,9 +198,9 @@ TEST(SensorOffset, CarryAndTensorGateAreOffAndChecked) {
   EXPECT_EQ(o.min_tensor_snr, 0.0);
   std::string why;
   o.carry = true;
-  EXPECT_FALSE(o.IsValid(&why));  // without enabled
+  EXPECT_FALSE(o.IsValid(&why));  // without window
   EXPECT_NE(why.find("carry"), std::string::npos);
-  o.enabled = true;
+  o.window = true;
   EXPECT_TRUE(o.IsValid(&why)) << why;
   o.min_tensor_snr = -1.0;
   EXPECT_FALSE(o.IsValid(&why));
@@ -217,7 +219,7 @@ TEST(SensorOffset, CarryAndTensorGateAreOffAndChecked) {
 TEST(SensorOffset, QuietOffsetIsTheQuietMedianWalkedAtTheDriftBound) {
   SensorOffsetOptions o;
   EXPECT_FALSE(o.quiet);  // an option, off
-  o.enabled = true;
+  o.window = true;
   o.quiet = true;
   std::string why;
   ASSERT_TRUE(o.IsValid(&why)) << why;
@@ -251,7 +253,7 @@ TEST(SensorOffset, QuietOffsetIsTheQuietMedianWalkedAtTheDriftBound) {
   o.quiet = true;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("quiet"), std::string::npos);
-  o.enabled = true;
+  o.window = true;
   o.quiet_span_s = 0.0;
   EXPECT_FALSE(o.IsValid(&why));
   o.quiet_span_s = 20.0;
@@ -273,7 +275,7 @@ TEST(SensorOffset, QuietOffsetRateFollowsTheDriftRampWhileTheSensorIsOccupied) {
   SensorOffsetOptions o;
   EXPECT_FALSE(o.quiet_rate);  // an option, off
   EXPECT_FALSE(o.quiet_approach);
-  o.enabled = true;
+  o.window = true;
   o.quiet = true;
   o.quiet_rate = true;
   std::string why;
@@ -320,7 +322,7 @@ TEST(SensorOffset, QuietOffsetRateFollowsTheDriftRampWhileTheSensorIsOccupied) {
   EXPECT_FALSE(brief.Rate(4, &rate_fit));
   // Checked: only with the quiet offset; a positive span.
   o = {};
-  o.enabled = true;
+  o.window = true;
   o.quiet_rate = true;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("quiet_rate"), std::string::npos);
@@ -345,7 +347,7 @@ TEST(SensorOffset, QuietOffsetRateFollowsTheDriftRampWhileTheSensorIsOccupied) {
 // 3 nT, subtracted below) the offset is back within 1 nT of zero.
 TEST(SensorOffset, QuietTakeOutRemovesANewTracksApproachFromTheStore) {
   SensorOffsetOptions o;
-  o.enabled = true;
+  o.window = true;
   o.quiet = true;
   o.quiet_rate = true;
   o.quiet_approach = true;

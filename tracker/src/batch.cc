@@ -1,12 +1,15 @@
 #include <ceres/covariance.h>
 #include <ceres/solver.h>
 
+#include <boost/math/distributions/chi_squared.hpp>
+
 #include <chrono>
 #include <cmath>
 #include <functional>
 #include <iterator>
 #include <limits>
 #include <map>
+#include <memory>
 #include <utility>
 
 #include "factors.h"
@@ -77,9 +80,13 @@ std::vector<double> PiecewiseConstantFit(const std::vector<double>& w, int chang
 
 }  // namespace
 
-TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
-                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes,
-                         const std::vector<BatchStart>* starts) {
+namespace {
+
+// One batch solve, offsets as options.sensor_offset.batch says (without the
+// score test); score_offsets: the score test's χ² and dof in its summary.
+TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
+                             const TrackerOptions& options, const std::vector<DipoleFix>* fixes,
+                             const std::vector<BatchStart>* starts, bool score_offsets) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
   if (!B0_W.allFinite()) throw InputError("tracker: B0 is not finite");
@@ -287,7 +294,7 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
     pr.last = r.last;
     pr.final_loss = std::move(r.final_loss);
     r_final_pass = r.reached_final_pass;
-    if (so.enabled) offset_rounds(!last_stage);
+    if (so.batch) offset_rounds(!last_stage);
     if (i0 == 0 && i1 + 1 == epochs.size()) break;
     const double grow = (epochs[i1].t_s - epochs[i0].t_s) * (options.batch_growth_factor - 1.0) * 0.5 + 1.0;
     const std::size_t old0 = i0, old1 = i1;
@@ -393,12 +400,36 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
     e.num_samples = static_cast<int>(epochs[k].samples.size());
     e.usable = sum.usable && x[k].allFinite() && moment.allFinite();
   }
+  if (score_offsets && sum.usable) {
+    // The score test of the segment offsets at zero (SensorOffsetOptions::
+    // batch_score_test): per (sensor, segment) the robust score ‖Σ w r/σ²‖²
+    // over its information Σ w/σ² (r the sample's B residual, w the loss's
+    // weight ρ′ at the solution: n ‖ē‖² of the whitened residuals where
+    // every w is 1; a gross outlier weighs little, as in the solve).
+    std::map<OffsetKey, internal::SensorOffsetAccumulator> scores;
+    for (std::size_t k = 0; k < epochs.size(); ++k) {
+      for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
+        const GradiometerSample& smp = epochs[k].samples[j];
+        scores[key_of(smp, epochs[k].t_s)].Add(factors[k][j], SigmaB(smp, options), Eigen::Vector3d::Zero());
+      }
+    }
+    for (const auto& [key, a] : scores) {
+      if (!(a.information() > 0.0)) continue;
+      sum.offset_score_chi2 += a.weighted_sum().squaredNorm() / a.information();
+      sum.offset_score_dof += 3;
+    }
+  }
 
   if (options.compute_covariance && sum.usable) {
     const auto t_cov = std::chrono::steady_clock::now();
     std::vector<StateCovariance> P(x.size());
     Eigen::Matrix3d P_m;
-    if (options.covariance_method == TrackerOptions::CovarianceMethod::kChain) {
+    // With the sensor offsets solved, the covariance has them marginalised:
+    // each (sensor, segment) offset a parameter block of the covariance's
+    // problem, with its prior and the random walk between a sensor's
+    // consecutive segments (the chain method has one global block only).
+    const bool marginal_offsets = so.batch && !own.empty();
+    if (options.covariance_method == TrackerOptions::CovarianceMethod::kChain && !marginal_offsets) {
       sum.covariance_ok = internal::ChainCovariance(build(false), &P, &P_m);
     } else {
       ceres::Covariance::Options co;
@@ -406,7 +437,45 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
       co.num_threads = options.num_threads;
       ceres::Covariance cov(co);
       ceres::Problem problem(internal::NonOwningProblemOptions());
-      internal::AddToProblem(build(false), &problem);
+      std::vector<std::unique_ptr<ceres::CostFunction>> offset_costs;
+      std::map<OffsetKey, Eigen::Vector3d> offset_nT;  // the offset blocks
+      if (!marginal_offsets) {
+        internal::AddToProblem(build(false), &problem);
+      } else {
+        for (const auto& [key, o] : own) offset_nT.emplace(key, o * 1e9);
+        std::map<const internal::Factor*, OffsetKey> keyed;
+        for (std::size_t k = 0; k < epochs.size(); ++k) {
+          for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
+            const OffsetKey key = key_of(epochs[k].samples[j], epochs[k].t_s);
+            if (own.count(key) != 0) keyed[&factors[k][j]] = key;
+          }
+        }
+        for (const auto& group : build(false).groups) {
+          for (const internal::Factor* f : group) {
+            const auto it = keyed.find(f);
+            if (it == keyed.end()) {
+              internal::AddToProblem(*f, &problem);
+              continue;
+            }
+            Eigen::Vector3d& o = offset_nT.at(it->second);
+            offset_costs.push_back(std::make_unique<internal::OffsetMeasurementCost>(
+                static_cast<const MeasurementCost*>(f->cost.get()), o));
+            problem.AddResidualBlock(offset_costs.back().get(), const_cast<ceres::LossFunction*>(f->loss),
+                                     f->blocks[0], f->blocks[1], o.data());
+          }
+        }
+        for (auto it = offset_nT.begin(); it != offset_nT.end(); ++it) {
+          const double t_mid = t_first + (static_cast<double>(it->first.second) + 0.5) * so.segment_s;
+          offset_costs.push_back(std::make_unique<internal::OffsetPriorCost>(so.PriorSigma(t_mid) * 1e9));
+          problem.AddResidualBlock(offset_costs.back().get(), nullptr, it->second.data());
+          const auto next = std::next(it);
+          if (next != offset_nT.end() && next->first.first == it->first.first &&
+              next->first.second == it->first.second + 1) {
+            offset_costs.push_back(std::make_unique<internal::OffsetStepCost>(so.StepSigma() * 1e9));
+            problem.AddResidualBlock(offset_costs.back().get(), nullptr, it->second.data(), next->second.data());
+          }
+        }
+      }
       std::vector<std::pair<const double*, const double*>> blocks;
       for (auto& s : x) blocks.emplace_back(s.data(), s.data());
       blocks.emplace_back(moment.data(), moment.data());
@@ -487,8 +556,39 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
     }
     sum.covariance_time_s = Seconds(t_cov, std::chrono::steady_clock::now());
   }
+  sum.offsets_solved = options.sensor_offset.batch;
   sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
   return out;
+}
+
+
+}  // namespace
+
+TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
+                         const TrackerOptions& options, const std::vector<DipoleFix>* fixes,
+                         const std::vector<BatchStart>* starts) {
+  const SensorOffsetOptions& so = options.sensor_offset;
+  if (!so.batch || !so.batch_score_test) return SolveBatchOnce(input, B0_W, options, fixes, starts, false);
+  TrackerOptions without = options;
+  without.sensor_offset.batch = false;
+  TrackEstimate est = SolveBatchOnce(input, B0_W, without, fixes, starts, true);
+  const Summary& s0 = est.summary;
+  if (!s0.usable || s0.offset_score_dof == 0 ||
+      s0.offset_score_chi2 <= boost::math::quantile(boost::math::chi_squared(s0.offset_score_dof),
+                                                    options.batch_variance_factor.quantile)) {
+    return est;
+  }
+  TrackEstimate with = SolveBatchOnce(input, B0_W, options, fixes, starts, false);
+  with.summary.offset_score_chi2 = s0.offset_score_chi2;
+  with.summary.offset_score_dof = s0.offset_score_dof;
+  with.summary.total_time_s += s0.total_time_s;
+  if (!with.summary.usable) {
+    // The solve with the offsets failed: the one without them, saying so.
+    est.summary.message += " (the solve with sensor offsets failed: " + with.summary.message + ")";
+    est.summary.total_time_s = with.summary.total_time_s;
+    return est;
+  }
+  return with;
 }
 
 }  // namespace magnav::tracker

@@ -740,7 +740,7 @@ struct MultiTracker::Impl {
   // The quiet store's sample rule (UpdateQuietOffsets, TakeApproachOutOfQuiet).
   static constexpr internal::QuietRule kQuietStoreRule{3.0, 4.0, MultiTrackerOptions::kOtherFieldRelativeError};
 
-  bool QuietOffsetsOn() const { return options.track.sensor_offset.enabled && options.track.sensor_offset.quiet; }
+  bool QuietOffsetsOn() const { return options.track.sensor_offset.window && options.track.sensor_offset.quiet; }
 
   // A track's window takes its sensors' offsets from their quiet data.
   void AttachQuiet(WindowTracker& w) {

@@ -91,8 +91,8 @@ bool SensorOffsetOptions::IsValid(std::string* error) const {
   if (!std::isfinite(b0_time_s)) return Fail(error, "sensor_offset.b0_time_s must be finite");
   if (!PositiveFinite(segment_s)) return Fail(error, "sensor_offset.segment_s must be > 0");
   if (passes < 1 || batch_passes < 1) return Fail(error, "sensor_offset.passes and batch_passes must be >= 1");
-  if (carry && !enabled) return Fail(error, "sensor_offset.carry needs sensor_offset.enabled");
-  if (quiet && !enabled) return Fail(error, "sensor_offset.quiet needs sensor_offset.enabled");
+  if (carry && !window) return Fail(error, "sensor_offset.carry needs sensor_offset.window");
+  if (quiet && !window) return Fail(error, "sensor_offset.quiet needs sensor_offset.window");
   if (!PositiveFinite(quiet_span_s)) return Fail(error, "sensor_offset.quiet_span_s must be > 0");
   if (quiet_min_samples < 1) return Fail(error, "sensor_offset.quiet_min_samples must be >= 1");
   if (!(quiet_tensor_mean_s >= 0.0) || !std::isfinite(quiet_tensor_mean_s)) {
@@ -179,6 +179,12 @@ std::string Summary::BriefReport() const {
   if (num_variance_factor_epochs > 0) {
     o << ", covariance scaled by the residuals at " << num_variance_factor_epochs << " epochs (factor up to "
       << max_variance_factor << ")";
+  }
+  if (offset_score_dof > 0 || offsets_solved) {
+    o << ", sensor offsets " << (offsets_solved ? "solved" : "not solved");
+    if (offset_score_dof > 0) {
+      o << " (B residual means chi2 " << offset_score_chi2 << " on " << offset_score_dof << " dof)";
+    }
   }
   o << "; " << message;
   return o.str();

@@ -114,4 +114,41 @@ std::vector<Eigen::Vector3d> SegmentOffsets(const std::vector<const SensorOffset
   return out;
 }
 
+bool OffsetMeasurementCost::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
+  double* base_jacobians[2] = {jacobians != nullptr ? jacobians[0] : nullptr,
+                               jacobians != nullptr ? jacobians[1] : nullptr};
+  if (!base_->Evaluate(parameters, residuals, jacobians != nullptr ? base_jacobians : nullptr)) return false;
+  const Eigen::Matrix<double, 8, 3> L_B = base_->sqrt_info().leftCols<3>() * 1e-9;
+  Eigen::Map<Eigen::Matrix<double, 8, 1>> e(residuals);
+  e += L_B * (Eigen::Map<const Eigen::Vector3d>(parameters[2]) - o_at_nT_);
+  if (jacobians != nullptr && jacobians[2] != nullptr) {
+    Eigen::Map<Eigen::Matrix<double, 8, 3, Eigen::RowMajor>> J(jacobians[2]);
+    J = L_B;
+  }
+  return true;
+}
+
+bool OffsetPriorCost::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
+  Eigen::Map<Eigen::Vector3d> r(residuals);
+  r = w_ * Eigen::Map<const Eigen::Vector3d>(parameters[0]);
+  if (jacobians != nullptr && jacobians[0] != nullptr) {
+    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> J(jacobians[0]);
+    J = w_ * Eigen::Matrix3d::Identity();
+  }
+  return true;
+}
+
+bool OffsetStepCost::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
+  Eigen::Map<Eigen::Vector3d> r(residuals);
+  r = w_ * (Eigen::Map<const Eigen::Vector3d>(parameters[1]) - Eigen::Map<const Eigen::Vector3d>(parameters[0]));
+  if (jacobians != nullptr) {
+    for (int b = 0; b < 2; ++b) {
+      if (jacobians[b] == nullptr) continue;
+      Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> J(jacobians[b]);
+      J = (b == 0 ? -w_ : w_) * Eigen::Matrix3d::Identity();
+    }
+  }
+  return true;
+}
+
 }  // namespace magnav::tracker::internal

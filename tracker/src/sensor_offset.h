@@ -3,9 +3,11 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <ceres/sized_cost_function.h>
 #include <vector>
 
 #include "factors.h"
+#include "magnav/tracker/cost_functions.h"
 #include "magnav/core/gradiometer.h"
 
 namespace magnav::tracker::internal {
@@ -83,5 +85,42 @@ struct CarriedOffset {
 // its prior σ_k; step_sigma_T = q, the most a drift moves between segments).
 std::vector<Eigen::Vector3d> SegmentOffsets(const std::vector<const SensorOffsetAccumulator*>& segments,
                                            const std::vector<double>& prior_sigma_T, double step_sigma_T);
+
+// A measurement factor with its sensor's offset as a parameter block (for the
+// batch's covariance with the offsets marginalised: SolveBatch with
+// SensorOffsetOptions::batch). The offset block is in nT (world NED; a
+// Jacobian of order 1, as the states'), at o_at_nT when the base factor was
+// set up with that offset (MeasurementCost::SetBackgroundOffset):
+//   e = e_base(x, m) + L_B · (o − o_at) · 1e-9,
+// L_B the first three columns of the base's square-root information.
+class OffsetMeasurementCost final : public ceres::SizedCostFunction<8, 6, 3, 3> {
+ public:
+  OffsetMeasurementCost(const MeasurementCost* base, const Eigen::Vector3d& o_at_nT) : base_(base), o_at_nT_(o_at_nT) {}
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+
+ private:
+  const MeasurementCost* base_;  // not owned
+  Eigen::Vector3d o_at_nT_;
+};
+
+// The offsets' Gaussian priors in nT: one offset's zero-mean prior of σ
+// sigma_nT per axis (blocks {o}), or the random walk between two consecutive
+// segments of one sensor, (o₂ − o₁)/σ (blocks {o₁, o₂}).
+class OffsetPriorCost final : public ceres::SizedCostFunction<3, 3> {
+ public:
+  explicit OffsetPriorCost(double sigma_nT) : w_(1.0 / sigma_nT) {}
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+
+ private:
+  double w_;
+};
+class OffsetStepCost final : public ceres::SizedCostFunction<3, 3, 3> {
+ public:
+  explicit OffsetStepCost(double sigma_nT) : w_(1.0 / sigma_nT) {}
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
+
+ private:
+  double w_;
+};
 
 }  // namespace magnav::tracker::internal

@@ -176,8 +176,9 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.I64(static_cast<std::int64_t>(g.pair_refit_excess));
   // The sensor offsets change every estimate, and the window's checkpoint
   // holds them only when they are on.
+  // The batch's switch is not written: the batch is not checkpointed.
   const SensorOffsetOptions& so = t.sensor_offset;
-  w.I64(static_cast<std::int64_t>(so.enabled));
+  w.I64(static_cast<std::int64_t>(so.window));
   w.I64(static_cast<std::int64_t>(so.passes));
   w.I64(static_cast<std::int64_t>(so.batch_passes));
   w.I64(static_cast<std::int64_t>(so.carry));

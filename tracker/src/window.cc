@@ -269,7 +269,7 @@ struct WindowTracker::Impl {
   // (sensor_offset.carry), their residuals at the current estimate.
   void CarryFrontOffsets() {
     const SensorOffsetOptions& so = options.sensor_offset;
-    if (!so.enabled || !so.carry) return;
+    if (!so.window || !so.carry) return;
     const WindowEpoch& a = window.front();
     std::map<std::uint32_t, internal::SensorOffsetAccumulator> acc;
     for (std::size_t i = 0; i < a.measurements.size(); ++i) {

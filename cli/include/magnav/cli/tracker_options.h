@@ -34,8 +34,9 @@ struct TrackerFlags {
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
   std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
   std::string batch_variance_factor = tracker::TrackerOptions{}.batch_variance_factor.enabled ? "on" : "off";
-  std::string sensor_offset = tracker::SensorOffsetOptions{}.enabled ? "on" : "off";
+  std::string sensor_offset = tracker::SensorOffsetOptions{}.window ? "on" : tracker::SensorOffsetOptions{}.batch ? "batch" : "off";
   std::string sensor_offset_carry = tracker::SensorOffsetOptions{}.carry ? "on" : "off";
+  std::string sensor_offset_score_test = tracker::SensorOffsetOptions{}.batch_score_test ? "on" : "off";
   std::string turn_onset_search =
       tracker::TrackerOptions{}.window_turn_onset_search == tracker::TrackerOptions::OnsetSearch::kFast ? "fast"
                                                                                                         : "full";
@@ -354,9 +355,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--sensor-offset", f->sensor_offset,
                  "each track's window and batch solve gives every sensor a B offset (world NED) as a nuisance, constant "
                  "over the window or over one --sensor-offset-segment of the batch, with a zero-mean prior from the "
-                 "drift model (on), or takes B0 as it is (off)")
+                 "drift model (on), the same in the batch's solve only (behind --sensor-offset-score-test), the "
+                 "window going on with B0 as it is (batch), or takes B0 as it is (off)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+      ->check(CLI::IsMember({"on", "batch", "off"}));
   app.add_option("--sensor-offset-quiet", f->sensor_offset_quiet,
                  "sensor offset (window, with --sensor-offset on; magnav track): each sensor's offset owned by the "
                  "sensor: the median of the B it gave while no track's field (nor an untracked near source) was "
@@ -415,6 +417,12 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--sensor-offset-batch-passes", t.sensor_offset.batch_passes,
                  "sensor offset: at most this many rounds after each stage of the batch's growing solve")
       ->capture_default_str();
+  app.add_option("--sensor-offset-score-test", f->sensor_offset_score_test,
+                 "sensor offset (batch): the batch is solved without offsets first and again with them only when "
+                 "its B residual means per sensor and --sensor-offset-segment call for them (chi2 above the "
+                 "--variance-factor-quantile point; the track file's summary gives it) (on), or always with them (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--far-loss", f->far_loss,
                  "far source: the fit's robust loss on the whitened B residual (cauchy, huber or trivial)")
       ->capture_default_str();
@@ -445,7 +453,9 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   if (!tracker::ParseLossType(f.far_loss, &o.far_source.loss)) {
     throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");
   }
-  o.track.sensor_offset.enabled = f.sensor_offset == "on";
+  o.track.sensor_offset.window = f.sensor_offset == "on";
+  o.track.sensor_offset.batch = f.sensor_offset == "on" || f.sensor_offset == "batch";
+  o.track.sensor_offset.batch_score_test = f.sensor_offset_score_test == "on";
   o.track.sensor_offset.carry = f.sensor_offset_carry == "on";
   if (f.turn_onset_search != "fast" && f.turn_onset_search != "full") {
     throw InputError("--window-turn-onset-search: expected fast or full, got '" + f.turn_onset_search + "'");

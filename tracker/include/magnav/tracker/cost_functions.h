@@ -47,6 +47,7 @@ class MeasurementCost final : public ceres::SizedCostFunction<8, 6, 3> {
   // The B part of the residual at the parameters, unwhitened: the sample's B
   // minus B0 and the offset, minus the dipole's predicted B (world NED, T).
   Eigen::Vector3d BResidual(double const* const* parameters) const;
+  const SqrtInfo8& sqrt_info() const { return sqrt_info_; }
 
  private:
   Eigen::Vector3d p_SinW_;
