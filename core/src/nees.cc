@@ -9,6 +9,12 @@
 
 namespace magnav {
 
+double ChiSquareQuantile(double probability, double dof) {
+  if (probability >= 1.0) return std::numeric_limits<double>::infinity();
+  if (!(probability > 0.0) || !(dof > 0.0) || !std::isfinite(dof)) return 0.0;
+  return boost::math::quantile(boost::math::chi_squared(dof), probability);
+}
+
 NeesInterval RunAveragedNeesInterval(int runs, int dof, double confidence) {
   if (runs < 1 || dof < 1 || !(confidence > 0.0 && confidence < 1.0)) {
     throw std::invalid_argument("RunAveragedNeesInterval: runs >= 1, dof >= 1 and confidence in (0, 1)");

@@ -10,6 +10,7 @@
 #include "magnav/core/ceres_loss.h"
 #include "magnav/core/csv.h"
 #include "magnav/core/error.h"
+#include "magnav/core/nees.h"
 #include "magnav/localizer/crlb.h"
 #include "magnav/localizer/ekf.h"
 #include "magnav/localizer/input.h"

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "magnav/core/error.h"
+#include "magnav/core/nees.h"
 #include "magnav/localizer/checkpoint.h"
 #include "magnav/localizer/crlb.h"
 #include "magnav/localizer/models.h"

@@ -1,7 +1,6 @@
 #include "magnav/localizer/options.h"
 
 #include <cmath>
-#include <limits>
 #include <string>
 
 #include "magnav/core/option_check.h"
@@ -53,38 +52,6 @@ bool LocalizerOptions::IsValid(std::string* error) const {
     return Fail(error, "epoch_tolerance_s must be >= 0");
   }
   return true;
-}
-
-namespace {
-
-// Regularised lower incomplete gamma P(a, x) by its series (converges for
-// every x ≥ 0; the gates need x up to a few tens).
-double GammaP(double a, double x) {
-  if (x <= 0.0) return 0.0;
-  double term = 1.0 / a, sum = term;
-  for (int n = 1; n < 1000; ++n) {
-    term *= x / (a + n);
-    sum += term;
-    if (term < sum * 1e-16) break;
-  }
-  return std::exp(a * std::log(x) - x - std::lgamma(a)) * sum;
-}
-
-}  // namespace
-
-double ChiSquareQuantile(double probability, int dof) {
-  if (probability >= 1.0) return std::numeric_limits<double>::infinity();
-  if (!(probability > 0.0) || dof < 1) return 0.0;
-  // Bisection on the CDF P(dof/2, x/2): monotone, 200 halvings reach the
-  // last bit of any quantile below the upper bracket.
-  const double a = 0.5 * dof;
-  double lo = 0.0, hi = 1.0;
-  while (GammaP(a, 0.5 * hi) < probability && hi < 1e6) hi *= 2.0;
-  for (int i = 0; i < 200 && hi - lo > 1e-12 * hi; ++i) {
-    const double mid = 0.5 * (lo + hi);
-    (GammaP(a, 0.5 * mid) < probability ? lo : hi) = mid;
-  }
-  return 0.5 * (lo + hi);
 }
 
 }  // namespace magnav::localizer

@@ -4,6 +4,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "magnav/core/nees.h"
 #include "magnav/localizer/options.h"
 #include "magnav/localizer/types.h"
 

@@ -27,6 +27,18 @@ TEST(NeesInterval, MatchesChiSquareTables) {
   EXPECT_THROW(RunAveragedNeesInterval(5, 2, 1.0), std::invalid_argument);
 }
 
+TEST(ChiSquareQuantile, MatchesTablesAndItsEdges) {
+  EXPECT_NEAR(ChiSquareQuantile(0.9999, 2), -2.0 * std::log(1e-4), 1e-9);  // 18.42: the localizer's 2-dof gate
+  EXPECT_NEAR(ChiSquareQuantile(0.9999, 3), 21.1075, 1e-3);
+  EXPECT_NEAR(ChiSquareQuantile(0.95, 1), 3.8415, 1e-3);
+  EXPECT_NEAR(ChiSquareQuantile(0.99, 16), 32.0, 1e-3);
+  EXPECT_NEAR(ChiSquareQuantile(0.99, 276), 333.6, 0.2);  // the tracker's offset score test, 92 segments
+  EXPECT_TRUE(std::isinf(ChiSquareQuantile(1.0, 3)));
+  EXPECT_EQ(ChiSquareQuantile(0.0, 3), 0.0);
+  EXPECT_EQ(ChiSquareQuantile(0.5, 0.0), 0.0);
+  EXPECT_EQ(ChiSquareQuantile(std::nan(""), 3), 0.0);
+}
+
 // 2-D errors drawn with σ = 1 per axis; the estimator says σ = `claimed`.
 std::vector<NeesSample> Draws(double claimed, int runs, int epochs, std::uint64_t seed) {
   std::mt19937_64 rng(seed);

@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 
 #include "magnav/core/csv.h"
+#include "magnav/core/nees.h"
 #include "magnav/core/simulate.h"
 #include "magnav/localizer/batch.h"
 #include "magnav/localizer/ekf.h"

@@ -1,8 +1,6 @@
 #include <ceres/covariance.h>
 #include <ceres/solver.h>
 
-#include <boost/math/distributions/chi_squared.hpp>
-
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -10,11 +8,13 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <utility>
 
 #include "factors.h"
 #include "sensor_offset.h"
 #include "magnav/core/error.h"
+#include "magnav/core/nees.h"
 #include "magnav/core/units.h"
 #include "magnav/tracker/cost_functions.h"
 #include "magnav/tracker/initialize.h"
@@ -84,9 +84,12 @@ namespace {
 
 // One batch solve, offsets as options.sensor_offset.batch says (without the
 // score test); score_offsets: the score test's χ² and dof in its summary.
+// *initial: the initial track, computed here when empty and reused when not
+// (the second solve of SolveBatch starts where the first did).
 TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
                              const TrackerOptions& options, const std::vector<DipoleFix>* fixes,
-                             const std::vector<BatchStart>* starts, bool score_offsets) {
+                             const std::vector<BatchStart>* starts, bool score_offsets,
+                             std::optional<InitialTrack>* initial) {
   std::string why;
   if (!options.IsValid(&why)) throw InputError("tracker options: " + why);
   if (!B0_W.allFinite()) throw InputError("tracker: B0 is not finite");
@@ -109,12 +112,13 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
   }
   sum.num_epochs = static_cast<int>(epochs.size());
 
-  const std::optional<InitialTrack> init = InitializeTrack(epochs, B0_W, options, fixes);
-  if (!init) {
+  if (!initial->has_value()) *initial = InitializeTrack(epochs, B0_W, options, fixes);
+  if (!initial->has_value()) {
     sum.message = NoTrackMessage(options, fixes != nullptr);
     sum.total_time_s = Seconds(t_start, std::chrono::steady_clock::now());
     return out;
   }
+  const InitialTrack* init = &initial->value();
   sum.initialized = true;
   sum.num_init_fixes = static_cast<int>(init->fixes.size());
   sum.init_from_external_fixes = init->from_external_fixes;
@@ -561,24 +565,23 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
   return out;
 }
 
-
 }  // namespace
 
 TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d& B0_W,
                          const TrackerOptions& options, const std::vector<DipoleFix>* fixes,
                          const std::vector<BatchStart>* starts) {
   const SensorOffsetOptions& so = options.sensor_offset;
-  if (!so.batch || !so.batch_score_test) return SolveBatchOnce(input, B0_W, options, fixes, starts, false);
+  std::optional<InitialTrack> init;
+  if (!so.batch || !so.batch_score_test) return SolveBatchOnce(input, B0_W, options, fixes, starts, false, &init);
   TrackerOptions without = options;
   without.sensor_offset.batch = false;
-  TrackEstimate est = SolveBatchOnce(input, B0_W, without, fixes, starts, true);
+  TrackEstimate est = SolveBatchOnce(input, B0_W, without, fixes, starts, true, &init);
   const Summary& s0 = est.summary;
   if (!s0.usable || s0.offset_score_dof == 0 ||
-      s0.offset_score_chi2 <= boost::math::quantile(boost::math::chi_squared(s0.offset_score_dof),
-                                                    options.batch_variance_factor.quantile)) {
+      s0.offset_score_chi2 <= ChiSquareQuantile(options.batch_variance_factor.quantile, s0.offset_score_dof)) {
     return est;
   }
-  TrackEstimate with = SolveBatchOnce(input, B0_W, options, fixes, starts, false);
+  TrackEstimate with = SolveBatchOnce(input, B0_W, options, fixes, starts, false, &init);
   with.summary.offset_score_chi2 = s0.offset_score_chi2;
   with.summary.offset_score_dof = s0.offset_score_dof;
   with.summary.total_time_s += s0.total_time_s;

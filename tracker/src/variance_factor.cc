@@ -5,7 +5,7 @@
 #include <cmath>
 #include <map>
 
-#include <boost/math/distributions/chi_squared.hpp>
+#include "magnav/core/nees.h"
 
 namespace magnav::tracker {
 
@@ -28,7 +28,7 @@ bool VarianceFactorOptions::IsValid(std::string* error) const {
 double VarianceFactor(double chi2, double dof, const VarianceFactorOptions& options) {
   if (!options.enabled || !(dof > 0.0) || !std::isfinite(chi2) || !std::isfinite(dof)) return 1.0;
   const double s2 = chi2 / dof;
-  const double bound = boost::math::quantile(boost::math::chi_squared(dof), options.quantile) / dof;
+  const double bound = ChiSquareQuantile(options.quantile, dof) / dof;
   if (!(s2 > bound)) return 1.0;
   return std::min(std::max(s2, 1.0), options.max_factor);
 }

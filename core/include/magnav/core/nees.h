@@ -31,6 +31,12 @@ struct NeesSample {
   double error_sq = 0.0;
 };
 
+// The `probability` quantile of χ² with `dof` degrees of freedom (dof > 0):
+// +inf for probability >= 1, 0 for probability <= 0 or dof <= 0 (or NaN).
+// The gates and score tests of every module (localizer NIS gates, tracker
+// variance factors and offset score test).
+double ChiSquareQuantile(double probability, double dof);
+
 // Two-sided `confidence` interval of the run-averaged NEES of `runs` runs at
 // `dof` degrees of freedom: χ²⁻¹((1 ∓ confidence)/2; runs·dof) / runs.
 // Throws std::invalid_argument for runs < 1, dof < 1 or confidence outside (0, 1).

@@ -70,7 +70,8 @@ struct LocalizerOptions {
   // Outlier gate, as a probability per update. EKF: a magnetometer (3 dof) or
   // GNSS (2 dof) update whose normalised innovation squared (innovation
   // covariance S = H P Hᵀ + R, so a large P during convergence widens the gate)
-  // exceeds the χ² quantile of this probability is refused and counted; at
+  // exceeds the χ² quantile of this probability (magnav::ChiSquareQuantile,
+  // core/nees.h) is refused and counted; at
   // 0.9999 the gate is NIS > 21.1 (3 dof) / 18.4 (2 dof): a valid update is
   // refused once in 10⁴. Batch: residuals beyond the same quantile at the
   // solution are counted as outliers (the robust losses above bound their
@@ -113,10 +114,5 @@ struct LocalizerOptions {
 
   bool IsValid(std::string* error) const;
 };
-
-// The χ² quantile of `probability` with `dof` degrees of freedom (dof ≥ 1,
-// probability in (0, 1)); +inf for probability ≥ 1. The gates of
-// LocalizerOptions::gate_probability.
-double ChiSquareQuantile(double probability, int dof);
 
 }  // namespace magnav::localizer
