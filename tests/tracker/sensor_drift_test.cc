@@ -173,6 +173,7 @@ TEST(SensorOffset, PriorGrowsWithTheDriftAndOptionsAreChecked) {
   EXPECT_FALSE(o.window);  // the window's, an option, off
   EXPECT_TRUE(o.batch);    // the batch's, on behind its score test
   EXPECT_TRUE(o.batch_score_test);
+  EXPECT_TRUE(o.batch_joint);  // and its joint solve after the rounds
   EXPECT_NEAR(o.PriorSigma(0.0), o.floor_T, 1e-15);
   EXPECT_NEAR(o.PriorSigma(600.0), std::hypot(o.floor_T, 60e-9), 1e-12);  // 6 nT/min over 10 min
   EXPECT_NEAR(o.StepSigma(), 1e-9, 1e-15);                                 // 6 nT/min over 10 s

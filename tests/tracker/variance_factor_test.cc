@@ -352,12 +352,20 @@ TEST(BatchVarianceFactor, ABatchUnderADriftSaysSoTheOffsetsTakeItOutAndACleanOne
     EXPECT_TRUE(s.offsets_solved);
     EXPECT_GT(s.offset_score_chi2, 100.0 * s.offset_score_dof);
     ASSERT_GT(d.n, 500);
-    EXPECT_LE(rms_def, 2.0 * 0.109);  // m; measured 0.109 (offsets off: 0.974)
-    EXPECT_GE(rms_off, 4.0 * rms_def);  // measured 8.9x
-    // 3 dof; measured 1.90, within [0.5, 2] x 3; twice that (3.8) fails too
-    // (20 s segments and 8 rounds, the offsets' former defaults: NEES 17.6).
-    EXPECT_LE(d.anees, 3.5);
-    EXPECT_GE(d.anees, 1.5);
+    // m; measured 0.0543 with the joint solve (SensorOffsetOptions::
+    // batch_joint), 0.109 with the rounds alone, which this bound fails
+    // (offsets off: 0.974).
+    EXPECT_LE(rms_def, 1.6 * 0.0543);
+    ASSERT_TRUE(defaults.track.sensor_offset.batch_joint);
+    EXPECT_GE(rms_off, 8.0 * rms_def);  // measured 17.9x
+    // 3 dof; measured 1.04 with the joint solve: conservative in this run
+    // (the acceptance is [0.5, 2] x 3; over 20 draws the drift's cells are
+    // 2.04 inside, 1.36 outside, docs/ACCURACY.md "The batch's offsets solved
+    // jointly with the track"). σ halved (4x the NEES, 4.2) or doubled (0.26)
+    // fails; so did the rounds alone before the joint solve with 20 s
+    // segments and 8 rounds (NEES 17.6).
+    EXPECT_LE(d.anees, 2.1);
+    EXPECT_GE(d.anees, 0.5);
   }
   sc.background_drift_Tps.clear();  // the same vessel and noise, no drift
   const SimulatedField f = SimulateField(sc);

@@ -384,6 +384,84 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
       }
     }
   }
+  // The problem with every solved (sensor, segment) offset a parameter block
+  // (nT): each sample's factor then depends on its segment's offset
+  // (OffsetMeasurementCost, at the offset its factor was set up with), with
+  // the offsets' priors and the random walk between a sensor's consecutive
+  // segments. The joint solve below and the covariance use it.
+  struct OffsetProblem {
+    std::map<OffsetKey, Eigen::Vector3d> offset_nT;  // the offset blocks
+    std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  };
+  const auto add_offset_problem = [&](ceres::Problem* problem, OffsetProblem* op) {
+    for (const auto& [key, o] : own) op->offset_nT.emplace(key, o * 1e9);
+    std::map<const internal::Factor*, OffsetKey> keyed;
+    for (std::size_t k = 0; k < epochs.size(); ++k) {
+      for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
+        const OffsetKey key = key_of(epochs[k].samples[j], epochs[k].t_s);
+        if (own.count(key) != 0) keyed[&factors[k][j]] = key;
+      }
+    }
+    for (const auto& group : build(false).groups) {
+      for (const internal::Factor* f : group) {
+        const auto it = keyed.find(f);
+        if (it == keyed.end()) {
+          internal::AddToProblem(*f, problem);
+          continue;
+        }
+        Eigen::Vector3d& o = op->offset_nT.at(it->second);
+        op->costs.push_back(std::make_unique<internal::OffsetMeasurementCost>(
+            static_cast<const MeasurementCost*>(f->cost.get()), o));
+        problem->AddResidualBlock(op->costs.back().get(), const_cast<ceres::LossFunction*>(f->loss), f->blocks[0],
+                                  f->blocks[1], o.data());
+      }
+    }
+    for (auto it = op->offset_nT.begin(); it != op->offset_nT.end(); ++it) {
+      const double t_mid = t_first + (static_cast<double>(it->first.second) + 0.5) * so.segment_s;
+      op->costs.push_back(std::make_unique<internal::OffsetPriorCost>(so.PriorSigma(t_mid) * 1e9));
+      problem->AddResidualBlock(op->costs.back().get(), nullptr, it->second.data());
+      const auto next = std::next(it);
+      if (next != op->offset_nT.end() && next->first.first == it->first.first &&
+          next->first.second == it->first.second + 1) {
+        op->costs.push_back(std::make_unique<internal::OffsetStepCost>(so.StepSigma() * 1e9));
+        problem->AddResidualBlock(op->costs.back().get(), nullptr, it->second.data(), next->second.data());
+      }
+    }
+  };
+  // The joint solve (SensorOffsetOptions::batch_joint), from the rounds' end;
+  // its summary is the batch's (a joint solve that fails keeps the rounds').
+  if (so.batch && so.batch_joint && !own.empty() && r_final_pass && pr.last.IsSolutionUsable()) {
+    ceres::Problem problem(internal::NonOwningProblemOptions());
+    OffsetProblem op;
+    add_offset_problem(&problem, &op);
+    ceres::Solver::Options sopt;
+    sopt.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+    sopt.max_num_iterations = options.max_num_iterations;
+    sopt.function_tolerance = options.function_tolerance;
+    sopt.gradient_tolerance = options.gradient_tolerance;
+    sopt.parameter_tolerance = options.parameter_tolerance;
+    sopt.num_threads = options.num_threads;
+    const std::vector<StateVector> x_kept = x;
+    const Eigen::Vector3d moment_kept = moment;
+    ceres::Solver::Summary js;
+    ceres::Solve(sopt, &problem, &js);
+    pr.iterations += static_cast<int>(js.iterations.size()) - 1;
+    pr.solve_time_s += js.total_time_in_seconds;
+    if (js.IsSolutionUsable()) {
+      for (const auto& [key, o] : op.offset_nT) own[key] = o * 1e-9;
+      for (std::size_t k = 0; k < epochs.size(); ++k) {
+        for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
+          const auto it = own.find(key_of(epochs[k].samples[j], epochs[k].t_s));
+          static_cast<MeasurementCost*>(factors[k][j].cost.get())
+              ->SetBackgroundOffset(it == own.end() ? Eigen::Vector3d::Zero() : it->second);
+        }
+      }
+      pr.last = js;
+    } else {
+      x = x_kept;
+      moment = moment_kept;
+    }
+  }
   const ceres::Solver::Summary& cs = pr.last;
   sum.usable = cs.IsSolutionUsable();
   sum.converged = r_final_pass && cs.termination_type == ceres::CONVERGENCE;
@@ -441,44 +519,11 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
       co.num_threads = options.num_threads;
       ceres::Covariance cov(co);
       ceres::Problem problem(internal::NonOwningProblemOptions());
-      std::vector<std::unique_ptr<ceres::CostFunction>> offset_costs;
-      std::map<OffsetKey, Eigen::Vector3d> offset_nT;  // the offset blocks
+      OffsetProblem op;
       if (!marginal_offsets) {
         internal::AddToProblem(build(false), &problem);
       } else {
-        for (const auto& [key, o] : own) offset_nT.emplace(key, o * 1e9);
-        std::map<const internal::Factor*, OffsetKey> keyed;
-        for (std::size_t k = 0; k < epochs.size(); ++k) {
-          for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
-            const OffsetKey key = key_of(epochs[k].samples[j], epochs[k].t_s);
-            if (own.count(key) != 0) keyed[&factors[k][j]] = key;
-          }
-        }
-        for (const auto& group : build(false).groups) {
-          for (const internal::Factor* f : group) {
-            const auto it = keyed.find(f);
-            if (it == keyed.end()) {
-              internal::AddToProblem(*f, &problem);
-              continue;
-            }
-            Eigen::Vector3d& o = offset_nT.at(it->second);
-            offset_costs.push_back(std::make_unique<internal::OffsetMeasurementCost>(
-                static_cast<const MeasurementCost*>(f->cost.get()), o));
-            problem.AddResidualBlock(offset_costs.back().get(), const_cast<ceres::LossFunction*>(f->loss),
-                                     f->blocks[0], f->blocks[1], o.data());
-          }
-        }
-        for (auto it = offset_nT.begin(); it != offset_nT.end(); ++it) {
-          const double t_mid = t_first + (static_cast<double>(it->first.second) + 0.5) * so.segment_s;
-          offset_costs.push_back(std::make_unique<internal::OffsetPriorCost>(so.PriorSigma(t_mid) * 1e9));
-          problem.AddResidualBlock(offset_costs.back().get(), nullptr, it->second.data());
-          const auto next = std::next(it);
-          if (next != offset_nT.end() && next->first.first == it->first.first &&
-              next->first.second == it->first.second + 1) {
-            offset_costs.push_back(std::make_unique<internal::OffsetStepCost>(so.StepSigma() * 1e9));
-            problem.AddResidualBlock(offset_costs.back().get(), nullptr, it->second.data(), next->second.data());
-          }
-        }
+        add_offset_problem(&problem, &op);
       }
       std::vector<std::pair<const double*, const double*>> blocks;
       for (auto& s : x) blocks.emplace_back(s.data(), s.data());

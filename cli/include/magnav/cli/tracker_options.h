@@ -37,6 +37,7 @@ struct TrackerFlags {
   std::string sensor_offset = tracker::SensorOffsetOptions{}.window ? "on" : tracker::SensorOffsetOptions{}.batch ? "batch" : "off";
   std::string sensor_offset_carry = tracker::SensorOffsetOptions{}.carry ? "on" : "off";
   std::string sensor_offset_score_test = tracker::SensorOffsetOptions{}.batch_score_test ? "on" : "off";
+  std::string sensor_offset_joint = tracker::SensorOffsetOptions{}.batch_joint ? "on" : "off";
   std::string turn_onset_search =
       tracker::TrackerOptions{}.window_turn_onset_search == tracker::TrackerOptions::OnsetSearch::kFast ? "fast"
                                                                                                         : "full";
@@ -423,6 +424,11 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "--variance-factor-quantile point; the track file's summary gives it) (on), or always with them (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "off"}));
+  app.add_option("--sensor-offset-joint", f->sensor_offset_joint,
+                 "sensor offset (batch): after the rounds of offsets and track, one joint solve of the track and "
+                 "every offset (on), or the rounds' end as the solution (off)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"on", "off"}));
   app.add_option("--far-loss", f->far_loss,
                  "far source: the fit's robust loss on the whitened B residual (cauchy, huber or trivial)")
       ->capture_default_str();
@@ -456,6 +462,7 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   o.track.sensor_offset.window = f.sensor_offset == "on";
   o.track.sensor_offset.batch = f.sensor_offset == "on" || f.sensor_offset == "batch";
   o.track.sensor_offset.batch_score_test = f.sensor_offset_score_test == "on";
+  o.track.sensor_offset.batch_joint = f.sensor_offset_joint == "on";
   o.track.sensor_offset.carry = f.sensor_offset_carry == "on";
   if (f.turn_onset_search != "fast" && f.turn_onset_search != "full") {
     throw InputError("--window-turn-onset-search: expected fast or full, got '" + f.turn_onset_search + "'");

@@ -238,6 +238,15 @@ struct SensorOffsetOptions {
   // 0.050 → 0.357 m with 20 s segments and 8 rounds, the offsets solved
   // unconditionally), and the B residuals say there is nothing to explain.
   bool batch_score_test = true;
+  // With batch: after the alternation (the offsets given the track, the track
+  // given the offsets, up to batch_passes rounds from each stage), one joint
+  // solve of the track and every (sensor, segment) offset as parameter blocks
+  // of one problem, from the alternation's end — the optimum at which the
+  // covariance (the offsets marginalised) is computed. Where the track's range
+  // and its sensors' offsets are held by the same few samples (a departure
+  // beyond the reach) the alternation stops short of it (docs/ACCURACY.md,
+  // "The batch's offsets solved jointly with the track").
+  bool batch_joint = true;
   bool carry = false;
   double min_tensor_snr = 0.0;
   bool quiet = false;
