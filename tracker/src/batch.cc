@@ -434,13 +434,8 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
     ceres::Problem problem(internal::NonOwningProblemOptions());
     OffsetProblem op;
     add_offset_problem(&problem, &op);
-    ceres::Solver::Options sopt;
-    sopt.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-    sopt.max_num_iterations = options.max_num_iterations;
-    sopt.function_tolerance = options.function_tolerance;
-    sopt.gradient_tolerance = options.gradient_tolerance;
-    sopt.parameter_tolerance = options.parameter_tolerance;
-    sopt.num_threads = options.num_threads;
+    const ceres::Solver::Options sopt =
+        internal::SparseSolverOptions(options, options.max_num_iterations, options.function_tolerance);
     const std::vector<StateVector> x_kept = x;
     const Eigen::Vector3d moment_kept = moment;
     ceres::Solver::Summary js;

@@ -24,12 +24,7 @@ double NextLossScale(const std::vector<Factor*>& measurements, double nominal, d
 PassResult SolveWithContinuation(const TrackerOptions& options, int max_iterations_per_pass,
                                  bool intermediate, const std::vector<Factor*>& measurements,
                                  bool warm_up_turn_rate, const std::function<ChainProblem(bool warm_turn)>& build) {
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  so.max_num_iterations = max_iterations_per_pass;
-  so.gradient_tolerance = options.gradient_tolerance;
-  so.parameter_tolerance = options.parameter_tolerance;
-  so.num_threads = options.num_threads;
+  ceres::Solver::Options so = SparseSolverOptions(options, max_iterations_per_pass, options.function_tolerance);
   ChainSolverOptions co;
   co.max_num_iterations = max_iterations_per_pass;
   co.gradient_tolerance = options.gradient_tolerance;

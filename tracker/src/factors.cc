@@ -23,6 +23,18 @@ ceres::Problem::Options NonOwningProblemOptions() {
   return o;
 }
 
+ceres::Solver::Options SparseSolverOptions(const TrackerOptions& options, int max_iterations,
+                                           double function_tolerance) {
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.max_num_iterations = max_iterations;
+  so.function_tolerance = function_tolerance;
+  so.gradient_tolerance = options.gradient_tolerance;
+  so.parameter_tolerance = options.parameter_tolerance;
+  so.num_threads = options.num_threads;
+  return so;
+}
+
 void AddToProblem(const Factor& f, ceres::Problem* problem) {
   problem->AddResidualBlock(f.cost.get(), const_cast<ceres::LossFunction*>(f.loss), f.blocks);
 }

@@ -34,6 +34,13 @@ void AddToProblem(const Factor& f, ceres::Problem* problem);
 // Problem options that leave cost and loss functions to their owner.
 ceres::Problem::Options NonOwningProblemOptions();
 
+// Solver options of the track's Ceres solves (the batch's continuation passes
+// and joint solve, the window's Ceres solve): sparse normal Cholesky, at most
+// max_iterations, the given function tolerance and the gradient and parameter
+// tolerances and threads of `options`.
+ceres::Solver::Options SparseSolverOptions(const TrackerOptions& options, int max_iterations,
+                                           double function_tolerance);
+
 // Measurement factors of one epoch.
 void AddMeasurementFactors(const Epoch& epoch, const Eigen::Vector3d& B0_W, const TrackerOptions& options,
                            double moment_scale, double* state, double* moment, std::vector<Factor>* out);

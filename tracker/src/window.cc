@@ -884,13 +884,8 @@ struct WindowTracker::Impl {
     } else {
       ceres::Problem problem(internal::NonOwningProblemOptions());
       internal::AddToProblem(Chain(), &problem);
-      ceres::Solver::Options so;
-      so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-      so.max_num_iterations = options.window_max_num_iterations;
-      so.function_tolerance = options.window_function_tolerance;
-      so.gradient_tolerance = options.gradient_tolerance;
-      so.parameter_tolerance = options.parameter_tolerance;
-      so.num_threads = options.num_threads;
+      const ceres::Solver::Options so =
+          internal::SparseSolverOptions(options, options.window_max_num_iterations, options.window_function_tolerance);
       ceres::Solve(so, &problem, &cs);
       iterations = static_cast<int>(cs.iterations.size()) - 1;
       initial_cost = cs.initial_cost;
