@@ -217,6 +217,16 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
     return OffsetKey{smp.sensor_id, static_cast<long>(std::floor((t_s - t_first) / so.segment_s))};
   };
   std::map<OffsetKey, Eigen::Vector3d> own;
+  // Every sample's factor set up with its segment's offset in `own` (zero where none).
+  const auto set_offsets = [&] {
+    for (std::size_t k = 0; k < epochs.size(); ++k) {
+      for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
+        const auto it = own.find(key_of(epochs[k].samples[j], epochs[k].t_s));
+        static_cast<MeasurementCost*>(factors[k][j].cost.get())
+            ->SetBackgroundOffset(it == own.end() ? Eigen::Vector3d::Zero() : it->second);
+      }
+    }
+  };
   const auto offset_rounds = [&](bool intermediate) {
     for (int pass = 0; pass < so.batch_passes && r_final_pass && pr.last.IsSolutionUsable(); ++pass) {
       std::map<OffsetKey, internal::SensorOffsetAccumulator> acc;
@@ -265,13 +275,7 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
         }
         first = std::next(last);
       }
-      for (std::size_t k = 0; k < epochs.size(); ++k) {
-        for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
-          const auto it = own.find(key_of(epochs[k].samples[j], epochs[k].t_s));
-          static_cast<MeasurementCost*>(factors[k][j].cost.get())
-              ->SetBackgroundOffset(it == own.end() ? Eigen::Vector3d::Zero() : it->second);
-        }
-      }
+      set_offsets();
       internal::PassResult r = internal::SolveWithContinuation(options, options.max_num_iterations, intermediate,
                                                                measurements, false, build);
       pr.iterations += r.iterations;
@@ -444,13 +448,7 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
     pr.solve_time_s += js.total_time_in_seconds;
     if (js.IsSolutionUsable()) {
       for (const auto& [key, o] : op.offset_nT) own[key] = o * 1e-9;
-      for (std::size_t k = 0; k < epochs.size(); ++k) {
-        for (std::size_t j = 0; j < epochs[k].samples.size(); ++j) {
-          const auto it = own.find(key_of(epochs[k].samples[j], epochs[k].t_s));
-          static_cast<MeasurementCost*>(factors[k][j].cost.get())
-              ->SetBackgroundOffset(it == own.end() ? Eigen::Vector3d::Zero() : it->second);
-        }
-      }
+      set_offsets();
       pr.last = js;
     } else {
       x = x_kept;
