@@ -1,7 +1,9 @@
 // The command-line helpers of magnav::cli: a yes/no option takes 0/1,
 // true/false or on/off and refuses any other value (CLI11 alone turns any
-// integer into a bool: "--x 2" would silently mean on, "--x -1" off).
+// integer into a bool: "--x 2" would silently mean on, "--x -1" off); an
+// on/off option takes only on or off, and its default is its option's own.
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -72,6 +74,74 @@ TEST(SwitchOption, TrackerAndParticleFilterSwitchesRefuseAnInteger) {
     AddParticleFilterOptions(app, &pf);
     ASSERT_TRUE(Parses(app, {"prog", "--adaptive-sigma", "off"}));
     EXPECT_FALSE(pf.adaptive_sigma);
+  }
+}
+
+TEST(OnOffOption, TakesOnOrOffOnlyAndShowsTheOptionsOwnDefault) {
+  for (const bool initial : {false, true}) {
+    for (const auto& [value, accepted, result] :
+         {std::tuple<std::string, bool, bool>{"on", true, true}, {"off", true, false}, {"1", false, initial},
+          {"true", false, initial}, {"ON", false, initial}, {"", false, initial}}) {
+      CLI::App app;
+      bool b = initial;
+      CLI::Option* o = AddOnOffOption(app, "--x", &b, "a choice");
+      EXPECT_EQ(o->get_default_str(), initial ? "on" : "off");
+      EXPECT_EQ(Parses(app, {"prog", "--x", value}), accepted) << value;
+      EXPECT_EQ(b, result) << value;
+    }
+    CLI::App app;
+    bool b = initial;
+    AddOnOffOption(app, "--x", &b, "a choice");
+    ASSERT_TRUE(Parses(app, {"prog"}));
+    EXPECT_EQ(b, initial) << "not given: the option keeps its value";
+  }
+}
+
+TEST(OnOffOption, TrackerFlagsGiveTheLibraryDefaultsAndSetTheirOptions) {
+  {
+    CLI::App app;
+    TrackerFlags flags;
+    AddTrackerOptions(app, &flags, "fixes");
+    ASSERT_TRUE(Parses(app, {"prog"}));
+    const tracker::MultiTrackerOptions o = ApplyTrackerFlags(flags);
+    const tracker::MultiTrackerOptions d;
+    EXPECT_EQ(o.background.enabled, d.background.enabled);
+    EXPECT_EQ(o.cluster_background.enabled, d.cluster_background.enabled);
+    EXPECT_EQ(o.far_source.drift.enabled, d.far_source.drift.enabled);
+    EXPECT_EQ(o.far_source.drift.batch_refit, d.far_source.drift.batch_refit);
+    EXPECT_EQ(o.far_source.grid_when_refused, d.far_source.grid_when_refused);
+    EXPECT_EQ(o.far_source.back_predict_new_tracks, d.far_source.back_predict_new_tracks);
+    EXPECT_EQ(o.variance_factor.enabled, d.variance_factor.enabled);
+    EXPECT_EQ(o.track.batch_variance_factor.enabled, d.track.batch_variance_factor.enabled);
+    EXPECT_EQ(o.track.sensor_offset.carry, d.track.sensor_offset.carry);
+    EXPECT_EQ(o.track.sensor_offset.batch_score_test, d.track.sensor_offset.batch_score_test);
+    EXPECT_EQ(o.track.sensor_offset.batch_joint, d.track.sensor_offset.batch_joint);
+    EXPECT_EQ(o.track.sensor_offset.quiet, d.track.sensor_offset.quiet);
+    EXPECT_EQ(o.track.sensor_offset.quiet_rate, d.track.sensor_offset.quiet_rate);
+    EXPECT_EQ(o.track.sensor_offset.quiet_rate_span_s, d.track.sensor_offset.quiet_rate_span_s);
+    EXPECT_EQ(o.track.sensor_offset.quiet_approach, d.track.sensor_offset.quiet_approach);
+    EXPECT_EQ(o.track.sensor_offset.window_lines, d.track.sensor_offset.window_lines);
+  }
+  {
+    // Each flag set against its default reaches its own option.
+    const tracker::MultiTrackerOptions d;
+    auto word = [](bool on) { return std::string(on ? "off" : "on"); };  // the opposite of the default
+    CLI::App app;
+    TrackerFlags flags;
+    AddTrackerOptions(app, &flags, "fixes");
+    ASSERT_TRUE(Parses(app, {"prog", "--far-drift", word(d.far_source.drift.enabled), "--far-back-predict",
+                             word(d.far_source.back_predict_new_tracks), "--batch-variance-factor",
+                             word(d.track.batch_variance_factor.enabled), "--sensor-offset-joint",
+                             word(d.track.sensor_offset.batch_joint), "--window-offset-lines",
+                             word(d.track.sensor_offset.window_lines), "--sensor-offset-quiet-rate-span", "30"}));
+    const tracker::MultiTrackerOptions o = ApplyTrackerFlags(flags);
+    EXPECT_NE(o.far_source.drift.enabled, d.far_source.drift.enabled);
+    EXPECT_NE(o.far_source.back_predict_new_tracks, d.far_source.back_predict_new_tracks);
+    EXPECT_NE(o.track.batch_variance_factor.enabled, d.track.batch_variance_factor.enabled);
+    EXPECT_NE(o.track.sensor_offset.batch_joint, d.track.sensor_offset.batch_joint);
+    EXPECT_NE(o.track.sensor_offset.window_lines, d.track.sensor_offset.window_lines);
+    EXPECT_EQ(o.track.sensor_offset.quiet_rate_span_s, 30.0);
+    EXPECT_EQ(o.far_source.grid_when_refused, d.far_source.grid_when_refused);  // not given: as it was
   }
 }
 

@@ -51,6 +51,18 @@ inline CLI::Option* AddSwitchOption(CLI::App& app, const std::string& name, bool
       ->type_name("0|1");
 }
 
+// An "on"/"off" option bound to a bool of an options struct. Its default is
+// the struct's own value as the flag is added (shown as on or off), so a
+// flag cannot disagree with the library's documented default; only "on" or
+// "off" is accepted (AddSwitchOption takes 0/1 and true/false too).
+inline CLI::Option* AddOnOffOption(CLI::App& app, const std::string& name, bool* out, const std::string& help) {
+  return app
+      .add_option_function<std::string>(
+          name, [out](const std::string& s) { *out = s == "on"; }, help)
+      ->check(CLI::IsMember({"on", "off"}))
+      ->default_str(*out ? "on" : "off");
+}
+
 // The regional field B0 of a service: "--b0 BX,BY,BZ" (tesla, NED) or
 // "--b0 estimate" (per sensor, from quiet stretches of the stream). There is
 // no default: a service that is given neither refuses to start (a silent

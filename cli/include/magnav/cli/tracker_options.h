@@ -22,30 +22,14 @@ struct TrackerFlags {
   std::string loss = tracker::LossTypeName(tracker::TrackerOptions{}.measurement_loss);
   std::string turn_loss = tracker::LossTypeName(tracker::ProcessNoise{}.turn_rate_loss);
   std::string init_from = tracker::InitSourceName(tracker::InitOptions{}.source);
-  std::string background = tracker::BackgroundOptions{}.enabled ? "on" : "off";
-  std::string cluster_background = tracker::ClusterBackgroundOptions{}.enabled ? "on" : "off";
   // auto: the library default (on) unless a background model is chosen, with
   // which it is exclusive.
   std::string far_source = "auto";
-  std::string far_drift = tracker::SensorDriftOptions{}.enabled ? "on" : "off";
-  std::string far_drift_batch = tracker::SensorDriftOptions{}.batch_refit ? "on" : "off";
-  std::string far_grid_when_refused = "on";
-  std::string far_back_predict = "on";
   std::string far_loss = tracker::LossTypeName(tracker::FarSourceOptions{}.loss);
-  std::string variance_factor = tracker::VarianceFactorOptions{}.enabled ? "on" : "off";
-  std::string batch_variance_factor = tracker::TrackerOptions{}.batch_variance_factor.enabled ? "on" : "off";
   std::string sensor_offset = tracker::SensorOffsetOptions{}.window ? "on" : tracker::SensorOffsetOptions{}.batch ? "batch" : "off";
-  std::string sensor_offset_carry = tracker::SensorOffsetOptions{}.carry ? "on" : "off";
-  std::string sensor_offset_score_test = tracker::SensorOffsetOptions{}.batch_score_test ? "on" : "off";
-  std::string sensor_offset_joint = tracker::SensorOffsetOptions{}.batch_joint ? "on" : "off";
   std::string turn_onset_search =
       tracker::TrackerOptions{}.window_turn_onset_search == tracker::TrackerOptions::OnsetSearch::kFast ? "fast"
                                                                                                         : "full";
-  std::string sensor_offset_quiet = tracker::SensorOffsetOptions{}.quiet ? "on" : "off";
-  std::string sensor_offset_quiet_rate = tracker::SensorOffsetOptions{}.quiet_rate ? "on" : "off";
-  double sensor_offset_quiet_rate_span_s = tracker::SensorOffsetOptions{}.quiet_rate_span_s;
-  std::string sensor_offset_quiet_approach = tracker::SensorOffsetOptions{}.quiet_approach ? "on" : "off";
-  std::string window_offset_lines = tracker::SensorOffsetOptions{}.window_lines ? "on" : "off";
   std::string variance_factor_statistic =
       tracker::VarianceFactorOptions{}.statistic == tracker::VarianceFactorOptions::Statistic::kResiduals
           ? "residuals"
@@ -68,11 +52,9 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--q-position", t.process.position_m_per_sqrt_s, "horizontal (x, y) position random walk, m/sqrt(s)")
       ->capture_default_str();
   app.add_option("--q-depth", t.process.depth_m_per_sqrt_s, "depth (z) random walk, m/sqrt(s)")->capture_default_str();
-  app.add_option("--variance-factor", f->variance_factor,
+  AddOnOffOption(app, "--variance-factor", &f->options.variance_factor.enabled,
                  "window: scale each track's reported covariance by its window's chi2/dof when above "
-                 "--variance-factor-quantile of chi2_dof/dof (on), or not (off); the rows' sigma only")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "--variance-factor-quantile of chi2_dof/dof (on), or not (off); the rows' sigma only");
   app.add_option("--variance-factor-statistic", f->variance_factor_statistic,
                  "--variance-factor's chi2: every whitened residual (residuals) or each sensor's mean residual over "
                  "the window (sensor-means)")
@@ -81,12 +63,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--variance-factor-quantile", f->options.variance_factor.quantile,
                  "--variance-factor applies above this quantile of chi2_dof/dof")
       ->capture_default_str();
-  app.add_option("--batch-variance-factor", f->batch_variance_factor,
+  AddOnOffOption(app, "--batch-variance-factor", &t.batch_variance_factor.enabled,
                  "batch: scale each state's covariance by the chi2/dof of the sensors' mean whitened residuals over "
                  "the --batch-variance-factor-span centred on it when above --variance-factor-quantile of "
-                 "chi2_dof/dof (on), or not (off); the rows' sigma only")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "chi2_dof/dof (on), or not (off); the rows' sigma only");
   app.add_option("--batch-variance-factor-span", t.batch_variance_factor_span_s,
                  "--batch-variance-factor's span, s")
       ->capture_default_str();
@@ -240,10 +220,8 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "... and the track's predicted tensor SNR at the fix's sensor at least this")
       ->capture_default_str();
   tracker::BackgroundOptions& b = f->options.background;
-  app.add_option("--background", f->background,
-                 "each sensor's background B0 estimated with the tracks (on) or the fixed B0 (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+  AddOnOffOption(app, "--background", &b.enabled,
+                 "each sensor's background B0 estimated with the tracks (on) or the fixed B0 (off)");
   app.add_option("--bg-rate-walk", b.rate_walk_T_per_s_per_sqrt_s,
                  "background: random walk of its rate of change, T/s/sqrt(s)")
       ->capture_default_str();
@@ -253,11 +231,9 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "background: a residual B with chi-square (3 axes) above this is down-weighted to it")
       ->capture_default_str();
   tracker::ClusterBackgroundOptions& c = f->options.cluster_background;
-  app.add_option("--cluster-background", f->cluster_background,
+  AddOnOffOption(app, "--cluster-background", &c.enabled,
                  "each sensor's B0 offset estimated jointly with the tracks that see it, per window solve and batch "
-                 "round (on), or the fixed B0 (off); not with --background on")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "round (on), or the fixed B0 (off); not with --background on");
   app.add_option("--cbg-prior-sigma", c.prior_sigma_T, "cluster background: zero-mean prior of each offset, T")
       ->capture_default_str();
   app.add_option("--cbg-walk", c.walk_T_per_sqrt_s, "cluster background: random walk of each offset, T/sqrt(s)")
@@ -300,21 +276,17 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "far source: that allowance also in the initiator's searches (single-sample fixes, pair start; 1, "
                  "the default) or only in the fits (0: the single start's moment fit, the association, the solves)")
       ->capture_default_str();
-  app.add_option("--far-drift", f->far_drift,
+  AddOnOffOption(app, "--far-drift", &fs.drift.enabled,
                  "far source: each sensor's drift (a line in time over the far source's window) fitted with it and "
-                 "removed (on), or the fixed B0 (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "removed (on), or the fixed B0 (off)");
   app.add_option("--far-drift-tensor-window", fs.drift.tensor_mean_window_s,
                  "far source's drift: a sample enters a sensor's line only while that sensor's residual tensor, "
                  "averaged over this many seconds, is within --far-drift-tensor-gate (an untracked near vessel), s "
                  "(0 = off)")
       ->capture_default_str();
-  app.add_option("--far-drift-batch", f->far_drift_batch,
+  AddOnOffOption(app, "--far-drift-batch", &fs.drift.batch_refit,
                  "far source's drift: the batch refits each sensor's line over the whole pass with its refined tracks "
-                 "(on) or removes the finder's causal line (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "(on) or removes the finder's causal line (off)");
   app.add_option("--far-drift-min-span", fs.drift.min_span_s,
                  "far source's drift: a sensor's line is fitted (and removed) only once its quiet samples span this "
                  "long, s")
@@ -332,11 +304,9 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--far-along", fs.along_extent_m,
                  "far source: its start grid's along-line positions reach this far from the line's closest point, m")
       ->capture_default_str();
-  app.add_option("--far-grid-when-refused", f->far_grid_when_refused,
+  AddOnOffOption(app, "--far-grid-when-refused", &fs.grid_when_refused,
                  "far source: after a refused fit, search the start grid again (on) or only when the previous fit "
-                 "no longer fits (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "no longer fits (off)");
   app.add_option("--far-bound-accept-moment", fs.bound_accept_moment_Am2,
                  "far source: a fit pressed against its bound is still removed when its moment is at least this "
                  "(a ship far along its line), A m^2 (0 = off: every fit at the bound is refused)")
@@ -345,14 +315,12 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "far source: a fit whose moment is above this is not removed (no ship is that strong; a drift of "
                  "every sensor's B0 is mimicked by a huge source far off), A m^2 (0 = off: any moment is removed)")
       ->capture_default_str();
-  app.add_option("--far-back-predict", f->far_back_predict,
+  AddOnOffOption(app, "--far-back-predict", &fs.back_predict_new_tracks,
                  "far source: at each fit, a kept sample older than a live track's start gets that track's field "
                  "predicted back to its time (its B subtracted, or the sample left out where its tensor would have "
                  "occupied it or its B is >= 3 sigma_B; nothing where a track within the tracks' min separation was "
                  "live when the sample was kept: that vessel's B is already out) (on), or is fitted as it was kept "
-                 "(off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "(off)");
   app.add_option("--sensor-offset", f->sensor_offset,
                  "each track's window and batch solve gives every sensor a B offset (world NED) as a nuisance, constant "
                  "over the window or over one --sensor-offset-segment of the batch, with a zero-mean prior from the "
@@ -360,42 +328,32 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "window going on with B0 as it is (batch), or takes B0 as it is (off)")
       ->capture_default_str()
       ->check(CLI::IsMember({"on", "batch", "off"}));
-  app.add_option("--sensor-offset-quiet", f->sensor_offset_quiet,
+  AddOnOffOption(app, "--sensor-offset-quiet", &t.sensor_offset.quiet,
                  "sensor offset (window, with --sensor-offset on; magnav track): each sensor's offset owned by the "
                  "sensor: the median of the B it gave while no track's field (nor an untracked near source) was "
                  "there, walked at --sensor-offset-rate since, as every track's prior (taken as it is below "
-                 "--sensor-offset-min-tensor-snr) (on), or as the other sensor-offset flags say (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
-  app.add_option("--sensor-offset-quiet-rate", f->sensor_offset_quiet_rate,
+                 "--sensor-offset-min-tensor-snr) (on), or as the other sensor-offset flags say (off)");
+  AddOnOffOption(app, "--sensor-offset-quiet-rate", &t.sensor_offset.quiet_rate,
                  "sensor offset (with --sensor-offset-quiet on): each sensor's quiet offset is a line in time, its "
                  "rate from the medians of the older and newer halves of its last --sensor-offset-quiet-rate-span s of "
                  "quiet samples (bounded by --sensor-offset-rate), predicted to the window with its sigma growing (on), "
-                 "or the median walked at --sensor-offset-rate (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
-  app.add_option("--sensor-offset-quiet-rate-span", f->sensor_offset_quiet_rate_span_s,
+                 "or the median walked at --sensor-offset-rate (off)");
+  app.add_option("--sensor-offset-quiet-rate-span", t.sensor_offset.quiet_rate_span_s,
                  "sensor offset (with --sensor-offset-quiet-rate on): the span of quiet samples the line is fitted "
                  "over, s")
       ->capture_default_str();
-  app.add_option("--sensor-offset-quiet-approach", f->sensor_offset_quiet_approach,
+  AddOnOffOption(app, "--sensor-offset-quiet-approach", &t.sensor_offset.quiet_approach,
                  "sensor offset (with --sensor-offset-quiet on): when a track is confirmed, its back-predicted field is taken "
                  "out of every sensor's stored quiet samples (dropped where it would have made the sensor not quiet, "
-                 "else its B subtracted) (on), or the store kept as it is (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
-  app.add_option("--sensor-offset-carry", f->sensor_offset_carry,
+                 "else its B subtracted) (on), or the store kept as it is (off)");
+  AddOnOffOption(app, "--sensor-offset-carry", &t.sensor_offset.carry,
                  "sensor offset (window, with --sensor-offset on): each sensor's offset carried from window to window "
                  "(the samples that left the window, the walk of --sensor-offset-rate since) as its prior (on), or a "
-                 "zero-mean prior in every window (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
-  app.add_option("--window-offset-lines", f->window_offset_lines,
+                 "zero-mean prior in every window (off)");
+  AddOnOffOption(app, "--window-offset-lines", &t.sensor_offset.window_lines,
                  "each track's window solve gives every sensor a B offset that is a line in time over the window "
                  "(level and rate; an untracked vessel's B changing within the window) as a nuisance (on; the batch "
-                 "follows --sensor-offset alone; not with --sensor-offset-carry), or as --sensor-offset says (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "follows --sensor-offset alone; not with --sensor-offset-carry), or as --sensor-offset says (off)");
   app.add_option("--window-offset-rate-sigma", t.sensor_offset.line_rate_sigma_T_per_s,
                  "--window-offset-lines: the zero-mean prior sigma of each sensor's rate, T/s per axis")
       ->capture_default_str();
@@ -418,17 +376,13 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
   app.add_option("--sensor-offset-batch-passes", t.sensor_offset.batch_passes,
                  "sensor offset: at most this many rounds after each stage of the batch's growing solve")
       ->capture_default_str();
-  app.add_option("--sensor-offset-score-test", f->sensor_offset_score_test,
+  AddOnOffOption(app, "--sensor-offset-score-test", &t.sensor_offset.batch_score_test,
                  "sensor offset (batch): the batch is solved without offsets first and again with them only when "
                  "its B residual means per sensor and --sensor-offset-segment call for them (chi2 above the "
-                 "--variance-factor-quantile point; the track file's summary gives it) (on), or always with them (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
-  app.add_option("--sensor-offset-joint", f->sensor_offset_joint,
+                 "--variance-factor-quantile point; the track file's summary gives it) (on), or always with them (off)");
+  AddOnOffOption(app, "--sensor-offset-joint", &t.sensor_offset.batch_joint,
                  "sensor offset (batch): after the rounds of offsets and track, one joint solve of the track and "
-                 "every offset (on), or the rounds' end as the solution (off)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"on", "off"}));
+                 "every offset (on), or the rounds' end as the solution (off)");
   app.add_option("--far-loss", f->far_loss,
                  "far source: the fit's robust loss on the whitened B residual (cauchy, huber or trivial)")
       ->capture_default_str();
@@ -447,35 +401,19 @@ inline tracker::MultiTrackerOptions ApplyTrackerFlags(const TrackerFlags& f) {
   if (!tracker::ParseInitSource(f.init_from, &o.track.init.source)) {
     throw InputError("--init-from: expected auto, dipole_fix or samples, got '" + f.init_from + "'");
   }
-  o.background.enabled = f.background == "on";
-  o.cluster_background.enabled = f.cluster_background == "on";
   o.far_source.enabled = f.far_source == "auto"
                             ? tracker::FarSourceOptions{}.enabled && !o.background.enabled && !o.cluster_background.enabled
                             : f.far_source == "on";
-  o.far_source.drift.enabled = f.far_drift == "on";
-  o.far_source.drift.batch_refit = f.far_drift_batch == "on";
-  o.far_source.grid_when_refused = f.far_grid_when_refused == "on";
-  o.far_source.back_predict_new_tracks = f.far_back_predict == "on";
   if (!tracker::ParseLossType(f.far_loss, &o.far_source.loss)) {
     throw InputError("--far-loss: expected huber, cauchy or trivial, got '" + f.far_loss + "'");
   }
   o.track.sensor_offset.window = f.sensor_offset == "on";
   o.track.sensor_offset.batch = f.sensor_offset == "on" || f.sensor_offset == "batch";
-  o.track.sensor_offset.batch_score_test = f.sensor_offset_score_test == "on";
-  o.track.sensor_offset.batch_joint = f.sensor_offset_joint == "on";
-  o.track.sensor_offset.carry = f.sensor_offset_carry == "on";
   if (f.turn_onset_search != "fast" && f.turn_onset_search != "full") {
     throw InputError("--window-turn-onset-search: expected fast or full, got '" + f.turn_onset_search + "'");
   }
   o.track.window_turn_onset_search = f.turn_onset_search == "fast" ? tracker::TrackerOptions::OnsetSearch::kFast
                                                                    : tracker::TrackerOptions::OnsetSearch::kFull;
-  o.track.sensor_offset.quiet = f.sensor_offset_quiet == "on";
-  o.track.sensor_offset.quiet_rate = f.sensor_offset_quiet_rate == "on";
-  o.track.sensor_offset.quiet_rate_span_s = f.sensor_offset_quiet_rate_span_s;
-  o.track.sensor_offset.quiet_approach = f.sensor_offset_quiet_approach == "on";
-  o.track.sensor_offset.window_lines = f.window_offset_lines == "on";
-  o.variance_factor.enabled = f.variance_factor == "on";
-  o.track.batch_variance_factor.enabled = f.batch_variance_factor == "on";
   o.track.batch_variance_factor.quantile = o.variance_factor.quantile;  // one flag for both
   o.variance_factor.statistic = f.variance_factor_statistic == "residuals"
                                     ? tracker::VarianceFactorOptions::Statistic::kResiduals
