@@ -533,11 +533,13 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
         P_m = Cm;
       }
     }
-    if (sum.covariance_ok && options.batch_variance_factor.enabled && !epochs.empty()) {
+    if (sum.covariance_ok && options.batch_variance_factor.enabled && !epochs.empty() &&
+        (!marginal_offsets || options.batch_variance_factor_with_offsets)) {
       // The a-posteriori variance factor per epoch (TrackerOptions::
       // batch_variance_factor): the conditional covariance scaled where the
       // residuals say the samples hold more than the noise; the spread of
-      // the other models (below) is added unscaled.
+      // the other models (below) is added unscaled. On top of solved offsets
+      // too unless batch_variance_factor_with_offsets is off.
       std::vector<WhitenedResidual> residuals;
       residuals.reserve(static_cast<std::size_t>(sum.num_samples));
       for (std::size_t k = 0; k < epochs.size(); ++k) {

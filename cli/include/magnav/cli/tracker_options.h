@@ -67,6 +67,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "batch: scale each state's covariance by the chi2/dof of the sensors' mean whitened residuals over "
                  "the --batch-variance-factor-span centred on it when above --variance-factor-quantile of "
                  "chi2_dof/dof (on), or not (off); the rows' sigma only");
+  AddOnOffOption(app, "--batch-variance-factor-with-offsets", &t.batch_variance_factor_with_offsets,
+                 "batch: --batch-variance-factor also for a track whose sensor offsets were solved (on), or not: "
+                 "there the offsets model the B misfit and their uncertainty is in the covariance (off: the far "
+                 "ship's sigma accepted, but more rows overconfident beside another vessel)");
   app.add_option("--batch-variance-factor-span", t.batch_variance_factor_span_s,
                  "--batch-variance-factor's span, s")
       ->capture_default_str();
