@@ -524,7 +524,7 @@ struct TrackerOptions {
   // track is still pulled: over 25 scenario sets the overconfident batch rows
   // (> 1 m and > 5 σ off) go 1051 → 1157, overtaking_swbs11's slow vessel
   // 1.0–1.4 m off at 20–30 σ (docs/ACCURACY.md, "The batch's variance factor
-  // not on top of its solved offsets"). So it stays on.
+  // on top of its solved offsets, or not"). So it stays on.
   bool batch_variance_factor_with_offsets = true;
 
   bool IsValid(std::string* error) const;
