@@ -107,7 +107,10 @@ void WriteTracks(const std::string& path, const std::string& input, const std::s
   for (const auto& t : tracks) {
     params.push_back({"track", std::to_string(t.track_id) + ": " + std::to_string(count[t.track_id]) + " rows, t " +
                                    FormatNumber(t.t_start_s) + "-" + FormatNumber(t.t_end_s) + " s, ended: " +
-                                   (t.end_reason.empty() ? "no" : t.end_reason)});
+                                   (t.end_reason.empty() ? "no" : t.end_reason) +
+                                   (std::isnan(t.t_window_offsets_s)
+                                        ? std::string()
+                                        : ", window sensor offsets from t " + FormatNumber(t.t_window_offsets_s) + " s")});
   }
   params.push_back({"frame",
                     "local NED (x north, y east, z down), m; t in s; vx, vy in m/s; heading in rad from "

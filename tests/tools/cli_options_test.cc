@@ -121,6 +121,7 @@ TEST(OnOffOption, TrackerFlagsGiveTheLibraryDefaultsAndSetTheirOptions) {
     EXPECT_EQ(o.track.sensor_offset.quiet_rate_span_s, d.track.sensor_offset.quiet_rate_span_s);
     EXPECT_EQ(o.track.sensor_offset.quiet_approach, d.track.sensor_offset.quiet_approach);
     EXPECT_EQ(o.track.sensor_offset.window_lines, d.track.sensor_offset.window_lines);
+    EXPECT_EQ(o.track.sensor_offset.window_score_test, d.track.sensor_offset.window_score_test);
   }
   {
     // Each flag set against its default reaches its own option.
@@ -133,13 +134,15 @@ TEST(OnOffOption, TrackerFlagsGiveTheLibraryDefaultsAndSetTheirOptions) {
                              word(d.far_source.back_predict_new_tracks), "--batch-variance-factor",
                              word(d.track.batch_variance_factor.enabled), "--sensor-offset-joint",
                              word(d.track.sensor_offset.batch_joint), "--window-offset-lines",
-                             word(d.track.sensor_offset.window_lines), "--sensor-offset-quiet-rate-span", "30"}));
+                             word(d.track.sensor_offset.window_lines), "--window-offset-score-test",
+                             word(d.track.sensor_offset.window_score_test), "--sensor-offset-quiet-rate-span", "30"}));
     const tracker::MultiTrackerOptions o = ApplyTrackerFlags(flags);
     EXPECT_NE(o.far_source.drift.enabled, d.far_source.drift.enabled);
     EXPECT_NE(o.far_source.back_predict_new_tracks, d.far_source.back_predict_new_tracks);
     EXPECT_NE(o.track.batch_variance_factor.enabled, d.track.batch_variance_factor.enabled);
     EXPECT_NE(o.track.sensor_offset.batch_joint, d.track.sensor_offset.batch_joint);
     EXPECT_NE(o.track.sensor_offset.window_lines, d.track.sensor_offset.window_lines);
+    EXPECT_NE(o.track.sensor_offset.window_score_test, d.track.sensor_offset.window_score_test);
     EXPECT_EQ(o.track.sensor_offset.quiet_rate_span_s, 30.0);
     EXPECT_EQ(o.far_source.grid_when_refused, d.far_source.grid_when_refused);  // not given: as it was
   }

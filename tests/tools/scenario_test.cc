@@ -158,7 +158,7 @@ TEST(ScenarioFile, RefusesWhatItDoesNotKnowNamingTheKey) {
 }
 
 // The committed scenarios (tests/data/generated/scenarios/{heldout,tuning},
-// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_overtaking7/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_farsrc6/, fresh_farsrc7/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/, fresh_drift5/, fresh_drift6/ and fresh_drift7/) are of the kind their names say.
+// heldout_abreast/, fresh_abreast/, fresh_abreast2/, fresh_abreast3/, fresh_abreast4/, fresh_abreast5/, fresh_overtaking/, fresh_overtaking2/, fresh_overtaking3/, fresh_overtaking4/, fresh_overtaking5/, fresh_overtaking6/, fresh_overtaking7/, fresh_farship/, fresh_ghost/, fresh_ghost2/, fresh_sigma/, fresh_sigma2/, fresh_farsrc/, fresh_farsrc2/, fresh_farsrc3/, fresh_farsrc4/, fresh_farsrc5/, fresh_farsrc6/, fresh_farsrc7/, fresh_drift/, fresh_drift2/, fresh_drift3/, fresh_drift4/, fresh_drift5/, fresh_drift6/, fresh_drift7/ and fresh_drift8/) are of the kind their names say.
 double Horizontal(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
 TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
@@ -243,6 +243,13 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   files.push_back({"fresh_drift7", "drift_3_abreast_27", "abreast"});
   files.push_back({"fresh_drift7", "drift_5_overtaking_9", "overtaking"});
   files.push_back({"fresh_drift7", "drift_7_farship_170", "far_ship"});
+  // fresh_drift8 (blind, session 25): likewise for two of its files. Its
+  // drift_5_single_south (15.7 m), drift_4_abreast_32's first vessel (16.8 m)
+  // and abreast_29_no_drift (17.7 m) pass just beyond the sensors' 15 m reach
+  // (a slip in their design, found by this test after their one run; kept as
+  // run: fields with nothing to track there).
+  files.push_back({"fresh_drift8", "drift_3_single_diag", "drift"});
+  files.push_back({"fresh_drift8", "drift_6_crossing_7", "crossing"});
   for (const char* name : {"overtaking_ne", "overtaking_n14", "overtaking_wsw19", "overtaking_e5"}) {
     files.push_back({"fresh_overtaking2", name, "overtaking"});
   }
@@ -360,7 +367,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/ to fresh_drift7/, fresh_abreast5/drift_abreast_28, fresh_farsrc7/) drifts too
+      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/ to fresh_drift8/, fresh_abreast5/drift_abreast_28, fresh_farsrc7/) drifts too
         ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
         const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
         EXPECT_GE(per_min, 2.0);

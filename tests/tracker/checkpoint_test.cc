@@ -322,6 +322,24 @@ TEST(TrackerCheckpoint, WindowOffsetLinesRestoredGoOnBitForBit) {
   EXPECT_THROW(other.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload))), CheckpointError);
 }
 
+// The window's offsets behind the score test (SensorOffsetOptions::
+// window_score_test, with the lines): a checkpoint taken 30 s after the
+// held-out drift's track is confirmed holds that the test has fired (and the
+// track's record its time); the restored tracker goes on bit for bit, and one
+// without the test refuses it.
+TEST(TrackerCheckpoint, WindowOffsetsBehindTheScoreTestRestoredGoOnBitForBit) {
+  MultiTrackerOptions options;
+  options.track.sensor_offset.window_lines = true;
+  options.track.sensor_offset.window_score_test = true;
+  const std::string payload = ExpectDriftRunGoesOnBitForBit(options, "window offsets behind the score test");
+  ASSERT_FALSE(payload.empty());
+  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/drift.toml");
+  MultiTrackerOptions lines_only;
+  lines_only.track.sensor_offset.window_lines = true;
+  MultiTracker other(sc.B0, lines_only);
+  EXPECT_THROW(other.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload))), CheckpointError);
+}
+
 // The far source in the checkpoint (version 10): on the held-out far-ship
 // field (a 4.2e5 A·m² ship 150 m off while an AUV crosses), a checkpoint
 // taken while its fit is accepted and the AUV's track is live holds its kept

@@ -489,8 +489,9 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
       }
     }
     for (const auto& [key, a] : scores) {
-      if (!(a.information() > 0.0)) continue;
-      sum.offset_score_chi2 += a.weighted_sum().squaredNorm() / a.information();
+      double chi2 = 0.0;
+      if (!a.Score(&chi2)) continue;
+      sum.offset_score_chi2 += chi2;
       sum.offset_score_dof += 3;
     }
   }

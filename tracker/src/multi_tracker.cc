@@ -543,6 +543,10 @@ struct MultiTracker::Impl {
     r.m_B_Am2 = m;
     r.cov_m_B = Pm;
     r.t_last_detection_s = tr.life.t_last_detection_s();
+    if (std::isnan(r.t_window_offsets_s) && options.track.sensor_offset.window_score_test &&
+        tr.engine->last_summary().offsets_solved) {
+      r.t_window_offsets_s = est.back().t_s;
+    }
   }
 
   // The pair start's excess, propagated along the start's line, added to
@@ -1802,6 +1806,7 @@ std::string MultiTracker::SaveState() const {
     w.Matrix(r.m_B_Am2);
     w.Matrix(r.cov_m_B);
     w.U32(r.partner_id);
+    if (m.options.track.sensor_offset.window_score_test) w.F64(r.t_window_offsets_s);
   }
   w.U32(m.next_id);
   w.U64(m.ghosts.size());
@@ -1915,6 +1920,7 @@ void MultiTracker::RestoreState(const std::string& payload) {
     rec.m_B_Am2 = internal::GetMatrix(r, 3, 1);
     rec.cov_m_B = internal::GetMatrix(r, 3, 3);
     rec.partner_id = r.U32();
+    if (m.options.track.sensor_offset.window_score_test) rec.t_window_offsets_s = r.F64();
   }
   m.next_id = r.U32();
   for (const Track& tr : m.tracks) {

@@ -101,6 +101,9 @@ bool SensorOffsetOptions::IsValid(std::string* error) const {
   if (quiet_rate && !quiet) return Fail(error, "sensor_offset.quiet_rate needs sensor_offset.quiet");
   if (quiet_approach && !quiet) return Fail(error, "sensor_offset.quiet_approach needs sensor_offset.quiet");
   if (!PositiveFinite(quiet_rate_span_s)) return Fail(error, "sensor_offset.quiet_rate_span_s must be > 0");
+  if (window_score_test && !WindowOffsets()) {
+    return Fail(error, "sensor_offset.window_score_test needs sensor_offset.window or window_lines");
+  }
   if (window_lines && carry) return Fail(error, "sensor_offset.window_lines is not with sensor_offset.carry");
   if (window_lines && quiet) return Fail(error, "sensor_offset.window_lines is not with sensor_offset.quiet");
   if (!PositiveFinite(line_rate_sigma_T_per_s)) {

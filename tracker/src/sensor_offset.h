@@ -28,6 +28,14 @@ class SensorOffsetAccumulator {
   // The same under a prior of mean prior_mean_W (world NED, T) and σ
   // prior_sigma_T per axis: (Σ w_i r_i/σ_i² + m/σ²) / (Σ w_i/σ_i² + 1/σ²).
   Eigen::Vector3d Mean(const Eigen::Vector3d& prior_mean_W, double prior_sigma_T) const;
+  // The robust score test of a zero offset: ‖Σ w_i r_i/σ_i²‖² / Σ w_i/σ_i²,
+  // χ² with 3 dof under no offset (n ‖ē‖² of the whitened residuals where
+  // every w is 1); false (nothing to test) without information.
+  bool Score(double* chi2) const {
+    if (!(information_ > 0.0)) return false;
+    *chi2 = weighted_sum_.squaredNorm() / information_;
+    return true;
+  }
   // Σ w_i r_i/σ_i² (T⁻¹) and Σ w_i/σ_i² (T⁻²), for a joint solve of several.
   const Eigen::Vector3d& weighted_sum() const { return weighted_sum_; }
   double information() const { return information_; }

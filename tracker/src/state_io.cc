@@ -193,6 +193,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   for (double d : {so.max_rate_T_per_s, so.floor_T, so.b0_time_s, so.segment_s, so.tolerance_T}) w.F64(d);
   w.I64(static_cast<std::int64_t>(so.window_lines));
   w.F64(so.line_rate_sigma_T_per_s);
+  w.I64(static_cast<std::int64_t>(so.window_score_test));
   // The window's turn-onset model changes the rows it emits; the batch's
   // other-field covariance its σ.
   w.I64(static_cast<std::int64_t>(t.window_turn_onset_model));

@@ -18,6 +18,7 @@
 #include "magnav/core/dipole.h"
 #include "magnav/core/error.h"
 #include "magnav/core/frames.h"
+#include "magnav/core/nees.h"
 #include "magnav/core/units.h"
 #include "magnav/tracker/cost_functions.h"
 #include "magnav/tracker/initialize.h"
@@ -110,6 +111,9 @@ struct WindowTracker::Impl {
   // The track's own per-sensor B offset over the window (world NED, T;
   // TrackerOptions::sensor_offset), added to B0 and to `offsets`.
   std::map<std::uint32_t, Eigen::Vector3d> own_offsets;
+  // sensor_offset.window_score_test: the test has fired on this track (its
+  // offsets are solved from then on).
+  bool offsets_called = false;
   // With sensor_offset.window_lines: each sensor's rate (world NED, T/s)
   // about own_offset_t_s, the window's middle time when they were fitted.
   std::map<std::uint32_t, Eigen::Vector3d> own_rates;
@@ -139,6 +143,31 @@ struct WindowTracker::Impl {
       if (offsets) o += offsets(id, w.epoch.t_s);
       cost->SetBackgroundOffset(o);
     }
+  }
+
+  // sensor_offset.window_score_test: the score test of a zero offset per
+  // sensor over the window at the current solution (the batch's,
+  // SensorOffsetAccumulator::Score: 3 dof per sensor) against the
+  // batch_variance_factor.quantile point; its χ² and dof go in the summary.
+  bool OffsetsCalledFor() {
+    std::map<std::uint32_t, internal::SensorOffsetAccumulator> acc;
+    for (const WindowEpoch& w : window) {
+      for (std::size_t i = 0; i < w.measurements.size(); ++i) {
+        const GradiometerSample& smp = w.epoch.samples[i];
+        acc[smp.sensor_id].Add(w.measurements[i], SigmaB(smp, options), Eigen::Vector3d::Zero());
+      }
+    }
+    double chi2 = 0.0;
+    int dof = 0;
+    for (const auto& [id, a] : acc) {
+      double c = 0.0;
+      if (!a.Score(&c)) continue;
+      chi2 += c;
+      dof += 3;
+    }
+    summary.offset_score_chi2 = chi2;
+    summary.offset_score_dof = dof;
+    return dof > 0 && chi2 > ChiSquareQuantile(options.batch_variance_factor.quantile, dof);
   }
 
   // Every sensor's own offset set to its conditional mean given the window's
@@ -853,6 +882,13 @@ struct WindowTracker::Impl {
   void Solve(bool start) {
     SolveOnce(start);
     if (!options.sensor_offset.WindowOffsets()) return;
+    if (options.sensor_offset.window_score_test && !offsets_called) {
+      // Not on the start's solve (the robust-loss continuation from the
+      // initialiser's guess).
+      if (start || !summary.usable || !OffsetsCalledFor()) return;
+      offsets_called = true;
+    }
+    summary.offsets_solved = true;
     for (int pass = 0; pass < options.sensor_offset.passes && summary.usable; ++pass) {
       UpdateOwnOffsets();
       SolveOnce(false);
@@ -1237,6 +1273,7 @@ void WindowTracker::SaveState(StateWriter& w) const {
       w.U64(id);
       w.Matrix(o);
     }
+    if (m.options.sensor_offset.window_score_test) w.U8(m.offsets_called ? 1 : 0);
     if (m.options.sensor_offset.window_lines) {
       w.F64(m.own_offset_t_s);
       w.U64(m.own_rates.size());
@@ -1300,6 +1337,7 @@ void WindowTracker::RestoreState(StateReader& r) {
       const auto id = static_cast<std::uint32_t>(r.U64());
       m.own_offsets[id] = internal::GetMatrix(r, 3, 1);
     }
+    if (m.options.sensor_offset.window_score_test) m.offsets_called = r.U8() != 0;
     if (m.options.sensor_offset.window_lines) {
       m.own_offset_t_s = r.F64();
       for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {
@@ -1371,7 +1409,7 @@ void WindowTracker::ResidualMeansChi2(double* chi2, double* dof) const {
   std::map<std::pair<std::uint32_t, int>, std::pair<Eigen::Matrix<double, 8, 1>, int>> sums;
   const std::size_t solved = impl_->Solved();
   if (solved == 0) return;
-  const bool lines = impl_->options.sensor_offset.window_lines;
+  const bool lines = impl_->options.sensor_offset.window_lines && !impl_->own_rates.empty();
   const double t_front = impl_->window.front().epoch.t_s;
   const double span = impl_->window[solved - 1].epoch.t_s - t_front;
   for (std::size_t k = 0; k < solved; ++k) {

@@ -354,6 +354,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "sensor offset (window, with --sensor-offset on): each sensor's offset carried from window to window "
                  "(the samples that left the window, the walk of --sensor-offset-rate since) as its prior (on), or a "
                  "zero-mean prior in every window (off)");
+  AddOnOffOption(app, "--window-offset-score-test", &t.sensor_offset.window_score_test,
+                 "sensor offset (window, with --sensor-offset on or --window-offset-lines on): a track's window "
+                 "solves its offsets only from the solve where its B residuals call for them (the batch's score test, "
+                 "per sensor over the window) to the track's end (on), or from the start (off)");
   AddOnOffOption(app, "--window-offset-lines", &t.sensor_offset.window_lines,
                  "each track's window solve gives every sensor a B offset that is a line in time over the window "
                  "(level and rate; an untracked vessel's B changing within the window) as a nuisance (on; the batch "

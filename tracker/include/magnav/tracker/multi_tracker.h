@@ -81,6 +81,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -501,6 +502,10 @@ struct TrackRecord {
   // whose field SolveBatchMulti removes from this track's samples also
   // before and after its own span.
   std::uint32_t partner_id = 0;
+  // The window's sensor offsets (SensorOffsetOptions::window_score_test):
+  // the time of the first estimate from a solve with them (the score test
+  // had fired), s; NaN while they are not solved.
+  double t_window_offsets_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The windows' turn-onset model (TrackerOptions::window_turn_onset_model):

@@ -247,6 +247,16 @@ struct SensorOffsetOptions {
   // beyond the reach) the alternation stops short of it (docs/ACCURACY.md,
   // "The batch's offsets solved jointly with the track").
   bool batch_joint = true;
+  // With window (or window_lines): a track's window is solved without
+  // offsets until its B residuals call for them — the same score test as
+  // the batch's (batch_score_test), per sensor over the window (3 dof per
+  // sensor), after each window solve, at the TrackerOptions::
+  // batch_variance_factor.quantile point — and with them from the solve
+  // where it first fires to the track's end (latched: the drift that fired
+  // it does not leave). Off by default: the window's offsets, when on, are
+  // solved from the start (docs/ACCURACY.md, "The window's offsets behind
+  // the batch's score test").
+  bool window_score_test = false;
   bool carry = false;
   double min_tensor_snr = 0.0;
   bool quiet = false;
