@@ -488,12 +488,7 @@ TrackEstimate SolveBatchOnce(const std::vector<Epoch>& input, const Eigen::Vecto
         scores[key_of(smp, epochs[k].t_s)].Add(factors[k][j], SigmaB(smp, options), Eigen::Vector3d::Zero());
       }
     }
-    for (const auto& [key, a] : scores) {
-      double chi2 = 0.0;
-      if (!a.Score(&chi2)) continue;
-      sum.offset_score_chi2 += chi2;
-      sum.offset_score_dof += 3;
-    }
+    internal::SumScores(scores, &sum.offset_score_chi2, &sum.offset_score_dof);
   }
 
   if (options.compute_covariance && sum.usable) {

@@ -45,6 +45,19 @@ class SensorOffsetAccumulator {
   double information_ = 0.0;                                // T⁻²
 };
 
+// The score test over several offsets (the batch's per (sensor, segment),
+// the window's per sensor): the sum of their Score()s into *chi2 and 3 dof
+// each into *dof; offsets without information are left out.
+template <class AccumulatorMap>
+void SumScores(const AccumulatorMap& accumulators, double* chi2, int* dof) {
+  for (const auto& [key, a] : accumulators) {
+    double c = 0.0;
+    if (!a.Score(&c)) continue;
+    *chi2 += c;
+    *dof += 3;
+  }
+}
+
 // The samples of one sensor over the window for an offset that is a line in
 // time (SensorOffsetOptions::window_lines): o(t) = level + rate · (t − t_ref).
 class LineOffsetAccumulator {

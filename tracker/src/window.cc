@@ -159,12 +159,7 @@ struct WindowTracker::Impl {
     }
     double chi2 = 0.0;
     int dof = 0;
-    for (const auto& [id, a] : acc) {
-      double c = 0.0;
-      if (!a.Score(&c)) continue;
-      chi2 += c;
-      dof += 3;
-    }
+    internal::SumScores(acc, &chi2, &dof);
     summary.offset_score_chi2 = chi2;
     summary.offset_score_dof = dof;
     return dof > 0 && chi2 > ChiSquareQuantile(options.batch_variance_factor.quantile, dof);
