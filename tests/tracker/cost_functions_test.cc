@@ -74,6 +74,45 @@ TEST(MeasurementCost, ResidualIsZeroAtTheTruthAndWhitened) {
   EXPECT_LT(e.norm(), 1e-3);  // in σ = 1 nT: only rounding
 }
 
+// SetFieldUsed(false) (the window's prior of a sensor whose B offset the
+// window solves, window.cc): the B rows' residuals and Jacobians are zero and
+// the tensor rows are those of the full factor, bit for bit.
+TEST(MeasurementCost, WithoutItsFieldCarriesTheTensorRowsAlone) {
+  GradiometerSample s;
+  s.p_SinW = {1.0, -2.0, 0.0};
+  const Eigen::Vector3d p_V(5.0, 3.0, -5.0), m_B(2000.0, 300.0, 800.0);
+  Eigen::Vector3d B;
+  Eigen::Matrix3d T;
+  DipoleBT(s.p_SinW - p_V, WorldMoment(m_B, 0.7), &B, &T);
+  s.B = B + Eigen::Vector3d(30e-9, -20e-9, 10e-9);  // a B misfit: nonzero B rows
+  s.T = T + 2e-9 * Eigen::Matrix3d::Identity();
+  const SqrtInfo8 L = MeasurementSqrtInfo(1e-9, 1.4e-9, true);
+  const MeasurementCost full(s, Eigen::Vector3d::Zero(), L, 1000.0);
+  MeasurementCost tensor_only(s, Eigen::Vector3d::Zero(), L, 1000.0);
+  tensor_only.SetFieldUsed(false);
+  Eigen::Matrix<double, 6, 1> x;
+  x << p_V + Eigen::Vector3d(0.3, -0.2, 0.1), 1.0, 0.65, 0.0;
+  const Eigen::Vector3d m_tilde = m_B / 1000.0 * 1.05;
+  const double* params[] = {x.data(), m_tilde.data()};
+  Eigen::Matrix<double, 8, 1> e_full, e_t;
+  Eigen::Matrix<double, 8, 6, Eigen::RowMajor> Jx_full, Jx_t;
+  Eigen::Matrix<double, 8, 3, Eigen::RowMajor> Jm_full, Jm_t;
+  double* J_full[] = {Jx_full.data(), Jm_full.data()};
+  double* J_t[] = {Jx_t.data(), Jm_t.data()};
+  ASSERT_TRUE(full.Evaluate(params, e_full.data(), J_full));
+  ASSERT_TRUE(tensor_only.Evaluate(params, e_t.data(), J_t));
+  EXPECT_GT(e_full.head<3>().norm(), 10.0);  // the B misfit, in σ
+  EXPECT_EQ(e_t.head<3>(), Eigen::Vector3d::Zero());
+  EXPECT_EQ(e_t.tail<5>(), e_full.tail<5>());
+  EXPECT_TRUE(Jx_t.topRows<3>().isZero(0.0));
+  EXPECT_TRUE(Jm_t.topRows<3>().isZero(0.0));
+  EXPECT_EQ(Jx_t.bottomRows<5>(), Jx_full.bottomRows<5>());
+  EXPECT_EQ(Jm_t.bottomRows<5>(), Jm_full.bottomRows<5>());
+  tensor_only.SetFieldUsed(true);
+  ASSERT_TRUE(tensor_only.Evaluate(params, e_t.data(), nullptr));
+  EXPECT_EQ(e_t, e_full);
+}
+
 TEST(MeasurementSqrtInfo, WhitensTheTraceFreeTensorNoise) {
   const double sT = 1.4e-9;
   const SqrtInfo8 L = MeasurementSqrtInfo(1e-9, sT, true);

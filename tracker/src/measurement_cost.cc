@@ -47,6 +47,7 @@ bool MeasurementCost::Evaluate(double const* const* parameters, double* residual
   Eigen::Map<Eigen::Matrix<double, 8, 1>> e(residuals);
   // lazyProduct: coefficient-based kernels for these small fixed sizes.
   e = sqrt_info_.lazyProduct(pred - z_);
+  if (!field_used_) e.head<3>().setZero();
   if (!want_J) return true;
 
   if (jacobians[0] != nullptr) {
@@ -54,10 +55,12 @@ bool MeasurementCost::Evaluate(double const* const* parameters, double* residual
     J.setZero();
     J.leftCols<3>() = -sqrt_info_.lazyProduct(J_z_r);  // ∂r/∂p_V = −I
     J.col(4) = sqrt_info_.lazyProduct(J_z_m.lazyProduct(J_mW_h));
+    if (!field_used_) J.topRows<3>().setZero();
   }
   if (jacobians[1] != nullptr) {
     Eigen::Map<Eigen::Matrix<double, 8, 3, Eigen::RowMajor>> J(jacobians[1]);
     J = sqrt_info_.lazyProduct(J_z_m).lazyProduct(HeadingRotation(heading) * moment_scale_);
+    if (!field_used_) J.topRows<3>().setZero();
   }
   return true;
 }

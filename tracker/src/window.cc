@@ -318,6 +318,20 @@ struct WindowTracker::Impl {
     CarryFrontOffsets();
     WindowEpoch& a = window[0];
     WindowEpoch& b = window[1];
+    // A sensor with its own offset (sensor_offset) leaves its B level to the
+    // window: the offset is solved again from the window's samples (or
+    // carried, or the sensor's quiet one) at every solve, so the level a
+    // leaving sample's B gives, with the offset of this moment taken as
+    // exact, is not the state's information — kept in the prior it pins the
+    // moment and the range to an offset the next windows move (far_ship_105:
+    // the moment 7 % off at 55 σ). Its tensor stays in the prior; its B
+    // informs the state only while it is in the window.
+    if (!own_offsets.empty()) {
+      for (std::size_t i = 0; i < a.measurements.size(); ++i) {
+        if (own_offsets.count(a.epoch.samples[i].sensor_id) == 0) continue;
+        static_cast<MeasurementCost*>(a.measurements[i].cost.get())->SetFieldUsed(false);
+      }
+    }
     internal::LocalH H;
     internal::LocalG g;
     // A factor that cannot be evaluated is left out (and counted): its NaN

@@ -48,6 +48,10 @@ class MeasurementCost final : public ceres::SizedCostFunction<8, 6, 3> {
   // minus B0 and the offset, minus the dipole's predicted B (world NED, T).
   Eigen::Vector3d BResidual(double const* const* parameters) const;
   const SqrtInfo8& sqrt_info() const { return sqrt_info_; }
+  // Whether the B rows are in the residual (true at construction). Off, the
+  // B rows' residuals and Jacobians are zero: the factor carries the tensor's
+  // information alone (B and tensor noise are independent, so the rows split).
+  void SetFieldUsed(bool used) { field_used_ = used; }
 
  private:
   Eigen::Vector3d p_SinW_;
@@ -55,6 +59,7 @@ class MeasurementCost final : public ceres::SizedCostFunction<8, 6, 3> {
   Measurement8 z_;
   SqrtInfo8 sqrt_info_;
   double moment_scale_;
+  bool field_used_ = true;
 };
 
 // Kinematic process residual between consecutive epochs. KinematicCost is
