@@ -14,7 +14,6 @@
 #include "factors.h"
 #include "sensor_offset.h"
 #include "magnav/core/error.h"
-#include "magnav/core/nees.h"
 #include "magnav/core/units.h"
 #include "magnav/tracker/cost_functions.h"
 #include "magnav/tracker/initialize.h"
@@ -613,8 +612,8 @@ TrackEstimate SolveBatch(const std::vector<Epoch>& input, const Eigen::Vector3d&
   without.sensor_offset.batch = false;
   TrackEstimate est = SolveBatchOnce(input, B0_W, without, fixes, starts, true, &init);
   const Summary& s0 = est.summary;
-  if (!s0.usable || s0.offset_score_dof == 0 ||
-      s0.offset_score_chi2 <= ChiSquareQuantile(options.batch_variance_factor.quantile, s0.offset_score_dof)) {
+  if (!s0.usable ||
+      !internal::ScoreTestFires(s0.offset_score_chi2, s0.offset_score_dof, options.batch_variance_factor.quantile)) {
     return est;
   }
   TrackEstimate with = SolveBatchOnce(input, B0_W, options, fixes, starts, false, &init);

@@ -9,6 +9,7 @@
 #include "factors.h"
 #include "magnav/tracker/cost_functions.h"
 #include "magnav/core/gradiometer.h"
+#include "magnav/core/nees.h"
 
 namespace magnav::tracker::internal {
 
@@ -44,6 +45,12 @@ class SensorOffsetAccumulator {
   Eigen::Vector3d weighted_sum_ = Eigen::Vector3d::Zero();  // T⁻¹
   double information_ = 0.0;                                // T⁻²
 };
+
+// Whether the score test (SumScores' χ² on dof) fires at the `quantile` point
+// of χ² with dof degrees of freedom; never without a dof.
+inline bool ScoreTestFires(double chi2, int dof, double quantile) {
+  return dof > 0 && chi2 > ChiSquareQuantile(quantile, dof);
+}
 
 // The score test over several offsets (the batch's per (sensor, segment),
 // the window's per sensor): the sum of their Score()s into *chi2 and 3 dof

@@ -18,7 +18,6 @@
 #include "magnav/core/dipole.h"
 #include "magnav/core/error.h"
 #include "magnav/core/frames.h"
-#include "magnav/core/nees.h"
 #include "magnav/core/units.h"
 #include "magnav/tracker/cost_functions.h"
 #include "magnav/tracker/initialize.h"
@@ -162,7 +161,7 @@ struct WindowTracker::Impl {
     internal::SumScores(acc, &chi2, &dof);
     summary.offset_score_chi2 = chi2;
     summary.offset_score_dof = dof;
-    return dof > 0 && chi2 > ChiSquareQuantile(options.batch_variance_factor.quantile, dof);
+    return internal::ScoreTestFires(chi2, dof, options.batch_variance_factor.quantile);
   }
 
   // Every sensor's own offset set to its conditional mean given the window's
