@@ -250,6 +250,14 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
   // run: fields with nothing to track there).
   files.push_back({"fresh_drift8", "drift_3_single_diag", "drift"});
   files.push_back({"fresh_drift8", "drift_6_crossing_7", "crossing"});
+  // fresh_drift9 (blind, session 27): four drift files and three controls without a drift.
+  files.push_back({"fresh_drift9", "drift_2_single_west", "drift"});
+  files.push_back({"fresh_drift9", "drift_5_abreast_27", "abreast"});
+  files.push_back({"fresh_drift9", "drift_3_overtaking_9", "overtaking"});
+  files.push_back({"fresh_drift9", "drift_4_farship_130", "far_ship"});
+  files.push_back({"fresh_drift9", "overtaking_no_drift_10", "overtaking"});
+  files.push_back({"fresh_drift9", "far_ship_no_drift_150", "far_ship"});
+  files.push_back({"fresh_drift9", "crossing_no_drift_6", "crossing"});
   for (const char* name : {"overtaking_ne", "overtaking_n14", "overtaking_wsw19", "overtaking_e5"}) {
     files.push_back({"fresh_overtaking2", name, "overtaking"});
   }
@@ -367,7 +375,7 @@ TEST(ScenarioFile, CommittedScenariosAreOfTheirKind) {
         EXPECT_GE(per_min, 2.0);
         EXPECT_LE(per_min, 10.0);
       }
-      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/ to fresh_drift8/, fresh_abreast5/drift_abreast_28, fresh_farsrc7/) drifts too
+      if (file.rfind("drift", 0) == 0) {  // a drift file of another kind (fresh_drift/drift_6_farship, fresh_drift2/ to fresh_drift9/, fresh_abreast5/drift_abreast_28, fresh_farsrc7/) drifts too
         ASSERT_EQ(sc.background_drift_Tps.size(), 9u);
         const double per_min = sc.background_drift_Tps[0].norm() * 60.0 / 1e-9;
         EXPECT_GE(per_min, 2.0);
