@@ -122,6 +122,7 @@ TEST(OnOffOption, TrackerFlagsGiveTheLibraryDefaultsAndSetTheirOptions) {
     EXPECT_EQ(o.track.sensor_offset.quiet_approach, d.track.sensor_offset.quiet_approach);
     EXPECT_EQ(o.track.sensor_offset.window_lines, d.track.sensor_offset.window_lines);
     EXPECT_EQ(o.track.sensor_offset.window_score_test, d.track.sensor_offset.window_score_test);
+    EXPECT_EQ(o.track.sensor_offset.window_score_persist_s, d.track.sensor_offset.window_score_persist_s);
   }
   {
     // Each flag set against its default reaches its own option.
@@ -135,7 +136,8 @@ TEST(OnOffOption, TrackerFlagsGiveTheLibraryDefaultsAndSetTheirOptions) {
                              word(d.track.batch_variance_factor.enabled), "--sensor-offset-joint",
                              word(d.track.sensor_offset.batch_joint), "--window-offset-lines",
                              word(d.track.sensor_offset.window_lines), "--window-offset-score-test",
-                             word(d.track.sensor_offset.window_score_test), "--sensor-offset-quiet-rate-span", "30"}));
+                             word(d.track.sensor_offset.window_score_test), "--sensor-offset-quiet-rate-span", "30",
+                             "--window-offset-score-persist", "2.5"}));
     const tracker::MultiTrackerOptions o = ApplyTrackerFlags(flags);
     EXPECT_NE(o.far_source.drift.enabled, d.far_source.drift.enabled);
     EXPECT_NE(o.far_source.back_predict_new_tracks, d.far_source.back_predict_new_tracks);
@@ -144,6 +146,7 @@ TEST(OnOffOption, TrackerFlagsGiveTheLibraryDefaultsAndSetTheirOptions) {
     EXPECT_NE(o.track.sensor_offset.window_lines, d.track.sensor_offset.window_lines);
     EXPECT_NE(o.track.sensor_offset.window_score_test, d.track.sensor_offset.window_score_test);
     EXPECT_EQ(o.track.sensor_offset.quiet_rate_span_s, 30.0);
+    EXPECT_EQ(o.track.sensor_offset.window_score_persist_s, 2.5);
     EXPECT_EQ(o.far_source.grid_when_refused, d.far_source.grid_when_refused);  // not given: as it was
   }
 }

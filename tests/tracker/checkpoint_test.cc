@@ -340,6 +340,27 @@ TEST(TrackerCheckpoint, WindowOffsetsBehindTheScoreTestRestoredGoOnBitForBit) {
   EXPECT_THROW(other.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload))), CheckpointError);
 }
 
+// The score test latched after it persists (SensorOffsetOptions::
+// window_score_persist_s), here 40 s: the checkpoint, 30 s after the held-out
+// drift's track is confirmed, falls while the test fires but before it
+// latches, so it holds the time it began to fire and the window's second,
+// tensor-only prior; the restored tracker goes on bit for bit through the
+// latch, and one that latches at the first firing refuses the checkpoint.
+TEST(TrackerCheckpoint, ScoreTestPersistenceAndTheTensorPriorRestoredGoOnBitForBit) {
+  MultiTrackerOptions options;
+  options.track.sensor_offset.window_lines = true;
+  options.track.sensor_offset.window_score_test = true;
+  options.track.sensor_offset.line_rate_sigma_T_per_s = 1e-10;
+  options.track.sensor_offset.window_score_persist_s = 40.0;
+  const std::string payload = ExpectDriftRunGoesOnBitForBit(options, "score test persistence, tensor prior");
+  ASSERT_FALSE(payload.empty());
+  const FieldScenario sc = cli::ReadScenarioFile(testing::TestDataDir() + "/generated/scenarios/heldout/drift.toml");
+  MultiTrackerOptions at_once = options;
+  at_once.track.sensor_offset.window_score_persist_s = 0.0;
+  MultiTracker other(sc.B0, at_once);
+  EXPECT_THROW(other.RestoreState(DecodeTrackerCheckpoint(EncodeTrackerCheckpoint(payload))), CheckpointError);
+}
+
 // The far source in the checkpoint (version 10): on the held-out far-ship
 // field (a 4.2e5 A·m² ship 150 m off while an AUV crosses), a checkpoint
 // taken while its fit is accepted and the AUV's track is live holds its kept

@@ -104,6 +104,12 @@ bool SensorOffsetOptions::IsValid(std::string* error) const {
   if (window_score_test && !WindowOffsets()) {
     return Fail(error, "sensor_offset.window_score_test needs sensor_offset.window or window_lines");
   }
+  if (!(window_score_persist_s >= 0.0) || !std::isfinite(window_score_persist_s)) {
+    return Fail(error, "sensor_offset.window_score_persist_s must be finite and >= 0");
+  }
+  if (window_score_persist_s > 0.0 && !window_score_test) {
+    return Fail(error, "sensor_offset.window_score_persist_s needs sensor_offset.window_score_test");
+  }
   if (window_lines && carry) return Fail(error, "sensor_offset.window_lines is not with sensor_offset.carry");
   if (window_lines && quiet) return Fail(error, "sensor_offset.window_lines is not with sensor_offset.quiet");
   if (!PositiveFinite(line_rate_sigma_T_per_s)) {

@@ -194,6 +194,7 @@ std::string OptionsBytes(const Eigen::Vector3d& B0_W, const MultiTrackerOptions&
   w.I64(static_cast<std::int64_t>(so.window_lines));
   w.F64(so.line_rate_sigma_T_per_s);
   w.I64(static_cast<std::int64_t>(so.window_score_test));
+  if (so.window_score_persist_s > 0.0) w.F64(so.window_score_persist_s);  // written only when on
   // The window's turn-onset model changes the rows it emits; the batch's
   // other-field covariance its σ.
   w.I64(static_cast<std::int64_t>(t.window_turn_onset_model));

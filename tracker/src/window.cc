@@ -113,6 +113,11 @@ struct WindowTracker::Impl {
   // sensor_offset.window_score_test: the test has fired on this track (its
   // offsets are solved from then on).
   bool offsets_called = false;
+  // sensor_offset.window_score_persist_s: when the test began to fire at
+  // every solve (NaN: it did not fire at the last), and the prior folded
+  // from the leaving samples' tensors alone, the window's prior at the latch.
+  double first_fired_t_s = std::numeric_limits<double>::quiet_NaN();
+  internal::Factor tensor_prior;  // on (window.front().x, moment); cost null = none
   // With sensor_offset.window_lines: each sensor's rate (world NED, T/s)
   // about own_offset_t_s, the window's middle time when they were fitted.
   std::map<std::uint32_t, Eigen::Vector3d> own_rates;
@@ -313,29 +318,14 @@ struct WindowTracker::Impl {
   }
 
   // Drops the oldest epoch, folding its information into the prior.
-  void MarginalizeFront() {
-    CarryFrontOffsets();
-    WindowEpoch& a = window[0];
-    WindowEpoch& b = window[1];
-    // A sensor with its own offset (sensor_offset) leaves its B level to the
-    // window: the offset is solved again from the window's samples (or
-    // carried, or the sensor's quiet one) at every solve, so the level a
-    // leaving sample's B gives, with the offset of this moment taken as
-    // exact, is not the state's information — kept in the prior it pins the
-    // moment and the range to an offset the next windows move (far_ship_105:
-    // the moment 7 % off at 55 σ). Its tensor stays in the prior; its B
-    // informs the state only while it is in the window.
-    if (!own_offsets.empty()) {
-      for (std::size_t i = 0; i < a.measurements.size(); ++i) {
-        if (own_offsets.count(a.epoch.samples[i].sensor_id) == 0) continue;
-        static_cast<MeasurementCost*>(a.measurements[i].cost.get())->SetFieldUsed(false);
-      }
-    }
+  // The front epoch `a` folded into a prior on the next state `b` and the
+  // moment, from the prior `prev`, into *out (empty if it failed).
+  void FoldFront(WindowEpoch& a, WindowEpoch& b, const internal::Factor* prev, internal::Factor* out) {
     internal::LocalH H;
     internal::LocalG g;
     // A factor that cannot be evaluated is left out (and counted): its NaN
     // would otherwise live on in the prior and fail every later solve.
-    dropped_factors += FrontSystem(a, &b, &H, &g, &prior);
+    dropped_factors += FrontSystem(a, &b, &H, &g, prev);
     Eigen::Matrix<double, 9, 9> Hm;
     Eigen::Matrix<double, 9, 1> gm;
     EliminateFirstState(H, g, &Hm, &gm);
@@ -344,8 +334,7 @@ struct WindowTracker::Impl {
       // positive definite through the process factor); if it does, the window
       // goes on without a prior rather than with a poisoned one.
       ++dropped_factors;
-      prior = internal::Factor{};
-      window.pop_front();
+      *out = internal::Factor{};
       return;
     }
     // ½ δᵀHδ + gᵀδ = ½‖Lδ + c‖² + const with H = V Λ Vᵀ, L = Λ^½ Vᵀ,
@@ -367,6 +356,55 @@ struct WindowTracker::Impl {
     internal::Factor next;
     next.cost = std::make_unique<PriorCost>(L, x_bar, c);
     next.blocks = {b.x.data(), moment.data()};
+    *out = std::move(next);
+  }
+
+  // A prior as PutPrior wrote it, on the window's front state and the moment.
+  void GetPrior(StateReader& r, internal::Factor* f) {
+    if (r.U8() == 0) return;
+    const Eigen::Matrix<double, 9, 9> L = internal::GetMatrix(r, 9, 9);
+    const Eigen::Matrix<double, 9, 1> x_bar = internal::GetMatrix(r, 9, 1);
+    const Eigen::Matrix<double, 9, 1> c = internal::GetMatrix(r, 9, 1);
+    if (window.empty()) throw CheckpointError("corrupt: a window prior without a window");
+    f->cost = std::make_unique<PriorCost>(L, x_bar, c);
+    f->blocks = {window.front().x.data(), moment.data()};
+  }
+
+  // Whether the window keeps its tensor-only prior (window_score_persist_s).
+  bool KeepTensorPrior() const {
+    const SensorOffsetOptions& so = options.sensor_offset;
+    return so.window_score_persist_s > 0.0 && so.window_score_test && so.WindowOffsets() && !offsets_called;
+  }
+
+  void MarginalizeFront() {
+    CarryFrontOffsets();
+    WindowEpoch& a = window[0];
+    WindowEpoch& b = window[1];
+    // Before the score test latches (window_score_persist_s), the same fold
+    // with every leaving sample's B left out, into the tensor-only prior.
+    if (KeepTensorPrior()) {
+      for (auto& f : a.measurements) static_cast<MeasurementCost*>(f.cost.get())->SetFieldUsed(false);
+      internal::Factor next_tensor;
+      FoldFront(a, b, &tensor_prior, &next_tensor);
+      tensor_prior = std::move(next_tensor);
+      for (auto& f : a.measurements) static_cast<MeasurementCost*>(f.cost.get())->SetFieldUsed(true);
+    }
+    // A sensor with its own offset (sensor_offset) leaves its B level to the
+    // window: the offset is solved again from the window's samples (or
+    // carried, or the sensor's quiet one) at every solve, so the level a
+    // leaving sample's B gives, with the offset of this moment taken as
+    // exact, is not the state's information — kept in the prior it pins the
+    // moment and the range to an offset the next windows move (far_ship_105:
+    // the moment 7 % off at 55 σ). Its tensor stays in the prior; its B
+    // informs the state only while it is in the window.
+    if (!own_offsets.empty()) {
+      for (std::size_t i = 0; i < a.measurements.size(); ++i) {
+        if (own_offsets.count(a.epoch.samples[i].sensor_id) == 0) continue;
+        static_cast<MeasurementCost*>(a.measurements[i].cost.get())->SetFieldUsed(false);
+      }
+    }
+    internal::Factor next;
+    FoldFront(a, b, &prior, &next);
     prior = std::move(next);
     window.pop_front();
   }
@@ -893,7 +931,20 @@ struct WindowTracker::Impl {
     if (options.sensor_offset.window_score_test && !offsets_called) {
       // Not on the start's solve (the robust-loss continuation from the
       // initialiser's guess).
-      if (start || !summary.usable || !OffsetsCalledFor()) return;
+      if (start || !summary.usable) return;
+      if (!OffsetsCalledFor()) {
+        first_fired_t_s = std::numeric_limits<double>::quiet_NaN();
+        return;
+      }
+      const double persist_s = options.sensor_offset.window_score_persist_s;
+      if (persist_s > 0.0) {
+        const double t_now = window.back().epoch.t_s;
+        if (std::isnan(first_fired_t_s)) first_fired_t_s = t_now;
+        if (t_now - first_fired_t_s < persist_s) return;
+        // The latch: the prior without the B of the samples that left.
+        if (prior.cost) prior = std::move(tensor_prior);
+        tensor_prior = internal::Factor{};
+      }
       offsets_called = true;
     }
     summary.offsets_solved = true;
@@ -1246,6 +1297,23 @@ void WindowTracker::AddFix(const DipoleFix& fix) {
   if (m.fixes.size() > kMaxPendingFixes) m.fixes.pop_front();
 }
 
+namespace {
+
+// A window prior (PriorCost on the front state and the moment) in a
+// checkpoint: a flag, then L, x̄ and c.
+void PutPrior(StateWriter& w, const internal::Factor& f) {
+  const auto* prior = dynamic_cast<const PriorCost*>(f.cost.get());
+  if (f.cost && !prior) throw std::logic_error("WindowTracker::SaveState: a prior of another kind");
+  w.U8(prior ? 1 : 0);
+  if (prior) {
+    w.Matrix(prior->L());
+    w.Matrix(prior->x_bar());
+    w.Matrix(prior->c());
+  }
+}
+
+}  // namespace
+
 void WindowTracker::SaveState(StateWriter& w) const {
   const Impl& m = *impl_;
   internal::PutDeque(w, m.buffer);
@@ -1262,14 +1330,7 @@ void WindowTracker::SaveState(StateWriter& w) const {
     internal::Put(w, e.epoch);
     w.Matrix(e.x);
   }
-  const auto* prior = dynamic_cast<const PriorCost*>(m.prior.cost.get());
-  if (m.prior.cost && !prior) throw std::logic_error("WindowTracker::SaveState: a prior of another kind");
-  w.U8(prior ? 1 : 0);
-  if (prior) {
-    w.Matrix(prior->L());
-    w.Matrix(prior->x_bar());
-    w.Matrix(prior->c());
-  }
+  PutPrior(w, m.prior);
   internal::Put(w, m.summary);
   w.I64(m.unsolved);
   w.F64(m.last_solve_t);
@@ -1282,6 +1343,10 @@ void WindowTracker::SaveState(StateWriter& w) const {
       w.Matrix(o);
     }
     if (m.options.sensor_offset.window_score_test) w.U8(m.offsets_called ? 1 : 0);
+    if (m.options.sensor_offset.window_score_persist_s > 0.0) {
+      w.F64(m.first_fired_t_s);
+      PutPrior(w, m.tensor_prior);
+    }
     if (m.options.sensor_offset.window_lines) {
       w.F64(m.own_offset_t_s);
       w.U64(m.own_rates.size());
@@ -1327,14 +1392,7 @@ void WindowTracker::RestoreState(StateReader& r) {
     const StateVector x = internal::GetMatrix(r, 6, 1);
     m.Append(e, x);  // the measurement and process factors, as when it was first appended
   }
-  if (r.U8() != 0) {
-    const Eigen::Matrix<double, 9, 9> L = internal::GetMatrix(r, 9, 9);
-    const Eigen::Matrix<double, 9, 1> x_bar = internal::GetMatrix(r, 9, 1);
-    const Eigen::Matrix<double, 9, 1> c = internal::GetMatrix(r, 9, 1);
-    if (m.window.empty()) throw CheckpointError("corrupt: a window prior without a window");
-    m.prior.cost = std::make_unique<PriorCost>(L, x_bar, c);
-    m.prior.blocks = {m.window.front().x.data(), m.moment.data()};
-  }
+  m.GetPrior(r, &m.prior);
   internal::Get(r, &m.summary);
   m.unsolved = static_cast<int>(r.I64());
   m.last_solve_t = r.F64();
@@ -1346,6 +1404,11 @@ void WindowTracker::RestoreState(StateReader& r) {
       m.own_offsets[id] = internal::GetMatrix(r, 3, 1);
     }
     if (m.options.sensor_offset.window_score_test) m.offsets_called = r.U8() != 0;
+    if (m.options.sensor_offset.window_score_persist_s > 0.0) {
+      m.first_fired_t_s = r.F64();
+      if (std::isinf(m.first_fired_t_s)) throw CheckpointError("corrupt: the score test's first firing");
+      m.GetPrior(r, &m.tensor_prior);
+    }
     if (m.options.sensor_offset.window_lines) {
       m.own_offset_t_s = r.F64();
       for (std::size_t n = r.Count(internal::kMaxStateCount); n > 0; --n) {

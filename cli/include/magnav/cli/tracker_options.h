@@ -358,6 +358,10 @@ inline void AddTrackerOptions(CLI::App& app, TrackerFlags* f, const std::string&
                  "sensor offset (window, with --sensor-offset on or --window-offset-lines on): a track's window "
                  "solves its offsets only from the solve where its B residuals call for them (the batch's score test, "
                  "per sensor over the window) to the track's end (on), or from the start (off)");
+  app.add_option("--window-offset-score-persist", t.sensor_offset.window_score_persist_s,
+                 "--window-offset-score-test: it latches only once it has fired at every window solve for this long, "
+                 "s, the window's prior then from the leaving samples' tensors alone (0 = at its first firing)")
+      ->capture_default_str();
   AddOnOffOption(app, "--window-offset-lines", &t.sensor_offset.window_lines,
                  "each track's window solve gives every sensor a B offset that is a line in time over the window "
                  "(level and rate; an untracked vessel's B changing within the window) as a nuisance (on; the batch "

@@ -264,6 +264,16 @@ struct SensorOffsetOptions {
   // solved from the start (docs/ACCURACY.md, "The window's offsets behind
   // the batch's score test").
   bool window_score_test = false;
+  // With window_score_test: the test latches only once it has fired at
+  // every window solve for this long (s; 0 = at its first firing). Until it
+  // latches the window keeps, beside its prior, a second one folded from the
+  // leaving samples' tensors alone, which becomes the window's prior at the
+  // latch: the B levels of the samples that left before the latch, under
+  // the drift that fires it, do not stay in the prior. A firing that does
+  // not last (two tracked AUVs abreast 20 m apart: heldout_abreast/abreast_20,
+  // 2 s) never latches. 0 by default; docs/ACCURACY.md, "The window's score
+  // test latched after it persists, with a tensor-only prior".
+  double window_score_persist_s = 0.0;
   bool carry = false;
   double min_tensor_snr = 0.0;
   bool quiet = false;
