@@ -867,8 +867,8 @@ TEST(HarbourScenario, WindowOffsetsBesideAFarShipLeaveTheMomentToTheTensor) {
 }
 
 // The score test latched only after it persists (SensorOffsetOptions::
-// window_score_persist_s, 3 s here; docs/ACCURACY.md "The window's score test
-// latched after it persists, with a tensor-only prior"). On
+// window_score_persist_s, 3 s here; an option, 0 by default; docs/ACCURACY.md
+// "The drift flags as the window's defaults: measured, not merged"). On
 // heldout_abreast/abreast_20 (two tracked AUVs abreast 20 m apart, no drift)
 // the test fires from 55 s, 6 s after the pair's start: latched there, the
 // lines and the B-laden prior took the rows to RMS 0.495 / 0.352 m (0.193 /
