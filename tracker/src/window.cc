@@ -382,12 +382,14 @@ struct WindowTracker::Impl {
     WindowEpoch& b = window[1];
     // Before the score test latches (window_score_persist_s), the same fold
     // with every leaving sample's B left out, into the tensor-only prior.
+    const auto use_field = [&a](std::size_t i, bool used) {
+      static_cast<MeasurementCost*>(a.measurements[i].cost.get())->SetFieldUsed(used);
+    };
     if (KeepTensorPrior()) {
-      for (auto& f : a.measurements) static_cast<MeasurementCost*>(f.cost.get())->SetFieldUsed(false);
+      for (std::size_t i = 0; i < a.measurements.size(); ++i) use_field(i, false);
       internal::Factor next_tensor;
       FoldFront(a, b, &tensor_prior, &next_tensor);
       tensor_prior = std::move(next_tensor);
-      for (auto& f : a.measurements) static_cast<MeasurementCost*>(f.cost.get())->SetFieldUsed(true);
     }
     // A sensor with its own offset (sensor_offset) leaves its B level to the
     // window: the offset is solved again from the window's samples (or
@@ -397,11 +399,8 @@ struct WindowTracker::Impl {
     // moment and the range to an offset the next windows move (far_ship_105:
     // the moment 7 % off at 55 σ). Its tensor stays in the prior; its B
     // informs the state only while it is in the window.
-    if (!own_offsets.empty()) {
-      for (std::size_t i = 0; i < a.measurements.size(); ++i) {
-        if (own_offsets.count(a.epoch.samples[i].sensor_id) == 0) continue;
-        static_cast<MeasurementCost*>(a.measurements[i].cost.get())->SetFieldUsed(false);
-      }
+    for (std::size_t i = 0; i < a.measurements.size(); ++i) {
+      use_field(i, own_offsets.count(a.epoch.samples[i].sensor_id) == 0);
     }
     internal::Factor next;
     FoldFront(a, b, &prior, &next);
