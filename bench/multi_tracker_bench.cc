@@ -114,7 +114,14 @@ double ForwardModelSeconds(const FieldScenario& sc, const SimulatedField& f) {
 // With it on, the onset model's work is reported as counts (MultiSummary::
 // turn_onset: they do not depend on the machine's load): window solves,
 // tries, grid searches, candidate solves per window solve.
-void RunField(benchmark::State& state, bool turn_onset, double noise_sigmas = 0.0) {
+// drift_flags: the window's drift flags for a field known to drift
+// (--window-offset-lines on --window-offset-score-test on
+// --window-offset-rate-sigma 1e-10; docs/ACCURACY.md, "The drift flags as the
+// window's defaults"), the score test latched after it has fired for
+// persist_s (SensorOffsetOptions::window_score_persist_s; 0 = at its first
+// firing).
+void RunField(benchmark::State& state, bool turn_onset, double noise_sigmas = 0.0, bool drift_flags = false,
+              double persist_s = 0.0) {
   const int n = static_cast<int>(state.range(0));
   const int vessels = static_cast<int>(state.range(1));
   const double solve_interval_s = static_cast<double>(state.range(2)) * 1e-3;
@@ -128,6 +135,12 @@ void RunField(benchmark::State& state, bool turn_onset, double noise_sigmas = 0.
   opt.track.window_turn_onset_model = turn_onset;
   opt.track.window_turn_onset_trigger_noise_sigmas = noise_sigmas;
   if (state.range(4) != 0) opt.far_source.enabled = false;
+  if (drift_flags) {
+    opt.track.sensor_offset.window_lines = true;
+    opt.track.sensor_offset.window_score_test = true;
+    opt.track.sensor_offset.line_rate_sigma_T_per_s = 1e-10;
+    opt.track.sensor_offset.window_score_persist_s = persist_s;
+  }
   int tracks = 0;
   magnav::tracker::MultiSummary summary;
   double cpu_s = 0.0;
@@ -226,6 +239,20 @@ BENCHMARK(BM_MultiTrackerFieldTurnOnsetNoise)
     ->Args({10, 10, 500, 0, 0, 20})
     ->Args({10, 10, 500, 1, 0, 20})
     ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+// The window's drift flags at scale, apart and abreast (docs/BENCHMARKS.md:
+// their cost and the pairs' RMS against the defaults' rows of
+// BM_MultiTrackerField); the last argument is the score test's persistence, s.
+void BM_MultiTrackerFieldDriftFlags(benchmark::State& state) {
+  RunField(state, false, 0.0, true, static_cast<double>(state.range(5)));
+}
+BENCHMARK(BM_MultiTrackerFieldDriftFlags)
+    ->ArgNames({"grid", "vessels", "solve_ms", "abreast", "cluster_bg", "persist_s"})
+    ->Args({10, 10, 500, 0, 0, 0})
+    ->Args({10, 10, 500, 1, 0, 0})
+    ->Args({10, 10, 500, 0, 0, 3})
+    ->Args({10, 10, 500, 1, 0, 3})
+    ->Unit(benchmark::kSecond)
     ->Iterations(1);
 BENCHMARK(BM_MultiTrackerField)
     ->ArgNames({"grid", "vessels", "solve_ms", "abreast", "cluster_bg"})
