@@ -917,19 +917,6 @@ TEST(HarbourScenario, WindowScoreTestLatchedAfterItPersistsKeepsAbreastAndTakesT
   EXPECT_LE(nees[0], 2.0 * 3.69);  // measured 3.69 (1.97 latched at once; 27 with the B-laden prior kept)
   // Measured 2.7 s after the track's first row (0.2 s latched at once).
   EXPECT_GE(tracks[0].t_window_offsets_s - tracks[0].t_start_s, 2.0);
-  // The option's checks: finite, ≥ 0, and only with the score test.
-  SensorOffsetOptions so;
-  so.window_lines = true;
-  std::string error;
-  so.window_score_persist_s = 3.0;
-  EXPECT_FALSE(so.IsValid(&error));
-  EXPECT_NE(error.find("window_score_persist_s"), std::string::npos) << error;
-  so.window_score_test = true;
-  EXPECT_TRUE(so.IsValid(&error)) << error;
-  so.window_score_persist_s = -1.0;
-  EXPECT_FALSE(so.IsValid(&error));
-  so.window_score_persist_s = std::nan("");
-  EXPECT_FALSE(so.IsValid(&error));
 }
 
 // The window's per-sensor offsets as lines in time (SensorOffsetOptions::

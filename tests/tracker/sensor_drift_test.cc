@@ -211,6 +211,25 @@ TEST(SensorOffset, CarryAndTensorGateAreOffAndChecked) {
   EXPECT_TRUE(o.IsValid(&why)) << why;
 }
 
+// The score test's persistence (SensorOffsetOptions::window_score_persist_s;
+// its effect: HarbourScenario.WindowScoreTestLatchedAfterItPersists…): off by
+// default, finite, ≥ 0, and only with the score test.
+TEST(SensorOffset, ScoreTestPersistenceIsOffAndChecked) {
+  SensorOffsetOptions so;
+  EXPECT_EQ(so.window_score_persist_s, 0.0);
+  so.window_lines = true;
+  std::string error;
+  so.window_score_persist_s = 3.0;
+  EXPECT_FALSE(so.IsValid(&error));
+  EXPECT_NE(error.find("window_score_persist_s"), std::string::npos) << error;
+  so.window_score_test = true;
+  EXPECT_TRUE(so.IsValid(&error)) << error;
+  so.window_score_persist_s = -1.0;
+  EXPECT_FALSE(so.IsValid(&error));
+  so.window_score_persist_s = std::nan("");
+  EXPECT_FALSE(so.IsValid(&error));
+}
+
 // Each sensor's offset from its quiet data (SensorOffsetOptions::quiet,
 // tracker/src/quiet_offset.h): 20 s of a 5 nT/min drift with 1 nT noise at
 // 10 Hz, 10 % of the samples spoilt by a vessel's 300 nT — the median sits on

@@ -370,11 +370,9 @@ struct WindowTracker::Impl {
     f->blocks = {window.front().x.data(), moment.data()};
   }
 
-  // Whether the window keeps its tensor-only prior (window_score_persist_s).
-  bool KeepTensorPrior() const {
-    const SensorOffsetOptions& so = options.sensor_offset;
-    return so.window_score_persist_s > 0.0 && so.window_score_test && so.WindowOffsets() && !offsets_called;
-  }
+  // Whether the window keeps its tensor-only prior (window_score_persist_s,
+  // which IsValid allows only with the score test and the window's offsets).
+  bool KeepTensorPrior() const { return options.sensor_offset.window_score_persist_s > 0.0 && !offsets_called; }
 
   void MarginalizeFront() {
     CarryFrontOffsets();
